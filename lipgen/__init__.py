@@ -1,0 +1,30 @@
+"""lipgen: a physically based 3D lip model (Basu 1997) and tools around it."""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from .errors import (
+    DatasetError,
+    LipgenError,
+    MeshError,
+    MissingDependencyError,
+    ModelFileError,
+    RenderBackendError,
+    SingularStiffnessError,
+    TopologyMismatchError,
+)
+from .tol import tol
+
+__all__ = [
+    "__version__",
+    "tol",
+    "LipgenError",
+    "MeshError",
+    "SingularStiffnessError",
+    "ModelFileError",
+    "TopologyMismatchError",
+    "DatasetError",
+    "RenderBackendError",
+    "MissingDependencyError",
+]

@@ -1,0 +1,1 @@
+"""Subcommands of the ``lipgen`` CLI, one module each (see :mod:`lipgen.cli`)."""
