@@ -14,11 +14,15 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .mesh import LipMesh
+from .procedural import lip_mesh
 from .tol import tol
 
 __all__ = [
     "__version__",
     "tol",
+    "LipMesh",
+    "lip_mesh",
     "LipgenError",
     "MeshError",
     "SingularStiffnessError",
