@@ -14,7 +14,9 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .llse import LLSE, llse
 from .mesh import LipMesh
+from .modes import ModeModel
 from .procedural import lip_mesh
 from .tol import tol
 
@@ -31,4 +33,7 @@ __all__ = [
     "DatasetError",
     "RenderBackendError",
     "MissingDependencyError",
+    "ModeModel",
+    "LLSE",
+    "llse",
 ]
