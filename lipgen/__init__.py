@@ -14,6 +14,8 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .llse import LLSE, llse
+from .modes import ModeModel
 from .tol import tol
 
 __all__ = [
@@ -27,4 +29,7 @@ __all__ = [
     "DatasetError",
     "RenderBackendError",
     "MissingDependencyError",
+    "ModeModel",
+    "LLSE",
+    "llse",
 ]
