@@ -31,7 +31,6 @@ from __future__ import annotations
 import logging
 import os
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +40,6 @@ from ._optional import require
 from ._usd_author import BAKED_POINTS, BLEND_SHAPES, ENCODING_SET, Plan, author_stage, float_extent
 from ._usd_read import UsdAnimation, ValidationIssue, read_animation, validate
 from ._validate import as_float_array, check_finite
-from .errors import TopologyMismatchError
 
 __all__ = ["export_usd", "read_animation", "validate", "UsdAnimation", "ValidationIssue",
            "EXTENSIONS", "ENCODING_SET", "BLEND_SHAPES", "BAKED_POINTS"]
@@ -50,10 +48,6 @@ log = logging.getLogger(__name__)
 
 EXTENSIONS = (".usda", ".usdc", ".usd", ".usdz")
 _CHUNK = 2048  # frames per block when bounding the blend-shape animation
-
-
-def _pxr(purpose: str):
-    return require("pxr", purpose)
 
 
 def _check_extension(path: str | os.PathLike) -> str:
@@ -123,13 +117,15 @@ def _blend_shape_plan(mesh, model, weights, weight_range):
 def _skel_extent(rest32, offsets32, weights32) -> np.ndarray:
     """Bound of every frame's deformed points, from the float32 values USD holds, padded by a
     bound on the float32 rounding of a consumer's blend-shape sum."""
-    rest = rest32.astype(np.float64).reshape(-1)
-    O = offsets32.astype(np.float64).reshape(len(offsets32), -1)
+    n = len(rest32)
+    # Coordinate-major (x of every node, then y, then z) so the min/max run over contiguous memory.
+    rest = rest32.astype(np.float64).T.reshape(-1)
+    O = offsets32.astype(np.float64).transpose(0, 2, 1).reshape(len(offsets32), -1)
     W = weights32.astype(np.float64)
-    lo, hi = rest.reshape(-1, 3).min(axis=0), rest.reshape(-1, 3).max(axis=0)
+    lo, hi = rest32.min(axis=0).astype(np.float64), rest32.max(axis=0).astype(np.float64)
     for a in range(0, len(W), _CHUNK):
-        P = (rest + W[a:a + _CHUNK] @ O).reshape(-1, 3)
-        lo, hi = np.minimum(lo, P.min(axis=0)), np.maximum(hi, P.max(axis=0))
+        P = (rest + W[a:a + _CHUNK] @ O).reshape(-1, 3, n)
+        lo, hi = np.minimum(lo, P.min(axis=(0, 2))), np.maximum(hi, P.max(axis=(0, 2)))
     magnitude = np.abs(rest).max() + (np.abs(W).max(axis=0, initial=0) @ np.abs(O).max(axis=1))
     pad = 4 * (len(O) + 2) * np.finfo(np.float32).eps * magnitude
     return float_extent(np.stack([lo, hi]), pad=pad)
@@ -223,7 +219,7 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
     if default_encoding not in (BLEND_SHAPES, BAKED_POINTS):
         raise ValueError(f"default_encoding must be {BLEND_SHAPES!r} or {BAKED_POINTS!r}, "
                          f"got {default_encoding!r}")
-    pxr = _pxr("USD export")  # noqa: F841  (fails early, with the install hint)
+    require("pxr", "USD export")  # fails early, with the install hint
     plan = _build_plan(mesh, model, weights, points, weight_range, root, markers, regions)
     from pxr import Sdf, Usd, UsdGeom
 
@@ -242,10 +238,7 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
     author_stage(stage, plan, default_encoding)
     dest = Path(path)
     with atomic_path(dest) as tmp:
-        if ext == ".usdz":
-            _write_usdz(layer, tmp, dest.stem)
-        elif not layer.Export(str(tmp)):
-            raise OSError(f"USD could not write {tmp}")
+        _write_layer(layer, tmp, ext, dest.stem)
     log.info("wrote %s (%d frames, %s)", dest, n_frames,
              "+".join(e for e, on in ((BLEND_SHAPES, plan.rest is not None),
                                       (BAKED_POINTS, points is not None)) if on))
@@ -258,10 +251,17 @@ def _shift_times(plan: Plan, start: int) -> Plan:
     return replace(plan, times=plan.times + float(start))
 
 
-def _write_usdz(layer, tmp: Path, stem: str) -> None:
-    """A ``.usdz`` package at ``tmp`` holding the stage as one ``.usdc`` root layer."""
+def _write_layer(layer, tmp: Path, ext: str, stem: str) -> None:
+    """Write ``layer`` to the temporary file ``tmp`` in the format of ``ext``.
+
+    ``.usdz`` is a package holding the stage as one ``.usdc`` root layer named ``stem``.
+    """
     from pxr import UsdUtils
 
+    if ext != ".usdz":
+        if not layer.Export(str(tmp)):
+            raise OSError(f"USD could not write {tmp}")
+        return
     with tempfile.TemporaryDirectory(prefix="lipgen-usdz-") as work:
         inner = Path(work) / f"{_identifier(stem)}.usdc"
         if not layer.Export(str(inner)):
