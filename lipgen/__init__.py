@@ -14,11 +14,17 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .llse import LLSE, llse
+from .mesh import LipMesh
+from .modes import ModeModel
+from .procedural import lip_mesh
 from .tol import tol
 
 __all__ = [
     "__version__",
     "tol",
+    "LipMesh",
+    "lip_mesh",
     "LipgenError",
     "MeshError",
     "SingularStiffnessError",
@@ -27,4 +33,7 @@ __all__ = [
     "DatasetError",
     "RenderBackendError",
     "MissingDependencyError",
+    "ModeModel",
+    "LLSE",
+    "llse",
 ]
