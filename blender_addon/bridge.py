@@ -11,11 +11,11 @@ import bpy
 import numpy as np
 
 __all__ = [
-    "mesh_vertices", "set_mesh_vertices", "mesh_triangles", "new_mesh", "polygon_loops", "selected_vertices",
-    "face_attribute", "set_face_attribute", "point_vectors", "set_point_vectors", "vertex_group_nodes", "set_vertex_group",
-    "shape_key_co", "set_shape_key_co", "ensure_basis", "ensure_shape_key", "remove_shape_key",
-    "add_sum_driver", "remove_driver", "fcurve_ensure", "set_keyframes", "remove_fcurves",
-    "evaluated_vertices", "rest_vertices",
+    "mesh_vertices", "set_mesh_vertices", "mesh_triangles", "new_mesh", "polygon_loops",
+    "select_polygons", "selected_vertices", "face_attribute", "set_face_attribute", "point_vectors",
+    "set_point_vectors", "vertex_group_nodes", "set_vertex_group", "shape_key_co", "set_shape_key_co",
+    "ensure_basis", "ensure_shape_key", "remove_shape_key", "add_sum_driver", "remove_driver",
+    "fcurve_ensure", "set_keyframes", "remove_fcurves", "evaluated_vertices", "rest_vertices",
 ]
 
 
@@ -73,6 +73,19 @@ def selected_vertices(mesh: bpy.types.Mesh) -> np.ndarray:
     sel = np.empty(len(mesh.vertices), bool)
     mesh.vertices.foreach_get("select", sel)
     return np.flatnonzero(sel).astype(np.int64)
+
+
+def select_polygons(mesh: bpy.types.Mesh, polygons) -> None:
+    """Select exactly ``polygons`` (and their vertices); object-mode data."""
+    sel = np.zeros(len(mesh.polygons), bool)
+    sel[np.asarray(polygons, np.int64)] = True
+    mesh.polygons.foreach_set("select", sel)
+    vsel = np.zeros(len(mesh.vertices), bool)
+    loop_vert, loop_start = polygon_loops(mesh)
+    counts = np.diff(np.append(loop_start, len(loop_vert)))
+    vsel[loop_vert[np.repeat(sel, counts)]] = True
+    mesh.vertices.foreach_set("select", vsel)
+    mesh.update()
 
 
 def face_attribute(mesh: bpy.types.Mesh, name: str) -> np.ndarray | None:

@@ -7,9 +7,13 @@ own units; ``settings.unit_mm`` converts them to the millimetres of the physics.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
+
 from lipgen.addon import ModeBasis, PhysicsSpec, physics_for
 from lipgen.addon.modebasis import SLIDER_LIMIT
+from lipgen.errors import MeshError
 from lipgen.mesh import REGIONS, LipMesh
 
 from . import bridge
@@ -17,6 +21,7 @@ from . import bridge
 __all__ = [
     "REGION_ATTR", "MEAN_KEY", "PREVIEW_KEY", "REACH_KEY", "GROUPS", "UserError",
     "mesh_object", "regions_per_triangle", "region_codes_from_groups", "physics_spec", "physics",
+    "physics_for_object",
     "lip_mesh_of", "topology_id", "apply_mode_basis", "mode_basis", "clear_modes",
     "mode_key_name", "write_displacement_key", "slider_path",
 ]
@@ -117,7 +122,26 @@ def physics_spec(obj) -> PhysicsSpec:
 
 def physics(obj):
     """The factorised physics of ``obj`` (cached; see :mod:`lipgen.addon.physics_cache`)."""
-    return physics_for(physics_spec(obj))
+    return physics_for_object(obj, physics_spec(obj))
+
+
+def physics_for_object(obj, spec: PhysicsSpec):
+    """:func:`lipgen.addon.physics_for`, with a broken face shown to the artist.
+
+    The core numbers faces as Blender's triangulation does; a :class:`lipgen.MeshError` naming
+    one is re-raised naming its Blender polygon, which is also selected (Edit Mode shows it).
+    """
+    try:
+        return physics_for(spec)
+    except MeshError as exc:
+        found = re.search(r"\bface (\d+)", str(exc))
+        if found is None:
+            raise
+        _, poly = bridge.mesh_triangles(obj.data)
+        p = int(poly[int(found.group(1))])
+        bridge.select_polygons(obj.data, [p])
+        raise MeshError(f"{exc} [that triangle is part of polygon {p}, now selected: look at it "
+                        "in Edit Mode]") from exc
 
 
 def lip_mesh_of(obj) -> LipMesh:

@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
+
 from lipgen.addon import load_curves
 from lipgen.addon.modebasis import SLIDER_LIMIT
 

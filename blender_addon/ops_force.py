@@ -4,8 +4,16 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty, StringProperty
-from lipgen.addon import moved_nodes, physics_for, reach_goals
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    StringProperty,
+)
+
+from lipgen.addon import moved_nodes, reach_goals
 
 from . import bridge, lipobject, preview
 from .lipobject import REACH_KEY, UserError
@@ -105,7 +113,7 @@ class OBJECT_OT_lipgen_reach_start(LipgenOperator, bpy.types.Operator):
 
 
 class OBJECT_OT_lipgen_reach_solve(LipgenOperator, bpy.types.Operator):
-    """Solve the reach shape: the vertices you moved keep their place, the physics moves the rest with least strain (eq 4.3)"""
+    """Solve the reach shape: moved vertices stay, the physics moves the rest with least strain (eq 4.3)"""
 
     bl_idname = "object.lipgen_reach_solve"
     bl_label = "Solve Reach"
@@ -137,7 +145,7 @@ class OBJECT_OT_lipgen_reach_solve(LipgenOperator, bpy.types.Operator):
         if self.hold_selected:
             goals.update(bridge.selected_vertices(obj.data).tolist())
         spec = lipobject.physics_spec(obj)
-        phys = physics_for(spec)
+        phys = lipobject.physics_for_object(obj, spec)
         rg = reach_goals(rest * unit, target * unit, sorted(goals), spec.anchors)
         U, _F = phys.reach(rg.dofs, rg.values)
         new = rest + np.asarray(U) / unit

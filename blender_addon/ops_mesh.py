@@ -8,7 +8,7 @@ import time
 import bpy
 import numpy as np
 from bpy.props import FloatProperty, IntProperty, StringProperty
-from lipgen.addon import physics_for
+
 from lipgen.mesh import REGIONS
 
 from . import bridge, lipobject, preview
@@ -131,7 +131,7 @@ class OBJECT_OT_lipgen_build_physics(LipgenOperator, bpy.types.Operator):
     def run(self, context):
         obj = lipobject.mesh_object(context.active_object)
         t0 = time.perf_counter()
-        phys = physics_for(lipobject.physics_spec(obj))
+        phys = lipobject.physics(obj)
         obj.lipgen.status = _describe(phys, time.perf_counter() - t0)
         self.report({"INFO"}, obj.lipgen.status)
 

@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
+
 from lipgen.addon import ModeBasis
 
 from . import bridge, lipobject
@@ -118,7 +119,7 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
             raise UserError(f"training needs at least 2 example shapes, found {len(U)} "
                             f"({self.source.lower().replace('_', ' ')})")
         n = min(self.n_modes, len(U) - 1)  # F shapes have at most F - 1 modes about their mean
-        basis = ModeBasis.fit(U, n, topology_id=lipobject.topology_id(obj),
+        basis = ModeBasis.fit(U, n, mesh=lipobject.lip_mesh_of(obj),
                               source=f"trained on {len(U)} {self.source.lower().replace('_', ' ')}")
         # Sliders drive the rig from the training shapes' own mean: existing shape keys (the
         # examples) stay as they are; the mean goes into its own key at weight 1.

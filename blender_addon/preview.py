@@ -14,9 +14,10 @@ import hashlib
 from dataclasses import dataclass
 
 import numpy as np
-from lipgen.addon import ForceResponses, physics_for
-from lipgen.errors import LipgenError
 from mathutils import Vector
+
+from lipgen.addon import ForceResponses
+from lipgen.errors import LipgenError
 
 from . import bridge, lipobject
 
@@ -70,7 +71,7 @@ def _responses(obj, group: str, reuse: bool) -> ForceResponses:
     if len(nodes) == 0:
         raise lipobject.UserError(f"the vertex group {group!r} is empty; assign the vertices to push")
     spec = lipobject.physics_spec(obj)
-    phys = physics_for(spec)
+    phys = lipobject.physics_for_object(obj, spec)
     resp = ForceResponses(phys, nodes, phys.mesh.vertex_normals())
     _SESSIONS[obj.session_uid] = _Session(fp, resp)
     return resp

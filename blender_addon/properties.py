@@ -6,12 +6,12 @@ import bpy
 from bpy.props import (
     BoolProperty,
     CollectionProperty,
-    EnumProperty,
     FloatProperty,
     FloatVectorProperty,
     IntProperty,
     StringProperty,
 )
+
 from lipgen.fem import DEFAULT_STIFFNESS
 
 from . import preview

@@ -141,15 +141,23 @@ class ModeBasis:
                    tuple(f"Mode {i + 1}" for i in range(k)), topo, source)
 
     @classmethod
-    def fit(cls, frames, n_modes: int, topology_id: str = "", source: str = "fitted") -> ModeBasis:
-        """PCA modes of displacement ``frames`` ``(F, n, 3)`` through :class:`lipgen.modes.ModeModel`."""
+    def fit(cls, frames, n_modes: int, mesh=None, source: str = "fitted") -> ModeBasis:
+        """PCA modes of displacement ``frames`` ``(F, n, 3)`` through :class:`lipgen.modes.ModeModel`.
+
+        ``mesh`` (a :class:`lipgen.LipMesh`) records the topology the modes belong to.
+        """
         from ..modes import ModeModel
 
         U = as_float_array(frames, "frames", (None, None, 3))
-        if len(U) < 2:
-            raise ValueError(f"fitting modes needs at least 2 frames, got {len(U)}")
-        model = ModeModel(n_modes=int(n_modes)).fit(U)
-        return cls.from_model(model, source=source, topology_id=topology_id or None)
+        model = ModeModel(n_modes=int(n_modes)).fit(U, mesh=mesh)
+        return cls.from_model(model, source=source)
+
+    def as_model(self) -> _BasisModel:
+        """A read-only stand-in with a fitted :class:`~lipgen.modes.ModeModel`'s attributes
+        (``mean_``, ``components_``, ``explained_variance_ = scales**2``, ``n_nodes_``,
+        ``topology_id_``, ``check_mesh``, ``synthesize``), for :func:`lipgen.usd.export_usd`:
+        USD blend-shape weights then equal the rig's slider values."""
+        return _BasisModel(self)
 
     @classmethod
     def from_physics(cls, physics, n_modes: int) -> ModeBasis:
@@ -187,3 +195,24 @@ class ModeBasis:
         scales = 1.0 / np.linalg.norm(comp, axis=2).max(axis=1)
         return cls(np.zeros((n, 3)), comp, scales, tuple(f"Soft {i + 1}" for i in range(k)),
                    physics.mesh.topology_id, "physics (softest modes)")
+
+
+class _BasisModel:
+    """What :meth:`ModeBasis.as_model` returns (see there)."""
+
+    def __init__(self, basis: ModeBasis) -> None:
+        self.mean_ = basis.mean.reshape(-1).copy()
+        self.components_ = basis.components.reshape(basis.n_modes, -1).copy()
+        self.explained_variance_ = basis.scales**2
+        self.n_nodes_ = basis.n_nodes
+        self.topology_id_ = basis.topology_id
+        self._basis = basis
+
+    def check_mesh(self, mesh) -> None:
+        if mesh.n_nodes != self.n_nodes_:
+            raise TopologyMismatchError(f"the modes have {self.n_nodes_} nodes but mesh "
+                                        f"{mesh.name!r} has {mesh.n_nodes}")
+        self._basis.check_topology(mesh.topology_id, f"mesh {mesh.name!r}")
+
+    def synthesize(self, coef) -> np.ndarray:
+        return self._basis.displacement(coef)
