@@ -14,6 +14,7 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .fem import DEFAULT_STIFFNESS, Physics, dofs
 from .tol import tol
 
 __all__ = [
@@ -27,4 +28,7 @@ __all__ = [
     "DatasetError",
     "RenderBackendError",
     "MissingDependencyError",
+    "Physics",
+    "DEFAULT_STIFFNESS",
+    "dofs",
 ]
