@@ -113,8 +113,13 @@ def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
         pts = Vt.Vec3fArray(rest)
         assert query.ComputeDeformedPoints(sub_w, bs_idx, sub_idx, indices, offsets, pts)
         assert np.array_equal(np.asarray(pts, np.float64), baked[f])
-    # Scale: offsets are the components times each mode's standard deviation.
+    # Scale: offsets are the components times each mode's standard deviation, kept on the mesh,
+    # so the coefficients come back as weight * scale.
     std = np.sqrt(model.explained_variance_)
+    scale = np.asarray(binding.GetPrim().GetAttribute("lipgen:modeScale").Get())
+    assert np.allclose(scale, std)
+    coef = np.stack([np.asarray(anim.GetBlendShapeWeightsAttr().Get(f)) for f in range(len(weights))]) * scale
+    assert np.allclose(coef, weights, rtol=1e-6, atol=1e-6 * np.abs(weights).max())
     got = np.stack([np.asarray(o, np.float64).ravel() for o in offsets if len(o)])  # drop null shapes
     assert np.allclose(got, model.components_ * std[:, None], atol=4 * U32 * np.abs(got).max())
 
