@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from lipgen import TopologyMismatchError, usd  # noqa: E402
+from lipgen import TopologyMismatchError, lip_mesh, usd  # noqa: E402
 from lipgen.mesh import LipMesh  # noqa: E402
 from lipgen.modes import ModeModel  # noqa: E402
 
@@ -21,26 +21,9 @@ pytestmark = pytest.mark.usd
 U32 = 2.0**-24
 
 
-def _grid_mesh():
-    """A lip-sized curved sheet (60 x 30 mm) with four regions and markers."""
-    nx, ny = 17, 12
-    x, y = np.meshgrid(np.linspace(-30, 30, nx), np.linspace(-15, 15, ny))
-    z = 8 * np.exp(-(x**2 / 400 + y**2 / 100))
-    V = np.c_[x.ravel(), y.ravel(), z.ravel()]
-    faces = []
-    for j in range(ny - 1):
-        for i in range(nx - 1):
-            a = j * nx + i
-            faces += [[a, a + 1, a + nx], [a + 1, a + nx + 1, a + nx]]
-    faces = np.array(faces)
-    regions = np.minimum(np.arange(len(faces)) * 4 // len(faces), 3)
-    return LipMesh(V, faces, regions, anchors=np.arange(nx), markers=[40, 60, 100, 130, 150, 170],
-                   name="lips")
-
-
 @pytest.fixture(scope="module")
 def mesh():
-    return _grid_mesh()
+    return lip_mesh(0)
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +83,7 @@ def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
     model, weights = fitted
     path = usd.export_usd(tmp_path / "lips.usdc", mesh, model, weights)
     stage = Usd.Stage.Open(str(path))
-    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/Lips/lips"))
+    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
     query = UsdSkel.BlendShapeQuery(binding)
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/Lips/Skel/Anim"))
     assert list(anim.GetBlendShapesAttr().Get()) == [f"mode{i:02d}" for i in range(10)]
@@ -141,7 +124,7 @@ def test_baked_points_extents_and_stage_metadata(tmp_path, mesh, fitted):
     vset = root.GetVariantSets().GetVariantSet("encoding")
     assert vset.GetVariantNames() == ["bakedPoints", "blendShapes"]
     assert vset.GetVariantSelection() == "blendShapes"
-    meshp = UsdGeom.Mesh(stage.GetPrimAtPath("/Lips/lips"))
+    meshp = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
     assert meshp.GetSubdivisionSchemeAttr().Get() == "none"
     subsets = UsdGeom.Subset.GetGeomSubsets(meshp, "face", "region")
     assert sorted(s.GetPrim().GetName() for s in subsets) == sorted(mesh.region_names)
