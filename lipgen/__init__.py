@@ -15,11 +15,17 @@ from .errors import (
     TopologyMismatchError,
 )
 from .fem import DEFAULT_STIFFNESS, Physics, dofs
+from .llse import LLSE, llse
+from .mesh import LipMesh
+from .modes import ModeModel
+from .procedural import lip_mesh
 from .tol import tol
 
 __all__ = [
     "__version__",
     "tol",
+    "LipMesh",
+    "lip_mesh",
     "LipgenError",
     "MeshError",
     "SingularStiffnessError",
@@ -28,6 +34,9 @@ __all__ = [
     "DatasetError",
     "RenderBackendError",
     "MissingDependencyError",
+    "ModeModel",
+    "LLSE",
+    "llse",
     "Physics",
     "DEFAULT_STIFFNESS",
     "dofs",
