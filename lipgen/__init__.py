@@ -15,12 +15,16 @@ from .errors import (
     TopologyMismatchError,
 )
 from .llse import LLSE, llse
+from .mesh import LipMesh
 from .modes import ModeModel
+from .procedural import lip_mesh
 from .tol import tol
 
 __all__ = [
     "__version__",
     "tol",
+    "LipMesh",
+    "lip_mesh",
     "LipgenError",
     "MeshError",
     "SingularStiffnessError",
