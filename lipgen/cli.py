@@ -19,6 +19,7 @@ __all__ = ["main", "build_parser"]
 COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.bench",
     "lipgen.commands.export_usd",
+    "lipgen.commands.blender_extension",
 )
 
 _DESCRIPTION = """\
