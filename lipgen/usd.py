@@ -13,7 +13,9 @@ Two encodings, alone or together in one file (``.usda``, ``.usdc``, ``.usd``, ``
   ``s_i = sqrt(explained_variance_[i])`` (so weights are in standard deviations, mostly within
   ±3). With ``weight_range="unit"`` each mode becomes two shapes ``modeNN_pos`` / ``modeNN_neg``
   scaled so every weight lies in [0, 1], for importers that clamp weights to [0, 1] (Blender
-  clamps shape-key values to the slider range, [0, 1] by default).
+  clamps shape-key values to the slider range, [0, 1] by default). The scales ``s_i`` are kept
+  on the mesh as ``lipgen:modeScale``: ``coef_i = weight_i * s_i`` (signed) or
+  ``(weight_pos - weight_neg) * s_i`` (unit).
 * **Baked points.** The mesh's ``points`` and ``extent`` are time-sampled, one sample a frame.
 
 With both, ``/Lips`` holds a variant set ``encoding`` (``blendShapes``, ``bakedPoints``): one
@@ -131,7 +133,7 @@ def _skel_extent(rest32, offsets32, weights32) -> np.ndarray:
     return float_extent(np.stack([lo, hi]), pad=pad)
 
 
-def _build_plan(mesh, model, weights, points, weight_range, root, markers, regions) -> Plan:
+def _build_plan(mesh, model, weights, points, weight_range, root, markers, regions, start) -> Plan:
     n = mesh.n_nodes
     if weights is not None and model is None:
         raise ValueError("weights were given without a model; pass model=ModeModel.load(...) too")
@@ -155,14 +157,18 @@ def _build_plan(mesh, model, weights, points, weight_range, root, markers, regio
         baked = mesh.vertices[None].astype(np.float32)  # a still mesh
         n_frames = 0
     region_list = []
-    if regions:
+    if regions:  # subsets are children of the mesh, beside the blend shapes: keep the names apart
         for code, rname in enumerate(mesh.region_names):
             idx = np.flatnonzero(mesh.regions == code)
+            name = _identifier(rname)
             if len(idx):
-                region_list.append((_identifier(rname), idx))
+                region_list.append((f"{name}_region" if name in names else name, idx))
     marker_nodes = mesh.markers if markers else np.zeros(0, np.int64)
-    return Plan(root=_identifier(root), mesh_name=_identifier(mesh.name), markers_name="markers",
-                faces=mesh.faces, regions=region_list, times=np.arange(n_frames, dtype=np.float64),
+    mesh_name = _identifier(mesh.name)
+    if mesh_name in ("Skel", "markers"):  # the root's other children
+        mesh_name += "_mesh"
+    return Plan(root=_identifier(root), mesh_name=mesh_name, markers_name="markers",
+                faces=mesh.faces, regions=region_list, times=start + np.arange(n_frames, dtype=np.float64),
                 rest=rest, shape_names=names, offsets=offsets, shape_weights=shape_w,
                 skel_extent=skel_extent, baked=baked, marker_nodes=np.asarray(marker_nodes),
                 marker_names=tuple(mesh.marker_names) if markers else (), attrs=attrs)
@@ -220,7 +226,9 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
         raise ValueError(f"default_encoding must be {BLEND_SHAPES!r} or {BAKED_POINTS!r}, "
                          f"got {default_encoding!r}")
     require("pxr", "USD export")  # fails early, with the install hint
-    plan = _build_plan(mesh, model, weights, points, weight_range, root, markers, regions)
+    if isinstance(start, bool) or not isinstance(start, int | np.integer):
+        raise TypeError(f"start must be an integer time code, got {start!r}")
+    plan = _build_plan(mesh, model, weights, points, weight_range, root, markers, regions, float(start))
     from pxr import Sdf, Usd, UsdGeom
 
     layer = Sdf.Layer.CreateAnonymous("lipgen.usdc")
@@ -232,7 +240,6 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
     n_frames = len(plan.times)
     stage.SetStartTimeCode(float(start))
     stage.SetEndTimeCode(float(start + max(n_frames - 1, 0)))
-    plan = _shift_times(plan, start)
     layer.customLayerData = {"lipgen": {"topologyId": mesh.topology_id, "weightRange": weight_range,
                                         "frames": n_frames}}
     author_stage(stage, plan, default_encoding)
@@ -243,12 +250,6 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
              "+".join(e for e, on in ((BLEND_SHAPES, plan.rest is not None),
                                       (BAKED_POINTS, points is not None)) if on))
     return dest
-
-
-def _shift_times(plan: Plan, start: int) -> Plan:
-    from dataclasses import replace
-
-    return replace(plan, times=plan.times + float(start))
 
 
 def _write_layer(layer, tmp: Path, ext: str, stem: str) -> None:

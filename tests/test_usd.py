@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from lipgen import TopologyMismatchError, usd  # noqa: E402
+from lipgen import TopologyMismatchError, lip_mesh, usd  # noqa: E402
 from lipgen.mesh import LipMesh  # noqa: E402
 from lipgen.modes import ModeModel  # noqa: E402
 
@@ -21,26 +21,9 @@ pytestmark = pytest.mark.usd
 U32 = 2.0**-24
 
 
-def _grid_mesh():
-    """A lip-sized curved sheet (60 x 30 mm) with four regions and markers."""
-    nx, ny = 17, 12
-    x, y = np.meshgrid(np.linspace(-30, 30, nx), np.linspace(-15, 15, ny))
-    z = 8 * np.exp(-(x**2 / 400 + y**2 / 100))
-    V = np.c_[x.ravel(), y.ravel(), z.ravel()]
-    faces = []
-    for j in range(ny - 1):
-        for i in range(nx - 1):
-            a = j * nx + i
-            faces += [[a, a + 1, a + nx], [a + 1, a + nx + 1, a + nx]]
-    faces = np.array(faces)
-    regions = np.minimum(np.arange(len(faces)) * 4 // len(faces), 3)
-    return LipMesh(V, faces, regions, anchors=np.arange(nx), markers=[40, 60, 100, 130, 150, 170],
-                   name="lips")
-
-
 @pytest.fixture(scope="module")
 def mesh():
-    return _grid_mesh()
+    return lip_mesh(0)
 
 
 @pytest.fixture(scope="module")
@@ -100,7 +83,7 @@ def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
     model, weights = fitted
     path = usd.export_usd(tmp_path / "lips.usdc", mesh, model, weights)
     stage = Usd.Stage.Open(str(path))
-    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath("/Lips/lips"))
+    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
     query = UsdSkel.BlendShapeQuery(binding)
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/Lips/Skel/Anim"))
     assert list(anim.GetBlendShapesAttr().Get()) == [f"mode{i:02d}" for i in range(10)]
@@ -113,8 +96,13 @@ def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
         pts = Vt.Vec3fArray(rest)
         assert query.ComputeDeformedPoints(sub_w, bs_idx, sub_idx, indices, offsets, pts)
         assert np.array_equal(np.asarray(pts, np.float64), baked[f])
-    # Scale: offsets are the components times each mode's standard deviation.
+    # Scale: offsets are the components times each mode's standard deviation, kept on the mesh,
+    # so the coefficients come back as weight * scale.
     std = np.sqrt(model.explained_variance_)
+    scale = np.asarray(binding.GetPrim().GetAttribute("lipgen:modeScale").Get())
+    assert np.allclose(scale, std)
+    coef = np.stack([np.asarray(anim.GetBlendShapeWeightsAttr().Get(f)) for f in range(len(weights))]) * scale
+    assert np.allclose(coef, weights, rtol=1e-6, atol=1e-6 * np.abs(weights).max())
     got = np.stack([np.asarray(o, np.float64).ravel() for o in offsets if len(o)])  # drop null shapes
     assert np.allclose(got, model.components_ * std[:, None], atol=4 * U32 * np.abs(got).max())
 
@@ -136,7 +124,7 @@ def test_baked_points_extents_and_stage_metadata(tmp_path, mesh, fitted):
     vset = root.GetVariantSets().GetVariantSet("encoding")
     assert vset.GetVariantNames() == ["bakedPoints", "blendShapes"]
     assert vset.GetVariantSelection() == "blendShapes"
-    meshp = UsdGeom.Mesh(stage.GetPrimAtPath("/Lips/lips"))
+    meshp = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
     assert meshp.GetSubdivisionSchemeAttr().Get() == "none"
     subsets = UsdGeom.Subset.GetGeomSubsets(meshp, "face", "region")
     assert sorted(s.GetPrim().GetName() for s in subsets) == sorted(mesh.region_names)

@@ -4,7 +4,8 @@
 format and encoding is timed in the same run; the baseline is ``numpy.save`` of the same
 float32 arrays the file holds (the least any writer has to do), so the ratios say what the USD
 structure costs on this machine whatever its load. Reading back (``read_animation``, UsdSkel's
-``BakeSkinning`` over every frame) is timed as well.
+``BakeSkinning`` over every frame) is timed as well, and its points are compared with the
+float64 synthesis (the precision of USD's float32 evaluation at this scale).
 """
 
 from __future__ import annotations
@@ -75,6 +76,11 @@ def run(quick: bool = False) -> dict:
                 out[f"{label}_usda_over_usdc_{what}"] = ratio
         read = time_call(lambda: read_animation(Path(work) / "modes.usdc"), repeat=1)
         out["modes_usdc_read_animation_s"] = read["best_s"]
+        # Precision of USD's own (float32) evaluation against the float64 synthesis, every frame.
+        err = np.abs(read_animation(Path(work) / "modes.usdc").points - points)
+        out["modes_usdskel_max_abs_err_mm"] = float(err.max())
+        out["modes_usdskel_max_rel_err"] = float(err.max() / np.abs(points).max())
+        out["float32_half_step_at_max_coord_mm"] = float(np.spacing(np.float32(np.abs(points).max())) / 2)
     out["target_usdc_export_s"] = 2.0
     out["modes_usdc_meets_target"] = bool(out["modes_usdc_export_s"] <= 2.0)
     out["load_avg_1min_after"] = os.getloadavg()[0]
