@@ -156,7 +156,9 @@ def check_model_sliders(tmp: str) -> dict:
     rng = np.random.default_rng(1)
     sd = np.sqrt(model.explained_variance_)
     out = {}
-    for label, coef in (("typical", rng.normal(0, 1.0, k) * sd),
+    single = np.zeros(k)
+    single[0] = 1.5 * sd[0]
+    for label, coef in (("single", single), ("typical", rng.normal(0, 1.0, k) * sd),
                         ("extreme", 3.0 * sd * np.sign(rng.normal(size=k)))):
         for i, item in enumerate(s.modes):
             item.value = coef[i] / item.scale
@@ -210,18 +212,42 @@ def check_keyframed_sliders(tmp: str) -> dict:
     assert bpy.ops.object.lipgen_import_curves(filepath=f"{tmp}/curves.csv") == {"FINISHED"}
     rest = lip_mesh(0).vertices
     scene = bpy.context.scene
-    worst = 0.0
+    devs, bounds, peaks = [], [], []
+
+    def compare(want_coef):
+        got = evaluated(obj)
+        want = rest + model.synthesize(want_coef)
+        dev = np.abs(got - want)
+        sliders = [m.value for m in obj.lipgen.modes]
+        bound = float32_bound(obj, [1.0] + sliders, ["LipGen Mean"] + [f"LipGen {m.name}" for m in
+                                                                        obj.lipgen.modes])
+        # Keyframe values are float32 too: two stored keys and the interpolation, 3u each.
+        offsets = [np.abs(evaluated_key(obj, f"LipGen {m.name}")) for m in obj.lipgen.modes]
+        bound += 3 * 2.0**-24 * sum(abs(sv) * off for sv, off in zip(sliders, offsets, strict=True))
+        assert (dev <= bound).all(), f"frame {scene.frame_current}: beyond the float32 bound"
+        devs.append(float(dev.max()))
+        bounds.append(float(bound.max()))
+        peaks.append(float(np.abs(want - rest).max()))
+
     for frame in (1, 3, 5, 9, 13, 17):
         scene.frame_set(frame)
-        want_coef = np.array([np.interp(frame, keyed_frames, coef[:, i]) for i in range(k)])
-        worst = max(worst, float(np.abs(evaluated(obj) - rest - model.synthesize(want_coef)).max()))
+        compare(np.array([np.interp(frame, keyed_frames, coef[:, i]) for i in range(k)]))
     # An npz with times in seconds at the scene's fps lands on the same frames.
     fps = scene.render.fps / scene.render.fps_base
     np.savez(f"{tmp}/curves.npz", coefficients=-coef, times=(keyed_frames - 1) / fps)
     assert bpy.ops.object.lipgen_import_curves(filepath=f"{tmp}/curves.npz", start_frame=1) == {"FINISHED"}
     scene.frame_set(9)
-    worst = max(worst, float(np.abs(evaluated(obj) - rest - model.synthesize(-coef[2])).max()))
-    return {"max_dev_mm": worst}
+    compare(-coef[2])
+    return {"max_dev_mm": max(devs), "max_bound_mm": max(bounds), "max_peak_mm": max(peaks),
+            "per_frame_dev_mm": devs, "per_frame_peak_mm": peaks}
+
+
+def evaluated_key(obj, name: str) -> np.ndarray:
+    """(n, 3) offset of shape key ``name`` from the Basis, as stored (float32)."""
+    from blender_addon import bridge
+
+    kb = obj.data.shape_keys.key_blocks
+    return bridge.shape_key_co(kb[name]) - bridge.shape_key_co(obj.data.shape_keys.reference_key)
 
 
 def check_topology_refusal(tmp: str) -> dict:

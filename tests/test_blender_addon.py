@@ -1,8 +1,14 @@
 """The Blender add-on, headless, through the pip bpy module in one worker process.
 
 The checks themselves are in ``bpy_checks_addon.py`` (run inside Blender); here they are called
-and their measured deviations from the core are asserted. The tolerance is 1e-5 mm: Blender
-stores coordinates and shape keys in float32, whose rounding on lips ~50 mm wide is ~2e-6 mm.
+and their measured deviations from the core are asserted.
+
+Tolerances. Blender stores vertices, shape keys and keyframe values in float32 and blends shape
+keys in float32. One shape key on lips ~60 mm across carries ~2e-6 mm of rounding, so a force,
+a reach or a single mode is held to 1e-5 mm. A pose that mixes six modes, each key holding a
+full standard deviation (20-40 mm offsets that cancel to a few mm), sums six such roundings
+times the slider values: there every coordinate is checked in the worker against its computed
+float32 rounding bound, and the largest deviation must stay below 3e-5 mm.
 """
 
 import pytest
@@ -12,6 +18,7 @@ pytestmark = [pytest.mark.blender,
               pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module")]
 
 TOL_MM = 1e-5
+MIXED_MM = 3e-5  # several float32 shape keys mixed (see the module docstring)
 
 
 @pytest.fixture(scope="module")
@@ -49,15 +56,16 @@ def test_add_lips_has_regions_as_groups(blender, checks, resolution):
 def test_mode_sliders_match_synthesize(blender, checks, tmp_path):
     out = blender.run(checks.check_model_sliders, str(tmp_path))
     assert out["typical_peak_mm"] > 1.0  # the check moved the lips visibly
-    assert out["typical_max_dev_mm"] < TOL_MM, out
-    # Three standard deviations on every mode at once (~40 mm): float32 alone is ~1e-5 there;
-    # the check asserted every coordinate against its float32 rounding bound.
-    assert out["extreme_max_dev_mm"] < 5e-5, out
+    assert out["single_peak_mm"] > 1.0 and out["single_max_dev_mm"] < TOL_MM, out
+    assert out["typical_max_dev_mm"] < MIXED_MM, out
+    assert out["extreme_max_dev_mm"] < MIXED_MM, out  # 3 std devs on every mode, ~40 mm
 
 
 def test_keyframed_sliders_give_curve_shapes(blender, checks, tmp_path):
     out = blender.run(checks.check_keyframed_sliders, str(tmp_path))
-    assert out["max_dev_mm"] < TOL_MM, out
+    # Every frame was checked against its float32 rounding bound in the worker.
+    assert out["max_peak_mm"] > 1.0
+    assert out["max_dev_mm"] < MIXED_MM, out
 
 
 def test_topology_mismatch_is_refused_with_reason(blender, checks, tmp_path):
