@@ -51,14 +51,16 @@ def add_lips(resolution: int = 0):
     return bpy.context.active_object
 
 
-def training_frames(mesh, physics, n_frames: int, seed: int) -> np.ndarray:
-    """Displacements from random forces on random markers (the core's own physics)."""
+def training_frames(mesh, physics, n_frames: int, seed: int, peak_mm: float = 15.0) -> np.ndarray:
+    """Displacements from random forces on random markers (the core's own physics), scaled so
+    the largest vertex motion over all frames is ``peak_mm`` (the physics is linear)."""
     rng = np.random.default_rng(seed)
     F = np.zeros((n_frames, mesh.n_nodes, 3))
     for f in range(n_frames):
         nodes = rng.choice(mesh.markers, size=4, replace=False)
         F[f, nodes] = rng.normal(0.0, 1.0, (4, 3))
-    return physics.displace(F)
+    U = physics.displace(F)
+    return U * (peak_mm / np.linalg.norm(U, axis=2).max())
 
 
 def fitted_model(path: str, resolution: int = 0, n_modes: int = 6, seed: int = 0) -> ModeModel:
