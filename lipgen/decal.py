@@ -42,7 +42,8 @@ def _disc(radius: float, rings: int, sectors: int) -> tuple[np.ndarray, np.ndarr
     """Polar disc in its plane: points (k, 2), faces (f, 3) counter-clockwise, rim indices."""
     ang = 2 * np.pi * np.arange(sectors) / sectors
     r = radius * np.arange(1, rings + 1) / rings
-    pts = np.vstack([[0.0, 0.0], (r[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], -1)[None]).reshape(-1, 2)])
+    unit = np.stack([np.cos(ang), np.sin(ang)], -1)
+    pts = np.vstack([[0.0, 0.0], (r[:, None, None] * unit[None]).reshape(-1, 2)])
     s = np.arange(sectors)
     s1 = (s + 1) % sectors
     faces = [np.stack([np.zeros(sectors, np.int64), 1 + s, 1 + s1], 1)]

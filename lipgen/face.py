@@ -197,8 +197,8 @@ class FaceModel:
         i = np.arange(k)
         i1 = (i + 1) % k
         a, b_, c_, d_ = ids[:-1][:, i], ids[:-1][:, i1], ids[1:][:, i], ids[1:][:, i1]
-        F = np.concatenate([np.stack([a, d_, b_], -1).reshape(-1, 3), np.stack([a, c_, d_], -1).reshape(-1, 3)])
-        self.proxy_faces = F
+        self.proxy_faces = np.concatenate([np.stack([a, d_, b_], -1).reshape(-1, 3),
+                                           np.stack([a, c_, d_], -1).reshape(-1, 3)])
 
     def _build_nose(self, nose: np.ndarray) -> None:
         d = np.array([0.0, -0.25, 1.0])

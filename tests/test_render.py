@@ -86,7 +86,8 @@ def _centroid_errors(rig, face, frames):
             for k, cam in enumerate(rig.views):
                 whole = np.array([cam.in_view(rim, margin=1).all() and not occluded(cam, rim, tris).any()
                                   and _area(cam.project(rim)) >= 6.0 for rim in rims])
-                seen = inside[k] & ~occluded(cam, X, tris) & (np.sum((cam.center - X) * N, axis=1) > 0) & whole
+                facing = np.sum((cam.center - X) * N, axis=1) > 0
+                seen = inside[k] & ~occluded(cam, X, tris) & facing & whole
                 c = _dot_centroids(views[k][0], bg[k][0], views[k][2], len(X))
                 assert np.isfinite(c[seen]).all(), "a fully visible dot was not drawn"
                 errors.append(c[seen] - uv[k][seen])
