@@ -143,3 +143,8 @@ def test_built_zip_validates_installs_and_works_in_a_bare_blender(tmp_path):
         assert str(home) in got[mod], got
     assert got["addon_modules"] == ["bl_ext.user_default.lipgen"]
     assert got["force_max_dev_mm"] < 1e-5, got
+    assert "bpy" in got["pxr"], got  # Blender's own USD module
+    from lipgen.usd import read_animation, validate
+
+    assert [str(i) for i in validate(got["usd"]) if i.is_error] == []
+    assert read_animation(got["usd"]).points.shape == (3, 201, 3)
