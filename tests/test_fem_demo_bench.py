@@ -31,7 +31,7 @@ def test_named_forces_reach_their_peak():
 
 
 def test_physics_bench_resolution_0():
-    row = bench_physics._one_resolution(0, quick=True, solvers=["superlu"])
+    row = bench_physics._one_resolution(0, quick=True, solvers=["superlu"], memory=False)
     assert row["nodes"] == 201 and row["residual_superlu"] < 1e-10
     assert row["dense"]["max_abs_difference_mm"] < 1e-9
-    assert row["dense_inverse_over_factor"] > 0 and row["physics_build_peak_mib"] >= 0
+    assert row["dense_inverse_over_factor"] > 0

@@ -70,7 +70,7 @@ def _dense_baseline(physics, F: np.ndarray, quick: bool) -> dict:
             "max_abs_difference_mm": err}
 
 
-def _one_resolution(r: int, quick: bool, solvers: list[str]) -> dict:
+def _one_resolution(r: int, quick: bool, solvers: list[str], memory: bool = True) -> dict:
     import lipgen
     from lipgen.fem import Physics, assemble_stiffness
     from lipgen.fem.solver import factorize
@@ -82,7 +82,8 @@ def _one_resolution(r: int, quick: bool, solvers: list[str]) -> dict:
     row["assemble_s"] = time_call(lambda: assemble_stiffness(mesh, None), repeat=reps)["best_s"]
     physics = Physics(mesh)
     row["physics_build_s"] = time_call(lambda: Physics(mesh), repeat=reps)["best_s"]
-    row["physics_build_peak_mib"] = _fresh_peak(r, "physics")
+    if memory:
+        row["physics_build_peak_mib"] = _fresh_peak(r, "physics")
     row["solver"] = physics.solver
     Ks = physics.K_s.tocsc()
     rng = np.random.default_rng(0)
@@ -90,7 +91,8 @@ def _one_resolution(r: int, quick: bool, solvers: list[str]) -> dict:
     for s in solvers:
         fac = factorize(Ks, s)
         row[f"factor_{s}_s"] = time_call(lambda s=s: factorize(Ks, s), repeat=reps)["best_s"]
-        row[f"factor_{s}_peak_mib"] = _fresh_peak(r, s)
+        if memory:
+            row[f"factor_{s}_peak_mib"] = _fresh_peak(r, s)
         b = F.ravel()[physics.free_dofs]
         row[f"solve_{s}_s"] = time_call(lambda fac=fac, b=b: fac.solve(b), repeat=5)["best_s"]
         x = fac.solve(b)
