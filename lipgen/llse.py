@@ -151,6 +151,35 @@ class SumCovariance:
         return sum(p.matrix() for p in self.parts)
 
 
+def _low_rank_split(covariance):
+    """(B, rest) for a sum of low-rank factors B and a full-rank remainder, else None."""
+    if not isinstance(covariance, SumCovariance):
+        return None
+    low = [p for p in covariance.parts if isinstance(p, LowRankCovariance)]
+    rest = [p for p in covariance.parts if not isinstance(p, LowRankCovariance)]
+    if not low or not rest:
+        return None
+    B = np.vstack([p.factor for p in low])
+    return B, (rest[0] if len(rest) == 1 else SumCovariance(*rest))
+
+
+def _woodbury_gain(B: np.ndarray, rest, dofs: np.ndarray, R: np.ndarray):
+    """Gain for Λ = BᵀB + N_full, in the form that stays accurate when N_full is tiny.
+
+    Read y − ȳ = B_oᵀ c + e with c ~ (0, I) and e ~ (0, N), N = N_full[o, o] + R. Then
+    ĉ = (I + B_o N⁻¹ B_oᵀ)⁻¹ B_o N⁻¹ (y − ȳ) and x̂ − x̄ = Bᵀ ĉ + N_full[:, o] N⁻¹ (y − ȳ − B_oᵀ ĉ),
+    algebraically the same as eq 4.7 (Woodbury) but without inverting the badly conditioned sum.
+    """
+    other = np.asarray(rest.columns(dofs), dtype=np.float64)  # (3n, d)
+    Ninv = pinvh(other[dofs] + np.diag(R))
+    Bo = B[:, dofs]
+    BN = Bo @ Ninv  # (r, d)
+    Mc = np.linalg.solve(np.eye(len(B)) + BN @ Bo.T, BN)  # (r, d): observations -> mode coefficients
+    gain = B.T @ Mc + (other @ Ninv) @ (np.eye(len(dofs)) - Bo.T @ Mc)
+    cross = B.T @ Bo + other
+    return np.ascontiguousarray(gain.T), cross
+
+
 def _noise_vector(noise, d: int) -> np.ndarray:
     r = np.asarray(noise, dtype=np.float64)
     if r.ndim == 0:
@@ -216,10 +245,13 @@ class LLSE:
         dofs = as_index_array(dofs, "dofs", D, unique=True, allow_empty=False)
         mean = np.zeros(D) if mean is None else as_float_array(mean, "mean", (D,))
         R = _noise_vector(noise, len(dofs))
-        cross = np.asarray(covariance.columns(dofs), dtype=np.float64)
-        S = cross[dofs] + np.diag(R)
-        P = pinvh(S)
-        gain_t = np.ascontiguousarray(P @ cross.T)  # (d, 3n); P symmetric
+        split = _low_rank_split(covariance)
+        if split is None:
+            cross = np.asarray(covariance.columns(dofs), dtype=np.float64)
+            P = pinvh(cross[dofs] + np.diag(R))
+            gain_t = np.ascontiguousarray(P @ cross.T)  # (d, 3n); P symmetric
+        else:
+            gain_t, cross = _woodbury_gain(*split, dofs, R)
         offset = mean - mean[dofs] @ gain_t
         return cls(dofs=dofs, gain_t=gain_t, offset=offset, mean=mean, cross=cross,
                    covariance=covariance, noise=R)
