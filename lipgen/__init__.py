@@ -14,13 +14,18 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .fem import DEFAULT_STIFFNESS, Physics, dofs
 from .llse import LLSE, llse
+from .mesh import LipMesh
 from .modes import ModeModel
+from .procedural import lip_mesh
 from .tol import tol
 
 __all__ = [
     "__version__",
     "tol",
+    "LipMesh",
+    "lip_mesh",
     "LipgenError",
     "MeshError",
     "SingularStiffnessError",
@@ -32,4 +37,7 @@ __all__ = [
     "ModeModel",
     "LLSE",
     "llse",
+    "Physics",
+    "DEFAULT_STIFFNESS",
+    "dofs",
 ]

@@ -25,7 +25,9 @@ __all__ = ["SUITE_MODULES", "available_suites", "machine_info", "run_benchmarks"
 
 log = logging.getLogger(__name__)
 
-SUITE_MODULES: tuple[str, ...] = ()
+SUITE_MODULES: tuple[str, ...] = (
+    "lipgen.bench.usd",
+)
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
              "opencv-python-headless")

@@ -1,0 +1,113 @@
+"""``lipgen export-usd``: write a lip animation to USD (blend shapes, baked points, or both)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+
+_EPILOG = """\
+examples:
+  lipgen export-usd --model model.npz --weights weights.npy --fps 30 --out lips.usda
+  lipgen export-usd --model model.npz --weights weights.npz --out lips.usdz --weight-range unit
+  lipgen export-usd --model model.npz --out rig.usdc          (the modes, all weights zero)
+
+The mesh is the default procedural lips (--resolution) unless --mesh gives a LipMesh file
+(LipMesh.save). --weights takes an .npy array (F, k) of mode coefficients, as
+ModeModel.project returns them, or an .npz holding one array (or one named "weights").
+--points adds baked points (F, n, 3) in mm; with a model as well, both encodings go into one
+file as the variant set "encoding". Blender clamps shape-key values to [0, 1] on import: use
+--weight-range unit for files meant for Blender's importer.
+"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "export-usd",
+        help="write lip animation to USD: learned modes as UsdSkel blend shapes and/or baked points",
+        description="Write a lip animation to a USD file (.usda, .usdc, .usd, .usdz): the model's modes "
+        "as UsdSkel blend shapes with animated weights, baked time-sampled points, or both. The "
+        "file is written atomically and then checked with USD's validators (pxr.UsdValidation).",
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--model", help="fitted ModeModel file (.npz, ModeModel.save)")
+    p.add_argument("--weights", help="mode coefficients per frame: .npy (F, k) or .npz")
+    p.add_argument("--points", help="baked vertex positions per frame: .npy (F, n, 3) in mm")
+    p.add_argument("--mesh", help="LipMesh file (.npz, LipMesh.save); default: the procedural lips")
+    p.add_argument("--resolution", type=int, default=0, help="resolution of the procedural lips (default 0)")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
+    p.add_argument("--start", type=int, default=0, help="time code of the first frame (default 0)")
+    p.add_argument("--weight-range", choices=("signed", "unit"), default="signed",
+                   help="blend-shape weights in standard deviations, one shape a mode (signed), or in "
+                   "[0, 1] with a positive and a negative shape a mode (unit; for Blender)")
+    p.add_argument("--default-encoding", choices=("blendShapes", "bakedPoints"), default="blendShapes",
+                   help="variant selected when both encodings are written")
+    p.add_argument("--no-markers", action="store_true", help="do not write the markers as a Points prim")
+    p.add_argument("--no-regions", action="store_true", help="do not write the regions as GeomSubsets")
+    p.add_argument("--no-validate", action="store_true", help="skip the validation after writing")
+    p.add_argument("--out", required=True, help="output file; the extension chooses the format")
+    p.set_defaults(func=_run)
+
+
+def _load_array(path: str, what: str, key: str) -> np.ndarray:
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{what} file not found: {p}")
+    if p.suffix == ".npy":
+        return np.load(p, allow_pickle=False)
+    if p.suffix == ".npz":
+        with np.load(p, allow_pickle=False) as data:
+            if key in data.files:
+                return data[key]
+            if len(data.files) == 1:
+                return data[data.files[0]]
+            raise ValueError(f"{p} holds arrays {data.files}; name the {what} array {key!r}")
+    raise ValueError(f"{what} must be an .npy or .npz file, got {p.name!r}")
+
+
+def _mesh(args):
+    from ..mesh import LipMesh
+
+    if args.mesh:
+        return LipMesh.load(args.mesh)
+    lipgen = importlib.import_module("lipgen")
+    if not hasattr(lipgen, "lip_mesh"):
+        raise ValueError("this lipgen has no procedural lips (lipgen.lip_mesh); pass --mesh MESH.npz")
+    return lipgen.lip_mesh(args.resolution)
+
+
+def _run(args) -> int:
+    from ..modes import ModeModel
+    from ..usd import export_usd, validate
+
+    if not (args.model or args.points):
+        raise ValueError("nothing to export: give --model (with --weights, or alone for the bare modes) "
+                         "and/or --points")
+    mesh = _mesh(args)
+    points = None
+    model = ModeModel.load(args.model) if args.model else None
+    weights = None
+    if args.weights:
+        if model is None:
+            raise ValueError("--weights needs --model (the modes the weights drive)")
+        weights = _load_array(args.weights, "weights", "weights")
+    if args.points:
+        points = _load_array(args.points, "points", "points")
+    out = export_usd(args.out, mesh, model, weights, points, fps=args.fps, start=args.start,
+                     weight_range=args.weight_range, markers=not args.no_markers,
+                     regions=not args.no_regions, default_encoding=args.default_encoding)
+    n = len(weights) if weights is not None else (len(points) if points is not None else 0)
+    kinds = [k for k, on in (("blend shapes", model is not None), ("baked points", points is not None)) if on]
+    sys.stdout.write(f"wrote {out}: {n} frame(s) at {args.fps:g} fps, {' + '.join(kinds)}\n")
+    if args.no_validate:
+        return 0
+    issues = validate(out)
+    for issue in issues:
+        sys.stdout.write(f"  {issue}\n")
+    errors = sum(i.is_error for i in issues)
+    sys.stdout.write(f"validation: {errors} error(s), {len(issues) - errors} other finding(s)\n")
+    return 1 if errors else 0

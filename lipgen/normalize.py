@@ -1,0 +1,280 @@
+"""Normalising triangulated marker data into the model frame (thesis §3).
+
+Per frame:
+
+1. subtract the nose mark (rigid translation of the head);
+2. fit a plane to the outer upper-lip markers and one to the outer lower-lip markers; their
+   intersection line is the new x axis (oriented toward the subject's left);
+3. y is the global "up" minus its projection onto x, and z = x × y;
+4. express the nose-relative points in (x, y, z).
+
+Then ONE similarity transform (rotation, translation and scale, by Umeyama's least squares)
+brings the first frame onto the model's marker nodes; the thesis found it with a GUI. It is
+applied to every frame, so all the training data live in the model's coordinate system.
+
+Note what step 3 implies: rotations of the head about the vertical axis and about the viewing
+axis are removed exactly, but a nod (rotation about x) is not, because y is taken from the
+global up. The tests pin this down in closed form.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validate import as_float_array, as_index_array
+
+__all__ = [
+    "Similarity", "umeyama", "fit_plane", "lip_frame", "lip_subsets", "Normalization",
+    "normalize_markers",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class Similarity:
+    """``x -> scale * rotation @ x + translation``.
+
+    Attributes
+    ----------
+    scale : float
+    rotation : (3, 3) float, proper (det +1)
+    translation : (3,) float
+    """
+
+    scale: float
+    rotation: np.ndarray
+    translation: np.ndarray
+
+    def apply(self, X) -> np.ndarray:
+        """Transform points ``X (..., 3)``."""
+        X = np.asarray(X, dtype=np.float64)
+        return self.scale * X @ self.rotation.T + self.translation
+
+    def inverse(self) -> Similarity:
+        Rt = self.rotation.T
+        return Similarity(1.0 / self.scale, Rt, -(Rt @ self.translation) / self.scale)
+
+
+def umeyama(src, dst, with_scale: bool = True) -> Similarity:
+    """Least-squares similarity taking ``src`` onto ``dst`` (Umeyama 1991), never a reflection.
+
+    Parameters
+    ----------
+    src, dst : (k, d) float
+        Corresponding points, k >= d (d = 2 or 3 in practice).
+    with_scale : bool
+        Fit the scale (else it is 1).
+
+    Returns
+    -------
+    Similarity
+        Minimises ``sum |dst - (s R src + t)|^2``.
+    """
+    src = as_float_array(src, "src", (None, None))
+    dst = as_float_array(dst, "dst", src.shape)
+    k, d = src.shape
+    if k < d:
+        raise ValueError(f"umeyama needs at least {d} point pairs for {d}-D points, got {k}")
+    ms, md = src.mean(0), dst.mean(0)
+    a, b = src - ms, dst - md
+    var = (a * a).sum() / k
+    if var <= 0:
+        raise ValueError("umeyama: the source points all coincide; no rotation or scale is defined")
+    U, S, Vt = np.linalg.svd(b.T @ a / k)
+    sign = np.ones(d)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:
+        sign[-1] = -1.0
+    R = (U * sign) @ Vt
+    s = float((S * sign).sum() / var) if with_scale else 1.0
+    return Similarity(s, R, md - s * R @ ms)
+
+
+def fit_plane(points) -> tuple[np.ndarray, np.ndarray, float]:
+    """Total-least-squares plane through ``points (k, 3)``, k >= 3.
+
+    Returns
+    -------
+    centroid : (3,) float
+    normal : (3,) float
+        Unit normal (sign arbitrary).
+    flatness : float
+        Smallest over middle singular value: 0 for coplanar points, near 1 for no plane at all.
+    """
+    P = as_float_array(points, "points", (None, 3))
+    if len(P) < 3:
+        raise ValueError(f"a plane needs at least 3 points, got {len(P)}")
+    c = P.mean(0)
+    _, S, Vt = np.linalg.svd(P - c)
+    if S[1] <= 1e-12 * max(S[0], 1e-300):
+        raise ValueError("the points are collinear; no plane is defined")
+    return c, Vt[2], float(S[2] / S[1])
+
+
+def lip_frame(upper_points, lower_points, up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0)
+              ) -> tuple[np.ndarray, float]:
+    """The thesis's lip coordinate frame from upper- and lower-lip points.
+
+    Parameters
+    ----------
+    upper_points, lower_points : (k, 3) float
+        Outer upper- and lower-lip markers (k >= 3 each, not collinear).
+    up : (3,) float
+        The global y direction of the data's frame.
+    x_hint : (3,) float
+        A direction on the subject's-left side, used only to choose the sign of x.
+
+    Returns
+    -------
+    R : (3, 3) float
+        Rows are the unit axes x, y, z (right-handed), so ``R @ p`` expresses ``p`` in the frame.
+    angle : float
+        Angle between the two planes, radians; near 0 the x axis is ill-defined.
+    """
+    _, n_up, _ = fit_plane(upper_points)
+    _, n_lo, _ = fit_plane(lower_points)
+    x = np.cross(n_up, n_lo)
+    sin = float(np.linalg.norm(x))
+    if sin < 1e-9:
+        raise ValueError("the upper- and lower-lip planes are parallel; their intersection (x axis) "
+                         "is undefined")
+    x /= sin
+    if x @ np.asarray(x_hint, float) < 0:
+        x = -x
+    g = np.asarray(up, dtype=np.float64)
+    y = g - (g @ x) * x
+    ny = np.linalg.norm(y)
+    if ny < 1e-9:
+        raise ValueError("the lip-plane intersection is parallel to the global up axis; y is undefined")
+    y /= ny
+    return np.stack([x, y, np.cross(x, y)]), float(np.arcsin(min(sin, 1.0)))
+
+
+def lip_subsets(marker_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the outer upper-lip and lower-lip markers, chosen by name.
+
+    Upper: names starting with ``upper`` or ``bow``; lower: names starting with ``lower``. The
+    corner markers belong to neither lip.
+
+    Raises
+    ------
+    ValueError
+        When either subset has fewer than 3 markers (pass explicit indices instead).
+    """
+    names = [str(n) for n in marker_names]
+    upper = np.array([i for i, n in enumerate(names) if n.startswith(("upper", "bow"))], dtype=np.int64)
+    lower = np.array([i for i, n in enumerate(names) if n.startswith("lower")], dtype=np.int64)
+    if len(upper) < 3 or len(lower) < 3:
+        raise ValueError(
+            f"cannot choose the lip-plane markers by name from {names}: found {len(upper)} upper "
+            f"('upper*', 'bow*') and {len(lower)} lower ('lower*'), need 3 each; pass the index "
+            "lists upper= and lower= explicitly")
+    return upper, lower
+
+
+@dataclass(frozen=True, eq=False)
+class Normalization:
+    """The result of :func:`normalize_markers`.
+
+    Attributes
+    ----------
+    markers : (F, P, 3) float
+        Markers in the model frame, mm (NaN where not visible).
+    rotations : (F, 3, 3) float
+        Per-frame lip frames (rows x, y, z), in the data's frame.
+    similarity : Similarity
+        The one transform from the lip frame onto the model, fitted on ``reference_frame``.
+    plane_angle : (F,) float
+        Angle between the lip planes, radians (NaN where a frame had too few markers).
+    borrowed : (F,) bool
+        Frames whose lip frame was taken from the nearest good frame (too few visible markers).
+    fit_rms : float
+        RMS residual (mm) of the similarity fit on the reference frame.
+    """
+
+    markers: np.ndarray
+    rotations: np.ndarray
+    similarity: Similarity
+    plane_angle: np.ndarray
+    borrowed: np.ndarray
+    fit_rms: float
+
+
+def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=None, visible=None,
+                      up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0), reference_frame: int = 0
+                      ) -> Normalization:
+    """Bring triangulated markers into the model frame (thesis §3).
+
+    Parameters
+    ----------
+    markers : (F, P, 3) float
+        Triangulated markers in the data's frame (NaN allowed where not visible).
+    nose : (F, 3) float
+        The nose mark in each frame.
+    upper, lower : (a,) int, (b,) int
+        Marker indices of the outer upper- and lower-lip subsets (see :func:`lip_subsets`).
+    model_markers : (P, 3) float
+        The model's marker nodes at rest, model frame (mm).
+    model_nose : (3,) float, optional
+        The model's nose point; when given it joins the similarity fit (the data's nose is the
+        origin after step 1).
+    visible : (F, P) bool, optional
+        Which markers were seen; defaults to the finite ones.
+    up, x_hint : (3,) float
+        Global up and a subject's-left direction in the data's frame (see :func:`lip_frame`).
+    reference_frame : int
+        The frame the similarity is fitted on (the thesis's first frame).
+
+    Returns
+    -------
+    Normalization
+    """
+    X = as_float_array(markers, "markers", (None, None, 3), finite=False)
+    F, P, _ = X.shape
+    N = as_float_array(nose, "nose", (F, 3))
+    M = as_float_array(model_markers, "model_markers", (P, 3))
+    up_i = as_index_array(upper, "upper", P, unique=True)
+    lo_i = as_index_array(lower, "lower", P, unique=True)
+    vis = np.all(np.isfinite(X), axis=2) if visible is None else np.asarray(visible, dtype=bool)
+    if vis.shape != (F, P):
+        raise ValueError(f"visible must have shape ({F}, {P}), got {vis.shape}")
+    vis = vis & np.all(np.isfinite(X), axis=2)
+    if not 0 <= reference_frame < F:
+        raise ValueError(f"reference_frame {reference_frame} is out of range for {F} frames")
+    rel = X - N[:, None, :]
+    rotations = np.full((F, 3, 3), np.nan)
+    angle = np.full(F, np.nan)
+    for f in range(F):
+        u, lo = up_i[vis[f, up_i]], lo_i[vis[f, lo_i]]
+        if len(u) >= 3 and len(lo) >= 3:
+            try:
+                rotations[f], angle[f] = lip_frame(rel[f, u], rel[f, lo], up, x_hint)
+            except ValueError as exc:
+                log.warning("frame %d: no lip frame (%s)", f, exc)
+    good = np.flatnonzero(np.isfinite(angle))
+    if len(good) == 0:
+        raise ValueError("no frame has 3 visible, non-collinear markers on each lip; cannot normalise")
+    borrowed = ~np.isfinite(angle)
+    if borrowed.any():
+        nearest = good[np.abs(good[None, :] - np.arange(F)[:, None]).argmin(1)]
+        rotations[borrowed] = rotations[nearest[borrowed]]
+        log.warning("%d frame(s) borrowed the lip frame of a neighbour (too few visible markers)",
+                    int(borrowed.sum()))
+    local = np.einsum("fij,fpj->fpi", rotations, rel)
+    seen = vis[reference_frame]
+    src, dst = local[reference_frame, seen], M[seen]
+    if model_nose is not None:
+        src = np.vstack([src, np.zeros(3)])
+        dst = np.vstack([dst, as_float_array(model_nose, "model_nose", (3,))])
+    if len(src) < 3:
+        raise ValueError(f"reference frame {reference_frame} has only {int(seen.sum())} visible "
+                         "markers; the similarity to the model needs 3")
+    sim = umeyama(src, dst)
+    fit_rms = float(np.sqrt(((sim.apply(src) - dst) ** 2).sum(1).mean()))
+    out = sim.apply(local)
+    out[~vis] = np.nan
+    return Normalization(out, rotations, sim, angle, borrowed, fit_rms)

@@ -1,0 +1,79 @@
+"""Rig calibration from ray-cast chessboard images, scored against the true rig."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from synthetic_images import render_board
+
+from lipgen import DatasetError
+from lipgen.calibrate import Chessboard, RigCalibration, calibrate_rig, compare_to_truth, find_corners
+from lipgen.camera import default_rig
+
+pytest.importorskip("cv2")
+
+BOARD = Chessboard(9, 6, 8.0)
+FACING = np.diag([1.0, -1.0, -1.0])   # board x = world x, board y down, board z into the face
+
+
+def _pose(euler_deg, centre):
+    A = Rotation.from_euler("xyz", euler_deg, degrees=True).as_matrix() @ FACING
+    b = np.asarray(centre, float) - A @ np.array([4 * BOARD.square, 2.5 * BOARD.square, 0.0])
+    return A, b
+
+
+@pytest.fixture(scope="module")
+def sequence():
+    rig = default_rig()
+    rng = np.random.default_rng(0)
+    poses = [_pose([0, 0, 0], [0, 5, 0])] + [
+        _pose(rng.uniform(-25, 25, 3), np.array([0, 5, 0]) + rng.uniform([-25, -20, -10], [25, 20, 10]))
+        for _ in range(7)]
+    raws = [rig.compose(*[render_board(cam, (9, 6), BOARD.square, p, supersample=3, rng=rng, noise=0.01)
+                          for cam in rig.views]) for p in poses]
+    return rig, poses, raws
+
+
+def test_corners_are_numbered_from_the_black_corner_in_every_pose(sequence):
+    rig, _, _ = sequence
+    cam = rig.real_view
+    for roll in (0.0, 90.0, 180.0, 250.0):
+        A, b = _pose([10, -5, roll], [0, 5, 0])
+        img = render_board(cam, (9, 6), BOARD.square, (A, b), supersample=3)
+        uv = find_corners(img, BOARD)
+        truth = cam.project(BOARD.object_points() @ A.T + b)
+        assert uv is not None and np.abs(uv - truth).max() < 0.5, f"roll {roll}"
+    assert find_corners(np.full((100, 80), 0.5), BOARD) is None
+
+
+def test_calibration_recovers_the_true_rig(sequence):
+    rig, poses, raws = sequence
+    cal = calibrate_rig(raws, rig, BOARD)
+    assert cal.n_images == {"virtual": 8, "real": 8, "both": 8}
+    assert cal.rms["all"] < 0.2
+    err = compare_to_truth(cal.in_frame(*poses[0]), rig.views)
+    for view in ("virtual", "real"):
+        assert np.abs(err[view]["focal_px"]).max() < 2.0
+        assert err[view]["principal_point_px"] < 2.0
+        assert err[view]["rotation_deg"] < 0.3
+        assert err[view]["center_mm"] < 2.0
+    assert err["relative"]["rotation_deg"] < 0.1 and abs(err["relative"]["baseline_mm"]) < 1.0
+    # What matters downstream: triangulating points around the face.
+    rng = np.random.default_rng(1)
+    X = rng.uniform([-30, -25, -15], [30, 35, 20], (300, 3))
+    P, gap = cal.in_frame(*poses[0]).triangulate(rig.real_view.project(X), rig.virtual_view.project(X))
+    assert np.sqrt(((P - X) ** 2).sum(1).mean()) < 0.2
+    again = RigCalibration.from_dict(cal.to_dict())
+    assert np.allclose(again.rig.camera.K, cal.rig.camera.K)
+
+
+def test_calibration_bad_inputs(sequence):
+    rig, _, raws = sequence
+    with pytest.raises(DatasetError, match=r"found whole in .* need 4"):
+        calibrate_rig(raws[:3], rig, BOARD)
+    blank = [np.zeros_like(raws[0])] + list(raws[1:])
+    with pytest.raises(DatasetError, match="frame 0 does not show the whole board"):
+        calibrate_rig(blank, rig, BOARD)
+    with pytest.raises(ValueError, match="symmetric under a half turn"):
+        Chessboard(8, 6, 5.0)
+    with pytest.raises(ValueError, match=r"raw frame must have shape \(480, 640\)"):
+        calibrate_rig([np.zeros((10, 10))] * 4, rig, BOARD)

@@ -1,0 +1,165 @@
+"""Dot detection and marker tracking on synthetic images with known dot centres."""
+
+import numpy as np
+import pytest
+from synthetic_images import background, frame, marker_paths
+
+from lipgen.dots import DotSettings, as_gray, detect_dots
+from lipgen.track import (
+    CORRELATION_ONLY,
+    LOST,
+    RECOVERED,
+    TRACKED,
+    match_to_expected,
+    normalized_correlation,
+    track_markers,
+)
+
+SHAPE = (120, 160)
+
+
+def _nearest_error(found, truth):
+    d = np.linalg.norm(found[:, None] - truth[None], axis=2)
+    return found[d.argmin(0)] - truth, d.min(0)
+
+
+def _rms(err):
+    return float(np.sqrt(np.nanmean((err ** 2).sum(-1))))
+
+
+def test_detection_is_subpixel_on_plain_shading():
+    rng = np.random.default_rng(1)
+    flat = background(SHAPE, rng, texture=0.0)
+    errs = []
+    for _ in range(4):
+        truth = marker_paths(1, 12, rng, SHAPE)[0]
+        uv, strength = detect_dots(frame(flat, truth, rng, noise=0.01))
+        assert len(uv) == 12, "every dot found and nothing else"
+        assert np.all(strength > 0.1)
+        err, _ = _nearest_error(uv, truth)
+        errs.append(err)
+    assert _rms(np.concatenate(errs)) < 0.06
+
+
+def test_detection_is_subpixel_on_textured_skin():
+    rng = np.random.default_rng(2)
+    errs = []
+    for _ in range(4):
+        truth = marker_paths(1, 12, rng, SHAPE)[0]
+        uv, _ = detect_dots(frame(background(SHAPE, rng), truth, rng, noise=0.01))
+        err, dist = _nearest_error(uv, truth)
+        assert np.all(dist < 0.6), "each true dot has a detection within 0.6 px"
+        errs.append(err)
+    assert _rms(np.concatenate(errs)) < 0.25
+
+
+def test_detection_handles_colour_and_dot_size():
+    rng = np.random.default_rng(3)
+    truth = marker_paths(1, 6, rng, SHAPE, spacing=24)[0]
+    grey = frame(background(SHAPE, rng, texture=0.0), truth, rng, sigma=3.0)
+    rgb = np.repeat(grey[..., None], 3, axis=2)
+    uv, _ = detect_dots(rgb, DotSettings(sigma=3.0))
+    err, _ = _nearest_error(uv, truth)
+    assert len(uv) == 6 and _rms(err) < 0.1
+    with pytest.raises(ValueError, match=r"shape \(h, w\) or \(h, w, 3\|4\), got \(2, 3, 5\)"):
+        as_gray(np.zeros((2, 3, 5)))
+    with pytest.raises(ValueError, match="sigma"):
+        DotSettings(sigma=0.0)
+
+
+def test_normalized_correlation_closed_forms():
+    rng = np.random.default_rng(4)
+    search = rng.random((20, 24))
+    tpl = search[5:12, 8:15].copy()
+    ncc = normalized_correlation(search, tpl)
+    assert ncc.shape == (14, 18)
+    assert ncc[5, 8] == pytest.approx(1.0, abs=1e-12)
+    assert np.unravel_index(ncc.argmax(), ncc.shape) == (5, 8)
+    # Invariant to gain and offset; a negated template scores -1.
+    assert normalized_correlation(search, 3 * tpl + 2)[5, 8] == pytest.approx(1.0, abs=1e-12)
+    assert normalized_correlation(search, -tpl)[5, 8] == pytest.approx(-1.0, abs=1e-12)
+    # Against a direct evaluation of the definition.
+    win = search[2:9, 11:18]
+    a, b = win - win.mean(), tpl - tpl.mean()
+    assert ncc[2, 11] == pytest.approx((a * b).sum() / np.sqrt((a * a).sum() * (b * b).sum()), abs=1e-12)
+    assert np.all(normalized_correlation(np.ones((10, 10)), tpl) == 0.0), "flat search scores 0"
+
+
+def test_first_frame_matching_recovers_identity_under_similarity_and_clutter():
+    rng = np.random.default_rng(5)
+    layout = marker_paths(1, 16, rng, SHAPE)[0]
+    ang = np.deg2rad(12)
+    R = np.array([[np.cos(ang), -np.sin(ang)], [np.sin(ang), np.cos(ang)]])
+    moved = 1.1 * (layout - layout.mean(0)) @ R.T + layout.mean(0) + [9.0, -6.0]
+    moved += rng.normal(0, 0.8, moved.shape)
+    clutter = rng.uniform([0, 0], [160, 120], (4, 2))
+    clutter = clutter[np.linalg.norm(clutter[:, None] - moved[None], axis=2).min(1) > 6]
+    perm = rng.permutation(16 + len(clutter))
+    dots = np.concatenate([moved, clutter])[perm]
+    match = match_to_expected(np.delete(dots, np.flatnonzero(perm == 3), axis=0), layout, gate=3.0)
+    dots_wo = np.delete(perm, np.flatnonzero(perm == 3))
+    assert match[3] == -1, "a marker with no dot stays unmatched"
+    got = dots_wo[match[np.arange(16) != 3]]
+    assert np.array_equal(got, np.delete(np.arange(16), 3))
+
+
+def _sequence(n_frames=24, n_markers=12, seed=6, **kw):
+    rng = np.random.default_rng(seed)
+    base = background(SHAPE, rng)
+    paths = marker_paths(n_frames, n_markers, rng, SHAPE, **kw)
+    return rng, base, paths
+
+
+def test_tracking_follows_known_paths_subpixel():
+    rng, base, paths = _sequence()
+    frames = [frame(base, p, rng) for p in paths]
+    tracks = track_markers(frames, paths[0] + rng.normal(0, 0.5, paths[0].shape))
+    assert tracks.uv.shape == paths.shape and tracks.visible.all()
+    assert np.all(tracks.status == TRACKED)
+    assert _rms(tracks.uv - paths) < 0.25
+    assert np.nanmin(tracks.score[1:]) > 0.8
+
+
+def test_occluded_marker_is_lost_then_recovered():
+    rng, base, paths = _sequence(seed=7)
+    hidden = np.ones(paths.shape[:2], dtype=bool)
+    hidden[8:13, 4] = False
+    frames = [frame(base, p, rng, visible=v) for p, v in zip(paths, hidden, strict=True)]
+    tracks = track_markers(frames, paths[0])
+    assert not tracks.visible[8:13, 4].any() and np.all(tracks.status[8:13, 4] == LOST)
+    assert np.isnan(tracks.uv[8:13, 4]).all()
+    assert tracks.visible[13:].all() and tracks.visible[:8].all()
+    assert np.nanmax(np.linalg.norm(tracks.uv - paths, axis=2)) < 0.8
+
+
+def test_recovery_after_a_sudden_jump_beyond_the_search_window():
+    # From frame 10 the whole face jumps by 30 px (farther than the correlation search window
+    # and more than two dot spacings): correlation alone would fail or lock onto a neighbour.
+    rng, base, paths = _sequence(seed=8, amplitude=3.0)
+    paths[10:] += np.array([30.0, -14.0])
+    paths = paths[:, :, :] - np.array([15.0, -7.0])
+    frames = [frame(base, p, rng) for p in paths]
+    tracks = track_markers(frames, paths[0])
+    assert tracks.visible.all()
+    assert np.nanmax(np.linalg.norm(tracks.uv - paths, axis=2)) < 0.8
+
+
+def test_marker_missing_in_first_frame_is_acquired_from_the_layout():
+    rng, base, paths = _sequence(seed=9)
+    shown = np.ones(paths.shape[:2], dtype=bool)
+    shown[:5, 2] = False
+    frames = [frame(base, p, rng, visible=v) for p, v in zip(paths, shown, strict=True)]
+    init = paths[0].copy()
+    init[2] = np.nan
+    tracks = track_markers(frames, init, reference_uv=paths[0])
+    assert not tracks.visible[:5, 2].any()
+    assert tracks.visible[5:, 2].all() and tracks.status[5, 2] in (RECOVERED, TRACKED)
+    assert np.nanmax(np.linalg.norm(tracks.uv[5:] - paths[5:], axis=2)) < 0.8
+
+
+def test_status_codes_are_distinct_and_tracks_validate():
+    assert len({TRACKED, RECOVERED, CORRELATION_ONLY, LOST}) == 4
+    with pytest.raises(ValueError, match=r"initial_uv must have shape \(\*, 2\)"):
+        track_markers([np.zeros(SHAPE)], np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="no frames"):
+        track_markers([], np.zeros((3, 2)))
