@@ -143,8 +143,9 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
     """Smooth random activations ``(F, A)`` in [0, 1]: seeded gestures of every action.
 
     Each action gets gestures at random times (``gestures_per_second`` per action on average, the
-    jaw twice as often, as in speech; every action at least once), each a raised-cosine bump of 0.25-0.9 s and peak 0.2-1.0. Sums are
-    saturated smoothly with tanh, so overlapping gestures stay below 1.
+    jaw twice as often, as in speech; every action at least once), each a raised-cosine bump of
+    0.25-0.9 s and peak 0.2-1.0. Sums are saturated smoothly with tanh, so overlapping gestures
+    stay below 1.
     """
     n_frames = int(n_frames)
     if n_frames < 1:

@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
+    "lipgen.bench.modes",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
