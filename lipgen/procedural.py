@@ -7,17 +7,22 @@ The lips and the skin around them form an annulus around the mouth opening, para
 angle ``theta`` around the mouth (0 at the subject's left corner, pi/2 at the upper midline) and a
 ring coordinate ``s`` in [0, 6] from the inner contour outwards:
 
-- ``s = 0``: the inner contour of the lips, a lens 50 mm wide (corner to corner) with a 3 mm
-  interlabial gap at the midline (lips slightly parted at rest), pointed at the commissures;
-- ``0 <= s <= 1``: the inner ridge (region ``"ridge"``), where the lip rolls into the mouth;
+- ``s = 0``: the inner contour of the lips, a thin oval 50 mm wide (corner to corner) with a
+  3 mm interlabial gap at the midline (lips slightly parted at rest), its corners rounded only
+  on the scale of a fine element;
+- ``0 <= s <= 1``: the inner ridge (region ``"ridge"``, about 2 mm wide), where the lip rolls
+  into the mouth;
 - ``1 <= s <= 3``: the vermilion (region ``"lip"``); ``s = 3`` is the vermilion border, with
-  Cupid's bow (peaks at x = +-5.5 mm, a 1.5 mm dip at the midline), an upper vermilion about
-  8 mm high and a fuller lower vermilion about 10 mm high;
+  Cupid's bow (peaks at x = +-5.2 mm, a 1.6 mm dip at the midline), an upper vermilion about
+  7.5 mm high and a fuller lower vermilion 10 mm high, thinning to 5 mm round the corners;
 - ``3 <= s <= 6``: skin (region ``"skin"``) out to an oval border 72 mm wide running from just
   under the nose (y = +20) down over the chin (y = -40).
 
-Depth follows the curve of the dental arch, ``z = -x**2 / 70`` (the corners sit about 9 mm behind
-the midline), plus a midline profile that fades towards the corners: the vermilion protrudes
+The rings 1-3 are offsets of the inner contour whose direction fans round the mouth corners, so
+the elements there stay well shaped (smallest angle about 12 degrees at every resolution).
+
+Depth follows the curve of the dental arch, ``z = -x**2 / 70`` (the corners sit about 12 mm behind
+the most protruding vermilion), plus a midline profile that fades towards the corners: the vermilion protrudes
 about 3 mm, the skin recedes under the nose and at the mentolabial sulcus and comes forward again
 at the chin.
 
@@ -98,57 +103,81 @@ deep"), read as width along x, height ("across", top to bottom) along y, depth a
 
 # ---- the knot rings (resolution-0 rings as closed curves in theta) ----------------------------
 _ARCH_RADIUS = 35.0  # mm, curvature of the face along the dental arch
-_HALF_WIDTH = np.array([25.0, 25.8, 26.6, 27.5, 30.0, 33.0, 36.0])  # ring half-widths at theta=0
-_SHARPNESS = np.array([1.0, 0.9, 0.8, 0.6, 0.4, 0.2, 0.0])  # 1: pointed corner, 0: round end
-_BLEND = np.array([0.0, 0.3, 0.65, 1.0, 0.28, 0.6, 1.0])  # position between the bounding contours
+_MOUTH_HALF_WIDTH, _HALF_GAP = 25.0, 1.5  # inner contour: 50 mm corner to corner, 3 mm open
+_CORNER_ROUNDING = 0.97  # towards 1: sharper mouth corners (a triangle wave in theta)
+_NORMAL_ROUNDNESS = 6.0  # mm; the offset direction turns round each corner like this ellipse's normal
+_BORDER = (36.0, 20.0, 40.0)  # outer skin border: half-width, height above and depth below the mouth
+_SKIN_BLEND = np.array([0.3, 0.62])  # rings 4, 5 between the vermilion border and the skin border
 _PROTRUDE_UP = np.array([0.0, 2.2, 3.2, 2.6, 0.4, -2.0, -4.5])  # midline depth profile, upper
 _PROTRUDE_LO = np.array([0.0, 2.2, 3.0, 1.6, -2.4, -1.0, -5.0])  # midline depth profile, lower
 _STRIP_RISE = np.array([0.0, 3.5, 7.0, 10.0])  # strip rows: mm up at the midline
 _STRIP_BACK = np.array([0.0, 5.0, 9.0, 12.0])  # strip rows: mm back
 
 
-def _xi(theta: np.ndarray, sharpness: float) -> np.ndarray:
-    """Normalised x in [-1, 1] along a ring: cos(theta) blended with a triangle wave, which makes
-    a pointed corner (uniform spacing along a thin lens) at ``sharpness`` 1."""
-    tri = 1.0 - 2.0 * np.abs(np.angle(np.exp(1j * theta))) / np.pi
-    return (1.0 - sharpness) * np.cos(theta) + sharpness * tri
+def _side(theta, upper, lower):
+    return np.where(np.sin(theta) >= 0.0, upper, lower)
 
 
-def _inner_y(xi):
-    return 1.5 * (1.0 - xi**2)
+def _inner_contour(theta: np.ndarray):
+    """Front-view points (n, 2) of the inner contour, their normalised x in [-1, 1], and the
+    offset directions (n, 2) towards the vermilion.
+
+    The contour is a thin oval: x follows a triangle wave in ``theta`` rounded at the corners
+    (``arcsin(r cos theta)``, r < 1), so nodes are evenly spaced along the lips and the corners
+    are smooth on the scale of the finest elements; the parametrisation is regular (no zero
+    speed), which keeps refined elements as well shaped as coarse ones. The offset direction turns
+    round each corner like the normal of a 6 mm-high ellipse, so the rings fan round the corners.
+    """
+    xi = np.arcsin(_CORNER_ROUNDING * np.cos(theta)) / np.arcsin(_CORNER_ROUNDING)
+    eta = np.sign(np.sin(theta)) * np.sqrt(np.clip(1.0 - xi**2, 0.0, None))
+    p = np.stack([_MOUTH_HALF_WIDTH * xi, _HALF_GAP * eta], axis=-1)
+    n = np.stack([xi / _MOUTH_HALF_WIDTH, eta / _NORMAL_ROUNDNESS], axis=-1)
+    return p, xi, n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
-def _border_y_up(xi):
+def _lip_offsets(xi: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """(3, n) distances (mm) from the inner contour to rings 1 (end of the ridge), 2 (mid
+    vermilion) and 3 (vermilion border), as functions of the contour's normalised x ``xi``.
+
+    The upper vermilion border carries Cupid's bow; both lips thin to 5 mm round the corners,
+    with equal upper and lower values there so the rings are smooth through the corners."""
+    q = 1.0 - xi**2
     bow = np.exp(-(((xi**2 - 0.04) / 0.04) ** 2)) - 1.2 * np.exp(-((xi / 0.07) ** 2))
-    return 10.2 * (1.0 - xi**2) ** 0.7 + bow * (1.0 - xi**2)
+    d3 = 5.0 + q * _side(theta, 3.4 + bow, 5.0)
+    d1 = 2.0 + 0.4 * q
+    return np.stack([d1, 0.5 * (d1 + d3), d3])
 
 
-def _border_y_lo(xi):
-    return 11.5 * (1.0 - xi**2) ** 0.6
+def _depth(xy: np.ndarray, half_width: float, theta: np.ndarray, k: int) -> np.ndarray:
+    """z of ring ``k``: the dental arch plus the midline profile, faded out towards the corners
+    (to fourth order, so upper and lower profiles join smoothly there)."""
+    x = xy[:, 0]
+    fade = np.clip(1.0 - (x / half_width) ** 2, 0.0, None) ** 2
+    return -(x**2) / (2.0 * _ARCH_RADIUS) + fade * _side(theta, _PROTRUDE_UP[k], _PROTRUDE_LO[k])
 
 
 def _ring(theta: np.ndarray, k: int) -> np.ndarray:
     """(n, 3) points of knot ring ``k`` (0..6) at angles ``theta``."""
-    xi = _xi(theta, _SHARPNESS[k])
-    upper = np.sin(theta) >= 0.0
-    one = np.clip(1.0 - xi**2, 0.0, None)
+    p0, xi, normal = _inner_contour(theta)
     if k <= 3:
-        lo_up, lo_dn = _inner_y(xi), -_inner_y(xi)
-        hi_up, hi_dn = _border_y_up(xi), -_border_y_lo(xi)
+        d = 0.0 if k == 0 else _lip_offsets(xi, theta)[k - 1]
+        xy = p0 + d[..., None] * normal if k else p0
+        half = _MOUTH_HALF_WIDTH + (0.0 if k == 0 else float(_lip_offsets(np.ones(1), np.zeros(1))[k - 1, 0]))
     else:
-        lo_up, lo_dn = _border_y_up(xi), -_border_y_lo(xi)
-        hi_up, hi_dn = 20.0 * np.sqrt(one), -40.0 * np.sqrt(one)
-    w = _BLEND[k]
-    y = np.where(upper, lo_up + w * (hi_up - lo_up), lo_dn + w * (hi_dn - lo_dn))
-    x = _HALF_WIDTH[k] * xi
-    z = -x**2 / (2 * _ARCH_RADIUS) + one**2 * np.where(upper, _PROTRUDE_UP[k], _PROTRUDE_LO[k])
-    return np.stack([x, y, z], axis=-1)
+        p3 = p0 + _lip_offsets(xi, theta)[2][:, None] * normal
+        half3 = _MOUTH_HALF_WIDTH + float(_lip_offsets(np.ones(1), np.zeros(1))[2, 0])
+        bx, bu, bl = _BORDER
+        p6 = np.stack([bx * np.cos(theta), _side(theta, bu, bl) * np.sin(theta)], axis=-1)
+        w = 1.0 if k == 6 else _SKIN_BLEND[k - 4]
+        xy = p3 + w * (p6 - p3)
+        half = half3 + w * (bx - half3)
+    return np.concatenate([xy, _depth(xy, half, theta, k)[:, None]], axis=1)
 
 
 def _strip_row(theta: np.ndarray, k: int) -> np.ndarray:
     """(n, 3) points of the strip's knot row ``k`` (0 is the inner contour, 3 the far end)."""
     p = _ring(theta, 0)
-    taper = np.sqrt(np.clip(1.0 - _xi(theta, _SHARPNESS[0]) ** 2, 0.0, None))
+    taper = np.sqrt(np.clip(1.0 - (p[:, 0] / _MOUTH_HALF_WIDTH) ** 2, 0.0, None))
     p[:, 1] += _STRIP_RISE[k] * taper
     p[:, 2] -= _STRIP_BACK[k]
     return p

@@ -28,6 +28,7 @@ log = logging.getLogger(__name__)
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
     "lipgen.bench.modes",
+    "lipgen.bench.mesh",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
