@@ -34,13 +34,19 @@ ridge, point out of the lip tissue, i.e. into the mouth (towards the teeth).
 
 Anchors
 -------
-The anchors are the nodes at the far end of the strip, exactly as the thesis grounds its mesh.
-They follow the upper gum along the dental arch, a curve bent in both y and z, so they are not
-collinear and remove all six rigid motions; the surface is connected, so the grounded stiffness
-is positive definite. The skin border is deliberately *not* anchored: only its top (under the
-nose) is attached to the skull, while its lower and lateral parts ride on the jaw and cheeks,
-which move in speech; tying them to the head would forbid jaw opening. The skin is a free flap
-carried by the lips, as in the thesis, whose mesh is grounded only through the strip.
+By default the anchors are the nodes at the far end of the strip (as in the thesis) *and* the
+outer border of the skin. The far end of the strip follows the upper gum along the dental arch,
+a curve bent in both y and z, so on its own it is not collinear and removes all six rigid
+motions; the thesis grounds its mesh only there, and ``anchor_border=False`` reproduces that.
+We also fix the skin border because this mesh is a patch cut out of a face: at its border the
+skin carries on into the rest of the face, which after the thesis's rigid normalisation (nose
+subtracted, lip planes aligned) moves far less than the lips. Without it, everything below the
+corners (lower lip, chin skin) hangs from the soft strip through the mouth corners only, and the
+grounded stiffness has near-rigid swinging modes: at resolution 1, with the physics' defaults,
+its condition number is 7e4 instead of 2e3, and the minimum-norm force that moves the two corners
+3 mm apart (eq 4.3) swings the lower face by 23 mm instead of deforming the lips by 5 mm. The
+price is that the chin border does not follow the jaw; goals on the lower lip are still reached
+exactly, with the chin skin stretching between the lip and the border.
 
 Resolution
 ----------
@@ -272,12 +278,11 @@ def _build(r: int):
                                      s_right.ravel(), flip=True)
     faces = np.concatenate([ring_tris, strip_tris])
     regions = np.concatenate([ring_regions, np.full(len(strip_tris), REGIONS.index("strip"))])
-    anchors = np.sort(strip_id[:, -1])
     markers = np.array([ring_id[i * f, k * f] for _, i, k in _MARKERS])
-    return V, faces, regions, anchors, markers, perm
+    return V, faces, regions, np.sort(strip_id[:, -1]), np.sort(ring_id[:, -1]), markers, perm
 
 
-def lip_mesh(resolution: int = 0) -> LipMesh:
+def lip_mesh(resolution: int = 0, anchor_border: bool = True) -> LipMesh:
     """The default procedural lips.
 
     Parameters
@@ -285,21 +290,27 @@ def lip_mesh(resolution: int = 0) -> LipMesh:
     resolution : int
         0 gives 201 nodes and 348 faces (the thesis has 204 and 336); each step refines the same
         surface with 4 times the faces. Resolution 4 has 44,976 nodes. At most ``MAX_RESOLUTION``.
+    anchor_border : bool
+        Anchor the outer border of the skin as well as the far end of the strip (default; see
+        the module docstring for why). ``False`` grounds the far end of the strip only, as the
+        thesis does.
 
     Returns
     -------
     LipMesh
         Regions ``"ridge"``, ``"lip"``, ``"skin"`` and ``"strip"``; the anchors are the far-end
-        nodes of the strip; 16 markers named by :data:`MARKER_NAMES`; the nose at :data:`NOSE`.
-        The first ``n`` nodes of resolution r + 1 are the ``n`` nodes of resolution r. The
-        geometry is described in the module docstring.
+        nodes of the strip and (``anchor_border``) the outer border of the skin; 16 markers
+        named by :data:`MARKER_NAMES`; the nose at :data:`NOSE`. The first ``n`` nodes of
+        resolution r + 1 are the ``n`` nodes of resolution r. The geometry is described in the
+        module docstring.
     """
     if isinstance(resolution, bool) or not isinstance(resolution, int | np.integer):
         raise TypeError(f"resolution must be an integer, got {resolution!r}")
     if not 0 <= resolution <= MAX_RESOLUTION:
         raise ValueError(f"resolution must be in [0, {MAX_RESOLUTION}], got {resolution} "
                          "(each step multiplies the faces by 4; resolution 4 has ~45,000 nodes)")
-    V, F, R, A, M, _ = _build(int(resolution))
+    V, F, R, strip_end, border, M, _ = _build(int(resolution))
+    A = np.union1d(strip_end, border) if anchor_border else strip_end
     return LipMesh(V, F, R, A, M, MARKER_NAMES, NOSE, REGIONS, name=f"lips_r{int(resolution)}")
 
 

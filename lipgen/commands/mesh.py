@@ -37,6 +37,9 @@ def add_parser(sub) -> None:
     p.add_argument("--views", default="front,profile,oblique",
                    help="comma-separated views for --plot: front, profile, oblique, below "
                    "(default: front,profile,oblique)")
+    p.add_argument("--strip-anchors-only", action="store_true",
+                   help="anchor only the far end of the strip, as the thesis does (default: also the "
+                   "outer border of the skin, which keeps the grounded stiffness well conditioned)")
     p.add_argument("--force", action="store_true", help="replace existing output files")
     p.set_defaults(func=_run)
 
@@ -53,7 +56,10 @@ def _run(args) -> int:
     for path in targets if not args.force else ():
         if path.exists():
             raise FileExistsError(f"{path} exists; choose another name or pass --force to replace it")
-    mesh = read_mesh(args.source) if args.source else lip_mesh(args.resolution)
+    if args.source:
+        mesh = read_mesh(args.source)
+    else:
+        mesh = lip_mesh(args.resolution, anchor_border=not args.strip_anchors_only)
     out = sys.stdout
     out.write(f"{mesh.name}: {mesh.n_nodes} nodes, {mesh.n_faces} faces, topology {mesh.topology_id}\n")
     for name in mesh.region_names:
