@@ -9,7 +9,8 @@ with default stiffness, grounded at the strip only) in four ways:
 - **its own stiffness**: :data:`TRUTH_STIFFNESS`, softer lower lip than upper lip, varied per
   subject by the seed;
 - **its own boundary conditions**: the outer skin border is held by the face around it, fixed to
-  the skull at the top and carried by the jaw at the bottom, blended in between;
+  the skull at the top and carried by the jaw at the bottom, blended in between (the model holds
+  the whole border still);
 - **nonlinear motion**: the jaw rotates about a hinge axis near the ear, with a forward glide
   growing with the square of the opening; the border follows that rigid motion and the lower lip
   is carried along by its attachment to the gum, so points move on arcs; every displacement is
