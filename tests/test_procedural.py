@@ -217,3 +217,11 @@ def test_grounded_stiffness_positive_definite_and_border_helps():
         assert w[0] > 1e-8 * w[-1]
         conds.append(w[-1] / w[0])
     assert conds[0] < conds[1] / 3  # the skin border removes the soft swinging modes
+
+
+def test_bench_suite_quick():
+    from lipgen.bench import mesh as suite
+
+    out = suite.run(quick=True)
+    assert [row["nodes"] for row in out["levels"]] == [lip_mesh(r).n_nodes for r in range(3)]
+    assert all(row["build_s"] > 0 and row["validate_s"] > 0 for row in out["levels"])

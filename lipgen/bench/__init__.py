@@ -29,6 +29,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
     "lipgen.bench.modes",
     "lipgen.bench.mesh",
+    "lipgen.bench.render",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
