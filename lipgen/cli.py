@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.bench",
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",
+    "lipgen.commands.blender_extension",
 )
 
 _DESCRIPTION = """\
