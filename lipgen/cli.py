@@ -21,6 +21,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.demo",
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",
+    "lipgen.commands.blender_extension",
 )
 
 _DESCRIPTION = """\

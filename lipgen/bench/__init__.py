@@ -28,6 +28,7 @@ log = logging.getLogger(__name__)
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
     "lipgen.bench.physics",
+    "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",
 )
