@@ -552,13 +552,16 @@ def check_undo(tmp: str) -> dict:
         set_group(sheet, "LipGen Anchors", np.flatnonzero(V[:, 1] < V[:, 1].min() + 1e-6))
 
     undoable(bpy.ops.object.lipgen_setup_mesh, prepare=own_sheet)
-    # Build Physics changes no Blender data but the status line; it must not break undo either.
-    bpy.ops.ed.undo_push(message="before build")
-    before = _state()
-    assert bpy.ops.object.lipgen_build_physics("EXEC_DEFAULT", True) == {"FINISHED"}
-    bpy.ops.ed.undo()
-    assert _state() == before
-    undone.append("object.lipgen_build_physics")
+    # Build Physics and Export USD change no Blender data (a status line, a file); undoing
+    # right after them must leave the scene as it was.
+    for op, kw in ((bpy.ops.object.lipgen_build_physics, {}),
+                   (bpy.ops.object.lipgen_export_usd, {"filepath": f"{tmp}/undo.usda"})):
+        bpy.ops.ed.undo_push(message=f"before {op.idname()}")
+        before = _state()
+        assert op("EXEC_DEFAULT", True, **kw) == {"FINISHED"}
+        bpy.ops.ed.undo()
+        assert _state() == before, op.idname()
+        undone.append(op.idname_py())
     return {"undone": undone}
 
 

@@ -2,7 +2,6 @@
 asserted here (they belong to ``lipgen bench``)."""
 
 import pytest
-
 from blender_session import bpy_available
 
 
