@@ -20,6 +20,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.bench",
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",
+    "lipgen.commands.generate",
+    "lipgen.commands.show",
 )
 
 _DESCRIPTION = """\
