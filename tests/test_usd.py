@@ -148,13 +148,29 @@ def test_validators_report_no_errors(tmp_path, mesh, fitted, kind):
     points = _expected(mesh, model, weights)
     args = {"modes": (model, weights, None), "baked": (None, None, points),
             "both": (model, weights, points), "still": (model, None, None)}[kind]
-    for ext in (".usda", ".usdz"):
+    for ext in (".usda", ".usd", ".usdz"):
         path = usd.export_usd(tmp_path / f"{kind}{ext}", mesh, *args)
         issues = usd.validate(path)
         assert not [str(i) for i in issues if i.is_error]
-        if kind == "both":  # both variants were validated, not only the selected one
-            assert {i.variant for i in usd.validate(path)} <= {"", "encoding=blendShapes",
-                                                              "encoding=bakedPoints"}
+
+
+def test_validate_checks_every_variant(tmp_path, mesh, fitted):
+    """A fault planted only in the variant that is not selected is still found."""
+    from pxr import Usd, UsdGeom
+
+    model, weights = fitted
+    path = usd.export_usd(tmp_path / "both.usda", mesh, model, weights, _expected(mesh, model, weights))
+    stage = Usd.Stage.Open(str(path))
+    vset = stage.GetDefaultPrim().GetVariantSets().GetVariantSet("encoding")
+    vset.SetVariantSelection("bakedPoints")
+    with vset.GetVariantEditContext():
+        stage.DefinePrim("/Lips/junk")  # typeless, so not imageable
+        UsdGeom.Subset.Define(stage, "/Lips/junk/subset")
+    vset.SetVariantSelection("blendShapes")
+    stage.Save()
+    found = [(i.variant, i.name) for i in usd.validate(path) if i.is_error]
+    assert found and all(v == "encoding=bakedPoints" for v, _ in found), found
+    assert not [i for i in usd.validate(path, all_variants=False) if i.is_error]
 
 
 def test_validate_finds_real_problems(tmp_path):
