@@ -65,7 +65,8 @@ def test_layout_manifest_and_reader(reference):
     cal = ds.calibration()
     assert len(cal) == 1 and cal[0].truth["corners_world"].shape == (54, 3)
     A, b = cal[0].truth["A"], cal[0].truth["b"]
-    np.testing.assert_allclose(cal[0].truth["corners_board"] @ A.T + b, cal[0].truth["corners_world"], atol=1e-9)
+    np.testing.assert_allclose(cal[0].truth["corners_board"] @ A.T + b, cal[0].truth["corners_world"],
+                               atol=1e-9)
     assert ds.board().inner_cols == 9
     with pytest.raises(IndexError):
         ds[14]

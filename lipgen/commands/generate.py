@@ -33,23 +33,24 @@ def add_parser(sub) -> None:
         description="Simulate the synthetic subject (muscle-like actions on a finer lip model, jaw, "
         "head motion), film it in the camera-mirror rig and write raw frames with their ground truth.",
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", required=True, help="dataset folder (new or empty; or the same dataset with --resume)")
-    p.add_argument("--frames", type=int, default=150, help="number of frames (default 150)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    p.add_argument("--script", default=None,
-                   help='viseme script, e.g. "AA:0.3 EE OO M F" (NAME or NAME:SECONDS, repeated to fill the '
-                   "frames); smooth random activations if omitted")
-    p.add_argument("--size", type=_size, default=(640, 480), help="image size WxH, 4:3 (default 640x480)")
-    p.add_argument("--workers", type=int, default=1, help="local rendering processes (default 1)")
-    p.add_argument("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
-    p.add_argument("--fps", type=float, default=30.0, help="frame rate (default 30)")
-    p.add_argument("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
-    p.add_argument("--noise", type=float, default=1.0, help="sensor noise, grey levels std (default 1)")
-    p.add_argument("--head-rotation", type=float, default=4.0, help="head rotation range, degrees (default 4)")
-    p.add_argument("--head-translation", type=float, default=4.0, help="head translation range, mm (default 4)")
-    p.add_argument("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
-    p.add_argument("--dot-diameter", type=float, default=2.0, help="ink dot diameter, mm (default 2)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    opt = p.add_argument
+    opt("--out", required=True, help="dataset folder (new or empty; or the same dataset with --resume)")
+    opt("--frames", type=int, default=150, help="number of frames (default 150)")
+    opt("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+    opt("--script", default=None,
+        help='viseme script, e.g. "AA:0.3 EE OO M F" (NAME or NAME:SECONDS, repeated to fill the '
+        "frames); smooth random activations if omitted")
+    opt("--size", type=_size, default=(640, 480), help="image size WxH, 4:3 (default 640x480)")
+    opt("--workers", type=int, default=1, help="local rendering processes (default 1)")
+    opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
+    opt("--fps", type=float, default=30.0, help="frame rate (default 30)")
+    opt("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
+    opt("--noise", type=float, default=1.0, help="sensor noise, grey levels std (default 1)")
+    opt("--head-rotation", type=float, default=4.0, help="head rotation range, degrees (default 4)")
+    opt("--head-translation", type=float, default=4.0, help="head translation range, mm (default 4)")
+    opt("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
+    opt("--dot-diameter", type=float, default=2.0, help="ink dot diameter, mm (default 2)")
+    opt("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
 
@@ -62,6 +63,7 @@ def _run(args) -> int:
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
         calib_frames=args.calib_frames)
-    out = generate(args.out, settings, workers=args.workers, resume=args.resume, progress=not args.no_progress)
+    out = generate(args.out, settings, workers=args.workers, resume=args.resume,
+                   progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")
     return 0
