@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import ops_anim, ops_force, ops_mesh, ops_modes, panels, preview, properties
+from . import ops_anim, ops_export, ops_force, ops_mesh, ops_modes, panels, preview, properties
 
 classes = (
     *properties.classes,
@@ -18,6 +18,7 @@ classes = (
     *ops_modes.classes,
     *ops_force.classes,
     *ops_anim.classes,
+    *ops_export.classes,
     *panels.classes,
 )
 

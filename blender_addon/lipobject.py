@@ -22,7 +22,7 @@ __all__ = [
     "REGION_ATTR", "MEAN_KEY", "PREVIEW_KEY", "REACH_KEY", "GROUPS", "UserError",
     "mesh_object", "regions_per_triangle", "region_codes_from_groups", "physics_spec", "physics",
     "physics_for_object",
-    "lip_mesh_of", "topology_id", "apply_mode_basis", "mode_basis", "clear_modes",
+    "lip_mesh_of", "markers_of", "topology_id", "apply_mode_basis", "mode_basis", "clear_modes",
     "mode_key_name", "write_displacement_key", "slider_path",
 ]
 
@@ -144,15 +144,31 @@ def physics_for_object(obj, spec: PhysicsSpec):
                         "in Edit Mode]") from exc
 
 
+def markers_of(obj) -> tuple[np.ndarray, tuple[str, ...] | None]:
+    """Marker nodes and names: the stored order and names if they still match the markers
+    vertex group (LipGen's lips), else the group's vertices in index order (no names)."""
+    s = obj.lipgen
+    if not s.markers_group or obj.vertex_groups.get(s.markers_group) is None:
+        return np.zeros(0, np.int64), None
+    nodes = bridge.vertex_group_nodes(obj, s.markers_group)
+    if s.marker_order:
+        order = np.array([int(i) for i in s.marker_order.split(",")], np.int64)
+        names = tuple(s.marker_names.split(",")) if s.marker_names else None
+        if np.array_equal(np.sort(order), nodes) and (names is None or len(names) == len(order)):
+            return order, names
+    return nodes, None
+
+
 def lip_mesh_of(obj) -> LipMesh:
-    """``obj``'s rest shape as a :class:`lipgen.LipMesh` (mm; anchors if a group is set)."""
+    """``obj``'s rest shape as a :class:`lipgen.LipMesh` (mm; anchors, regions, markers)."""
     s = obj.lipgen
     tris, poly = bridge.mesh_triangles(obj.data)
     anchors = np.zeros(0, np.int64)
     if s.anchors_group and obj.vertex_groups.get(s.anchors_group) is not None:
         anchors = bridge.vertex_group_nodes(obj, s.anchors_group)
+    markers, names = markers_of(obj)
     return LipMesh(bridge.rest_vertices(obj) * s.unit_mm, tris, regions_per_triangle(obj, poly),
-                   anchors, name=obj.name)
+                   anchors, markers, names, name=obj.name)
 
 
 def topology_id(obj) -> str:

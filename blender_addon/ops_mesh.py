@@ -67,6 +67,8 @@ class OBJECT_OT_lipgen_add_lips(LipgenOperator, bpy.types.Operator):
         s.strip_group = GROUPS["strip"]
         s.skin_group = GROUPS["skin"] if "skin" in lm.region_names else ""
         s.topology_id = lm.topology_id
+        s.marker_order = ",".join(str(int(i)) for i in lm.markers)
+        s.marker_names = ",".join(lm.marker_names)
         for o in context.view_layer.objects:
             o.select_set(False)
         obj.select_set(True)

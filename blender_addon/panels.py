@@ -146,20 +146,8 @@ class VIEW3D_PT_lipgen_output(_LipgenPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         layout.operator("object.lipgen_import_curves", icon="IMPORT")
-        for idname, text, icon in _OUTPUT_BUTTONS:
-            if _operator_exists(idname):
-                layout.operator(idname, text=text, icon=icon)
-
-
-_OUTPUT_BUTTONS = (
-    ("object.lipgen_viseme_script", "Animate from Visemes", "SOUND"),
-    ("object.lipgen_export_usd", "Export USD", "EXPORT"),
-)
-
-
-def _operator_exists(idname: str) -> bool:
-    mod, name = idname.split(".")
-    return hasattr(getattr(bpy.types, f"{mod.upper()}_OT_{name}", None), "bl_idname")
+        layout.operator("object.lipgen_export_usd", text="Export USD (lipgen)", icon="EXPORT")
+        layout.label(text="File > Export > USD also writes the shape keys")
 
 
 classes = (VIEW3D_PT_lipgen, VIEW3D_PT_lipgen_physics, VIEW3D_PT_lipgen_modes, VIEW3D_PT_lipgen_force,

@@ -54,6 +54,8 @@ class LIPGEN_PG_settings(bpy.types.PropertyGroup):
         description="Vertex group of the nodes fixed to the head (required)")
     markers_group: StringProperty(name="Markers", default="",
                                   description="Vertex group of the marker points (optional)")
+    marker_order: StringProperty(default="", description="Marker vertices in marker order (LipGen's lips)")
+    marker_names: StringProperty(default="", description="Marker names, comma separated")
     ridge_group: StringProperty(name="Ridge", default="",
                                 description="Vertex group of the stiff inner ridge (optional)")
     strip_group: StringProperty(name="Strip", default="",

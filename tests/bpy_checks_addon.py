@@ -552,11 +552,68 @@ def check_undo(tmp: str) -> dict:
         set_group(sheet, "LipGen Anchors", np.flatnonzero(V[:, 1] < V[:, 1].min() + 1e-6))
 
     undoable(bpy.ops.object.lipgen_setup_mesh, prepare=own_sheet)
-    # Build Physics changes no Blender data but the status line; it must not break undo either.
-    bpy.ops.ed.undo_push(message="before build")
-    before = _state()
-    assert bpy.ops.object.lipgen_build_physics("EXEC_DEFAULT", True) == {"FINISHED"}
-    bpy.ops.ed.undo()
-    assert _state() == before
-    undone.append("object.lipgen_build_physics")
+    # Build Physics and Export USD change no Blender data (a status line, a file); undoing
+    # right after them must leave the scene as it was.
+    for op, kw in ((bpy.ops.object.lipgen_build_physics, {}),
+                   (bpy.ops.object.lipgen_export_usd, {"filepath": f"{tmp}/undo.usda"})):
+        bpy.ops.ed.undo_push(message=f"before {op.idname()}")
+        before = _state()
+        assert op("EXEC_DEFAULT", True, **kw) == {"FINISHED"}
+        bpy.ops.ed.undo()
+        assert _state() == before, op.idname()
+        undone.append(op.idname_py())
     return {"undone": undone}
+
+
+# ---- USD ----------------------------------------------------------------------------------------
+def world_mm(obj) -> np.ndarray:
+    """(n, 3) evaluated world positions in mm."""
+    M = np.array(obj.matrix_world)
+    co = evaluated(obj)
+    return (co @ M[:3, :3].T + M[:3, 3]) * 1000.0
+
+
+def check_usd_export(tmp: str) -> dict:
+    """Export with lipgen.usd (the operator) and with Blender's own exporter; re-import the
+    latter. Returns what the outer test validates with usd-core in a plain process."""
+    fresh()
+    model = fitted_model(f"{tmp}/model.npz")
+    obj = add_lips(0)
+    bpy.ops.object.lipgen_load_modes(filepath=f"{tmp}/model.npz")
+    k = len(model.components_)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 12
+    rng = np.random.default_rng(5)
+    keyed = np.array([1, 6, 12])
+    sliders = rng.uniform(0.0, 1.0, (3, k))  # in [0, 1]: importers clamp to the default range
+    coef = sliders * np.sqrt(model.explained_variance_)
+    np.savez(f"{tmp}/curves.npz", coefficients=coef, frames=keyed)
+    assert bpy.ops.object.lipgen_import_curves(filepath=f"{tmp}/curves.npz") == {"FINISHED"}
+    frames = np.arange(1, 13)
+    model_mm, world = [], []
+    for f in frames:
+        scene.frame_set(int(f))
+        model_mm.append(evaluated(obj))  # mesh data of our lips is the model frame in mm
+        world.append(world_mm(obj))
+    scene.frame_set(1)
+    assert bpy.ops.object.lipgen_export_usd(filepath=f"{tmp}/lipgen.usda", content="BOTH") == {"FINISHED"}
+    assert bpy.ops.wm.usd_export(filepath=f"{tmp}/blender.usda", export_shapekeys=True,
+                                 export_animation=True, selected_objects_only=False) == {"FINISHED"}
+    keys_before = sorted(kb.name for kb in obj.data.shape_keys.key_blocks)
+    # Re-import Blender's file into an empty scene: the shape keys and their animation return.
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    assert bpy.ops.wm.usd_import(filepath=f"{tmp}/blender.usda") == {"FINISHED"}
+    meshes = [o for o in bpy.data.objects if o.type == "MESH"]
+    assert len(meshes) == 1
+    back = meshes[0]
+    keys_after = sorted(kb.name for kb in back.data.shape_keys.key_blocks)
+    scene = bpy.context.scene
+    reimported = []
+    for f in frames:
+        scene.frame_set(int(f))
+        reimported.append(world_mm(back))
+    np.savez(f"{tmp}/frames.npz", frames=frames, model_mm=np.array(model_mm),
+             coef=np.array([[np.interp(f, keyed, coef[:, i]) for i in range(k)] for f in frames]))
+    return {"keys_before": keys_before, "keys_after": keys_after,
+            "reimport_max_dev_mm": float(np.abs(np.array(reimported) - np.array(world)).max()),
+            "peak_mm": float(np.abs(np.array(model_mm) - lip_mesh(0).vertices).max())}

@@ -38,11 +38,17 @@ def main(zip_path: str, out: str) -> None:
     F = np.zeros((lm.n_nodes, 3))
     F[nodes] = [0.0, 0.0, 1.0]
     dev = float(np.abs(co.reshape(-1, 3) - lm.vertices - Physics(lm).displace(F)).max())
+    # lipgen's USD export through Blender's own bundled pxr (nothing else provides one here).
+    usd_path = out[: -len(".json")] + ".usda"
+    bpy.context.scene.frame_end = 3
+    assert bpy.ops.object.lipgen_export_usd(filepath=usd_path, content="POINTS") == {"FINISHED"}
+    import pxr
+
     with open(out, "w") as fh:
         json.dump({"install": sorted(result), "lipgen": lipgen.__file__, "scipy": scipy.__file__,
                    "addon_modules": sorted(m for m in sys.modules if m.startswith("bl_ext.")
                                            and m.endswith(".lipgen")),
-                   "force_max_dev_mm": dev}, fh)
+                   "force_max_dev_mm": dev, "pxr": pxr.__file__, "usd": usd_path}, fh)
 
 
 if __name__ == "__main__":

@@ -117,6 +117,7 @@ def test_built_zip_validates_installs_and_works_in_a_bare_blender(tmp_path):
         assert any(w.startswith("lipgen-") for w in wheels) and any(w.startswith("scipy-") for w in wheels)
         assert not any(w.startswith("numpy-") for w in wheels), "Blender ships numpy"
         assert all(f"wheels/{w}" in zf.namelist() for w in wheels)
+        assert "_bench_worker.py" not in zf.namelist(), "the benchmark worker is not shipped"
     # A bare interpreter: only bpy and numpy on the path, a fresh Blender user folder.
     import importlib.util
 
@@ -143,3 +144,8 @@ def test_built_zip_validates_installs_and_works_in_a_bare_blender(tmp_path):
         assert str(home) in got[mod], got
     assert got["addon_modules"] == ["bl_ext.user_default.lipgen"]
     assert got["force_max_dev_mm"] < 1e-5, got
+    assert "bpy" in got["pxr"], got  # Blender's own USD module
+    from lipgen.usd import read_animation, validate
+
+    assert [str(i) for i in validate(got["usd"]) if i.is_error] == []
+    assert read_animation(got["usd"]).points.shape == (3, 201, 3)

@@ -31,6 +31,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",
+    "lipgen.bench.blender",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
