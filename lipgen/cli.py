@@ -22,6 +22,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",
     "lipgen.commands.blender_extension",
+    "lipgen.commands.generate",
+    "lipgen.commands.show",
 )
 
 _DESCRIPTION = """\
