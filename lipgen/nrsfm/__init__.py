@@ -1,0 +1,29 @@
+"""Non-rigid structure from motion under orthography.
+
+- :func:`reconstruct` (``method="bregler"``, ``"dai"`` or ``"dai-ba"``, see :data:`METHODS`):
+  rotations, weights and basis shapes from 2D tracks W (2F x P), optionally with missing points.
+- :func:`e3d`: the benchmark's normalised 3D error.
+- :func:`reprojection_curve` / :func:`choose_k`: K from the reprojection error (Bregler Fig 2).
+- :func:`load_tracks` / :func:`save_shapes`: the ``lipgen nrsfm`` file formats.
+"""
+
+from __future__ import annotations
+
+from .core import DEFAULT_METHOD, METHODS, Reconstruction, reconstruct
+from .io import load_shapes, load_tracks, save_shapes
+from .metrics import KCurve, choose_k, e3d, plot_curve, reprojection_curve
+
+__all__ = [
+    "DEFAULT_METHOD",
+    "METHODS",
+    "Reconstruction",
+    "reconstruct",
+    "e3d",
+    "KCurve",
+    "choose_k",
+    "reprojection_curve",
+    "plot_curve",
+    "load_tracks",
+    "save_shapes",
+    "load_shapes",
+]

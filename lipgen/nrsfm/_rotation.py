@@ -1,0 +1,163 @@
+"""Camera rotations: orthonormal-row projections and the corrective triple of Dai, Li & He (2012).
+
+Under (scaled) orthography the rank-3K factor ``M`` (2F x 3K) of the centred tracks equals the
+true motion matrix times an unknown invertible 3K x 3K corrective transform. Any one column
+triple ``g`` (3K x 3) of that transform gives ``M_f g = c_f R_f`` for every frame f: a scaled
+2 x 3 matrix with orthonormal rows. Dai, Li & He recover ``Q = g g^T`` from these two linear
+constraints per frame (trace-norm relaxation, then nonlinear refinement of g); any rank-3 psd
+solution gives the rotations. Here g is found directly by Levenberg-Marquardt on the same
+constraints from several starts.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import scipy.optimize
+
+__all__ = ["complete_rotations", "nearest_orthonormal_rows", "expm_so3", "skew",
+           "corrective_triple", "rotations_from_triple", "orient_frames"]
+
+log = logging.getLogger(__name__)
+
+
+def skew(x: np.ndarray) -> np.ndarray:
+    """Cross-product matrices ``[x]_x`` of ``x (..., 3)``, shape ``(..., 3, 3)``."""
+    Z = np.zeros(x.shape[:-1] + (3, 3))
+    Z[..., 0, 1], Z[..., 0, 2] = -x[..., 2], x[..., 1]
+    Z[..., 1, 0], Z[..., 1, 2] = x[..., 2], -x[..., 0]
+    Z[..., 2, 0], Z[..., 2, 1] = -x[..., 1], x[..., 0]
+    return Z
+
+
+def expm_so3(w: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``exp([w]_x)`` (Rodrigues) of axis-angle vectors ``w (..., 3)``."""
+    theta = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = skew(w)
+    small = theta < 1e-8
+    th = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6, np.sin(th) / th)
+    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th**2)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def complete_rotations(R2: np.ndarray) -> np.ndarray:
+    """Full rotations ``(F, 3, 3)`` from orthonormal row pairs ``(F, 2, 3)``: third row r1 x r2."""
+    return np.concatenate([R2, np.cross(R2[:, 0], R2[:, 1])[:, None, :]], axis=1)
+
+
+def nearest_orthonormal_rows(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nearest matrices with orthonormal rows, and the scales, of ``A (F, 2, 3)``.
+
+    ``A_f ~ scale_f * R_f`` with ``R_f R_f^T = I``; R_f is the polar factor and scale_f the mean
+    singular value (the least-squares scale).
+    """
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    return U @ Vt, s.mean(axis=1)
+
+
+def _metric_terms(g: np.ndarray, M1: np.ndarray, M2: np.ndarray):
+    p, q = M1 @ g, M2 @ g
+    return p, q, (p * p).sum(1), (q * q).sum(1), (p * q).sum(1)
+
+
+def _metric_residual(x, M1, M2):
+    p, q, a, b, c = _metric_terms(x.reshape(-1, 3), M1, M2)
+    scale = np.mean(a + b)
+    return np.concatenate([a - b, 2 * c]) / scale
+
+
+def _metric_jacobian(x, M1, M2):
+    g = x.reshape(-1, 3)
+    p, q, a, b, c = _metric_terms(g, M1, M2)
+    F = M1.shape[0]
+    scale = np.mean(a + b)
+    da = 2 * (M1[:, :, None] * p[:, None, :]).reshape(F, -1)
+    db = 2 * (M2[:, :, None] * q[:, None, :]).reshape(F, -1)
+    dc = (M1[:, :, None] * q[:, None, :] + M2[:, :, None] * p[:, None, :]).reshape(F, -1)
+    dscale = (da + db).mean(0)
+    r1, r2 = (a - b) / scale, 2 * c / scale
+    J1 = (da - db) / scale - np.outer(r1, dscale) / scale
+    J2 = 2 * dc / scale - np.outer(r2, dscale) / scale
+    return np.vstack([J1, J2])
+
+
+def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0) -> tuple[np.ndarray, float]:
+    """One column triple g of the corrective transform, from the orthonormality of ``M_f g``.
+
+    Minimises, over g (r x 3), the scale-free residuals ``|m1 g|^2 - |m2 g|^2`` and
+    ``2 (m1 g).(m2 g)`` of every frame (rows m1, m2 of M_f), divided by the mean of
+    ``|m1 g|^2 + |m2 g|^2``. The first start is the leading triple (the rigid, Tomasi-Kanade
+    guess); the others are seeded random triples. The lowest cost wins; the search stops early
+    once two starts have reached the same lowest cost (to 1e-6), or a cost of zero.
+
+    Parameters
+    ----------
+    M : (2F, r) float
+        Motion factor of the centred tracks (r >= 3).
+    n_starts : int
+        Number of starting points.
+    seed : int
+        Seed of the random starts.
+
+    Returns
+    -------
+    g : (r, 3) float
+    cost : float
+        Half the sum of squared scale-free residuals at g (0 for exact data).
+    """
+    r = M.shape[1]
+    M1, M2 = M[0::2], M[1::2]
+    rng = np.random.default_rng(seed)
+    starts = [np.eye(r, 3)] + [rng.standard_normal((r, 3)) for _ in range(max(n_starts, 1) - 1)]
+    best, confirmed = None, False
+    for g0 in starts:
+        res = scipy.optimize.least_squares(
+            _metric_residual, g0.ravel(), jac=_metric_jacobian, args=(M1, M2), method="lm",
+            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200 * (3 * r + 1))
+        if best is not None and abs(res.cost - best.cost) <= 1e-6 * max(best.cost, 1e-300):
+            confirmed = True
+        elif best is None or res.cost < best.cost:
+            best, confirmed = res, False
+        if confirmed or best.cost < 1e-24:
+            break
+    log.debug("corrective triple: cost %.3e (%s)", best.cost, "confirmed" if confirmed else "unconfirmed")
+    return best.x.reshape(r, 3), float(best.cost)
+
+
+def rotations_from_triple(M: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations (F, 3, 3) and per-frame coefficients (F,) from ``M_f g ~ c_f R_f``."""
+    A = (M @ g).reshape(-1, 2, 3)
+    R2, c = nearest_orthonormal_rows(A)
+    return complete_rotations(R2), c
+
+
+def orient_frames(R: np.ndarray, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Resolve the per-frame sign ambiguity ``(R_f, S_f) ~ (diag(-1, -1, 1) R_f, -S_f)``.
+
+    Both choices give the same image; they differ by reflecting frame f's depth. Each frame is
+    turned so that its object-frame shape correlates positively with the dominant shape of the
+    sequence (first right singular vector of the F x 3P shape matrix), i.e. the frames deform
+    around one common shape instead of its point reflection.
+
+    Parameters
+    ----------
+    R : (F, 3, 3) float
+    shapes : (F, 3, P) float
+        Object-frame shapes.
+
+    Returns
+    -------
+    R, shapes : oriented copies
+    sign : (F,) float
+        +1 or -1 per frame (the flip applied).
+    """
+    F = shapes.shape[0]
+    flat = shapes.reshape(F, -1)
+    v = np.linalg.svd(flat, full_matrices=False)[2][0]
+    sign = np.sign(flat @ v)
+    sign[sign == 0] = 1.0
+    flip = np.array([-1.0, -1.0, 1.0])
+    R = np.where(sign[:, None, None] < 0, flip[None, :, None] * R, R)
+    return R, shapes * sign[:, None, None], sign

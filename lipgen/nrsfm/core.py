@@ -1,0 +1,174 @@
+"""``reconstruct``: one entry point for every method, and the result record."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._rotation import corrective_triple, orient_frames, rotations_from_triple
+from ._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
+from .bmm import min_trace_norm_shapes, rank_k_shapes
+from .bregler import bregler_factorization
+from .refine import bundle_adjust
+
+__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD"]
+
+log = logging.getLogger(__name__)
+
+METHODS: dict[str, str] = {
+    "bregler": "Bregler, Hertzmann & Biermann 1999 as written: rank-3K SVD, per-frame rank-1 "
+               "pose/weights, one 3x3 metric upgrade",
+    "dai": "Dai, Li & He 2012 (prior-free): rotations from the orthonormality of one corrective "
+           "triple, shapes of least trace norm reprojecting exactly (block matrix method), cut to rank K",
+    "dai-ba": "'dai' followed by low-rank bundle adjustment of rotations, weights, basis and "
+              "translation (Levenberg-Marquardt on the reprojection error)",
+}
+"""Method names accepted by :func:`reconstruct`, with what each does."""
+
+DEFAULT_METHOD = "dai"
+
+
+@dataclass(frozen=True)
+class Reconstruction:
+    """A non-rigid reconstruction under orthography (arrays are read-only).
+
+    Attributes
+    ----------
+    rotations : (F, 3, 3) float
+        Object-to-camera rotations; the third row is the cross product of the first two.
+    weights : (F, K) float
+        Configuration weights (they carry each frame's projection scale).
+    basis : (K, 3, P) float
+        Basis shapes in the object frame.
+    translation : (F, 2) float
+        Image translation of each frame: ``W_f ~ (R_f S_f)[:2] + t_f``.
+    method : str
+    k : int
+    reprojection_rms : float
+        RMS over observed coordinates of the reprojection residual, in the units of W.
+    info : dict
+        Diagnostics of the method (costs, iteration counts).
+    """
+
+    rotations: np.ndarray
+    weights: np.ndarray
+    basis: np.ndarray
+    translation: np.ndarray
+    method: str
+    k: int
+    reprojection_rms: float
+    info: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        for name in ("rotations", "weights", "basis", "translation"):
+            arr = np.array(getattr(self, name), dtype=np.float64)
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def n_frames(self) -> int:
+        return self.rotations.shape[0]
+
+    @property
+    def n_points(self) -> int:
+        return self.basis.shape[2]
+
+    @property
+    def object_shapes(self) -> np.ndarray:
+        """(F, 3, P) shapes in the object frame, ``sum_k weights[f, k] basis[k]``."""
+        return np.einsum("fk,kip->fip", self.weights, self.basis)
+
+    @property
+    def shapes(self) -> np.ndarray:
+        """(F, 3, P) shapes in the camera frame (x right, y down as the tracks, z depth), centred."""
+        return self.rotations @ self.object_shapes
+
+    @property
+    def S(self) -> np.ndarray:
+        """(3F, P) camera-frame shapes, rows x1, y1, z1, x2, ... (the benchmark layout)."""
+        return self.shapes.reshape(-1, self.n_points)
+
+    def reproject(self) -> np.ndarray:
+        """(2F, P) predicted tracks, rows u1, v1, u2, ..."""
+        return (self.shapes[:, :2] + self.translation[:, :, None]).reshape(-1, self.n_points)
+
+
+def _reprojection_rms(tracks, R, C, B, t) -> float:
+    pred = (R @ np.einsum("fk,kip->fip", C, B))[:, :2] + t[:, :, None]
+    F, P = tracks.mask.shape
+    res = (tracks.W.reshape(F, 2, P) - pred) * tracks.mask[:, None, :]
+    return float(np.sqrt((res**2).sum() / (2 * tracks.n_observed)))
+
+
+def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
+                n_starts: int = 4, refine_iter: int = 100) -> Reconstruction:
+    """Non-rigid structure from motion: rotations, weights and basis shapes from 2D tracks.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+        Tracks under (scaled) orthography, rows u1, v1, u2, v2, ...
+    k : int
+        Number of basis shapes K (see :func:`lipgen.nrsfm.reprojection_curve` to choose it).
+    method : str
+        One of :data:`METHODS`: ``"bregler"``, ``"dai"`` (default) or ``"dai-ba"``.
+    visible : (F, P) array_like of bool, optional
+        Observed points; unobserved entries of W are ignored (NaN allowed there). Every method
+        accepts it: the rank-3K factor is then taken from a low-rank completion of W, and
+        ``"dai"`` / ``"dai-ba"`` fit the shapes to the observed points only.
+    seed : int
+        Seed of the random starts of the rotation search.
+    n_starts : int
+        Starting points of the rotation search (``"dai"``, ``"dai-ba"``).
+    refine_iter : int
+        Iteration cap of the bundle adjustment (``"dai-ba"``).
+
+    Returns
+    -------
+    Reconstruction
+
+    Raises
+    ------
+    ValueError
+        For malformed tracks (see :func:`lipgen.nrsfm._tracks.check_tracks`), an unknown method,
+        or a K too large for the data.
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown NRSfM method {method!r}; choose one of {sorted(METHODS)}")
+    tracks = check_tracks(W, visible)
+    F, P = tracks.mask.shape
+    k = check_k(k, F, P, tracks.n_observed, unknowns_per_frame=5)
+    full = complete_tracks(tracks, 3 * k)
+    t = full.mean(axis=1)
+    Wc = full - t[:, None]
+    rank, sv = numerical_rank(Wc)
+    if rank < 3:
+        raise ValueError(f"the centred (completed) tracks have numerical rank {rank} < 3 (singular values "
+                         f"{np.array2string(sv[:4], precision=3)}): not even a rigid structure is defined")
+    r = min(3 * k, rank)
+    if r < 3 * k:
+        log.info("tracks have numerical rank %d < 3K = %d (degenerate basis shapes); the factor keeps "
+                 "rank %d", rank, 3 * k, r)
+    t = t.reshape(F, 2)
+    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist()}
+    if method == "bregler":
+        R, C, B = bregler_factorization(Wc, k)
+    else:
+        M, _, _ = factor(Wc, r)
+        g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
+        R, _ = rotations_from_triple(M, g)
+        shapes = min_trace_norm_shapes(Wc, R, None if tracks.complete else tracks.mask)
+        R, shapes, _ = orient_frames(R, shapes)
+        C, B = rank_k_shapes(shapes, k)
+        info["rotation_cost"] = cost
+        if method == "dai-ba":
+            R, C, B, t, history = bundle_adjust(tracks.W, R, C, B, t, None if tracks.complete else
+                                                tracks.mask, max_iter=refine_iter)
+            info["ba_cost"] = [history[0], history[-1]]
+            info["ba_steps"] = len(history) - 1
+    rms = _reprojection_rms(tracks, R, C, B, t)
+    return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
+                          reprojection_rms=rms, info=info)
+

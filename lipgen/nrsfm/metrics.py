@@ -1,0 +1,193 @@
+"""The field's 3D error (e3D, after Akhter et al.) and the choice of K from the reprojection curve."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validate import as_float_array
+from ._tracks import check_k, check_tracks
+from .core import DEFAULT_METHOD, reconstruct
+
+__all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve"]
+
+log = logging.getLogger(__name__)
+
+
+def _as_stacked(S, name: str) -> np.ndarray:
+    S = as_float_array(S, name)
+    if S.ndim == 3 and S.shape[1] == 3:
+        return S.reshape(-1, S.shape[2])
+    if S.ndim != 2 or S.shape[0] % 3:
+        raise ValueError(f"{name} must be (3F, P) with rows x1, y1, z1, x2, ... or (F, 3, P), got shape "
+                         f"{S.shape}")
+    return S
+
+
+def e3d(S_est, S_true) -> float:
+    """Normalised mean 3D error of a shape sequence, as the benchmark defines it.
+
+    1. ``s`` = mean over the 3F rows of ``S_true`` of the population std across points.
+    2. Both sequences are divided by ``s`` and each row is centred.
+    3. One 3 x 3 orthogonal matrix (reflection allowed) aligns all frames of the estimate to the
+       truth (orthogonal Procrustes).
+    4. Per frame, the mean over points of the Euclidean distance; e3D is the mean over frames.
+
+    Parameters
+    ----------
+    S_est, S_true : (3F, P) or (F, 3, P) array_like
+        Camera-frame shapes, rows x1, y1, z1, x2, ...
+
+    Returns
+    -------
+    float
+        Invariant to one global rotation or reflection of the estimate, and to scaling both
+        inputs together; 0 for identical inputs.
+    """
+    A = _as_stacked(S_est, "S_est")
+    B = _as_stacked(S_true, "S_true")
+    if A.shape != B.shape:
+        raise ValueError(f"S_est and S_true must have the same shape, got {A.shape} and {B.shape}")
+    s = float(np.mean(np.std(B, axis=1)))
+    if not s > 0:
+        raise ValueError(f"S_true of shape {B.shape} is constant within every row: e3D is undefined")
+    A = A / s
+    B = B / s
+    A = A - A.mean(axis=1, keepdims=True)
+    B = B - B.mean(axis=1, keepdims=True)
+    F = A.shape[0] // 3
+    a, b = A.reshape(F, 3, -1), B.reshape(F, 3, -1)
+    U, _, Vt = np.linalg.svd(np.einsum("fip,fjp->ij", b, a))
+    Q = U @ Vt  # orthogonal, det +-1: maps the estimate onto the truth
+    dist = np.linalg.norm(np.einsum("ij,fjp->fip", Q, a) - b, axis=1)
+    return float(dist.mean(axis=1).mean())
+
+
+@dataclass(frozen=True)
+class KCurve:
+    """Reprojection error against the number of basis shapes (Bregler et al. 1999, Fig 2).
+
+    Attributes
+    ----------
+    ks : (n,) int
+    rms : (n,) float
+        RMS reprojection error over observed coordinates, in the units of W.
+    relative : (n,) float
+        ``rms`` divided by the RMS of the centred observed tracks.
+    chosen : int
+        K picked by :func:`choose_k`.
+    rule : str
+        The rule, in words, with its thresholds.
+    method : str
+    """
+
+    ks: np.ndarray
+    rms: np.ndarray
+    relative: np.ndarray
+    chosen: int
+    rule: str
+    method: str
+
+
+def choose_k(ks, relative, rtol: float = 0.01, flat: float = 0.05) -> tuple[int, str]:
+    """Pick K from a reprojection curve.
+
+    Rule: the smallest K whose relative RMS reprojection error is at most ``rtol``; if no K
+    reaches it, the smallest K after which one more basis shape lowers the error by less than
+    ``flat`` of its value (the curve has reached its floor: Bregler's "the error vanishes");
+    otherwise the largest K tried.
+
+    Returns
+    -------
+    k : int
+    rule : str
+    """
+    ks = np.asarray(ks, dtype=int)
+    rel = np.asarray(relative, dtype=float)
+    order = np.argsort(ks)
+    ks, rel = ks[order], rel[order]
+    rule = (f"smallest K with RMS reprojection <= {rtol:g} of the RMS of the centred tracks; else the "
+            f"first K after which one more basis lowers it by < {flat:g} of its value; else the largest K")
+    hit = np.flatnonzero(rel <= rtol)
+    if hit.size:
+        return int(ks[hit[0]]), rule
+    for i in range(len(ks) - 1):
+        if rel[i + 1] > (1 - flat) * rel[i]:
+            return int(ks[i]), rule
+    return int(ks[-1]), rule
+
+
+def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, rtol: float = 0.01,
+                       flat: float = 0.05, progress: bool = False, **options) -> KCurve:
+    """Reconstruct with K = 1, 2, ... and record the reprojection error; choose K by :func:`choose_k`.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+    ks : iterable of int, optional
+        Ks to try; by default 1 up to the largest K the data allow, at most 15.
+    method : str
+        Method whose reprojection is measured (see :data:`lipgen.nrsfm.METHODS`).
+    visible : (F, P) array_like of bool, optional
+    rtol, flat : float
+        Thresholds of the rule (see :func:`choose_k`).
+    progress : bool
+        Show a progress bar.
+    **options
+        Passed to :func:`lipgen.nrsfm.reconstruct`.
+    """
+    tracks = check_tracks(W, visible)
+    F, P = tracks.mask.shape
+    if ks is None:
+        limit = min(2 * F, P - 1) // 3
+        ks = range(1, min(limit, 15) + 1)
+    ks = np.array([check_k(int(k), F, P, tracks.n_observed, unknowns_per_frame=5) for k in ks])
+    if ks.size == 0:
+        raise ValueError("ks is empty: give at least one K")
+    seen = np.repeat(tracks.mask, 2, axis=0)
+    means = (tracks.W * seen).sum(1) / seen.sum(1)
+    scale = float(np.sqrt((((tracks.W - means[:, None]) * seen) ** 2).sum() / seen.sum()))
+    rms = []
+    iterator = ks
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(ks, desc=f"reprojection curve ({method})", unit="K")
+    for k in iterator:
+        rec = reconstruct(tracks.W, int(k), method=method,
+                          visible=None if tracks.complete else tracks.mask, **options)
+        rms.append(rec.reprojection_rms)
+        log.info("K=%d: RMS reprojection %.4g (%.3g%%)", k, rec.reprojection_rms, 100 * rms[-1] / scale)
+    rms = np.array(rms)
+    relative = rms / scale
+    chosen, rule = choose_k(ks, relative, rtol=rtol, flat=flat)
+    return KCurve(ks=ks, rms=rms, relative=relative, chosen=chosen, rule=rule, method=method)
+
+
+def plot_curve(curve: KCurve, path) -> None:
+    """Write the reprojection curve (log scale) with the chosen K marked, atomically (Agg)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .._io import atomic_path
+
+    fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
+    ax.semilogy(curve.ks, 100 * curve.relative, "o-", color="tab:blue", label=curve.method)
+    i = int(np.flatnonzero(curve.ks == curve.chosen)[0])
+    ax.semilogy([curve.chosen], [100 * curve.relative[i]], "s", ms=11, mfc="none", color="tab:red",
+                label=f"chosen K = {curve.chosen}")
+    ax.set_xlabel("number of basis shapes K")
+    ax.set_ylabel("RMS reprojection error (% of track RMS)")
+    ax.set_title("Reprojection error against K (Bregler et al. Fig 2)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
