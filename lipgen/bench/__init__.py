@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
+    "lipgen.bench.nrsfm",
     "lipgen.bench.physics",
     "lipgen.bench.modes",
     "lipgen.bench.mesh",

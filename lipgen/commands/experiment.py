@@ -35,6 +35,19 @@ def add_parser(sub) -> None:
     t.add_argument("--truth-resolution", type=int, default=1, help="lip_mesh resolution of the truth (>= 1)")
     t.add_argument("--no-head", action="store_true", help="no head motion")
     t.set_defaults(func=_table51)
+    n = exp.add_parser(
+        "nrsfm",
+        help="non-rigid SfM on the standard sequences (drink, jaws) beside the published e3D",
+        description="Run every NRSfM method on drink and jaws (from $LIPGEN_NRSFM_DATA, default "
+        "/work/shared/benchmarks/nrsfm) at the published Ks and at the K chosen from the "
+        "reprojection curve, and on synthetic articulated sequences; write benchmarks.md, "
+        "benchmarks.json and the curves to --out. Takes minutes ('dai-ba' at K = 12-13 on drink).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    n.add_argument("--out", default="renders/nrsfm", help="output folder")
+    n.add_argument("--methods", nargs="+", default=["bregler", "dai", "dai-ba"], help="methods to run")
+    n.add_argument("--no-synthetic", action="store_true", help="skip the synthetic articulated sequences")
+    n.set_defaults(func=_nrsfm)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
 
@@ -50,4 +63,18 @@ def _table51(args) -> int:
         runs.append(run_table51(settings))
     report = write_report(runs, args.out)
     sys.stdout.write(f"wrote {report}\n")
+    return 0
+
+
+def _nrsfm(args) -> int:
+    from ..experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
+    from ..nrsfm import METHODS
+
+    unknown = [m for m in args.methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"unknown method(s) {unknown}; choose from {sorted(METHODS)}")
+    settings = NrsfmBenchSettings(methods=tuple(args.methods),
+                                  synthetic_seeds=() if args.no_synthetic else (0, 1, 2, 3))
+    run_nrsfm_benchmarks(args.out, settings)
+    sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")
     return 0

@@ -1,0 +1,59 @@
+"""Bench suite ``nrsfm``: time of each NRSfM method on drink (1102 frames x 41 points) for several K,
+with e3D beside the published figures.
+
+Baseline, timed in the same run: the thin SVD of the centred tracks (the first step of every
+factorisation method). Without the benchmark files (``$LIPGEN_NRSFM_DATA``) a synthetic
+articulated sequence of the same size is timed instead and e3D is scored against its truth.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .measure import time_call
+
+NAME = "nrsfm"
+
+_KS = {"bregler": (4, 8, 12, 13), "dai": (4, 8, 12, 13), "dai-ba": (4, 8, 12)}
+_KS_QUICK = {"bregler": (4, 12), "dai": (4, 12), "dai-ba": (4,)}
+
+
+def _sequence():
+    from ..experiments.nrsfm_benchmarks import data_dir
+
+    path = data_dir() / "drink.npz"
+    if path.is_file():
+        with np.load(path, allow_pickle=False) as d:
+            return "drink", d["W"], d["S"]
+    from ..nrsfm.synthetic import articulated_sequence
+
+    W, S, _ = articulated_sequence(1102, np.random.default_rng(0), n_bones=14, markers_per_bone=3)
+    return "synthetic articulated (drink's data not found)", W[:, :41], S[:, :41]
+
+
+def run(quick: bool = False) -> dict:
+    from ..experiments.nrsfm_benchmarks import PUBLISHED
+    from ..nrsfm import e3d, reconstruct
+
+    name, W, S = _sequence()
+    load_before = os.getloadavg()
+    Wc = W - W.mean(1, keepdims=True)
+    t_svd = time_call(lambda: np.linalg.svd(Wc, full_matrices=False), repeat=5)["best_s"]
+    runs = []
+    for method, ks in (_KS_QUICK if quick else _KS).items():
+        for k in ks:
+            results = []
+            repeat = 1 if method == "dai-ba" or (not quick and k > 8) else 2
+            timing = time_call(lambda m=method, k=k, out=results: out.append(reconstruct(W, k, method=m)),
+                               repeat=repeat)
+            rec = results[0]
+            runs.append({"method": method, "k": k, "best_s": timing["best_s"],
+                         "over_svd_time": timing["best_s"] / t_svd, "e3d": e3d(rec.S, S),
+                         "reprojection_rms": rec.reprojection_rms})
+    return {"sequence": name, "frames": W.shape[0] // 2, "points": W.shape[1],
+            "svd_baseline_s": t_svd, "runs": runs,
+            "published_e3d": [{"source": s, "k": k, "e3d": e} for s, k, e in PUBLISHED["drink"]],
+            "load_before": load_before, "load_after": os.getloadavg(),
+            "target": "dai under 5 s on drink"}

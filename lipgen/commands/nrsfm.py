@@ -1,0 +1,100 @@
+"""``lipgen nrsfm``: non-rigid structure from motion on a tracks file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+_DESCRIPTION = """\
+Reconstruct non-rigid 3D shape from 2D tracks under orthography.
+
+TRACKS.npz holds W (2F x P, rows u1, v1, u2, v2, ...) and optionally visible (F x P bool,
+False where a point is not observed; W may hold NaN there). If it also holds S (3F x P
+ground truth, as the benchmark files do), the e3D error is printed.
+
+SHAPES.npz gets S (3F x P camera-frame shapes, rows x1, y1, z1, x2, ...), R (F x 3 x 3),
+weights (F x K), basis (K x 3 x P), translation (F x 2), method, k, reprojection_rms.
+Depth has a global sign ambiguity under orthography (a mirror image fits equally well).
+
+Methods:
+  dai      Dai, Li & He 2012 (default): rotations from one corrective triple, shapes of least
+           trace norm that reproject exactly, cut to rank K. Fast.
+  dai-ba   dai, then low-rank bundle adjustment (Levenberg-Marquardt on the reprojection
+           error). More accurate, slower; exact on noise-free low-rank data, with missing points.
+  bregler  Bregler, Hertzmann & Biermann 1999 as written (3x3 metric upgrade).
+
+--k auto reconstructs for K = 1, 2, ... and picks the smallest K whose RMS reprojection error
+is at most --rtol of the RMS of the centred tracks (else where the curve flattens); the curve is
+plotted (Bregler et al. Fig 2).
+"""
+
+
+def add_parser(sub) -> None:
+    from ..nrsfm import DEFAULT_METHOD, METHODS
+
+    p = sub.add_parser("nrsfm", help="non-rigid structure from motion: 2D tracks -> 3D shapes",
+                       description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("tracks", metavar="TRACKS.npz", help="tracks file (W, optional visible, optional S)")
+    p.add_argument("--k", required=True, metavar="K",
+                   help="number of basis shapes, or 'auto' to choose it from the reprojection curve")
+    p.add_argument("--method", default=DEFAULT_METHOD, choices=sorted(METHODS),
+                   help=f"reconstruction method (default {DEFAULT_METHOD})")
+    p.add_argument("--out", required=True, metavar="SHAPES.npz", help="output file")
+    p.add_argument("--plot", metavar="CURVE.png",
+                   help="write the reprojection curve here (default with --k auto: OUT stem + _curve.png)")
+    p.add_argument("--kmax", type=int, default=None, help="largest K of the curve (default: what the "
+                   "data allow, at most 15)")
+    p.add_argument("--rtol", type=float, default=0.01,
+                   help="--k auto: relative RMS reprojection error that counts as explained (default 0.01)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the rotation search's random starts")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    p.set_defaults(func=_run)
+
+
+def _parse_k(text: str):
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"--k must be a positive integer or 'auto', got {text!r}") from None
+
+
+def _run(args) -> int:
+    from ..nrsfm import e3d, load_tracks, plot_curve, reconstruct, reprojection_curve, save_shapes
+
+    out = Path(args.out)
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; pass --force to overwrite it or choose another --out")
+    k = _parse_k(args.k)
+    data = load_tracks(args.tracks)
+    W, visible = data["W"], data.get("visible")
+    write = sys.stdout.write
+    write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
+          + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
+    plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
+    if k == "auto" or plot:
+        ks = range(1, args.kmax + 1) if args.kmax else None
+        curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
+                                   progress=True, seed=args.seed)
+        write("K   RMS reprojection   % of track RMS\n")
+        for kk, rms, rel in zip(curve.ks, curve.rms, curve.relative, strict=True):
+            write(f"{kk:<3d} {rms:<18.4g} {100 * rel:.3g}\n")
+        write(f"rule: {curve.rule}\n")
+        if k == "auto":
+            k = curve.chosen
+            write(f"chosen K = {k}\n")
+        plot_curve(curve, plot)
+        write(f"wrote {plot}\n")
+    t0 = time.perf_counter()
+    rec = reconstruct(W, k, method=args.method, visible=visible, seed=args.seed)
+    seconds = time.perf_counter() - t0
+    save_shapes(out, rec)
+    write(f"method {rec.method}, K = {rec.k}: RMS reprojection {rec.reprojection_rms:.4g} "
+          f"({seconds:.2f} s)\n")
+    if "S" in data:
+        write(f"e3D against the S in {args.tracks}: {e3d(rec.S, data['S']):.4f}\n")
+    write(f"wrote {out}\n")
+    return 0

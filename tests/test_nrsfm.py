@@ -1,0 +1,188 @@
+"""Non-rigid structure from motion: exact recovery, missing data, the e3D metric, K choice, bad input, CLI."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lipgen.cli import main
+from lipgen.nrsfm import (
+    METHODS,
+    Reconstruction,
+    choose_k,
+    e3d,
+    load_shapes,
+    reconstruct,
+    reprojection_curve,
+)
+from lipgen.nrsfm.synthetic import low_rank_sequence, random_rotations
+
+BENCH = Path("/work/shared/benchmarks/nrsfm")
+
+
+def _check_rotations(R):
+    F = R.shape[0]
+    assert np.allclose(R @ R.transpose(0, 2, 1), np.broadcast_to(np.eye(3), (F, 3, 3)), atol=1e-10)
+    assert np.allclose(np.linalg.det(R), 1.0, atol=1e-10)
+    assert np.allclose(R[:, 2], np.cross(R[:, 0], R[:, 1]), atol=1e-12)
+
+
+# ---------------------------------------------------------------- e3D
+
+def test_e3d_hand_computed():
+    truth = np.array([[1.0, -1.0], [0.0, 0.0], [0.0, 0.0]])  # one frame, two points
+    # s = mean of the row stds (1, 0, 0) = 1/3: points at +-3 after scaling; estimate at +-6
+    assert e3d(2 * truth, truth) == pytest.approx(3.0)
+    assert e3d(truth + 5.0, truth) == pytest.approx(0.0, abs=1e-15)  # rows are centred
+    # two frames: the estimate's second frame collapsed to a point, 3 units from each true point
+    truth2 = np.vstack([truth, truth])
+    est = np.vstack([truth, np.zeros((3, 2))])
+    assert e3d(est, truth2) == pytest.approx((0.0 + 3.0) / 2)
+
+
+def test_e3d_invariances():
+    rng = np.random.default_rng(0)
+    S = rng.standard_normal((3 * 7, 9))
+    assert e3d(S, S) == pytest.approx(0.0, abs=1e-14)
+    for Q in (random_rotations(1, rng)[0], np.diag([1.0, 1.0, -1.0]) @ random_rotations(1, rng)[0]):
+        turned = np.einsum("ij,fjp->fip", Q, S.reshape(7, 3, 9))
+        assert e3d(turned, S) == pytest.approx(0.0, abs=1e-12)  # (F, 3, P) input accepted too
+    noisy = S + 0.1 * rng.standard_normal(S.shape)
+    assert e3d(4.0 * noisy, 4.0 * S) == pytest.approx(e3d(noisy, S), rel=1e-12)
+    with pytest.raises(ValueError, match="same shape"):
+        e3d(S[:, :8], S)
+    with pytest.raises(ValueError, match="undefined"):
+        e3d(S, np.ones_like(S))
+
+
+# ---------------------------------------------------------------- exact recovery
+
+@pytest.mark.parametrize("method", sorted(METHODS))
+def test_rigid_k1_exact_with_per_frame_scale(method):
+    rng = np.random.default_rng(1)
+    W, S, _ = low_rank_sequence(40, 15, 1, rng)
+    scale = rng.uniform(0.5, 2.0, 40)  # scaled orthography: a zoom per frame
+    W = W * np.repeat(scale, 2)[:, None]
+    S = S * np.repeat(scale, 3)[:, None]
+    rec = reconstruct(W, 1, method=method)
+    assert e3d(rec.S, S) < 1e-7
+    assert rec.reprojection_rms < 1e-7 * np.abs(W).max()
+    _check_rotations(rec.rotations)
+
+
+@pytest.mark.parametrize("k", [2, 3, 5])
+def test_dai_recovers_low_rank_exactly(k):
+    rng = np.random.default_rng(10 + k)
+    W, S, _ = low_rank_sequence(120, 25, k, rng)
+    rec = reconstruct(W, k, method="dai")
+    assert e3d(rec.S, S) < 1e-6
+    _check_rotations(rec.rotations)
+    assert rec.weights.shape == (120, k) and rec.basis.shape == (k, 3, 25)
+    assert np.allclose(rec.reproject(), W, atol=1e-5 * np.abs(W).max())
+
+
+def test_dai_ba_exact_and_bregler_is_not():
+    rng = np.random.default_rng(3)
+    W, S, _ = low_rank_sequence(100, 20, 3, rng)
+    assert e3d(reconstruct(W, 3, method="dai-ba").S, S) < 1e-9
+    assert e3d(reconstruct(W, 3, method="bregler").S, S) > 0.05  # its 3x3 upgrade is not enough
+
+
+def test_missing_data_recovery():
+    rng = np.random.default_rng(4)
+    W, S, _ = low_rank_sequence(100, 24, 3, rng)
+    visible = rng.random((100, 24)) > 0.25
+    W_missing = np.where(np.repeat(visible, 2, axis=0), W, np.nan)
+    rec = reconstruct(W_missing, 3, method="dai-ba", visible=visible)
+    assert e3d(rec.S, S) < 1e-6
+    # the hidden points are predicted too
+    assert np.allclose(rec.reproject(), W, atol=1e-6 * np.abs(W).max())
+    assert e3d(reconstruct(W_missing, 3, method="dai", visible=visible).S, S) < 1e-3
+
+
+def test_reconstruction_is_read_only():
+    W, _, _ = low_rank_sequence(30, 10, 1, np.random.default_rng(5))
+    rec = reconstruct(W, 1)
+    assert isinstance(rec, Reconstruction)
+    with pytest.raises(ValueError):
+        rec.weights[0, 0] = 1.0
+    assert rec.S.shape == (90, 10) and rec.shapes.shape == (30, 3, 10)
+
+
+# ---------------------------------------------------------------- K from the curve
+
+def test_choose_k_rule():
+    assert choose_k([1, 2, 3, 4], [0.3, 0.1, 0.005, 0.001])[0] == 3
+    # nothing under rtol: first K after which the curve flattens
+    assert choose_k([1, 2, 3, 4], [0.3, 0.1, 0.098, 0.097], rtol=0.01)[0] == 2
+    assert choose_k([1, 2, 3], [0.3, 0.2, 0.1], rtol=0.01)[0] == 3
+
+
+def test_curve_finds_true_k():
+    W, _, _ = low_rank_sequence(60, 16, 3, np.random.default_rng(6))
+    curve = reprojection_curve(W, ks=[1, 2, 3, 4])
+    assert curve.chosen == 3
+    assert curve.relative[2] < 1e-6 < curve.relative[1]
+
+
+# ---------------------------------------------------------------- bad input
+
+def test_bad_inputs():
+    W, _, _ = low_rank_sequence(20, 12, 2, np.random.default_rng(7))
+    with pytest.raises(ValueError, match="odd number of rows"):
+        reconstruct(W[:-1], 2)
+    Wn = W.copy()
+    Wn[3, 4] = np.nan
+    with pytest.raises(ValueError, match="no visibility mask"):
+        reconstruct(Wn, 2)
+    with pytest.raises(ValueError, match=r"k=4 is too large.*k <= 3"):
+        reconstruct(W, 4)
+    with pytest.raises(ValueError, match="at least 1"):
+        reconstruct(W, 0)
+    with pytest.raises(ValueError, match="constant"):
+        reconstruct(np.zeros_like(W), 1)
+    line = np.outer(np.arange(40.0), np.ones(12)) * np.linspace(0, 1, 12)  # points on a line
+    with pytest.raises(ValueError, match="rank 1 < 3"):
+        reconstruct(line, 1)
+    with pytest.raises(ValueError, match=r"visible must have shape \(F, P\) = \(20, 12\)"):
+        reconstruct(W, 2, visible=np.ones((12, 20), bool))
+    vis = np.ones((20, 12), bool)
+    vis[0, 4] = False  # the NaN (frame 1, point 4) stays marked visible
+    with pytest.raises(ValueError, match="marked visible"):
+        reconstruct(Wn, 2, visible=vis)
+    with pytest.raises(ValueError, match="unknown NRSfM method"):
+        reconstruct(W, 2, method="magic")
+
+
+# ---------------------------------------------------------------- CLI and the benchmark data
+
+def test_cli_round_trip(tmp_path, capsys):
+    W, S, _ = low_rank_sequence(50, 14, 2, np.random.default_rng(8))
+    tracks = tmp_path / "tracks.npz"
+    np.savez(tracks, W=W, S=S)
+    out = tmp_path / "shapes.npz"
+    assert main(["nrsfm", str(tracks), "--k", "2", "--out", str(out)]) == 0
+    saved = load_shapes(out)
+    assert saved["S"].shape == (150, 14) and saved["R"].shape == (50, 3, 3)
+    assert saved["weights"].shape == (50, 2) and saved["basis"].shape == (2, 3, 14)
+    assert e3d(saved["S"], S) < 1e-6
+    assert "e3D" in capsys.readouterr().out
+    assert main(["nrsfm", str(tracks), "--k", "2", "--out", str(out)]) == 1  # no silent overwrite
+    assert "--force" in capsys.readouterr().err
+    plot = tmp_path / "curve.png"
+    assert main(["nrsfm", str(tracks), "--k", "auto", "--kmax", "3", "--out", str(out), "--force",
+                 "--plot", str(plot)]) == 0
+    assert "chosen K = 2" in capsys.readouterr().out and plot.stat().st_size > 0
+    assert main(["nrsfm", str(tracks), "--k", "two", "--out", str(out), "--force"]) == 1
+
+
+@pytest.mark.skipif(not (BENCH / "jaws.npz").is_file(), reason="benchmark sequences not available")
+def test_jaws_runs_and_bregler_is_far_worse_than_dai_on_drink_excerpt():
+    with np.load(BENCH / "jaws.npz") as d:
+        rec = reconstruct(d["W"], 2)
+        assert e3d(rec.S, d["S"]) < 0.3
+    with np.load(BENCH / "drink.npz") as d:
+        W, S = d["W"][:400], d["S"][:600]  # first 200 frames
+    err_dai = e3d(reconstruct(W, 6).S, S)
+    err_bregler = e3d(reconstruct(W, 6, method="bregler").S, S)
+    assert err_dai < 0.1 and err_bregler > 3 * err_dai
