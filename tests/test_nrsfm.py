@@ -186,3 +186,24 @@ def test_jaws_runs_and_bregler_is_far_worse_than_dai_on_drink_excerpt():
     err_dai = e3d(reconstruct(W, 6).S, S)
     err_bregler = e3d(reconstruct(W, 6, method="bregler").S, S)
     assert err_dai < 0.1 and err_bregler > 3 * err_dai
+
+
+def test_evaluate_on_dataset(tmp_path):
+    from lipgen.dataset import GenerateSettings
+    from lipgen.generate import generate
+    from lipgen.nrsfm.dataset_eval import dataset_tracks, evaluate_on_dataset
+
+    path = generate(tmp_path / "ds", GenerateSettings(frames=12, seed=5, size=(160, 120), calib_frames=0),
+                    progress=False)
+    for view in ("real", "virtual"):
+        data = dataset_tracks(path, view)
+        assert data["pixels_rms"] < 1e-6  # the camera-frame truth reprojects onto the stored uv
+        seen = np.repeat(data["visible"], 2, axis=0)
+        assert np.allclose(data["W"][seen], data["W_all"][seen], atol=1e-6)
+        assert data["S"].shape == (3 * 12, 17) and 0 < data["relief"] < 0.2
+    result = evaluate_on_dataset(path, "real", k=1, method="dai")
+    assert np.isfinite(result["e3d"]) and np.isfinite(result["flat_e3d"])
+    assert result["frames"] == 12 and result["points"] == 17
+    assert "e3D" in result["markdown"]
+    with pytest.raises(ValueError, match="view must be one of"):
+        evaluate_on_dataset(path, "left")
