@@ -25,10 +25,11 @@ from scipy.optimize import linear_sum_assignment
 
 from ._validate import as_float_array
 from .dots import DotSettings, as_gray, detect_dots
+from .pointreg import assign, register_points, similarity_2d
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
-    "normalized_correlation", "register_points", "match_to_expected", "track_markers",
+    "normalized_correlation", "MarkerTracker", "track_markers",
 ]
 
 TRACKED, RECOVERED, CORRELATION_ONLY, LOST = 0, 1, 2, 3
@@ -165,21 +166,6 @@ def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radiu
     return uv, float(ncc[i, j])
 
 
-def _assign(points: np.ndarray, dots: np.ndarray, gates: np.ndarray) -> np.ndarray:
-    """One-to-one nearest assignment within per-point gates; -1 where none. (P,) int."""
-    out = np.full(len(points), -1, dtype=np.int64)
-    ok_pts = np.all(np.isfinite(points), axis=1)
-    if len(dots) == 0 or not ok_pts.any():
-        return out
-    dist = np.linalg.norm(points[:, None, :] - dots[None, :, :], axis=2)
-    dist[~ok_pts] = np.inf
-    cost = np.where(dist <= gates[:, None], dist, _BIG)
-    rows, cols = linear_sum_assignment(cost)
-    good = cost[rows, cols] < _BIG
-    out[rows[good]] = cols[good]
-    return out
-
-
 def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
                        pred_gates: np.ndarray, corr_ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """One-to-one assignment of markers to dots, preferring the correlation peak.
@@ -207,123 +193,6 @@ def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gat
     return out, via
 
 
-def _similarity_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Least-squares 2-D similarity (s, R, t) with dst ~ s R src + t (Umeyama)."""
-    ms, md = src.mean(0), dst.mean(0)
-    a, b = src - ms, dst - md
-    U, S, Vt = np.linalg.svd(b.T @ a)
-    d = np.diag([1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
-    R = U @ d @ Vt
-    var = (a * a).sum()
-    s = float(np.trace(np.diag(S) @ d) / var) if var > 0 else 1.0
-    return s, R, md - s * R @ ms
-
-
-def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarray:
-    """The best similarity from two-point correspondences (RANSAC over all dot pairs).
-
-    For a few well-separated pairs of layout points, every ordered pair of dots defines a
-    similarity (as complex numbers, z -> a z + b); the one that brings the most layout points
-    within ``gate`` of some dot wins. Returns the moved layout (P, 2).
-    """
-    e = expected[:, 0] + 1j * expected[:, 1]
-    d = dots[:, 0] + 1j * dots[:, 1]
-    centred = expected - expected.mean(0)
-    _, _, axes = np.linalg.svd(centred, full_matrices=False)
-    proj = centred @ axes.T
-    ends = {int(np.argmin(proj[:, 0])), int(np.argmax(proj[:, 0])), int(np.argmin(proj[:, 1])),
-            int(np.argmax(proj[:, 1]))}
-    ends = sorted(ends)
-    pairs = [(a, b) for i, a in enumerate(ends) for b in ends[i + 1:]]
-    ii, jj = np.nonzero(~np.eye(len(d), dtype=bool))
-    best, best_key = expected, (-1, 0.0)
-    for a, b in pairs:
-        if abs(e[b] - e[a]) < 1e-9:
-            continue
-        z = (d[jj] - d[ii]) / (e[b] - e[a])
-        plausible = (np.abs(z) > 0.5) & (np.abs(z) < 2.0) & (np.abs(np.angle(z)) < np.deg2rad(60))
-        z, off = z[plausible], d[ii][plausible] - z[plausible] * e[a]
-        if len(z) == 0:
-            continue
-        moved = z[:, None] * e[None, :] + off[:, None]                        # (H, P)
-        near = np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)       # (H, P)
-        inliers = (near < gate).sum(1)
-        spread = -np.minimum(near, gate).sum(1)
-        h = int(np.lexsort((spread, inliers))[-1])
-        if (int(inliers[h]), float(spread[h])) > best_key:
-            best_key = (int(inliers[h]), float(spread[h]))
-            best = np.column_stack([moved[h].real, moved[h].imag])
-    return best
-
-
-def _icp(dots: np.ndarray, expected: np.ndarray, start: np.ndarray, gate: float, iterations: int
-         ) -> tuple[np.ndarray, np.ndarray]:
-    cur, current_gate = start, 4.0 * gate
-    match = _assign(cur, dots, np.full(len(expected), current_gate))
-    for _ in range(iterations):
-        m = match >= 0
-        if m.sum() < 2:
-            break
-        s, R, t = _similarity_2d(expected[m], dots[match[m]])
-        cur = s * expected @ R.T + t
-        current_gate = max(0.8 * current_gate, gate)
-        new = _assign(cur, dots, np.full(len(expected), current_gate))
-        if np.array_equal(new, match) and current_gate == gate:
-            break
-        match = new
-    return _assign(cur, dots, np.full(len(expected), gate)), cur
-
-
-def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterations: int = 30,
-                    accept: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
-    """Align a marker layout to detected dots: 2-D similarity ICP with one-to-one matching.
-
-    ICP from the layout as given (alternately assign one-to-one within a gate shrinking from
-    ``4 * gate`` to ``gate``, and refit the similarity mapping the layout onto its dots). When
-    that matches fewer than ``accept`` of the markers, the start is instead the best two-point
-    RANSAC hypothesis over all dot pairs, which finds large rotations, scalings, jumps and
-    clutter that ICP alone would fall into a wrong neighbour for.
-
-    Parameters
-    ----------
-    dots : (k, 2) float
-        Detected dot centres.
-    expected : (P, 2) float
-        The layout: where each marker should be, roughly (shape matters more than placement).
-    gate : float
-        Largest residual (pixels) of a match after alignment.
-
-    Returns
-    -------
-    match : (P,) int
-        Index into ``dots`` for each marker, -1 where no dot matches.
-    aligned : (P, 2) float
-        The layout moved by the fitted similarity (the best guess for unmatched markers too).
-    """
-    dots = as_float_array(dots, "dots", (None, 2))
-    expected = as_float_array(expected, "expected", (None, 2))
-    if len(dots) == 0 or len(expected) == 0:
-        return np.full(len(expected), -1, dtype=np.int64), expected
-    match, cur = _icp(dots, expected, expected, gate, iterations)
-    if (match >= 0).sum() >= accept * len(expected) or len(dots) < 2 or len(expected) < 2:
-        return match, cur
-    alt_match, alt_cur = _icp(dots, expected, _hypotheses(dots, expected, gate), gate, iterations)
-    if (alt_match >= 0).sum() > (match >= 0).sum():
-        return alt_match, alt_cur
-    return match, cur
-
-
-def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarray:
-    """Match the first frame's dots to the expected marker positions (the thesis's GUI step).
-
-    Returns
-    -------
-    (P,) int
-        Index into ``dots`` for each marker, -1 where none matches (see :func:`register_points`).
-    """
-    return register_points(dots, expected, gate)[0]
-
-
 def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.ndarray | None,
              dots: np.ndarray, gate: float) -> np.ndarray:
     """Where each marker should be in this frame, NaN if unknown.
@@ -340,7 +209,7 @@ def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.n
         if (match >= 0).sum() >= max(3, known.sum() // 2):
             pred[known] = aligned
     if reference is not None and (~known).any() and known.sum() >= 2:
-        s, R, t = _similarity_2d(reference[known], pred[known])
+        s, R, t = similarity_2d(reference[known], pred[known])
         pred[~known] = s * reference[~known] @ R.T + t
     return pred
 
@@ -354,70 +223,85 @@ def _carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, g
     pairs = visible & (gap == 0) & np.all(np.isfinite(last), axis=1)
     lost = ~visible & np.all(np.isfinite(last), axis=1)
     if lost.any() and pairs.sum() >= 3:
-        s, R, t = _similarity_2d(last[pairs], uv[pairs])
+        s, R, t = similarity_2d(last[pairs], uv[pairs])
         last[lost] = s * last[lost] @ R.T + t
 
 
-def track_markers(frames: Iterable, initial_uv: np.ndarray,
-                  settings: TrackerSettings = TrackerSettings(),
-                  reference_uv: np.ndarray | None = None) -> Tracks:
-    """Track markers through a sequence of images of one view.
+class MarkerTracker:
+    """Tracks markers in one view, one image at a time (so several views can run in lock-step).
 
     Parameters
     ----------
-    frames : iterable of (h, w) or (h, w, 3) arrays
-        The images, in order (read lazily, one at a time).
     initial_uv : (P, 2) float
-        Marker positions in the first frame, NaN for markers not found there (for example from
-        :func:`match_to_expected` on the first frame's :func:`~lipgen.dots.detect_dots`).
+        Marker positions in the first image, NaN for markers not found there (for example from
+        :func:`~lipgen.pointreg.match_to_expected` on the first image's dots).
     settings : TrackerSettings
     reference_uv : (P, 2) float, optional
         The expected layout of all markers (e.g. their projections at rest). With it, a marker
         not seen yet is searched for where the layout, aligned to the seen markers, puts it.
-
-    Returns
-    -------
-    Tracks
+    roi_margin : float
+        After the first image, dots are detected only within this many pixels of the markers'
+        last known positions (the rest of the image is not searched).
     """
-    init = as_float_array(initial_uv, "initial_uv", (None, 2), finite=False)
-    P = len(init)
-    if reference_uv is not None:
-        reference_uv = as_float_array(reference_uv, "reference_uv", (P, 2))
-    cfg = settings
-    uv_all, vis_all, st_all, sc_all = [], [], [], []
-    last = init.copy()                      # last seen position (NaN if never seen)
-    vel = np.zeros((P, 2))
-    gap = np.zeros(P, dtype=np.int64)       # frames since last seen
-    # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
-    templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
-    for t, image in enumerate(frames):
+
+    def __init__(self, initial_uv, settings: TrackerSettings = TrackerSettings(), reference_uv=None,
+                 roi_margin: float = 60.0):
+        self.init = as_float_array(initial_uv, "initial_uv", (None, 2), finite=False)
+        P = len(self.init)
+        self.reference = (None if reference_uv is None
+                          else as_float_array(reference_uv, "reference_uv", (P, 2)))
+        self.cfg = settings
+        self.roi_margin = float(roi_margin)
+        self.last = self.init.copy()                  # last seen position (NaN if never seen)
+        self.vel = np.zeros((P, 2))
+        self.gap = np.zeros(P, dtype=np.int64)        # frames since last seen
+        # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
+        self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
+        self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def _dots(self, gray: np.ndarray) -> np.ndarray:
+        known = np.all(np.isfinite(self.last), axis=1)
+        if not self._out or not known.any():
+            return detect_dots(gray, self.cfg.dots)[0]
+        h, w = gray.shape
+        lo = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
+        hi = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
+        if np.any(hi - lo < 8):
+            return detect_dots(gray, self.cfg.dots)[0]
+        return detect_dots(gray[lo[1]:hi[1], lo[0]:hi[0]], self.cfg.dots)[0] + lo
+
+    def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
+        cfg, P = self.cfg, len(self.init)
         gray = as_gray(image)
-        dots, _ = detect_dots(gray, cfg.dots)
+        dots = self._dots(gray)
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
-        if t == 0:
-            seen = np.all(np.isfinite(init), axis=1)
+        first = not self._out
+        if first:
+            seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
-            snap = _assign(init, dots, np.where(seen, cfg.gate, 0.0))
-            uv[seen] = init[seen]
+            snap = assign(self.init, dots, np.where(seen, cfg.gate, 0.0))
+            uv[seen] = self.init[seen]
             uv[snap >= 0] = dots[snap[snap >= 0]]
             status[seen] = TRACKED
         else:
-            pred = _predict(last, vel, gap, reference_uv, dots, cfg.recovery_gate)
+            gap = self.gap
+            pred = _predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
                 gates[i] = cfg.recovery_gate + cfg.gate * gap[i]
-                if templates[i] is None:
+                if self.templates[i] is None:
                     continue
-                patch, offset = templates[i]
+                patch, offset = self.templates[i]
                 radius = cfg.search_radius + int(np.ceil(cfg.gate * gap[i]))
                 peak, score[i] = _correlate(gray, patch, pred[i], radius, cfg.motion_penalty)
                 peak = peak + offset
                 if score[i] >= cfg.min_correlation and np.linalg.norm(peak - pred[i]) <= cfg.max_jump:
                     cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
-            snap, via_corr = _assign_two_routes(cand, pred, dots, gates,
-                                                cfg.recovery_gate + cfg.gate * gap, corr_ok)
+            snap, via_corr = _assign_two_routes(cand, pred, dots, gates, cfg.recovery_gate + cfg.gate * gap,
+                                                corr_ok)
             got = snap >= 0
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
@@ -426,21 +310,50 @@ def track_markers(frames: Iterable, initial_uv: np.ndarray,
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
         visible = status != LOST
-        _carry_lost_markers(last, uv, visible, gap)
+        _carry_lost_markers(self.last, uv, visible, self.gap)
         for i in np.flatnonzero(visible):
-            if gap[i] == 0 and t > 0 and np.all(np.isfinite(last[i])):
-                vel[i] = 0.5 * vel[i] + 0.5 * (uv[i] - last[i])   # damped constant velocity
+            if self.gap[i] == 0 and not first and np.all(np.isfinite(self.last[i])):
+                self.vel[i] = 0.5 * self.vel[i] + 0.5 * (uv[i] - self.last[i])   # damped constant velocity
             else:
-                vel[i] = 0.0
+                self.vel[i] = 0.0
             if status[i] != CORRELATION_ONLY:
-                templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
-        last[visible] = uv[visible]
-        gap[visible] = 0
-        gap[~visible & np.all(np.isfinite(last), axis=1)] += 1
-        uv_all.append(uv)
-        vis_all.append(visible)
-        st_all.append(status)
-        sc_all.append(score)
-    if not uv_all:
+                self.templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
+        self.last[visible] = uv[visible]
+        self.gap[visible] = 0
+        self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
+        self._out.append((uv, status, score))
+        return uv, status, score
+
+    def tracks(self) -> Tracks:
+        """Everything tracked so far."""
+        if not self._out:
+            raise ValueError("the tracker has seen no frames")
+        uv, status, score = (np.stack(a) for a in zip(*self._out, strict=True))
+        return Tracks(uv, status != LOST, status, score)
+
+
+def track_markers(frames: Iterable, initial_uv: np.ndarray,
+                  settings: TrackerSettings = TrackerSettings(),
+                  reference_uv: np.ndarray | None = None) -> Tracks:
+    """Track markers through a sequence of images of one view (see :class:`MarkerTracker`).
+
+    Parameters
+    ----------
+    frames : iterable of (h, w) or (h, w, 3) arrays
+        The images, in order (read lazily, one at a time).
+    initial_uv : (P, 2) float
+        Marker positions in the first frame, NaN for markers not found there.
+    settings : TrackerSettings
+    reference_uv : (P, 2) float, optional
+        The expected layout of all markers, to place markers not seen yet.
+
+    Returns
+    -------
+    Tracks
+    """
+    tracker = MarkerTracker(initial_uv, settings, reference_uv)
+    for image in frames:
+        tracker.step(image)
+    if not tracker._out:
         raise ValueError("track_markers got no frames")
-    return Tracks(np.stack(uv_all), np.stack(vis_all), np.stack(st_all), np.stack(sc_all))
+    return tracker.tracks()
