@@ -14,6 +14,7 @@ from .errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
+from .fem import DEFAULT_STIFFNESS, Physics, dofs
 from .llse import LLSE, llse
 from .mesh import LipMesh
 from .modes import ModeModel
@@ -36,4 +37,7 @@ __all__ = [
     "ModeModel",
     "LLSE",
     "llse",
+    "Physics",
+    "DEFAULT_STIFFNESS",
+    "dofs",
 ]

@@ -20,7 +20,7 @@ from ._validate import as_float_array, as_index_array
 from .errors import MeshError
 from .tol import tol
 
-__all__ = ["LipMesh", "REGIONS"]
+__all__ = ["LipMesh", "REGIONS", "merge_coincident_vertices"]
 
 REGIONS: tuple[str, ...] = ("lip", "ridge", "strip", "skin")
 """Default region names: lip surface, inner ridge along the lip contour, the low-stiffness strip
@@ -208,32 +208,65 @@ class LipMesh:
     @classmethod
     def from_file(cls, path: str | os.PathLike, anchors, markers=(), marker_names=None,
                   regions=None, region_names: tuple[str, ...] = REGIONS, nose=None) -> LipMesh:
-        """Load a user's triangle mesh (OBJ, PLY, STL, ... through trimesh), keeping vertex order.
+        """Load a user's triangle mesh (OBJ, PLY, STL, ... through trimesh).
 
         ``anchors`` and ``markers`` are node indices into the file's vertices; ``regions`` is
         either one code per face or a mapping ``{region name: face indices}`` (faces not listed
-        are ``"lip"``).
+        are ``"lip"``). Polygons are split into triangles (fans, in file order).
+
+        Vertex order is the file's own for OBJ (also when texture seams would otherwise split
+        vertices) and PLY. STL stores every triangle with its own three corners and no shared
+        vertices, so coincident corners (bit-identical coordinates, as STL writers produce) are
+        merged; the nodes are then numbered in order of first appearance in the file's
+        triangles, and ``anchors``/``markers`` refer to that numbering.
         """
         import trimesh
 
         p = Path(path)
         if not p.is_file():
             raise FileNotFoundError(f"no such mesh file: {p}")
+        kind = p.suffix.lower().lstrip(".")
+        kwargs = {"maintain_order": True} if kind == "obj" else {}
         try:
-            tm = trimesh.load(p, process=False, force="mesh")
+            tm = trimesh.load(p, process=False, force="mesh", **kwargs)
         except Exception as exc:  # trimesh raises many types for unreadable files
-            raise MeshError(f"could not read {p} as a triangle mesh: {exc}") from exc
+            raise MeshError(f"could not read {p} as a triangle mesh ({exc}); lipgen reads OBJ, PLY "
+                            "and STL files of triangles or polygons") from exc
         if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
-            raise MeshError(f"{p} holds no triangles")
+            raise MeshError(f"{p} holds no triangles (is it empty, a point cloud, or not a mesh?)")
+        V, F = np.asarray(tm.vertices, float), np.asarray(tm.faces, np.int64)
+        if kind == "stl":
+            V, F = merge_coincident_vertices(V, F)
         if isinstance(regions, dict):
-            codes = np.full(len(tm.faces), region_names.index("lip") if "lip" in region_names else 0)
+            codes = np.full(len(F), region_names.index("lip") if "lip" in region_names else 0)
             for rname, idx in regions.items():
                 if rname not in region_names:
                     raise ValueError(f"unknown region {rname!r}; known: {region_names}")
-                codes[as_index_array(idx, f"regions[{rname!r}]", len(tm.faces))] = region_names.index(rname)
+                codes[as_index_array(idx, f"regions[{rname!r}]", len(F))] = region_names.index(rname)
             regions = codes
-        return cls(np.asarray(tm.vertices, float), np.asarray(tm.faces, np.int64), regions, anchors,
-                   markers, marker_names, nose, region_names, name=p.stem)
+        return cls(V, F, regions, anchors, markers, marker_names, nose, region_names, name=p.stem)
+
+
+def merge_coincident_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Merge vertices with identical coordinates (e.g. the corners of STL triangles).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+
+    Returns
+    -------
+    vertices : (k, 3) float
+        The distinct points, in order of first appearance in ``vertices``.
+    faces : (m, 3) int
+        ``faces`` re-indexed into them.
+    """
+    uniq, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first)
+    new_id = np.empty(len(order), np.int64)
+    new_id[order] = np.arange(len(order))
+    return uniq[order], new_id[inverse.reshape(-1)][faces]
 
 
 def _check_faces(V: np.ndarray, F: np.ndarray) -> None:

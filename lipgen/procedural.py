@@ -7,17 +7,22 @@ The lips and the skin around them form an annulus around the mouth opening, para
 angle ``theta`` around the mouth (0 at the subject's left corner, pi/2 at the upper midline) and a
 ring coordinate ``s`` in [0, 6] from the inner contour outwards:
 
-- ``s = 0``: the inner contour of the lips, a lens 50 mm wide (corner to corner) with a 3 mm
-  interlabial gap at the midline (lips slightly parted at rest), pointed at the commissures;
-- ``0 <= s <= 1``: the inner ridge (region ``"ridge"``), where the lip rolls into the mouth;
+- ``s = 0``: the inner contour of the lips, a thin oval 50 mm wide (corner to corner) with a
+  3 mm interlabial gap at the midline (lips slightly parted at rest), its corners rounded only
+  on the scale of a fine element;
+- ``0 <= s <= 1``: the inner ridge (region ``"ridge"``, about 2 mm wide), where the lip rolls
+  into the mouth;
 - ``1 <= s <= 3``: the vermilion (region ``"lip"``); ``s = 3`` is the vermilion border, with
-  Cupid's bow (peaks at x = +-5.5 mm, a 1.5 mm dip at the midline), an upper vermilion about
-  8 mm high and a fuller lower vermilion about 10 mm high;
+  Cupid's bow (peaks at x = +-5.2 mm, a 1.6 mm dip at the midline), an upper vermilion about
+  7.5 mm high and a fuller lower vermilion 10 mm high, thinning to 5 mm round the corners;
 - ``3 <= s <= 6``: skin (region ``"skin"``) out to an oval border 72 mm wide running from just
   under the nose (y = +20) down over the chin (y = -40).
 
-Depth follows the curve of the dental arch, ``z = -x**2 / 70`` (the corners sit about 9 mm behind
-the midline), plus a midline profile that fades towards the corners: the vermilion protrudes
+The rings 1-3 are offsets of the inner contour whose direction fans round the mouth corners, so
+the elements there stay well shaped (smallest angle about 12 degrees at every resolution).
+
+Depth follows the curve of the dental arch, ``z = -x**2 / 70`` (the corners sit about 12 mm behind
+the most protruding vermilion), plus a midline profile that fades towards the corners: the vermilion protrudes
 about 3 mm, the skin recedes under the nose and at the mentolabial sulcus and comes forward again
 at the chin.
 
@@ -29,13 +34,19 @@ ridge, point out of the lip tissue, i.e. into the mouth (towards the teeth).
 
 Anchors
 -------
-The anchors are the nodes at the far end of the strip, exactly as the thesis grounds its mesh.
-They follow the upper gum along the dental arch, a curve bent in both y and z, so they are not
-collinear and remove all six rigid motions; the surface is connected, so the grounded stiffness
-is positive definite. The skin border is deliberately *not* anchored: only its top (under the
-nose) is attached to the skull, while its lower and lateral parts ride on the jaw and cheeks,
-which move in speech; tying them to the head would forbid jaw opening. The skin is a free flap
-carried by the lips, as in the thesis, whose mesh is grounded only through the strip.
+By default the anchors are the nodes at the far end of the strip (as in the thesis) *and* the
+outer border of the skin. The far end of the strip follows the upper gum along the dental arch,
+a curve bent in both y and z, so on its own it is not collinear and removes all six rigid
+motions; the thesis grounds its mesh only there, and ``anchor_border=False`` reproduces that.
+We also fix the skin border because this mesh is a patch cut out of a face: at its border the
+skin carries on into the rest of the face, which after the thesis's rigid normalisation (nose
+subtracted, lip planes aligned) moves far less than the lips. Without it, everything below the
+corners (lower lip, chin skin) hangs from the soft strip through the mouth corners only, and the
+grounded stiffness has near-rigid swinging modes: at resolution 1, with the physics' defaults,
+its condition number is 7e4 instead of 2e3, and the minimum-norm force that moves the two corners
+3 mm apart (eq 4.3) swings the lower face by 23 mm instead of deforming the lips by 5 mm. The
+price is that the chin border does not follow the jaw; goals on the lower lip are still reached
+exactly, with the chin skin stretching between the lip and the border.
 
 Resolution
 ----------
@@ -98,57 +109,81 @@ deep"), read as width along x, height ("across", top to bottom) along y, depth a
 
 # ---- the knot rings (resolution-0 rings as closed curves in theta) ----------------------------
 _ARCH_RADIUS = 35.0  # mm, curvature of the face along the dental arch
-_HALF_WIDTH = np.array([25.0, 25.8, 26.6, 27.5, 30.0, 33.0, 36.0])  # ring half-widths at theta=0
-_SHARPNESS = np.array([1.0, 0.9, 0.8, 0.6, 0.4, 0.2, 0.0])  # 1: pointed corner, 0: round end
-_BLEND = np.array([0.0, 0.3, 0.65, 1.0, 0.28, 0.6, 1.0])  # position between the bounding contours
+_MOUTH_HALF_WIDTH, _HALF_GAP = 25.0, 1.5  # inner contour: 50 mm corner to corner, 3 mm open
+_CORNER_ROUNDING = 0.97  # towards 1: sharper mouth corners (a triangle wave in theta)
+_NORMAL_ROUNDNESS = 6.0  # mm; the offset direction turns round each corner like this ellipse's normal
+_BORDER = (36.0, 20.0, 40.0)  # outer skin border: half-width, height above and depth below the mouth
+_SKIN_BLEND = np.array([0.3, 0.62])  # rings 4, 5 between the vermilion border and the skin border
 _PROTRUDE_UP = np.array([0.0, 2.2, 3.2, 2.6, 0.4, -2.0, -4.5])  # midline depth profile, upper
 _PROTRUDE_LO = np.array([0.0, 2.2, 3.0, 1.6, -2.4, -1.0, -5.0])  # midline depth profile, lower
 _STRIP_RISE = np.array([0.0, 3.5, 7.0, 10.0])  # strip rows: mm up at the midline
 _STRIP_BACK = np.array([0.0, 5.0, 9.0, 12.0])  # strip rows: mm back
 
 
-def _xi(theta: np.ndarray, sharpness: float) -> np.ndarray:
-    """Normalised x in [-1, 1] along a ring: cos(theta) blended with a triangle wave, which makes
-    a pointed corner (uniform spacing along a thin lens) at ``sharpness`` 1."""
-    tri = 1.0 - 2.0 * np.abs(np.angle(np.exp(1j * theta))) / np.pi
-    return (1.0 - sharpness) * np.cos(theta) + sharpness * tri
+def _side(theta, upper, lower):
+    return np.where(np.sin(theta) >= 0.0, upper, lower)
 
 
-def _inner_y(xi):
-    return 1.5 * (1.0 - xi**2)
+def _inner_contour(theta: np.ndarray):
+    """Front-view points (n, 2) of the inner contour, their normalised x in [-1, 1], and the
+    offset directions (n, 2) towards the vermilion.
+
+    The contour is a thin oval: x follows a triangle wave in ``theta`` rounded at the corners
+    (``arcsin(r cos theta)``, r < 1), so nodes are evenly spaced along the lips and the corners
+    are smooth on the scale of the finest elements; the parametrisation is regular (no zero
+    speed), which keeps refined elements as well shaped as coarse ones. The offset direction turns
+    round each corner like the normal of a 6 mm-high ellipse, so the rings fan round the corners.
+    """
+    xi = np.arcsin(_CORNER_ROUNDING * np.cos(theta)) / np.arcsin(_CORNER_ROUNDING)
+    eta = np.sign(np.sin(theta)) * np.sqrt(np.clip(1.0 - xi**2, 0.0, None))
+    p = np.stack([_MOUTH_HALF_WIDTH * xi, _HALF_GAP * eta], axis=-1)
+    n = np.stack([xi / _MOUTH_HALF_WIDTH, eta / _NORMAL_ROUNDNESS], axis=-1)
+    return p, xi, n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
-def _border_y_up(xi):
+def _lip_offsets(xi: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """(3, n) distances (mm) from the inner contour to rings 1 (end of the ridge), 2 (mid
+    vermilion) and 3 (vermilion border), as functions of the contour's normalised x ``xi``.
+
+    The upper vermilion border carries Cupid's bow; both lips thin to 5 mm round the corners,
+    with equal upper and lower values there so the rings are smooth through the corners."""
+    q = 1.0 - xi**2
     bow = np.exp(-(((xi**2 - 0.04) / 0.04) ** 2)) - 1.2 * np.exp(-((xi / 0.07) ** 2))
-    return 10.2 * (1.0 - xi**2) ** 0.7 + bow * (1.0 - xi**2)
+    d3 = 5.0 + q * _side(theta, 3.4 + bow, 5.0)
+    d1 = 2.0 + 0.4 * q
+    return np.stack([d1, 0.5 * (d1 + d3), d3])
 
 
-def _border_y_lo(xi):
-    return 11.5 * (1.0 - xi**2) ** 0.6
+def _depth(xy: np.ndarray, half_width: float, theta: np.ndarray, k: int) -> np.ndarray:
+    """z of ring ``k``: the dental arch plus the midline profile, faded out towards the corners
+    (to fourth order, so upper and lower profiles join smoothly there)."""
+    x = xy[:, 0]
+    fade = np.clip(1.0 - (x / half_width) ** 2, 0.0, None) ** 2
+    return -(x**2) / (2.0 * _ARCH_RADIUS) + fade * _side(theta, _PROTRUDE_UP[k], _PROTRUDE_LO[k])
 
 
 def _ring(theta: np.ndarray, k: int) -> np.ndarray:
     """(n, 3) points of knot ring ``k`` (0..6) at angles ``theta``."""
-    xi = _xi(theta, _SHARPNESS[k])
-    upper = np.sin(theta) >= 0.0
-    one = np.clip(1.0 - xi**2, 0.0, None)
+    p0, xi, normal = _inner_contour(theta)
     if k <= 3:
-        lo_up, lo_dn = _inner_y(xi), -_inner_y(xi)
-        hi_up, hi_dn = _border_y_up(xi), -_border_y_lo(xi)
+        d = 0.0 if k == 0 else _lip_offsets(xi, theta)[k - 1]
+        xy = p0 + d[..., None] * normal if k else p0
+        half = _MOUTH_HALF_WIDTH + (0.0 if k == 0 else float(_lip_offsets(np.ones(1), np.zeros(1))[k - 1, 0]))
     else:
-        lo_up, lo_dn = _border_y_up(xi), -_border_y_lo(xi)
-        hi_up, hi_dn = 20.0 * np.sqrt(one), -40.0 * np.sqrt(one)
-    w = _BLEND[k]
-    y = np.where(upper, lo_up + w * (hi_up - lo_up), lo_dn + w * (hi_dn - lo_dn))
-    x = _HALF_WIDTH[k] * xi
-    z = -x**2 / (2 * _ARCH_RADIUS) + one**2 * np.where(upper, _PROTRUDE_UP[k], _PROTRUDE_LO[k])
-    return np.stack([x, y, z], axis=-1)
+        p3 = p0 + _lip_offsets(xi, theta)[2][:, None] * normal
+        half3 = _MOUTH_HALF_WIDTH + float(_lip_offsets(np.ones(1), np.zeros(1))[2, 0])
+        bx, bu, bl = _BORDER
+        p6 = np.stack([bx * np.cos(theta), _side(theta, bu, bl) * np.sin(theta)], axis=-1)
+        w = 1.0 if k == 6 else _SKIN_BLEND[k - 4]
+        xy = p3 + w * (p6 - p3)
+        half = half3 + w * (bx - half3)
+    return np.concatenate([xy, _depth(xy, half, theta, k)[:, None]], axis=1)
 
 
 def _strip_row(theta: np.ndarray, k: int) -> np.ndarray:
     """(n, 3) points of the strip's knot row ``k`` (0 is the inner contour, 3 the far end)."""
     p = _ring(theta, 0)
-    taper = np.sqrt(np.clip(1.0 - _xi(theta, _SHARPNESS[0]) ** 2, 0.0, None))
+    taper = np.sqrt(np.clip(1.0 - (p[:, 0] / _MOUTH_HALF_WIDTH) ** 2, 0.0, None))
     p[:, 1] += _STRIP_RISE[k] * taper
     p[:, 2] -= _STRIP_BACK[k]
     return p
@@ -243,12 +278,11 @@ def _build(r: int):
                                      s_right.ravel(), flip=True)
     faces = np.concatenate([ring_tris, strip_tris])
     regions = np.concatenate([ring_regions, np.full(len(strip_tris), REGIONS.index("strip"))])
-    anchors = np.sort(strip_id[:, -1])
     markers = np.array([ring_id[i * f, k * f] for _, i, k in _MARKERS])
-    return V, faces, regions, anchors, markers, perm
+    return V, faces, regions, np.sort(strip_id[:, -1]), np.sort(ring_id[:, -1]), markers, perm
 
 
-def lip_mesh(resolution: int = 0) -> LipMesh:
+def lip_mesh(resolution: int = 0, anchor_border: bool = True) -> LipMesh:
     """The default procedural lips.
 
     Parameters
@@ -256,21 +290,27 @@ def lip_mesh(resolution: int = 0) -> LipMesh:
     resolution : int
         0 gives 201 nodes and 348 faces (the thesis has 204 and 336); each step refines the same
         surface with 4 times the faces. Resolution 4 has 44,976 nodes. At most ``MAX_RESOLUTION``.
+    anchor_border : bool
+        Anchor the outer border of the skin as well as the far end of the strip (default; see
+        the module docstring for why). ``False`` grounds the far end of the strip only, as the
+        thesis does.
 
     Returns
     -------
     LipMesh
         Regions ``"ridge"``, ``"lip"``, ``"skin"`` and ``"strip"``; the anchors are the far-end
-        nodes of the strip; 16 markers named by :data:`MARKER_NAMES`; the nose at :data:`NOSE`.
-        The first ``n`` nodes of resolution r + 1 are the ``n`` nodes of resolution r. The
-        geometry is described in the module docstring.
+        nodes of the strip and (``anchor_border``) the outer border of the skin; 16 markers
+        named by :data:`MARKER_NAMES`; the nose at :data:`NOSE`. The first ``n`` nodes of
+        resolution r + 1 are the ``n`` nodes of resolution r. The geometry is described in the
+        module docstring.
     """
     if isinstance(resolution, bool) or not isinstance(resolution, int | np.integer):
         raise TypeError(f"resolution must be an integer, got {resolution!r}")
     if not 0 <= resolution <= MAX_RESOLUTION:
         raise ValueError(f"resolution must be in [0, {MAX_RESOLUTION}], got {resolution} "
                          "(each step multiplies the faces by 4; resolution 4 has ~45,000 nodes)")
-    V, F, R, A, M, _ = _build(int(resolution))
+    V, F, R, strip_end, border, M, _ = _build(int(resolution))
+    A = np.union1d(strip_end, border) if anchor_border else strip_end
     return LipMesh(V, F, R, A, M, MARKER_NAMES, NOSE, REGIONS, name=f"lips_r{int(resolution)}")
 
 

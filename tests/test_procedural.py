@@ -110,10 +110,11 @@ def test_manifold_consistently_oriented_outward(meshes, r):
     assert tm.euler_number == 0  # an annulus: the outer border and the mouth opening
     nz = m.face_normals()[:, 2]
     outer = ~m.region_mask("strip")
-    assert (nz[outer] > 0.3).all()  # the outer surface faces the viewer
+    assert (nz[outer] > 0.1).all()  # the outer surface faces the viewer (the ridge rolls inwards)
+    assert (nz[m.region_mask("lip")] > 0.5).all()
     assert (nz[m.region_mask("strip")] < 0).all()  # the strip faces into the mouth
     ang = np.degrees(tm.face_angles).min()
-    assert ang > 1.0
+    assert ang > 8.0  # well-shaped elements, not degrading with refinement
 
 
 def _graph_distance(faces, n, sources):
@@ -133,6 +134,26 @@ def _graph_distance(faces, n, sources):
     return dist
 
 
+def _outer_border(m):
+    """Nodes of the boundary loop that holds the mesh's rightmost node (the skin's outer border)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    edges, count = np.unique(np.sort(m.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0,
+                             return_counts=True)
+    b = edges[count == 1]
+    g = coo_matrix((np.ones(len(b)), (b[:, 0], b[:, 1])), shape=(m.n_nodes, m.n_nodes))
+    _, label = connected_components(g, directed=False)
+    nodes = np.unique(b)
+    return nodes[label[nodes] == label[np.argmax(m.vertices[:, 0])]]
+
+
+def _rigid_rank(P):
+    """Rank of the six rigid motions (3 translations, 3 small rotations) sampled at points P."""
+    cols = [np.tile(e, len(P)) for e in np.eye(3)] + [np.cross(e, P).ravel() for e in np.eye(3)]
+    return np.linalg.matrix_rank(np.stack(cols, 1), tol=1e-6 * np.abs(P).max())
+
+
 @pytest.mark.parametrize("r", [0, 2])
 def test_regions_and_anchors(meshes, r):
     m = meshes[r]
@@ -143,11 +164,15 @@ def test_regions_and_anchors(meshes, r):
     attached = np.intersect1d(m.region_nodes("strip"), m.region_nodes("ridge"))
     dist = _graph_distance(m.faces, m.n_nodes, attached)
     far = strip_only[dist[strip_only] == dist[strip_only].max()]
-    assert np.array_equal(np.sort(m.anchors), np.sort(far))
-    # the anchors fix all rigid motions: not collinear (second singular value well above zero)
-    P = m.vertices[m.anchors] - m.vertices[m.anchors].mean(0)
-    s = np.linalg.svd(P, compute_uv=False)
-    assert s[1] > 0.1 * s[0]
+    border = _outer_border(m)
+    assert (m.vertices[border, 2] < 0).all() and len(border) == 24 * 2**r
+    assert np.array_equal(m.anchors, np.union1d(far, border))
+    thesis = lip_mesh(r, anchor_border=False)
+    assert np.array_equal(thesis.anchors, far) and np.array_equal(thesis.vertices, m.vertices)
+    # either set grounds all six rigid motions (the far end alone is not collinear) and the
+    # surface is one piece, so the grounded stiffness can be positive definite
+    assert _rigid_rank(m.vertices[far]) == 6 and _rigid_rank(m.vertices[m.anchors]) == 6
+    assert m.to_trimesh().body_count == 1
 
 
 def test_markers_on_visible_lip(meshes):
@@ -181,3 +206,22 @@ def test_thesis_units(meshes):
     assert np.isclose(u, np.ptp(meshes[0].vertices[:, 0]) / 2.83)
     assert np.isclose(thesis_unit_mm(), u) and np.isclose(thesis_unit_mm(meshes[2]), u)
     assert abs(np.ptp(meshes[0].vertices[:, 1]) / u - 2.35) < 0.05  # height matches "across"
+
+
+def test_grounded_stiffness_positive_definite_and_border_helps():
+    from lipgen.fem import Physics
+
+    conds = []
+    for border in (True, False):
+        w = np.linalg.eigvalsh(Physics(lip_mesh(0, anchor_border=border)).K_s.toarray())
+        assert w[0] > 1e-8 * w[-1]
+        conds.append(w[-1] / w[0])
+    assert conds[0] < conds[1] / 3  # the skin border removes the soft swinging modes
+
+
+def test_bench_suite_quick():
+    from lipgen.bench import mesh as suite
+
+    out = suite.run(quick=True)
+    assert [row["nodes"] for row in out["levels"]] == [lip_mesh(r).n_nodes for r in range(3)]
+    assert all(row["build_s"] > 0 and row["validate_s"] > 0 for row in out["levels"])

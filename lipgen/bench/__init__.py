@@ -27,6 +27,8 @@ log = logging.getLogger(__name__)
 
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
+    "lipgen.bench.mesh",
+    "lipgen.bench.render",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",

@@ -1,0 +1,98 @@
+"""Benchmark suite ``render``: raw camera-mirror frames per second against pyrender's own limit.
+
+The baseline, measured in the same run and interleaved with the frames, is ONE pyrender render
+of the same scene (already uploaded) at the same size through the real camera: the practical
+limit of this renderer on this machine. A raw frame costs more: the subject's surfaces and dots
+are rebuilt for every frame, uploaded, and the two halves rendered from their own view cameras
+and composed. ``end_to_end`` adds encoding the PNG and writing it and a truth file.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+NAME = "render"
+
+
+def _frames(mesh, n: int) -> list[np.ndarray]:
+    """n different lip shapes (a jaw drop growing frame by frame), so every frame uploads anew."""
+    V0 = mesh.vertices
+    return [V0 + np.outer(np.clip(-V0[:, 1], 0, 25) * (0.02 * k), [0.0, -1.0, 0.0]) for k in range(n)]
+
+
+def run(quick: bool = False) -> dict:
+    from PIL import Image
+
+    from .._io import atomic_write_bytes, save_npz
+    from ..camera import default_rig
+    from ..face import FaceModel
+    from ..procedural import lip_mesh
+    from ..render import RigRenderer, _View
+
+    width, height = 640, 480
+    reps = 6 if quick else 30
+    mesh = lip_mesh(1)  # the truth subject's resolution
+    face = FaceModel(mesh)
+    rig = default_rig(width, height)
+    shapes = _frames(mesh, 8)
+    load_before = os.getloadavg()
+    with RigRenderer(rig) as r, tempfile.TemporaryDirectory() as tmp:
+        full = _View(r.pyrender, rig.camera, 20.0, 5000.0)  # the whole frame through the real camera
+        r._scene.add_node(full.node)
+
+        def raw(k: int):
+            return r.render(face.scene(shapes[k % len(shapes)]))
+
+        def single():
+            r._scene.main_camera_node = full.node
+            r._renderer.viewport_width, r._renderer.viewport_height = width, height
+            return r._renderer.render(r._scene)
+
+        def end_to_end(k: int):
+            V = shapes[k % len(shapes)]
+            frame = r.render(face.scene(V))
+            buf = io.BytesIO()
+            Image.fromarray(frame.image).save(buf, format="PNG", compress_level=1)
+            atomic_write_bytes(Path(tmp) / f"{k:06d}.png", buf.getvalue())
+            X, _ = face.marks(V)
+            save_npz(Path(tmp) / f"{k:06d}.npz", "bench", 1, {"vertices": V, "uv": rig.project(X)[0]})
+
+        raw(0)
+        single()
+        end_to_end(0)
+        t_raw, t_single, t_e2e, cpu_raw = [], [], [], []
+        for k in range(reps):  # interleaved, so load changes hit all three alike
+            c0, t0 = time.process_time(), time.perf_counter()
+            raw(k + 1)
+            t_raw.append(time.perf_counter() - t0)
+            cpu_raw.append(time.process_time() - c0)
+            t0 = time.perf_counter()
+            single()
+            t_single.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            end_to_end(k + 1)
+            t_e2e.append(time.perf_counter() - t0)
+    med = {name: float(np.median(v)) for name, v in
+           (("raw", t_raw), ("single", t_single), ("e2e", t_e2e), ("cpu_raw", cpu_raw))}
+    return {
+        "size": f"{width}x{height}",
+        "mesh_nodes": mesh.n_nodes,
+        "repeats": reps,
+        "raw_frame_s": med["raw"],
+        "raw_frame_cpu_s": med["cpu_raw"],
+        "pyrender_single_render_s": med["single"],
+        "raw_fps": 1.0 / med["raw"],
+        "pyrender_limit_fps": 1.0 / med["single"],
+        "ratio_to_limit": med["single"] / med["raw"],
+        "end_to_end_fps": 1.0 / med["e2e"],
+        "targets": {"ratio_to_limit": 0.5, "end_to_end_fps": 8.0},
+        "loadavg_before": list(load_before),
+        "loadavg_after": list(os.getloadavg()),
+        "cpu_count": os.cpu_count(),
+    }

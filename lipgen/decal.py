@@ -1,0 +1,133 @@
+"""Ink dots that lie on a deforming triangle surface.
+
+A dot is a small disc mesh laid on the rest surface: each of its vertices is projected along
+the surface normal onto a triangle and stored by barycentric coordinates. On every frame it is
+rebuilt from the deformed triangles, so the ink stretches with the skin, hugs the surface and
+its centre stays exactly on the marked vertex. It is lifted by a few hundredths of a millimetre
+along the surface normal so that the depth test draws it over the skin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Decal", "make_decal", "place_decal"]
+
+
+@dataclass(frozen=True, eq=False)
+class Decal:
+    """A disc fixed to a surface.
+
+    Attributes
+    ----------
+    face : (k,) int
+        Surface triangle of each decal vertex.
+    bary : (k, 3) float
+        Barycentric coordinates of each decal vertex in its triangle.
+    faces : (f, 3) int
+        The decal's own triangles (into its k vertices).
+    rim : (r,) int
+        Decal vertices on its outer edge (for partial-visibility tests).
+    """
+
+    face: np.ndarray
+    bary: np.ndarray
+    faces: np.ndarray
+    rim: np.ndarray
+
+
+def _disc(radius: float, rings: int, sectors: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polar disc in its plane: points (k, 2), faces (f, 3) counter-clockwise, rim indices."""
+    ang = 2 * np.pi * np.arange(sectors) / sectors
+    r = radius * np.arange(1, rings + 1) / rings
+    unit = np.stack([np.cos(ang), np.sin(ang)], -1)
+    pts = np.vstack([[0.0, 0.0], (r[:, None, None] * unit[None]).reshape(-1, 2)])
+    s = np.arange(sectors)
+    s1 = (s + 1) % sectors
+    faces = [np.stack([np.zeros(sectors, np.int64), 1 + s, 1 + s1], 1)]
+    for k in range(rings - 1):
+        a, b = 1 + k * sectors + s, 1 + k * sectors + s1
+        c, d = a + sectors, b + sectors
+        faces += [np.stack([a, c, d], 1), np.stack([a, d, b], 1)]
+    rim = 1 + (rings - 1) * sectors + s
+    return pts, np.vstack(faces), rim
+
+
+def _line_hits(q: np.ndarray, n: np.ndarray, tri: np.ndarray):
+    """Lines ``q[i] + lam * n`` against triangles ``tri[j]``: (lam, u, v) of shape (i, j)."""
+    A, B, C = tri[:, 0], tri[:, 1], tri[:, 2]
+    e1, e2 = B - A, C - A
+    p = np.cross(n, e2)
+    det = e1 @ p if p.ndim == 1 else np.sum(e1 * p, axis=1)
+    inv = np.divide(1.0, det, out=np.full_like(det, np.nan), where=np.abs(det) > 1e-14)
+    s = q[:, None, :] - A[None]
+    u = np.sum(s * p[None], axis=2) * inv
+    qq = np.cross(s, e1[None])
+    v = (qq @ n) * inv
+    lam = np.sum(e2[None] * qq, axis=2) * inv
+    return lam, u, v
+
+
+def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, center: int,
+               radius: float, rings: int = 3, sectors: int = 16) -> Decal:
+    """Lay a disc of ``radius`` mm centred on vertex ``center`` of a rest surface.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    normals : (n, 3) float
+        Unit vertex normals of the surface.
+    center : int
+        The marked vertex; the decal's centre maps exactly onto it.
+    radius : float
+        Disc radius, mm.
+
+    Raises
+    ------
+    ValueError
+        If the surface around ``center`` is too small or folded to hold the disc's centre.
+    """
+    p, n = vertices[center], normals[center]
+    e1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    pts2, dfaces, rim = _disc(radius, rings, sectors)
+    q = p + pts2[:, :1] * e1 + pts2[:, 1:] * e2
+    # candidate triangles: near the centre and facing the same way (not the opposite lip)
+    tri = vertices[faces]
+    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
+    near = np.linalg.norm(tri - p, axis=2).min(axis=1) <= 2 * radius + 1.0
+    cand = np.flatnonzero(near & (fn @ n > 0.3))
+    has_center = np.isin(faces[cand], center).any(axis=1)
+    if not has_center.any():
+        raise ValueError(f"no surface triangle around vertex {center} faces its normal; cannot place a dot")
+    lam, u, v = _line_hits(q, n, tri[cand])
+    eps = 1e-9
+    inside = (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (np.abs(lam) <= radius)
+    score = np.where(inside, np.abs(lam), np.inf)
+    score[0] = np.where(has_center, score[0], np.inf)  # the centre lies on a triangle of its own vertex
+    best = np.argmin(score, axis=1)
+    rows = np.arange(len(q))
+    found = np.isfinite(score[rows, best])
+    if not found[0]:
+        raise ValueError(f"cannot place a dot at vertex {center}: its own triangles are degenerate")
+    uu, vv = u[rows, best], v[rows, best]
+    bary = np.stack([1 - uu - vv, uu, vv], axis=1)
+    face = cand[best]
+    keep_faces = found[dfaces].all(axis=1)
+    new_index = np.cumsum(found) - 1
+    return Decal(face[found], bary[found], new_index[dfaces[keep_faces]], new_index[rim[found[rim]]])
+
+
+def place_decal(decal: Decal, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,
+                lift: float = 0.05) -> np.ndarray:
+    """(k, 3) decal vertex positions on the (deformed) surface, lifted ``lift`` mm along its normal."""
+    idx = faces[decal.face]
+    pos = np.einsum("kj,kjd->kd", decal.bary, vertices[idx])
+    nrm = np.einsum("kj,kjd->kd", decal.bary, normals[idx])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    return pos + lift * nrm
