@@ -137,12 +137,28 @@ def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterati
     return match, cur
 
 
-def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarray:
+def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio: float = 0.6) -> np.ndarray:
     """Match the first frame's dots to the expected marker positions (the thesis's GUI step).
+
+    After :func:`register_points`, a match is kept only when it is unambiguous: the dot is
+    closer to its marker's aligned position than ``ratio`` times its distance to any other
+    marker's, and than ``ratio`` times the distance from that marker to any other dot. Markers
+    whose dots cannot be told apart stay unmatched (-1) and are acquired later by the tracker.
 
     Returns
     -------
     (P,) int
-        Index into ``dots`` for each marker, -1 where none matches (see :func:`register_points`).
+        Index into ``dots`` for each marker, -1 where none matches.
     """
-    return register_points(dots, expected, gate)[0]
+    match, aligned = register_points(dots, expected, gate)
+    m = np.flatnonzero(match >= 0)
+    if len(m) == 0:
+        return match
+    d_own = np.linalg.norm(aligned[m] - dots[match[m]], axis=1)
+    d_markers = np.linalg.norm(aligned[None, :, :] - dots[match[m]][:, None, :], axis=2)   # (k, P)
+    d_markers[np.arange(len(m)), m] = np.inf
+    d_dots = np.linalg.norm(aligned[m][:, None, :] - dots[None, :, :], axis=2)            # (k, D)
+    d_dots[np.arange(len(m)), match[m]] = np.inf
+    ambiguous = (d_own >= ratio * d_markers.min(1)) | (d_own >= ratio * d_dots.min(1))
+    match[m[ambiguous]] = -1
+    return match

@@ -20,8 +20,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
 from scipy.optimize import linear_sum_assignment
+from scipy.signal import fftconvolve
 
 from ._validate import as_float_array
 from .dots import DotSettings, as_gray, detect_dots
@@ -60,23 +60,34 @@ class TrackerSettings:
         Largest distance from the correlation peak to the dot it is snapped to.
     recovery_gate : float
         Largest distance from the prediction to a dot when correlation failed; it grows by
-        ``gate`` for every frame the marker has been lost.
+        ``gate`` for each of the first three frames the marker has been lost.
     max_jump : float
         A correlation peak farther than this from the prediction is a failure.
     motion_penalty : float
         Correlation given up for a match at the edge of the search window (quadratic in the
         distance from the prediction); breaks ties between look-alike dots.
+    min_strength_ratio : float
+        A dot must be at least this fraction as dark as the marker's dot has been.
+    twin_distance : float, optional
+        Markers closer than this in the reference layout cannot be told apart in this view (their
+        dots merge); they are never tracked there. Defaults to ``2.5 * dots.sigma``.
     """
 
     dots: DotSettings = DotSettings()
     template_radius: int = 7
     search_radius: int = 14
     min_correlation: float = 0.5
-    confident_correlation: float = 0.9
+    confident_correlation: float = 0.95
     gate: float = 3.0
     recovery_gate: float = 8.0
     max_jump: float = 12.0
     motion_penalty: float = 0.3
+    twin_distance: float | None = None
+    min_strength_ratio: float = 0.5
+
+    @property
+    def twins(self) -> float:
+        return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,12 +134,16 @@ def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarr
     """
     t = template - template.mean()
     tn = np.sqrt((t * t).sum())
-    win = sliding_window_view(search, template.shape)
-    mean = win.mean(axis=(2, 3))
-    num = np.einsum("ijkl,kl->ij", win, t)            # sum((win - mean) * t) == sum(win * t)
-    var = (win * win).sum(axis=(2, 3)) - mean * mean * t.size
+    h, w = template.shape
+    num = fftconvolve(search, t[::-1, ::-1], mode="valid")   # sum((win - mean) t) = sum(win t)
+    # Window sums of the search and its square from integral images.
+    def box(a):
+        c = np.pad(a, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+        return c[h:, w:] - c[:-h, w:] - c[h:, :-w] + c[:-h, :-w]
+    mean = box(search) / t.size
+    var = box(search * search) - mean * mean * t.size
     den = np.sqrt(np.maximum(var, 0.0)) * tn
-    return np.where(den > 1e-12, num / np.maximum(den, 1e-300), 0.0)
+    return np.where(den > 1e-9 * max(tn, 1e-300), num / np.maximum(den, 1e-300), 0.0)
 
 
 def _parabola_offset(left: float, mid: float, right: float) -> float:
@@ -167,13 +182,17 @@ def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radiu
 
 
 def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
-                       pred_gates: np.ndarray, corr_ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                       pred_gates: np.ndarray, corr_ok: np.ndarray, allowed: np.ndarray | None = None,
+                       ratio: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
     """One-to-one assignment of markers to dots, preferring the correlation peak.
 
-    A dot within ``gates`` of a marker's correlation peak costs its distance; a dot within
-    ``pred_gates`` of the motion prediction costs that distance plus the largest peak gate, so it
-    is taken only when the peak route is not available (the correlation locked onto a dot
-    another marker owns, or failed). Returns (match (P,) int, -1 for none; via_correlation (P,)).
+    A dot within ``gates`` of a marker's correlation peak costs its distance. Without a
+    correlation peak (failed, or locked onto a dot another marker owns), a marker may take a
+    dot by its motion prediction only when the match is unambiguous: the dot is within
+    ``pred_gates``, it is the prediction's nearest dot by a margin (``ratio`` of the second
+    nearest), and no other marker's position is nearly as close to it. A wrong dot taken here
+    would otherwise start a chain of swaps. Such matches cost more than any peak match.
+    Returns (match (P,) int, -1 for none; via_correlation (P,) bool).
     """
     out = np.full(len(cand), -1, dtype=np.int64)
     via = np.zeros(len(cand), dtype=bool)
@@ -182,10 +201,20 @@ def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gat
         return out, via
     d_cand = np.linalg.norm(cand[:, None] - dots[None], axis=2)
     d_pred = np.linalg.norm(pred[:, None] - dots[None], axis=2)
+    d_cand[~ok] = d_pred[~ok] = np.inf
     peak_route = corr_ok[:, None] & (d_cand <= gates[:, None])
     pred_route = d_pred <= pred_gates[:, None]
+    if allowed is not None:
+        peak_route &= allowed
+        pred_route &= allowed
+    if len(dots) > 1:
+        two = np.partition(d_pred, 1, axis=1)[:, :2]
+        pred_route &= (d_pred == two[:, :1]) & (two[:, :1] < ratio * two[:, 1:])
+    if len(cand) > 1:
+        where = np.where(corr_ok[:, None], d_cand, d_pred)              # each marker's best guess
+        two = np.partition(where, 1, axis=0)[:2]
+        pred_route &= (d_pred < ratio * two[1:]) | ((where == two[:1]) & (two[:1] < ratio * two[1:]))
     cost = np.where(peak_route, d_cand, np.where(pred_route, d_pred + gates.max() + 1.0, _BIG))
-    cost[~ok] = _BIG
     rows, cols = linear_sum_assignment(cost)
     good = cost[rows, cols] < _BIG
     out[rows[good]] = cols[good]
@@ -202,7 +231,7 @@ def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.n
     otherwise take the correlation to a neighbouring dot). Markers never seen are placed by the
     similarity from the reference layout onto the seen ones.
     """
-    pred = last + vel * (gap + 1)[:, None]
+    pred = last + vel * (gap == 0)[:, None]   # a lost marker moves only with its neighbours
     known = np.all(np.isfinite(pred), axis=1)
     if known.sum() >= 3 and len(dots) >= 3:
         match, aligned = register_points(dots, pred[known], gate)
@@ -214,17 +243,47 @@ def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.n
     return pred
 
 
-def _carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray) -> None:
-    """Move the last-seen positions of lost markers with the markers seen in both frames.
+def _drop_merged(uv: np.ndarray, status: np.ndarray, cand: np.ndarray, searched: np.ndarray,
+                 radius: float) -> None:
+    """Mark markers whose dots have merged as lost (in place).
+
+    Two markers closer in the image than a dot's width give one blob: the assignment hands it
+    to one of them and the other finds nothing, or only a correlation peak on the same blob.
+    Neither position can be trusted then, so both are dropped: a marker that found no dot of its
+    own (lost, or correlation only) and whose candidate lies within ``radius`` of a dot another
+    marker took makes both lost.
+    """
+    own = np.isin(status, (TRACKED, RECOVERED))
+    orphan = searched & ~own & np.all(np.isfinite(cand), axis=1)
+    if not orphan.any() or not own.any():
+        return
+    d = np.linalg.norm(cand[orphan][:, None] - uv[own][None], axis=2)
+    near = d < radius
+    if near.any():
+        status[np.flatnonzero(orphan)[near.any(1)]] = LOST
+        status[np.flatnonzero(own)[near.any(0)]] = LOST
+        uv[status == LOST] = np.nan
+
+
+def _carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray,
+                        neighbours: int = 4) -> None:
+    """Move the last-seen positions of lost markers with their nearest tracked neighbours.
 
     Without this a lost marker waits where it was last seen while the face moves on, and its
-    search misses it when it reappears. Updates ``last`` in place.
+    search misses it when it reappears. Each lost marker moves by the inverse-distance weighted
+    mean displacement of its ``neighbours`` nearest markers seen in both frames: local, so a
+    lower-lip marker follows the lower lip when the jaw opens. Updates ``last`` in place.
     """
-    pairs = visible & (gap == 0) & np.all(np.isfinite(last), axis=1)
-    lost = ~visible & np.all(np.isfinite(last), axis=1)
-    if lost.any() and pairs.sum() >= 3:
-        s, R, t = similarity_2d(last[pairs], uv[pairs])
-        last[lost] = s * last[lost] @ R.T + t
+    pairs = np.flatnonzero(visible & (gap == 0) & np.all(np.isfinite(last), axis=1))
+    lost = np.flatnonzero(~visible & np.all(np.isfinite(last), axis=1))
+    if len(lost) == 0 or len(pairs) == 0:
+        return
+    moves = uv[pairs] - last[pairs]
+    d = np.linalg.norm(last[lost][:, None] - last[pairs][None], axis=2)
+    k = min(neighbours, len(pairs))
+    near = np.argsort(d, axis=1)[:, :k]
+    w = 1.0 / (np.take_along_axis(d, near, axis=1) + 1.0)
+    last[lost] += (w[..., None] * moves[near]).sum(1) / w.sum(1, keepdims=True)
 
 
 class MarkerTracker:
@@ -238,7 +297,8 @@ class MarkerTracker:
     settings : TrackerSettings
     reference_uv : (P, 2) float, optional
         The expected layout of all markers (e.g. their projections at rest). With it, a marker
-        not seen yet is searched for where the layout, aligned to the seen markers, puts it.
+        not seen yet is searched for where the layout, aligned to the seen markers, puts it, and
+        markers too close together in it to be told apart (``settings.twins``) are not tracked.
     roi_margin : float
         After the first image, dots are detected only within this many pixels of the markers'
         last known positions (the rest of the image is not searched).
@@ -252,6 +312,13 @@ class MarkerTracker:
                           else as_float_array(reference_uv, "reference_uv", (P, 2)))
         self.cfg = settings
         self.roi_margin = float(roi_margin)
+        self.strength = np.full(P, np.nan)           # typical darkness of each marker's dot
+        self.twins = np.zeros(P, dtype=bool)
+        if self.reference is not None and P > 1:
+            d = np.linalg.norm(self.reference[:, None] - self.reference[None], axis=2)
+            np.fill_diagonal(d, np.inf)
+            self.twins = d.min(1) < settings.twins
+            self.init[self.twins] = np.nan
         self.last = self.init.copy()                  # last seen position (NaN if never seen)
         self.vel = np.zeros((P, 2))
         self.gap = np.zeros(P, dtype=np.int64)        # frames since last seen
@@ -259,22 +326,23 @@ class MarkerTracker:
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
-    def _dots(self, gray: np.ndarray) -> np.ndarray:
+    def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         known = np.all(np.isfinite(self.last), axis=1)
         if not self._out or not known.any():
-            return detect_dots(gray, self.cfg.dots)[0]
+            return detect_dots(gray, self.cfg.dots)
         h, w = gray.shape
         lo = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
         hi = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
         if np.any(hi - lo < 8):
-            return detect_dots(gray, self.cfg.dots)[0]
-        return detect_dots(gray[lo[1]:hi[1], lo[0]:hi[0]], self.cfg.dots)[0] + lo
+            return detect_dots(gray, self.cfg.dots)
+        uv, strength = detect_dots(gray[lo[1]:hi[1], lo[0]:hi[0]], self.cfg.dots)
+        return uv + lo, strength
 
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
         gray = as_gray(image)
-        dots = self._dots(gray)
+        dots, strength = self._dots(gray)
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
@@ -291,17 +359,26 @@ class MarkerTracker:
             pred = _predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
-                gates[i] = cfg.recovery_gate + cfg.gate * gap[i]
+                gates[i] = cfg.recovery_gate + cfg.gate * min(gap[i], 3)
                 if self.templates[i] is None:
                     continue
                 patch, offset = self.templates[i]
-                radius = cfg.search_radius + int(np.ceil(cfg.gate * gap[i]))
+                radius = cfg.search_radius + int(np.ceil(cfg.gate * min(gap[i], 3)))
                 peak, score[i] = _correlate(gray, patch, pred[i], radius, cfg.motion_penalty)
                 peak = peak + offset
                 if score[i] >= cfg.min_correlation and np.linalg.norm(peak - pred[i]) <= cfg.max_jump:
                     cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
-            snap, via_corr = _assign_two_routes(cand, pred, dots, gates, cfg.recovery_gate + cfg.gate * gap,
-                                                corr_ok)
+            # A marker coming back after a loss must pass the unambiguity test even when the
+            # correlation found a peak: its template may be stale and its neighbours look alike.
+            back = gap > 0
+            guess = np.where((back & corr_ok)[:, None], cand, pred)
+            reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
+            # Only a dot about as dark as the marker's own will do: texture blobs are fainter
+            # than ink, and the correlation may follow the skin around a hidden dot.
+            dark_enough = (np.isnan(self.strength)[:, None]
+                           | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
+            snap, via_corr = _assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
+                                                dark_enough)
             got = snap >= 0
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
@@ -309,6 +386,10 @@ class MarkerTracker:
             trust = ~got & corr_ok & (score >= cfg.confident_correlation)
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
+            _drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
+                         max(cfg.gate, cfg.dots.separation))
+        status[self.twins] = LOST
+        uv[self.twins] = np.nan
         visible = status != LOST
         _carry_lost_markers(self.last, uv, visible, self.gap)
         for i in np.flatnonzero(visible):
@@ -321,6 +402,12 @@ class MarkerTracker:
         self.last[visible] = uv[visible]
         self.gap[visible] = 0
         self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
+        got = visible & (status != CORRELATION_ONLY)
+        if got.any():
+            near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
+            mine = strength[near.argmin(1)]
+            seen_before = np.isfinite(self.strength[got])
+            self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
         self._out.append((uv, status, score))
         return uv, status, score
 
