@@ -18,8 +18,13 @@ __all__ = ["main", "build_parser"]
 
 COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.bench",
+    "lipgen.commands.experiment",
+    "lipgen.commands.demo",
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",
+    "lipgen.commands.blender_extension",
+    "lipgen.commands.generate",
+    "lipgen.commands.show",
 )
 
 _DESCRIPTION = """\

@@ -15,7 +15,8 @@ A covariance is any object with ``n_dofs`` and ``columns(dofs) -> (3n, d)`` (the
 - :class:`LowRankCovariance`: Λ = Bᵀ B from a factor B (r, 3n): learned modes or the full
   sample covariance (:meth:`lipgen.modes.ModeModel.covariance`);
 - :class:`PhysicsCovariance`: Λ = s · K_s⁻² (eq 4.5), the covariance of displacements under IID
-  unit forces; its columns come from sparse solves, never from a dense inverse;
+  unit forces, or Λ = s · K_s⁻¹ (strain energy as the negative log-prior); its columns come from
+  sparse solves, never from a dense inverse;
 - :class:`SumCovariance`: the sum of independent parts (learned prior + physical residual).
 
 :class:`LLSE` precomputes the gain for one set of observed DOFs, so that reconstructing a batch
@@ -94,38 +95,69 @@ class LowRankCovariance:
 
 
 class PhysicsCovariance:
-    """Λ = scale · K_s⁻² (thesis eq 4.5): displacements caused by IID unit-variance forces.
+    """A covariance from the physics: ``scale · K_s⁻²`` or ``scale · K_s⁻¹``.
 
-    ``physics`` is a :class:`lipgen.Physics`; columns are obtained with two sparse solves per
-    column (``compliance_columns`` then ``solve``), never from a dense inverse. Anchored DOFs
-    have zero variance.
+    - ``kind="force"`` (thesis eq 4.5): Λ = K_s⁻², the displacements caused by IID unit-variance
+      forces. Its LLSE is the minimum-norm-force field of eq 4.3 (``Physics.reach``).
+    - ``kind="energy"``: Λ = K_s⁻¹, the Gaussian whose density is exp(−½ Uᵀ K_s U): the
+      strain energy as the negative log-prior. Its LLSE is the field of least strain *energy*
+      through the observations, which is what the thesis's prose of §4.1 asks for.
+
+    ``physics`` is a :class:`lipgen.Physics`; columns come from sparse solves
+    (``compliance_columns``, and ``solve`` again for K_s⁻²), never from a dense inverse. Anchored
+    DOFs have zero variance.
     """
 
-    def __init__(self, physics, scale: float = 1.0):
+    KINDS = ("force", "energy")
+
+    def __init__(self, physics, scale: float = 1.0, kind: str = "force"):
         if not np.isfinite(scale) or scale <= 0:
             raise ValueError(f"scale must be a positive finite variance, got {scale!r}")
+        if kind not in self.KINDS:
+            raise ValueError(f"kind must be one of {self.KINDS}, got {kind!r}")
         self.physics = physics
         self.scale = float(scale)
+        self.kind = kind
         self.n_dofs = int(physics.mesh.n_dofs)
+        free = np.zeros(self.n_dofs, bool)
+        free[physics.free_dofs] = True
+        self._free = free
+
+    def _compliance(self, dofs: np.ndarray) -> np.ndarray:
+        """K_s⁻¹[:, dofs] with zero columns for anchored DOFs."""
+        out = np.zeros((self.n_dofs, len(dofs)))
+        ok = self._free[dofs]
+        if ok.any():
+            out[:, ok] = self.physics.compliance_columns(dofs[ok])
+        return out
 
     def columns(self, dofs) -> np.ndarray:
-        """(3n, d): Λ[:, dofs] = scale · K_s⁻¹ (K_s⁻¹[:, dofs])."""
+        """(3n, d): Λ[:, dofs] (mm²)."""
         dofs = as_index_array(dofs, "dofs", self.n_dofs)
-        C = self.physics.compliance_columns(dofs)
-        return self.scale * np.asarray(self.physics.solve(C))
+        C = self._compliance(dofs)
+        if self.kind == "force":
+            C = np.asarray(self.physics.solve(C))
+        return self.scale * C
 
     def diag_blocks(self, nodes=None, chunk: int = 256) -> np.ndarray:
-        """(q, 3, 3) diagonal blocks: scale · cᵀc with c = K_s⁻¹[:, node dofs] (3 solves per node)."""
+        """(q, 3, 3) diagonal blocks of Λ, from 3 solves per node (in chunks of ``chunk`` nodes)."""
         nodes = _nodes_arg(nodes, self.n_dofs // 3)
         out = np.empty((len(nodes), 3, 3))
         for s in range(0, len(nodes), chunk):
             part = nodes[s:s + chunk]
-            C = np.asarray(self.physics.compliance_columns(_node_dofs(part))).reshape(self.n_dofs, -1, 3)
-            out[s:s + chunk] = self.scale * np.einsum("Dqa,Dqb->qab", C, C)
+            nd = _node_dofs(part)
+            C = self._compliance(nd)
+            if self.kind == "force":
+                C = C.reshape(self.n_dofs, -1, 3)
+                out[s:s + chunk] = self.scale * np.einsum("Dqa,Dqb->qab", C, C)
+            else:
+                q = len(part)
+                sub = C[nd].reshape(q, 3, q, 3)
+                out[s:s + chunk] = self.scale * sub[np.arange(q), :, np.arange(q), :]
         return out
 
     def matrix(self) -> np.ndarray:
-        """(3n, 3n) dense scale · K_s⁻², from solves (for small meshes and tests)."""
+        """(3n, 3n) dense Λ, from solves (for small meshes and tests)."""
         return self.columns(np.arange(self.n_dofs))
 
 
@@ -149,6 +181,35 @@ class SumCovariance:
 
     def matrix(self) -> np.ndarray:
         return sum(p.matrix() for p in self.parts)
+
+
+def _low_rank_split(covariance):
+    """(B, rest) for a sum of low-rank factors B and a full-rank remainder, else None."""
+    if not isinstance(covariance, SumCovariance):
+        return None
+    low = [p for p in covariance.parts if isinstance(p, LowRankCovariance)]
+    rest = [p for p in covariance.parts if not isinstance(p, LowRankCovariance)]
+    if not low or not rest:
+        return None
+    B = np.vstack([p.factor for p in low])
+    return B, (rest[0] if len(rest) == 1 else SumCovariance(*rest))
+
+
+def _woodbury_gain(B: np.ndarray, rest, dofs: np.ndarray, R: np.ndarray):
+    """Gain for Λ = BᵀB + N_full, in the form that stays accurate when N_full is tiny.
+
+    Read y − ȳ = B_oᵀ c + e with c ~ (0, I) and e ~ (0, N), N = N_full[o, o] + R. Then
+    ĉ = (I + B_o N⁻¹ B_oᵀ)⁻¹ B_o N⁻¹ (y − ȳ) and x̂ − x̄ = Bᵀ ĉ + N_full[:, o] N⁻¹ (y − ȳ − B_oᵀ ĉ),
+    algebraically the same as eq 4.7 (Woodbury) but without inverting the badly conditioned sum.
+    """
+    other = np.asarray(rest.columns(dofs), dtype=np.float64)  # (3n, d)
+    Ninv = pinvh(other[dofs] + np.diag(R))
+    Bo = B[:, dofs]
+    BN = Bo @ Ninv  # (r, d)
+    Mc = np.linalg.solve(np.eye(len(B)) + BN @ Bo.T, BN)  # (r, d): observations -> mode coefficients
+    gain = B.T @ Mc + (other @ Ninv) @ (np.eye(len(dofs)) - Bo.T @ Mc)
+    cross = B.T @ Bo + other
+    return np.ascontiguousarray(gain.T), cross
 
 
 def _noise_vector(noise, d: int) -> np.ndarray:
@@ -216,10 +277,13 @@ class LLSE:
         dofs = as_index_array(dofs, "dofs", D, unique=True, allow_empty=False)
         mean = np.zeros(D) if mean is None else as_float_array(mean, "mean", (D,))
         R = _noise_vector(noise, len(dofs))
-        cross = np.asarray(covariance.columns(dofs), dtype=np.float64)
-        S = cross[dofs] + np.diag(R)
-        P = pinvh(S)
-        gain_t = np.ascontiguousarray(P @ cross.T)  # (d, 3n); P symmetric
+        split = _low_rank_split(covariance)
+        if split is None:
+            cross = np.asarray(covariance.columns(dofs), dtype=np.float64)
+            P = pinvh(cross[dofs] + np.diag(R))
+            gain_t = np.ascontiguousarray(P @ cross.T)  # (d, 3n); P symmetric
+        else:
+            gain_t, cross = _woodbury_gain(*split, dofs, R)
         offset = mean - mean[dofs] @ gain_t
         return cls(dofs=dofs, gain_t=gain_t, offset=offset, mean=mean, cross=cross,
                    covariance=covariance, noise=R)

@@ -142,7 +142,7 @@ class RigRenderer:
             raise RenderBackendError(
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
-        self._scene = pr.Scene()
+        self._scene = _ordered_scene(pr)()
         for v in self._views:
             self._scene.add_node(v.node)
         self._items: dict[str, dict] = {}
@@ -173,13 +173,16 @@ class RigRenderer:
             if old is not None:
                 self._drop(old)
             groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided))
-            colour = [self._scene.add(_pyrender_mesh(pr, item, faces, mat)) for faces, mat in groups]
+            meshes = [_pyrender_mesh(pr, item, faces, mat) for faces, mat in groups]
+            colour = [self._scene.add(m, name=m.name) for m in meshes]
             self._items[name] = {"key": key, "colour": colour,
                                  "label": self._add_label_nodes(item) if labels else None}
         if scene.lights != self._lights:
             for node in self._light_nodes:
                 self._scene.remove_node(node)
-            self._light_nodes = [self._scene.add(*_pyrender_light(pr, lt)) for lt in scene.lights]
+            lights = [_pyrender_light(pr, lt) for lt in scene.lights]
+            self._light_nodes = [self._scene.add(light, name=f"light:{i:03d}", pose=pose)
+                                 for i, (light, pose) in enumerate(lights)]
             self._lights = scene.lights
 
     def _add_label_nodes(self, item: MeshItem) -> list:
@@ -187,7 +190,7 @@ class RigRenderer:
         for faces, mat in _groups(item, lambda m: m.label):
             mesh = _pyrender_mesh(self.pyrender, item, faces, mat)
             mesh.is_visible = False
-            out.append((self._scene.add(mesh), _label_color(mat.label)))
+            out.append((self._scene.add(mesh, name=f"label:{mesh.name}"), _label_color(mat.label)))
         return out
 
     def _drop(self, entry: dict) -> None:
@@ -250,6 +253,42 @@ class RigRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _ordered_scene(pr):
+    """A pyrender Scene that hands out its nodes sorted by name.
+
+    pyrender keeps nodes in sets, which iterate in an order set by memory addresses; the sum
+    over lights and the draw order would then change from process to process, and with them
+    the last bit of some pixels. Sorted, the same scene gives the same bytes everywhere.
+    """
+
+    def key(node):
+        return node.name or ""
+
+    class OrderedScene(pr.Scene):
+        @property
+        def mesh_nodes(self):
+            return sorted(self._mesh_nodes, key=key)
+
+        @property
+        def point_light_nodes(self):
+            return sorted(self._point_light_nodes, key=key)
+
+        @property
+        def spot_light_nodes(self):
+            return sorted(self._spot_light_nodes, key=key)
+
+        @property
+        def directional_light_nodes(self):
+            return sorted(self._directional_light_nodes, key=key)
+
+        @property
+        def light_nodes(self):
+            return sorted(self._point_light_nodes | self._spot_light_nodes | self._directional_light_nodes,
+                          key=key)
+
+    return OrderedScene
 
 
 def _fingerprint(item: MeshItem) -> str:

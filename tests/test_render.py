@@ -154,3 +154,21 @@ def test_missing_opengl_gives_a_clear_error():
         pytest.skip("OSMesa is installed here; cannot simulate a missing GL")
     assert out.stdout.startswith("RenderBackendError"), out.stdout + out.stderr
     assert "apt install" in out.stdout
+
+
+def test_calibration_board_corners_match_truth():
+    """The chessboard frames agree with their true poses: corners found by OpenCV vs projections."""
+    from lipgen.calibrate import Chessboard, find_corners
+    from lipgen.target import board_poses, board_scene
+
+    rig = default_rig()
+    board = Chessboard(9, 6, 8.0)
+    poses = board_poses(rig, board, 2, seed=7)
+    with render.RigRenderer(rig) as r:
+        for P in poses:
+            uv = rig.project(board.object_points() @ P[:3, :3].T + P[:3, 3])[0]
+            for v, img in enumerate(rig.split_views(r.render(board_scene(board, P)).image)):
+                found = find_corners(img, board)
+                assert found is not None
+                err = np.linalg.norm(found - uv[v], axis=1)
+                assert np.median(err) < 0.2 and np.percentile(err, 90) < 0.4, err

@@ -354,3 +354,33 @@ def test_command_line_export(tmp_path, mesh, fitted, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["export-usd", "--help"])
     assert exit_info.value.code == 0 and "--weight-range" in capsys.readouterr().out
+
+
+def test_command_line_viseme_script(tmp_path, mesh, fitted, capsys):
+    """--script: visemes -> activations -> the synthetic subject -> projected on the modes. The
+    blend-shape animation is then the least-squares fit of the simulated motion within the modes'
+    span: its residual against the baked simulation (--bake) is orthogonal to every mode."""
+    from pxr import Usd
+
+    from lipgen.cli import main
+
+    model, _ = fitted
+    model.save(tmp_path / "model.npz")
+    out = tmp_path / "speech.usdc"
+    code = main(["export-usd", "--model", str(tmp_path / "model.npz"), "--script", "AA:0.3 EE OO M",
+                 "--bake", "--fps", "30", "--out", str(out)])
+    assert code == 0, capsys.readouterr()
+    assert "27 frame(s) at 30 fps, blend shapes + baked points" in capsys.readouterr().out
+    skel = usd.read_animation(out).points
+    stage = Usd.Stage.Open(str(out))
+    stage.GetDefaultPrim().GetVariantSets().GetVariantSet("encoding").SetVariantSelection("bakedPoints")
+    stage.GetRootLayer().Export(str(tmp_path / "baked.usdc"))
+    truth = usd.read_animation(tmp_path / "baked.usdc").points
+    assert np.abs(truth - mesh.vertices).max() > 1.0  # the lips really move (mm)
+    residual = (truth - skel).reshape(len(truth), -1)
+    along_modes = residual @ model.components_.T
+    assert np.abs(along_modes).max() < 1e-4 * np.abs(residual).max() + 1e-4
+    mesh.save(tmp_path / "m.npz")
+    assert main(["export-usd", "--model", str(tmp_path / "model.npz"), "--script", "AA", "--mesh",
+                 str(tmp_path / "m.npz"), "--out", str(tmp_path / "x.usda")]) == 1
+    assert "--script needs the procedural lips" in capsys.readouterr().err

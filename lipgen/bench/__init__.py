@@ -27,8 +27,11 @@ log = logging.getLogger(__name__)
 
 SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
+    "lipgen.bench.physics",
+    "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",
+    "lipgen.bench.blender",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
@@ -87,7 +90,7 @@ def run_benchmarks(out: str | os.PathLike, suites: list[str] | None = None, quic
     A suite that fails is recorded with its error and the others still run.
     """
     known = available_suites()
-    chosen = list(known) if not suites else suites
+    chosen = list(known) if suites is None else list(suites)  # [] runs none, None runs all
     unknown = [s for s in chosen if s not in known]
     if unknown:
         raise ValueError(f"unknown benchmark suite(s) {unknown}; available: {sorted(known)}")

@@ -5,6 +5,8 @@ of the same scene (already uploaded) at the same size through the real camera: t
 limit of this renderer on this machine. A raw frame costs more: the subject's surfaces and dots
 are rebuilt for every frame, uploaded, and the two halves rendered from their own view cameras
 and composed. ``end_to_end`` adds encoding the PNG and writing it and a truth file.
+``generate_fps`` is the whole ``lipgen generate`` (subject simulation, rendering, sensor noise,
+visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up included.
 """
 
 from __future__ import annotations
@@ -31,7 +33,9 @@ def run(quick: bool = False) -> dict:
 
     from .._io import atomic_write_bytes, save_npz
     from ..camera import default_rig
+    from ..dataset import GenerateSettings
     from ..face import FaceModel
+    from ..generate import generate
     from ..procedural import lip_mesh
     from ..render import RigRenderer, _View
 
@@ -78,6 +82,14 @@ def run(quick: bool = False) -> dict:
             t0 = time.perf_counter()
             end_to_end(k + 1)
             t_e2e.append(time.perf_counter() - t0)
+    gen = {}
+    n_gen = 8 if quick else 40
+    for workers in (1, 2):
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            generate(Path(tmp) / "ds", GenerateSettings(frames=n_gen, calib_frames=0), workers=workers,
+                     progress=False)
+            gen[f"workers_{workers}"] = n_gen / (time.perf_counter() - t0)
     med = {name: float(np.median(v)) for name, v in
            (("raw", t_raw), ("single", t_single), ("e2e", t_e2e), ("cpu_raw", cpu_raw))}
     return {
@@ -91,6 +103,8 @@ def run(quick: bool = False) -> dict:
         "pyrender_limit_fps": 1.0 / med["single"],
         "ratio_to_limit": med["single"] / med["raw"],
         "end_to_end_fps": 1.0 / med["e2e"],
+        "generate_frames": n_gen,
+        "generate_fps": gen,
         "targets": {"ratio_to_limit": 0.5, "end_to_end_fps": 8.0},
         "loadavg_before": list(load_before),
         "loadavg_after": list(os.getloadavg()),

@@ -12,14 +12,18 @@ import numpy as np
 _EPILOG = """\
 examples:
   lipgen export-usd --model model.npz --weights weights.npy --fps 30 --out lips.usda
+  lipgen export-usd --model model.npz --script "AA EE OO M:0.3" --bake --out speech.usdc
   lipgen export-usd --model model.npz --weights weights.npz --out lips.usdz --weight-range unit
   lipgen export-usd --model model.npz --out rig.usdc          (the modes, all weights zero)
 
 The mesh is the default procedural lips (--resolution) unless --mesh gives a LipMesh file
 (LipMesh.save). --weights takes an .npy array (F, k) of mode coefficients, as
 ModeModel.project returns them, or an .npz holding one array (or one named "weights").
---points adds baked points (F, n, 3) in mm; with a model as well, both encodings go into one
-file as the variant set "encoding". Blender clamps shape-key values to [0, 1] on import: use
+--script runs a viseme script on the synthetic subject (lipgen.motion: visemes -> muscle-like
+activations -> simulated vertices) and projects its displacements onto the model's modes;
+--bake adds the simulated vertices themselves as baked points. --points adds baked points
+(F, n, 3) in mm. With a model as well, both encodings go into one file as the variant set
+"encoding". Blender clamps shape-key values to [0, 1] on import: use
 --weight-range unit for files meant for Blender's importer.
 """
 
@@ -35,7 +39,14 @@ def add_parser(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("--model", help="fitted ModeModel file (.npz, ModeModel.save)")
-    p.add_argument("--weights", help="mode coefficients per frame: .npy (F, k) or .npz")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--weights", help="mode coefficients per frame: .npy (F, k) or .npz")
+    src.add_argument("--script", help='viseme script, e.g. "AA:0.3 EE OO M:0.15" (NAME[:SECONDS], '
+                     "0.2 s by default), simulated on the synthetic subject and projected on the modes")
+    p.add_argument("--bake", action="store_true", help="with --script: also write the simulated vertices "
+                   "as baked points")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the synthetic subject for --script (default 0)")
     p.add_argument("--points", help="baked vertex positions per frame: .npy (F, n, 3) in mm")
     p.add_argument("--mesh", help="LipMesh file (.npz, LipMesh.save); default: the procedural lips")
     p.add_argument("--resolution", type=int, default=0, help="resolution of the procedural lips (default 0)")
@@ -80,13 +91,33 @@ def _mesh(args):
     return lipgen.lip_mesh(args.resolution)
 
 
+def _script_motion(args, mesh, model):
+    """Weights (F, k) and vertices (F, n, 3) of a viseme script on the synthetic subject.
+
+    The subject lives on a finer procedural mesh whose first nodes are the nodes of the coarser
+    ones (lipgen.motion), so its motion is read off the model's nodes directly.
+    """
+    from .. import motion
+
+    if args.mesh:
+        raise ValueError("--script needs the procedural lips (--resolution), not --mesh: the synthetic "
+                         "subject moves the procedural mesh's nodes")
+    subject = motion.default_subject(args.seed, resolution=max(1, args.resolution))
+    n = mesh.n_nodes
+    if subject.mesh.n_nodes < n or not np.allclose(subject.mesh.vertices[:n], mesh.vertices, atol=1e-9):
+        raise ValueError(f"the synthetic subject's mesh does not contain lip_mesh({args.resolution})'s nodes")
+    sim = motion.simulate(subject, motion.viseme_activations(args.script, fps=args.fps), fps=args.fps)
+    U = sim.displacements[:, :n]
+    return model.project(U), mesh.vertices + U
+
+
 def _run(args) -> int:
     from ..modes import ModeModel
     from ..usd import export_usd, validate
 
     if not (args.model or args.points):
-        raise ValueError("nothing to export: give --model (with --weights, or alone for the bare modes) "
-                         "and/or --points")
+        raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
+                         "bare modes) and/or --points")
     mesh = _mesh(args)
     points = None
     model = ModeModel.load(args.model) if args.model else None
@@ -95,7 +126,17 @@ def _run(args) -> int:
         if model is None:
             raise ValueError("--weights needs --model (the modes the weights drive)")
         weights = _load_array(args.weights, "weights", "weights")
+    elif args.script:
+        if model is None:
+            raise ValueError("--script needs --model (the simulated motion is projected onto its modes)")
+        weights, simulated = _script_motion(args, mesh, model)
+        if args.bake:
+            points = simulated
+    if args.bake and not args.script:
+        raise ValueError("--bake goes with --script (use --points to add other baked points)")
     if args.points:
+        if points is not None:
+            raise ValueError("--points and --bake both give baked points; choose one")
         points = _load_array(args.points, "points", "points")
     out = export_usd(args.out, mesh, model, weights, points, fps=args.fps, start=args.start,
                      weight_range=args.weight_range, markers=not args.no_markers,

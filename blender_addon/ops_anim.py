@@ -1,0 +1,120 @@
+"""Operators that animate and export: coefficient curves as keyframes, USD export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy_extras.io_utils import ImportHelper
+
+from lipgen.addon import load_curves
+from lipgen.addon.modebasis import SLIDER_LIMIT
+
+from . import bridge, lipobject
+from .lipobject import UserError
+from .ops_common import LipgenOperator
+from .ops_modes import _lipgen_object
+
+
+def key_sliders(obj, frames: np.ndarray, sliders: np.ndarray) -> int:
+    """Keyframe slider ``i`` at ``frames`` with column ``i`` of ``sliders``; returns clamped count."""
+    clamped = int((np.abs(sliders) > SLIDER_LIMIT).sum())
+    sliders = np.clip(sliders, -SLIDER_LIMIT, SLIDER_LIMIT)
+    for i in range(sliders.shape[1]):
+        fc = bridge.fcurve_ensure(obj, lipobject.slider_path(i))
+        bridge.set_keyframes(fc, frames, sliders[:, i])
+    obj.update_tag()
+    return clamped
+
+
+class OBJECT_OT_lipgen_import_curves(LipgenOperator, bpy.types.Operator, ImportHelper):
+    """Keyframe the mode sliders from coefficient curves in an npz or CSV file"""
+
+    bl_idname = "object.lipgen_import_curves"
+    bl_label = "Import Coefficient Curves"
+
+    filename_ext = ".npz"
+    filter_glob: StringProperty(default="*.npz;*.csv", options={"HIDDEN"})
+    start_frame: IntProperty(name="Start frame", default=1,
+                             description="Frame of the first sample (files with times or no time base)")
+    fps: FloatProperty(name="FPS", default=0.0, min=0.0,
+                       description="Frames per second for files with times; 0 uses the scene's")
+    units: EnumProperty(
+        name="Values", default="COEFFICIENTS",
+        items=(("COEFFICIENTS", "Mode coefficients", "As ModeModel.project / synthesize use them"),
+               ("SLIDERS", "Slider values", "Already in slider units")))
+
+    def invoke(self, context, event):
+        self.start_frame = context.scene.frame_start
+        return ImportHelper.invoke(self, context, event)
+
+    def run(self, context):
+        obj = _lipgen_object(context)
+        modes = obj.lipgen.modes
+        if not len(modes):
+            raise UserError("load or build modes before importing their curves")
+        curves = load_curves(Path(bpy.path.abspath(self.filepath)))
+        if curves.n_modes > len(modes):
+            raise UserError(f"the file has {curves.n_modes} coefficient columns but "
+                            f"{obj.name!r} has {len(modes)} modes; use a file made for these modes")
+        scene = context.scene
+        fps = self.fps or scene.render.fps / scene.render.fps_base
+        frames = curves.frame_numbers(fps, self.start_frame)
+        values = curves.coefficients
+        if self.units == "COEFFICIENTS":
+            values = values / np.array([m.scale for m in modes])[: curves.n_modes]
+        clamped = key_sliders(obj, frames, values)
+        msg = (f"keyed {curves.n_modes} sliders on {curves.n_samples} frames "
+               f"({frames[0]:g}-{frames[-1]:g})")
+        if clamped:
+            self.report({"WARNING"}, f"{msg}; {clamped} value(s) beyond +-{SLIDER_LIMIT:g} slider "
+                                     "units were clamped")
+        else:
+            self.report({"INFO"}, msg)
+
+
+class OBJECT_OT_lipgen_animate_visemes(LipgenOperator, bpy.types.Operator):
+    """Animate the mode sliders from a viseme script, performed by lipgen's synthetic subject"""
+
+    bl_idname = "object.lipgen_animate_visemes"
+    bl_label = "Animate from Visemes"
+
+    script: StringProperty(
+        name="Script", default="AA:0.3 EE:0.2 OO M:0.15 F REST:0.4",
+        description="Visemes with optional durations in seconds (default 0.2), e.g. "
+        "'AA:0.3 EE OO:0.25 M REST'; names: REST AA AE AH EH EE IH OH OO W M F TH S SH L R")
+    start_frame: IntProperty(name="Start frame", default=1)
+    coarticulation: FloatProperty(name="Coarticulation", default=0.2, min=0.0, max=1.0,
+                                  description="Blend between neighbouring visemes (s)")
+
+    def invoke(self, context, event):
+        self.start_frame = context.scene.frame_current
+        return context.window_manager.invoke_props_dialog(self, width=420)
+
+    def run(self, context):
+        from lipgen.addon.speech import speech_displacements
+
+        obj = _lipgen_object(context)
+        if not len(obj.lipgen.modes):
+            raise UserError("the sliders follow speech through modes: train modes from Speech "
+                            "(Train > Speech) or load or build modes first")
+        resolution = lipobject.lips_resolution_of(obj)
+        scene = context.scene
+        fps = scene.render.fps / scene.render.fps_base
+        U = speech_displacements(self.script, fps, resolution, self.coarticulation)
+        basis = lipobject.mode_basis(obj)
+        coef = basis.project(U)
+        frames = self.start_frame + np.arange(len(U), dtype=np.float64)
+        clamped = key_sliders(obj, frames, basis.sliders(coef))
+        if scene.frame_end < frames[-1]:
+            scene.frame_end = int(frames[-1])
+        miss = float(np.linalg.norm(basis.displacement(coef) - U, axis=2).max())
+        msg = (f"keyed {len(U)} frames ({frames[0]:g}-{frames[-1]:g}); the modes follow the "
+               f"performer within {miss:.2g} mm")
+        self.report({"WARNING"} if clamped else {"INFO"},
+                    msg + (f"; {clamped} slider values clamped to +-10" if clamped else ""))
+
+
+classes = (OBJECT_OT_lipgen_import_curves, OBJECT_OT_lipgen_animate_visemes)

@@ -1,0 +1,231 @@
+"""``lipgen generate`` / ``lipgen show`` and the dataset reader.
+
+Small datasets (few frames, small images): the rendered dots are found in the images by plain
+thresholding and compared with the truth projections; two runs (one in-process, one with two
+worker processes) and a run killed part-way then resumed must write identical bytes.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from lipgen.camera import VIEWS
+from lipgen.cli import main
+from lipgen.dataset import Dataset, GenerateSettings, validate_manifest
+from lipgen.errors import DatasetError
+
+pytestmark = pytest.mark.render
+pytest.importorskip("lipgen.render")
+pytest.importorskip("lipgen.motion")
+
+TINY = GenerateSettings(frames=14, seed=3, size=(160, 120), calib_frames=1, script="AA:0.2 OO:0.2 M F")
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    from lipgen.generate import generate
+
+    return generate(tmp_path_factory.mktemp("ref") / "ds", TINY, progress=False)
+
+
+def test_layout_manifest_and_reader(reference):
+    ds = Dataset(reference)
+    m = ds.manifest
+    validate_manifest(m)
+    assert m["units"] == "mm" and m["convention"] == "opencv" and m["seed"] == 3
+    assert m["mesh"]["topology_id"] == ds.mesh.topology_id and m["mesh"]["resolution"] == 1
+    assert len(ds) == 14 and ds.missing() == [] and len(m["frames"]) == 14
+    fr = ds[5]
+    assert fr.image.shape == (120, 160, 3) and fr.index == 5 and fr.time == pytest.approx(5 / 30)
+    k = len(ds.marks)
+    assert k == 17 and list(fr.mark_names) == list(ds.marks)
+    for name, shape in (("uv", (2, k, 2)), ("uv_raw", (2, k, 2)), ("visible", (2, k)), ("depth", (2, k)),
+                        ("marks_world", (k, 3)), ("vertices", (ds.mesh.n_nodes, 3)), ("pose", (4, 4)),
+                        ("activations", (len(m["actions"]),)), ("dot_visible_fraction", (2, k))):
+        assert fr.truth[name].shape == shape, name
+    # the truth is self-consistent: world marks are the posed model-frame marks, projected by the rig
+    P = fr.pose
+    np.testing.assert_allclose(fr.marks_world, fr.marks_model @ P[:3, :3].T + P[:3, 3], atol=1e-9)
+    np.testing.assert_allclose(fr.marks_model[:16], fr.vertices[ds.mesh.markers], atol=1e-12)
+    np.testing.assert_allclose(ds.rig.project(fr.marks_world)[0], fr.uv, atol=1e-9)
+    assert list(fr.views) == list(VIEWS)
+    assert [f.index for f in ds] == list(range(14))
+    cal = ds.calibration()
+    assert len(cal) == 1 and cal[0].truth["corners_world"].shape == (54, 3)
+    A, b = cal[0].truth["A"], cal[0].truth["b"]
+    np.testing.assert_allclose(cal[0].truth["corners_board"] @ A.T + b, cal[0].truth["corners_world"],
+                               atol=1e-9)
+    assert ds.board().inner_cols == 9
+    with pytest.raises(IndexError):
+        ds[14]
+
+
+def test_same_settings_same_bytes_with_two_workers(reference, tmp_path):
+    from lipgen.generate import generate
+
+    other = generate(tmp_path / "ds", TINY, workers=2, progress=False)
+    a, b = _files(reference), _files(other)
+    assert a.keys() == b.keys()
+    different = [name for name in a if a[name] != b[name]]
+    assert not different, f"files differ between runs: {different[:5]}"
+
+
+def test_resume_after_a_kill_completes_identically(reference, tmp_path):
+    from lipgen.generate import generate
+
+    out = tmp_path / "ds"
+    args = [sys.executable, "-m", "lipgen", "generate", "--out", str(out), "--frames", "14", "--seed", "3",
+            "--size", "160x120", "--calib-frames", "1", "--script", "AA:0.2 OO:0.2 M F", "--no-progress"]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        if len(list((out / "truth").glob("[0-9]*.npz"))) >= 4:
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.02)
+    proc.wait(timeout=60)
+    written = sorted((out / "truth").glob("[0-9]*.npz"))
+    if proc.returncode == 0:
+        pytest.skip("the run finished before it could be killed")
+    assert 4 <= len(written) < 14
+    before = {p: p.stat().st_mtime_ns for p in written}
+    # a killed run is an incomplete dataset: the reader says what is missing
+    assert Dataset(out).missing()
+    # without --resume the folder is refused and left alone
+    with pytest.raises(DatasetError, match="--resume"):
+        generate(out, TINY, progress=False)
+    generate(out, TINY, resume=True, progress=False)
+    assert {p: p.stat().st_mtime_ns for p in written} == before, "frames already written were redone"
+    a, b = _files(reference), _files(out)
+    assert a.keys() == b.keys(), set(a) ^ set(b)
+    assert all(a[k] == b[k] for k in a)
+
+
+def _threshold_centroids(img):
+    """Dark blobs and their darkness-weighted centroids, from the image alone.
+
+    The darkness is measured against the local shading (a plane fitted to a ring of pixels
+    around the blob), so that a shading gradient does not pull the centroid.
+    """
+    g = img.astype(float).mean(axis=2)
+    lab, n = ndimage.label(g < 60)
+    out = []
+    for k in range(1, n + 1):
+        comp = lab == k
+        region = ndimage.binary_dilation(comp, iterations=1)
+        ring = ndimage.binary_dilation(region, iterations=2) & ~region & (lab == 0)
+        ry, rx = np.nonzero(ring)
+        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones(len(rx)), rx, ry]), g[ry, rx], rcond=None)
+        yy, xx = np.nonzero(region)
+        w = np.clip(coef[0] + coef[1] * xx + coef[2] * yy - g[yy, xx], 0, None)
+        out.append([np.sum(xx * w) / w.sum(), np.sum(yy * w) / w.sum()])
+    return np.array(out)
+
+
+def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path):
+    from lipgen.generate import generate
+
+    s = GenerateSettings(frames=4, seed=1, size=(480, 360), calib_frames=0, dot_diameter=3.0, noise=1.0)
+    ds = Dataset(generate(tmp_path / "ds", s, progress=False))
+    errors = []
+    for fr in ds:
+        views = ds.rig.split_views(fr.image)
+        for v in range(2):
+            c = _threshold_centroids(views[v])
+            uv, ok = fr.uv[v], fr.visible[v] & (fr.dot_visible_fraction[v] == 1)
+            # dots that touch another in the image merge into one blob: leave those out
+            gap = np.linalg.norm(uv[:, None] - uv[None], axis=2) + np.eye(len(uv)) * 1e9
+            ok &= gap.min(axis=1) > 7
+            d = np.linalg.norm(c[:, None] - uv[None], axis=2)
+            errors.append(c[d.argmin(axis=0)][ok] - uv[ok])
+    err = np.vstack(errors)
+    rms = np.sqrt(np.mean(np.sum(err**2, axis=1)))
+    print(f"thresholded dot centroids: {rms:.3f} px RMS over {len(err)} dots")
+    assert len(err) >= 30 and rms < 0.5
+    assert np.abs(err.mean(axis=0)).max() < 0.2
+
+
+def test_show_writes_a_picture(reference, tmp_path, capsys):
+    out = tmp_path / "x.png"
+    assert main(["show", str(reference), "--frame", "3", "--out", str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert main(["show", str(reference), "--frame", "99", "--out", str(out)]) == 1
+    assert "out of range" in capsys.readouterr().err
+
+
+def test_bad_inputs_are_refused_and_nothing_is_overwritten(reference, tmp_path, capsys):
+    from lipgen.generate import generate
+
+    stranger = tmp_path / "stranger"
+    stranger.mkdir()
+    (stranger / "notes.txt").write_text("mine")
+    with pytest.raises(DatasetError, match="not a lipgen dataset"):
+        generate(stranger, TINY, progress=False)
+    assert [p.name for p in stranger.iterdir()] == ["notes.txt"]
+    before = _files(reference)
+    with pytest.raises(DatasetError, match="--resume"):
+        generate(reference, TINY, progress=False)
+    with pytest.raises(DatasetError, match="different settings.*seed was 3, now 4"):
+        generate(reference, GenerateSettings(**{**TINY.to_dict(), "seed": 4, "size": (160, 120),
+                                                "board": (9, 6, 8.0)}), resume=True, progress=False)
+    assert _files(reference) == before
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(DatasetError, match="cannot create the dataset folder"):
+        generate(blocker / "ds", TINY, progress=False)
+    with pytest.raises(ValueError, match="unknown viseme 'XX'"):
+        GenerateSettings(script="AA XX")
+    assert main(["generate", "--out", str(tmp_path / "v"), "--script", "AA QQ:0.2", "--frames", "3"]) == 1
+    assert "unknown viseme" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="4:3"):
+        GenerateSettings(size=(640, 360))
+
+
+def test_a_rig_that_misses_the_subject_is_refused(tmp_path, monkeypatch):
+    import lipgen.generate as gen
+    from lipgen.camera import MirrorRig, default_rig
+
+    def far_mirror(w, h):
+        rig = default_rig(w, h)
+        return MirrorRig(rig.camera, rig.mirror_normal, rig.mirror_offset - 150.0)
+
+    monkeypatch.setattr(gen, "default_rig", far_mirror)
+    with pytest.raises(ValueError, match="mirror plane .* does not show the subject's marks"):
+        gen.generate(tmp_path / "far", GenerateSettings(frames=3, size=(160, 120), calib_frames=0),
+                     progress=False)
+    assert not (tmp_path / "far").exists()
+
+
+def test_manifest_validation_names_the_problem(reference):
+    m = json.loads((reference / "manifest.json").read_text())
+    validate_manifest(m)
+    for change, match in (({"schema_version": 99}, "schema version 99"), ({"format": "x"}, "format"),
+                          ({"frames": m["frames"][:-1]}, "frame list"), ({"convention": "opengl"}, "opencv")):
+        with pytest.raises(DatasetError, match=match):
+            validate_manifest({**m, **change})
+    bad = dict(m)
+    del bad["rig"]
+    with pytest.raises(DatasetError, match="lacks"):
+        validate_manifest(bad)
+    with pytest.raises(DatasetError, match="no manifest"):
+        Dataset(reference / "raw")
+
+
+def test_generate_help_explains(capsys):
+    with pytest.raises(SystemExit):
+        main(["generate", "--help"])
+    text = capsys.readouterr().out
+    assert "--resume" in text and "--workers" in text and "viseme" in text
+    assert os.environ.get("PYOPENGL_PLATFORM", "egl")

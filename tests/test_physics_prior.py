@@ -1,0 +1,123 @@
+"""The physics covariance (eq 4.5), the thesis's "full-circle link" and the combined model (§6.1)."""
+
+import numpy as np
+import pytest
+
+from lipgen import Physics, dofs, lip_mesh
+from lipgen.combined import CombinedModel
+from lipgen.llse import LLSE, LowRankCovariance, PhysicsCovariance, SumCovariance
+from lipgen.modes import ModeModel
+from lipgen.motion import ACTIONS, default_subject, random_activations, simulate
+
+
+@pytest.fixture(scope="module")
+def physics():
+    return Physics(lip_mesh(0))
+
+
+def _dense_K_inv_sq(physics):
+    """K_s^-2 embedded in 3n x 3n, from a dense inverse (test-only reference)."""
+    free = physics.free_dofs
+    Kinv = np.linalg.inv(physics.K_s.toarray())
+    out = np.zeros((physics.n_dofs, physics.n_dofs))
+    out[np.ix_(free, free)] = Kinv @ Kinv
+    return out
+
+
+def test_min_strain_equals_llse_under_physics_covariance(physics):
+    mesh = physics.mesh
+    rng = np.random.default_rng(0)
+    for nodes, axes in ((mesh.markers, "xyz"), (mesh.markers[:8], "xyz"), (mesh.markers, "yz")):
+        d = dofs(nodes, axes)
+        goals = rng.normal(scale=2.0, size=(3, len(d)))
+        U_reach, _ = physics.reach(d, goals)
+        U_llse = LLSE.build(PhysicsCovariance(physics), d)(goals)
+        assert np.allclose(U_llse, U_reach, atol=1e-9 * np.abs(U_reach).max())
+
+
+def test_energy_prior_gives_least_strain_energy_field(physics):
+    """Under Λ = K_s^-1 the LLSE is argmin UᵀKU with U[o] = y: U[h] = -K_hh^-1 K_ho y."""
+    d = dofs(physics.mesh.markers, "xy")
+    y = np.random.default_rng(3).normal(size=len(d))
+    U = LLSE.build(PhysicsCovariance(physics, 0.7, kind="energy"), d)(y).ravel()
+    K = physics.K.toarray()
+    h = np.setdiff1d(physics.free_dofs, d)
+    want = -np.linalg.solve(K[np.ix_(h, h)], K[np.ix_(h, d)] @ y)
+    assert np.allclose(U[d], y, atol=1e-9) and np.allclose(U[h], want, atol=1e-8 * np.abs(want).max())
+    assert np.allclose(U[physics.anchored_dofs], 0)
+    blocks = PhysicsCovariance(physics, 0.7, kind="energy").diag_blocks([5, 77])
+    Kinv = np.zeros_like(K)
+    Kinv[np.ix_(physics.free_dofs, physics.free_dofs)] = np.linalg.inv(physics.K_s.toarray())
+    assert np.allclose(blocks, 0.7 * np.stack([Kinv[15:18, 15:18], Kinv[231:234, 231:234]]))
+
+
+def test_physics_covariance_matches_dense_reference(physics):
+    ref = _dense_K_inv_sq(physics)
+    cov = PhysicsCovariance(physics, scale=2.5)
+    d = dofs(physics.mesh.markers[:5])
+    assert np.allclose(cov.columns(d), 2.5 * ref[:, d], rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    nodes = np.array([3, 40, 150])
+    blocks = np.stack([ref[3 * i:3 * i + 3, 3 * i:3 * i + 3] for i in nodes])
+    assert np.allclose(cov.diag_blocks(nodes), 2.5 * blocks, rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+    # The posterior under the physics prior is PSD and zero at the goals.
+    est = LLSE.build(cov, d)
+    post = est.posterior_blocks(physics.mesh.markers[:5])
+    assert np.allclose(post, 0, atol=1e-9 * np.abs(ref).max())
+
+
+def test_woodbury_gain_equals_plain_llse(physics):
+    """The structured gain for modes + physics equals eq 4.7 with the dense summed covariance."""
+    rng = np.random.default_rng(1)
+    free = physics.free_dofs
+    B = np.zeros((4, physics.n_dofs))
+    B[:, free] = rng.normal(size=(4, len(free)))
+    phys = PhysicsCovariance(physics, scale=1e-2)
+    d = dofs(physics.mesh.markers[:6])
+    est = LLSE.build(SumCovariance(LowRankCovariance(B), phys), d, noise=0.05)
+    Sig = B.T @ B + 1e-2 * _dense_K_inv_sq(physics)
+    G = Sig[:, d] @ np.linalg.inv(Sig[np.ix_(d, d)] + 0.05 * np.eye(len(d)))
+    y = rng.normal(size=len(d))
+    assert np.allclose(est(y).ravel(), G @ y, atol=1e-9 * np.abs(G @ y).max())
+
+
+def test_combined_model_beats_both_on_motion_outside_the_training_span(physics):
+    """Train without the smile and the funneler; test on frames that use them."""
+    mesh = physics.mesh
+    subject = default_subject(0, resolution=1)
+    held = [ACTIONS.index("lip_corner_puller"), ACTIONS.index("funneler")]
+    train = random_activations(140, seed=1)
+    train[:, held] = 0.0
+    test = random_activations(90, seed=2)
+    test = test[test[:, held].max(axis=1) > 0.3]
+    n0, md = mesh.n_nodes, dofs(mesh.markers)
+
+    def fields(act):
+        motion = simulate(subject, act)
+        U, _ = physics.reach(md, (motion.markers - mesh.vertices[mesh.markers]).reshape(len(act), -1))
+        return U, motion.vertices[:, :n0] - mesh.vertices  # nested meshes: node i is node i
+
+    U_train, _ = fields(train)
+    _, truth = fields(test)
+    modes = ModeModel(10).fit(U_train, mesh=mesh)
+    combined = CombinedModel(modes, physics)
+    Y = truth.reshape(len(truth), -1)
+    for d in (dofs(mesh.markers[:8]), dofs(mesh.markers, "yz"), dofs(mesh.markers, "xy")):
+        hidden = np.setdiff1d(physics.free_dofs, d)  # the anchored DOFs are 0 in every estimate
+        err = {}
+        for name, est in (("modes", modes.llse(d)),
+                          ("physics_force", LLSE.build(PhysicsCovariance(physics, kind="force"), d)),
+                          ("physics_energy", LLSE.build(PhysicsCovariance(physics, kind="energy"), d)),
+                          ("combined", combined.llse(d))):
+            err[name] = np.mean((est(Y[:, d]).reshape(len(Y), -1) - Y)[:, hidden] ** 2)
+        assert err["combined"] < 0.98 * min(v for k, v in err.items() if k != "combined"), err
+
+
+def test_fit_from_markers_trains_on_least_strain_fields(physics):
+    mesh = physics.mesh
+    goals = np.random.default_rng(4).normal(size=(30, 16, 3))
+    m = ModeModel(5).fit_from_markers(physics, goals)
+    U, _ = physics.reach(dofs(mesh.markers), goals.reshape(30, -1))
+    ref = ModeModel(5).fit(U)
+    assert np.allclose(m.components_, ref.components_) and m.topology_id_ == mesh.topology_id
+    with pytest.raises(ValueError, match=r"goals must have shape \(\*, 16, 3\)"):
+        ModeModel(5).fit_from_markers(physics, goals[:, :8])
