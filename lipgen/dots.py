@@ -42,6 +42,9 @@ class DotSettings:
         The response is smoothed by ``smoothing * sigma`` before peaks are picked: 1 is the
         matched filter (best against noise), smaller keeps close pairs of dots apart (at 0.6,
         dots of sigma 1.3 px are resolved from 4 px apart, against 5 px at 1).
+    min_roundness : float
+        Least ratio of the weaker to the stronger principal curvature of the response at a peak:
+        1 for a round dot, 0 along a line; rejects the mouth slit and creases.
     """
 
     sigma: float = 1.5
@@ -49,6 +52,7 @@ class DotSettings:
     noise_k: float = 4.5
     min_separation: float | None = None
     smoothing: float = 0.6
+    min_roundness: float = 0.3
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0.3 <= self.sigma <= 50):
@@ -144,6 +148,16 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
             raise ValueError(f"mask must have the image's shape {gray.shape}, got {m.shape}")
         peaks &= m
     rows, cols = np.nonzero(peaks)
+    # Round blobs only: at a dot both principal curvatures of the response are strongly
+    # negative; along a dark line or slit (the mouth opening, a crease) one of them is near 0.
+    ryy = response[rows + 1, cols] + response[rows - 1, cols] - 2 * response[rows, cols]
+    rxx = response[rows, cols + 1] + response[rows, cols - 1] - 2 * response[rows, cols]
+    rxy = 0.25 * (response[rows + 1, cols + 1] + response[rows - 1, cols - 1]
+                  - response[rows + 1, cols - 1] - response[rows - 1, cols + 1])
+    half_trace, det_root = 0.5 * (rxx + ryy), np.sqrt(0.25 * (rxx - ryy) ** 2 + rxy ** 2)
+    weak, strong = half_trace + det_root, half_trace - det_root      # eigenvalues, weak >= strong
+    round_ = (strong < 0) & (-weak >= settings.min_roundness * -strong)
+    rows, cols = rows[round_], cols[round_]
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
     uv0 = np.column_stack([cols[order], rows[order]]).astype(np.float64)

@@ -11,7 +11,7 @@ from scipy.optimize import linear_sum_assignment
 
 from ._validate import as_float_array
 
-__all__ = ["assign", "similarity_2d", "register_points", "match_to_expected"]
+__all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected"]
 
 _BIG = 1e12
 
@@ -137,10 +137,48 @@ def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterati
     return match, cur
 
 
+def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, iterations: int = 12
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Align a layout to dots allowing smooth deformation (coherent point drift, simply done).
+
+    After the similarity of :func:`register_points`, alternately assign one-to-one within a
+    shrinking gate and move every marker by the Gaussian-weighted mean of its matched
+    neighbours' offsets (weights by distance in the layout, width shrinking from four times to
+    one typical marker spacing). Neighbouring markers thus move together: when the lower lip has
+    dropped, all its markers follow, so one of them does not take its neighbour's dot.
+
+    Returns
+    -------
+    match : (P,) int
+        Index into ``dots``, -1 where none.
+    aligned : (P, 2) float
+        The deformed layout.
+    """
+    match, base = register_points(dots, expected, gate)
+    if len(dots) == 0 or len(expected) < 3:
+        return match, base
+    d = np.linalg.norm(expected[:, None] - expected[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    spacing = float(np.median(d.min(1)))
+    cur = base
+    for k in range(iterations):
+        frac = k / max(iterations - 1, 1)
+        width = spacing * (4.0 - 3.0 * frac)
+        current_gate = gate * (3.0 - 2.0 * frac)
+        match = assign(cur, dots, np.full(len(expected), current_gate))
+        m = match >= 0
+        if m.sum() < 3:
+            break
+        offsets = dots[match[m]] - base[m]
+        w = np.exp(-0.5 * (np.linalg.norm(expected[:, None] - expected[m][None], axis=2) / width) ** 2)
+        cur = base + (w @ offsets) / np.maximum(w.sum(1, keepdims=True), 1e-12)
+    return assign(cur, dots, np.full(len(expected), gate)), cur
+
+
 def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio: float = 0.6) -> np.ndarray:
     """Match the first frame's dots to the expected marker positions (the thesis's GUI step).
 
-    After :func:`register_points`, a match is kept only when it is unambiguous: the dot is
+    After :func:`register_nonrigid`, a match is kept only when it is unambiguous: the dot is
     closer to its marker's aligned position than ``ratio`` times its distance to any other
     marker's, and than ``ratio`` times the distance from that marker to any other dot. Markers
     whose dots cannot be told apart stay unmatched (-1) and are acquired later by the tracker.
@@ -150,7 +188,7 @@ def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio
     (P,) int
         Index into ``dots`` for each marker, -1 where none matches.
     """
-    match, aligned = register_points(dots, expected, gate)
+    match, aligned = register_nonrigid(dots, expected, gate)
     m = np.flatnonzero(match >= 0)
     if len(m) == 0:
         return match

@@ -20,24 +20,31 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 from scipy.signal import fftconvolve
 
 from ._validate import as_float_array
+from .association import (
+    CORRELATION_ONLY,
+    LOST,
+    RECOVERED,
+    TRACKED,
+    assign_two_routes,
+    carry_lost_markers,
+    drop_merged,
+    fix_order,
+    predict,
+)
 from .dots import DotSettings, as_gray, detect_dots
-from .pointreg import assign, register_points, similarity_2d
+from .pointreg import assign
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
     "normalized_correlation", "MarkerTracker", "track_markers",
 ]
 
-TRACKED, RECOVERED, CORRELATION_ONLY, LOST = 0, 1, 2, 3
-"""Per-frame status of a marker: correlation agreed with a detected dot; correlation failed and
-the dot was found from the motion prediction; no dot detected but a confident correlation peak;
-not found (not visible)."""
-
-_BIG = 1e12
+# Per-frame status of a marker (lipgen.association): TRACKED, correlation agreed with a detected
+# dot; RECOVERED, correlation failed and the dot was found from the motion prediction;
+# CORRELATION_ONLY, no dot detected but a confident correlation peak; LOST, not found.
 
 
 @dataclass(frozen=True)
@@ -181,111 +188,6 @@ def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radiu
     return uv, float(ncc[i, j])
 
 
-def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
-                       pred_gates: np.ndarray, corr_ok: np.ndarray, allowed: np.ndarray | None = None,
-                       ratio: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
-    """One-to-one assignment of markers to dots, preferring the correlation peak.
-
-    A dot within ``gates`` of a marker's correlation peak costs its distance. Without a
-    correlation peak (failed, or locked onto a dot another marker owns), a marker may take a
-    dot by its motion prediction only when the match is unambiguous: the dot is within
-    ``pred_gates``, it is the prediction's nearest dot by a margin (``ratio`` of the second
-    nearest), and no other marker's position is nearly as close to it. A wrong dot taken here
-    would otherwise start a chain of swaps. Such matches cost more than any peak match.
-    Returns (match (P,) int, -1 for none; via_correlation (P,) bool).
-    """
-    out = np.full(len(cand), -1, dtype=np.int64)
-    via = np.zeros(len(cand), dtype=bool)
-    ok = np.all(np.isfinite(pred), axis=1)
-    if len(dots) == 0 or not ok.any():
-        return out, via
-    d_cand = np.linalg.norm(cand[:, None] - dots[None], axis=2)
-    d_pred = np.linalg.norm(pred[:, None] - dots[None], axis=2)
-    d_cand[~ok] = d_pred[~ok] = np.inf
-    peak_route = corr_ok[:, None] & (d_cand <= gates[:, None])
-    pred_route = d_pred <= pred_gates[:, None]
-    if allowed is not None:
-        peak_route &= allowed
-        pred_route &= allowed
-    if len(dots) > 1:
-        two = np.partition(d_pred, 1, axis=1)[:, :2]
-        pred_route &= (d_pred == two[:, :1]) & (two[:, :1] < ratio * two[:, 1:])
-    if len(cand) > 1:
-        where = np.where(corr_ok[:, None], d_cand, d_pred)              # each marker's best guess
-        two = np.partition(where, 1, axis=0)[:2]
-        pred_route &= (d_pred < ratio * two[1:]) | ((where == two[:1]) & (two[:1] < ratio * two[1:]))
-    cost = np.where(peak_route, d_cand, np.where(pred_route, d_pred + gates.max() + 1.0, _BIG))
-    rows, cols = linear_sum_assignment(cost)
-    good = cost[rows, cols] < _BIG
-    out[rows[good]] = cols[good]
-    via[rows[good]] = peak_route[rows[good], cols[good]]
-    return out, via
-
-
-def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.ndarray | None,
-             dots: np.ndarray, gate: float) -> np.ndarray:
-    """Where each marker should be in this frame, NaN if unknown.
-
-    Constant velocity from the last sighting, corrected by the similarity that best aligns the
-    predicted layout with this frame's dots (this catches sudden global jumps, which would
-    otherwise take the correlation to a neighbouring dot). Markers never seen are placed by the
-    similarity from the reference layout onto the seen ones.
-    """
-    pred = last + vel * (gap == 0)[:, None]   # a lost marker moves only with its neighbours
-    known = np.all(np.isfinite(pred), axis=1)
-    if known.sum() >= 3 and len(dots) >= 3:
-        match, aligned = register_points(dots, pred[known], gate)
-        if (match >= 0).sum() >= max(3, known.sum() // 2):
-            pred[known] = aligned
-    if reference is not None and (~known).any() and known.sum() >= 2:
-        s, R, t = similarity_2d(reference[known], pred[known])
-        pred[~known] = s * reference[~known] @ R.T + t
-    return pred
-
-
-def _drop_merged(uv: np.ndarray, status: np.ndarray, cand: np.ndarray, searched: np.ndarray,
-                 radius: float) -> None:
-    """Mark markers whose dots have merged as lost (in place).
-
-    Two markers closer in the image than a dot's width give one blob: the assignment hands it
-    to one of them and the other finds nothing, or only a correlation peak on the same blob.
-    Neither position can be trusted then, so both are dropped: a marker that found no dot of its
-    own (lost, or correlation only) and whose candidate lies within ``radius`` of a dot another
-    marker took makes both lost.
-    """
-    own = np.isin(status, (TRACKED, RECOVERED))
-    orphan = searched & ~own & np.all(np.isfinite(cand), axis=1)
-    if not orphan.any() or not own.any():
-        return
-    d = np.linalg.norm(cand[orphan][:, None] - uv[own][None], axis=2)
-    near = d < radius
-    if near.any():
-        status[np.flatnonzero(orphan)[near.any(1)]] = LOST
-        status[np.flatnonzero(own)[near.any(0)]] = LOST
-        uv[status == LOST] = np.nan
-
-
-def _carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray,
-                        neighbours: int = 4) -> None:
-    """Move the last-seen positions of lost markers with their nearest tracked neighbours.
-
-    Without this a lost marker waits where it was last seen while the face moves on, and its
-    search misses it when it reappears. Each lost marker moves by the inverse-distance weighted
-    mean displacement of its ``neighbours`` nearest markers seen in both frames: local, so a
-    lower-lip marker follows the lower lip when the jaw opens. Updates ``last`` in place.
-    """
-    pairs = np.flatnonzero(visible & (gap == 0) & np.all(np.isfinite(last), axis=1))
-    lost = np.flatnonzero(~visible & np.all(np.isfinite(last), axis=1))
-    if len(lost) == 0 or len(pairs) == 0:
-        return
-    moves = uv[pairs] - last[pairs]
-    d = np.linalg.norm(last[lost][:, None] - last[pairs][None], axis=2)
-    k = min(neighbours, len(pairs))
-    near = np.argsort(d, axis=1)[:, :k]
-    w = 1.0 / (np.take_along_axis(d, near, axis=1) + 1.0)
-    last[lost] += (w[..., None] * moves[near]).sum(1) / w.sum(1, keepdims=True)
-
-
 class MarkerTracker:
     """Tracks markers in one view, one image at a time (so several views can run in lock-step).
 
@@ -356,7 +258,7 @@ class MarkerTracker:
             status[seen] = TRACKED
         else:
             gap = self.gap
-            pred = _predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
+            pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
                 gates[i] = cfg.recovery_gate + cfg.gate * min(gap[i], 3)
@@ -377,7 +279,7 @@ class MarkerTracker:
             # than ink, and the correlation may follow the skin around a hidden dot.
             dark_enough = (np.isnan(self.strength)[:, None]
                            | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
-            snap, via_corr = _assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
+            snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
                                                 dark_enough)
             got = snap >= 0
             uv[got] = dots[snap[got]]
@@ -386,12 +288,14 @@ class MarkerTracker:
             trust = ~got & corr_ok & (score >= cfg.confident_correlation)
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
-            _drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
+            drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
         status[self.twins] = LOST
         uv[self.twins] = np.nan
+        if self.reference is not None:
+            fix_order(uv, status, self.reference, 4.0 * cfg.twins)
         visible = status != LOST
-        _carry_lost_markers(self.last, uv, visible, self.gap)
+        carry_lost_markers(self.last, uv, visible, self.gap)
         for i in np.flatnonzero(visible):
             if self.gap[i] == 0 and not first and np.all(np.isfinite(self.last[i])):
                 self.vel[i] = 0.5 * self.vel[i] + 0.5 * (uv[i] - self.last[i])   # damped constant velocity
