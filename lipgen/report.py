@@ -15,7 +15,7 @@ from ._io import atomic_path, atomic_write_bytes, atomic_write_json
 from .camera import VIEWS
 from .evaluate import ROWS
 
-__all__ = ["write_report"]
+__all__ = ["write_report", "nrsfm_section"]
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +137,22 @@ def _table51_md(t: dict, unit_mm: float) -> list[str]:
         cells = (_fmt(t[row][c]["vs_reach"] / unit_mm ** 2) for c in cols)
         lines.append(f"| {row} | " + " | ".join(cells) + " |")
     return lines
+
+
+def nrsfm_section(ds) -> str:
+    """The monocular non-rigid SfM result on one view, from ``lipgen.nrsfm.evaluate_on_dataset``
+    when that module provides it (it returns a dict of figures or a markdown string)."""
+    try:
+        from . import nrsfm
+    except ImportError:
+        return "Not run: `lipgen.nrsfm` is not part of this lipgen yet."
+    if not hasattr(nrsfm, "evaluate_on_dataset"):
+        return "Not run: `lipgen.nrsfm` has no `evaluate_on_dataset`."
+    result = nrsfm.evaluate_on_dataset(ds)
+    if isinstance(result, str):
+        return result
+    rows = "\n".join(f"| {k} | {_fmt(v) if isinstance(v, float) else v} |" for k, v in dict(result).items())
+    return "| figure | value |\n|---|---|\n" + rows
 
 
 def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None) -> Path:

@@ -162,7 +162,7 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
 
     from ..dataset import Dataset
     from ..evaluate import score
-    from ..report import write_report
+    from ..report import nrsfm_section, write_report
 
     t0 = time.perf_counter()
     out = Path(out_dir) / "demo"
@@ -200,6 +200,7 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
              f"USD: `{usd.name if usd else 'not written'}`.\n\n| step | seconds |\n|---|---|\n{rows}\n"
              f"| total before the report | {time.perf_counter() - t0:.1f} |\n\nMachine load (1, 5, 15 min) "
              f"at the end: {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} on {os.cpu_count()} CPUs."}
+    extra["Non-rigid SfM on one view"] = nrsfm_section(ds)
     written.append(write_report(out / "report", s, ds, model, recon, model_mesh, extra))
     return written
 

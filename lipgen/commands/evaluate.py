@@ -37,7 +37,7 @@ def _run(args) -> int:
     from ..evaluate import score
     from ..modes import ModeModel
     from ..pipeline import Reconstruction, model_mesh, reconstruct_dataset
-    from ..report import write_report
+    from ..report import nrsfm_section, write_report
 
     out = Path(args.out)
     model = ModeModel.load(args.model)
@@ -50,7 +50,7 @@ def _run(args) -> int:
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)
-    path = write_report(out, s, ds, model, recon, mesh)
+    path = write_report(out, s, ds, model, recon, mesh, {"Non-rigid SfM on one view": nrsfm_section(ds)})
     sys.stdout.write(f"3-D markers {s['triangulation']['rms_mm']:.3f} mm RMS, normalisation "
                      f"{s['normalisation']['rms_mm']:.3f} mm RMS; report: {path}\n")
     return 0
