@@ -21,9 +21,8 @@ from . import bridge
 __all__ = [
     "REGION_ATTR", "MEAN_KEY", "PREVIEW_KEY", "REACH_KEY", "GROUPS", "UserError",
     "mesh_object", "regions_per_triangle", "region_codes_from_groups", "physics_spec", "physics",
-    "physics_for_object",
-    "lip_mesh_of", "markers_of", "topology_id", "apply_mode_basis", "mode_basis", "clear_modes",
-    "mode_key_name", "write_displacement_key", "slider_path",
+    "physics_for_object", "lip_mesh_of", "markers_of", "topology_id", "lips_resolution_of",
+    "apply_mode_basis", "mode_basis", "clear_modes", "mode_key_name", "write_displacement_key", "slider_path",
 ]
 
 REGION_ATTR = "lipgen_region"
@@ -174,6 +173,18 @@ def lip_mesh_of(obj) -> LipMesh:
 def topology_id(obj) -> str:
     tris, _ = bridge.mesh_triangles(obj.data)
     return LipMesh(bridge.rest_vertices(obj), tris, name=obj.name).topology_id
+
+
+def lips_resolution_of(obj) -> int:
+    """The procedural resolution of a LipGen-lips object, or :class:`UserError`."""
+    from lipgen.addon.speech import lips_resolution
+
+    r = lips_resolution(len(obj.data.vertices), topology_id(obj))
+    if r is None:
+        raise UserError(f"{obj.name!r} is not LipGen's procedural lips (its topology differs): "
+                        "speech is performed by lipgen's synthetic subject, whose mesh is "
+                        "LipGen's lips. Add LipGen Lips, or animate this mesh from curves")
+    return r
 
 
 # ---- modes --------------------------------------------------------------------------------

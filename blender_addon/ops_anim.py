@@ -75,4 +75,46 @@ class OBJECT_OT_lipgen_import_curves(LipgenOperator, bpy.types.Operator, ImportH
             self.report({"INFO"}, msg)
 
 
-classes = (OBJECT_OT_lipgen_import_curves,)
+class OBJECT_OT_lipgen_animate_visemes(LipgenOperator, bpy.types.Operator):
+    """Animate the mode sliders from a viseme script, performed by lipgen's synthetic subject"""
+
+    bl_idname = "object.lipgen_animate_visemes"
+    bl_label = "Animate from Visemes"
+
+    script: StringProperty(
+        name="Script", default="AA:0.3 EE:0.2 OO M:0.15 F REST:0.4",
+        description="Visemes with optional durations in seconds (default 0.2), e.g. "
+        "'AA:0.3 EE OO:0.25 M REST'; names: REST AA AE AH EH EE IH OH OO W M F TH S SH L R")
+    start_frame: IntProperty(name="Start frame", default=1)
+    coarticulation: FloatProperty(name="Coarticulation", default=0.2, min=0.0, max=1.0,
+                                  description="Blend between neighbouring visemes (s)")
+
+    def invoke(self, context, event):
+        self.start_frame = context.scene.frame_current
+        return context.window_manager.invoke_props_dialog(self, width=420)
+
+    def run(self, context):
+        from lipgen.addon.speech import speech_displacements
+
+        obj = _lipgen_object(context)
+        if not len(obj.lipgen.modes):
+            raise UserError("the sliders follow speech through modes: train modes from Speech "
+                            "(Train > Speech) or load or build modes first")
+        resolution = lipobject.lips_resolution_of(obj)
+        scene = context.scene
+        fps = scene.render.fps / scene.render.fps_base
+        U = speech_displacements(self.script, fps, resolution, self.coarticulation)
+        basis = lipobject.mode_basis(obj)
+        coef = basis.project(U)
+        frames = self.start_frame + np.arange(len(U), dtype=np.float64)
+        clamped = key_sliders(obj, frames, basis.sliders(coef))
+        if scene.frame_end < frames[-1]:
+            scene.frame_end = int(frames[-1])
+        miss = float(np.linalg.norm(basis.displacement(coef) - U, axis=2).max())
+        msg = (f"keyed {len(U)} frames ({frames[0]:g}-{frames[-1]:g}); the modes follow the "
+               f"performer within {miss:.2g} mm")
+        self.report({"WARNING"} if clamped else {"INFO"},
+                    msg + (f"; {clamped} slider values clamped to +-10" if clamped else ""))
+
+
+classes = (OBJECT_OT_lipgen_import_curves, OBJECT_OT_lipgen_animate_visemes)

@@ -86,7 +86,9 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
         name="From", default="SHAPE_KEYS",
         items=(("SHAPE_KEYS", "Shape keys", "Every shape key that is not the Basis or LipGen's own"),
                ("ANIMATION", "Animation", "The evaluated mesh at every frame of the scene range"),
-               ("FILE", "File", "An npz with 'displacements' or 'vertices' (frames, n, 3) in mm")))
+               ("FILE", "File", "An npz with 'displacements' or 'vertices' (frames, n, 3) in mm"),
+               ("SPEECH", "Speech", "Random gestures of every action of lipgen's synthetic "
+                "subject (LipGen's lips only): modes that can follow viseme scripts")))
     filepath: StringProperty(name="File", subtype="FILE_PATH", default="")
     n_modes: IntProperty(name="Modes", default=10, min=1, max=64)
 
@@ -95,6 +97,10 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
         rest = bridge.rest_vertices(obj)
         if self.source == "FILE":
             return _frames_from_file(Path(bpy.path.abspath(self.filepath)), rest * unit)
+        if self.source == "SPEECH":
+            from lipgen.addon.speech import gesture_displacements
+
+            return gesture_displacements(lipobject.lips_resolution_of(obj))
         if self.source == "SHAPE_KEYS":
             keys = obj.data.shape_keys
             blocks = [] if keys is None else [

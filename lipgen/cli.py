@@ -18,6 +18,7 @@ __all__ = ["main", "build_parser"]
 
 COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.bench",
+    "lipgen.commands.experiment",
     "lipgen.commands.demo",
     "lipgen.commands.mesh",
     "lipgen.commands.export_usd",

@@ -18,12 +18,13 @@ observations (generalised least squares weighted by the physics), then let the p
 remaining residual. A finite σ² also shrinks the mode coefficients toward their prior, which
 keeps a fit to few observations from extrapolating wildly.
 
-The physical prior P: ``kind="energy"`` (default) is K_s⁻¹, the Gaussian whose negative log-density
-is the strain energy ½ Uᵀ K_s U, so the residual is filled by the least-strain-energy field;
-``kind="force"`` is the thesis's K_s⁻² (eq 4.5, minimum-norm force, the LLSE twin of
-``Physics.reach``). With partial views (x-y only, y-z only) K_s⁻² is a poor prior: with the soft
-strip a small force norm buys large out-of-plane swings, so the min-norm-force fill-in of an x-y
-residual moves z wildly; K_s⁻¹ does not (the Table 5.1 experiment shows both).
+The physical prior P: ``kind="force"`` (default) is the thesis's K_s⁻² (eq 4.5: displacements
+under IID unit forces; its LLSE alone is the minimum-norm-force field of ``Physics.reach``), i.e.
+"the original full-rank physical model" of §6.1. ``kind="energy"`` is K_s⁻¹, the Gaussian whose
+negative log-density is the strain energy ½ Uᵀ K_s U (least-strain-energy fill-in). With the
+default grounding (strip end and skin border anchored) the two are close and K_s⁻² is slightly
+better on the Table 5.1 experiment; with the thesis's strip-only grounding a small force norm buys
+large out-of-plane swings, and K_s⁻¹ is far better for partial (x-y or y-z) views.
 
 Choosing σ²: it is the prior variance of motion *outside* the learned span, which the training
 set cannot measure (whatever it contained, the modes have kept; its unexplained remainder is only
@@ -48,7 +49,7 @@ DEFAULT_RESIDUAL_SHARE = 0.1
 
 
 def default_residual_variance(modes, physics, share: float = DEFAULT_RESIDUAL_SHARE, dofs=None,
-                              kind: str = "energy") -> float:
+                              kind: str = "force") -> float:
     """σ² = ``share`` · tr(Λ_learned[o, o]) / tr(P[o, o]) (mm² per unit of P).
 
     ``o`` are ``dofs``, by default the mesh's marker DOFs (what training data really observe),
@@ -88,8 +89,8 @@ class CombinedModel:
         ``residual_share``.
     residual_share : float
         Used when ``residual_variance`` is not given.
-    kind : {"energy", "force"}
-        The physical prior: K_s⁻¹ (strain energy) or K_s⁻² (eq 4.5).
+    kind : {"force", "energy"}
+        The physical prior: K_s⁻² (eq 4.5) or K_s⁻¹ (strain energy).
 
     Attributes
     ----------
@@ -98,7 +99,7 @@ class CombinedModel:
     """
 
     def __init__(self, modes, physics, n_modes: int | None = None, residual_variance: float | None = None,
-                 residual_share: float = DEFAULT_RESIDUAL_SHARE, kind: str = "energy"):
+                 residual_share: float = DEFAULT_RESIDUAL_SHARE, kind: str = "force"):
         modes.check_mesh(physics.mesh)
         self.modes = modes
         self.physics = physics

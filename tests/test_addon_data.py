@@ -215,3 +215,32 @@ def test_bad_npz_is_named(tmp_path):
     (tmp_path / "x.json").write_text("{}")
     with pytest.raises(ValueError, match="use .npz or .csv"):
         load_curves(tmp_path / "x.json")
+
+
+# ---- speech -------------------------------------------------------------------------------------
+def test_project_inverts_displacement(model):
+    basis = ModeBasis.from_model(model)
+    coef = np.array([[1.0, -2.0, 0.5, 0.0, 3.0], [0.0, 0.0, 0.0, 0.0, 0.0]])
+    assert np.allclose(basis.project(basis.displacement(coef)), coef, atol=1e-10)
+    assert np.allclose(basis.project(basis.displacement(coef[0])), coef[0], atol=1e-10)
+    assert np.allclose(basis.project(basis.displacement(coef)), model.project(model.synthesize(coef)))
+    with pytest.raises(ValueError, match="must end in"):
+        basis.project(np.zeros((3, 3)))
+
+
+def test_speech_on_the_procedural_lips(mesh):
+    from lipgen.activation import viseme_activations
+    from lipgen.addon.speech import lips_resolution, performer, speech_displacements
+
+    assert lips_resolution(mesh.n_nodes, mesh.topology_id) == 0
+    r1 = lip_mesh(1)
+    assert lips_resolution(r1.n_nodes, r1.topology_id) == 1
+    assert lips_resolution(mesh.n_nodes, "not-a-topology") is None
+    assert lips_resolution(123, mesh.topology_id) is None
+    U = speech_displacements("AA:0.3 M:0.2", 24.0, 0)
+    assert U.shape == (len(viseme_activations("AA:0.3 M:0.2", fps=24.0)), mesh.n_nodes, 3)
+    # Node i of the resolution-0 rig moves as node i of the performer's finer mesh.
+    full = performer(0).displacements(viseme_activations("AA:0.3 M:0.2", fps=24.0))
+    assert np.array_equal(U, full[:, : mesh.n_nodes]) and np.abs(U).max() > 2.0
+    with pytest.raises(ValueError):
+        speech_displacements("NOT_A_VISEME", 24.0, 0)

@@ -12,6 +12,9 @@ it is tested, benchmarked and reused (USD export, scripts) without Blender.
 - :mod:`~lipgen.addon.forces`: force fields on chosen vertices, the unit responses behind the
   live force preview, and reach goals from moved vertices.
 - :mod:`~lipgen.addon.curves`: coefficient curves from npz/CSV files, resampled to frames.
+- :mod:`~lipgen.addon.speech`: viseme scripts performed by lipgen's synthetic subject, on the
+  procedural lips.
+- :mod:`~lipgen.addon.packaging`: the installable extension zips.
 """
 
 from __future__ import annotations

@@ -114,6 +114,18 @@ class ModeBasis:
         flat = c @ self.components.reshape(self.n_modes, -1)
         return self.mean + flat.reshape(*c.shape[:-1], self.n_nodes, 3)
 
+    def project(self, displacements) -> np.ndarray:
+        """Mode coefficients of displacement fields: ``(n, 3)`` -> ``(k,)``, ``(F, n, 3)`` -> ``(F, k)``.
+
+        The least-squares fit ``(U - mean) . components`` (the components are orthonormal).
+        """
+        U = as_float_array(displacements, "displacements")
+        if U.shape[-2:] != (self.n_nodes, 3):
+            raise ValueError(f"displacements must end in ({self.n_nodes}, 3) for these modes, "
+                             f"got shape {U.shape}")
+        X = (U - self.mean).reshape(*U.shape[:-2], -1)
+        return X @ self.components.reshape(self.n_modes, -1).T
+
     def check_topology(self, topology_id: str, what: str = "this mesh") -> None:
         """Raise :class:`TopologyMismatchError` unless ``topology_id`` is the modes' own.
 

@@ -134,6 +134,17 @@ class Factor:
             out[:, j] = np.frombuffer(x, dtype=np.float64)
         return out.reshape(B.shape)
 
+    def factor_nnz(self, A: sp.spmatrix) -> int:
+        """Stored nonzeros of the factor of ``A`` (L for CHOLMOD; L + U for SuperLU): the work of
+        a solve. For CHOLMOD it factorises ``A`` again, since extracting L (``getfactor``)
+        spoils the factor it is taken from; meant for benchmarks, not for the hot path."""
+        if self.method == "superlu":
+            return int(self._lu.L.nnz + self._lu.U.nnz)
+        from cvxopt import cholmod
+
+        spare = Factor(sp.csc_matrix(A), "cholmod")
+        return len(cholmod.getfactor(spare._F).V)
+
     def check(self, A: sp.spmatrix) -> None:
         """Raise :class:`SingularStiffnessError` if the factor of ``A`` is not trustworthy."""
         if self.pivot_ratio < _PIVOT_RATIO:
