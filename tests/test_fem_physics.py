@@ -195,3 +195,12 @@ def test_fig_2_2_claims():
     # the force is out of the plane, and a flat sheet's in-plane and out-of-plane parts decouple
     for U in demo.displacement.values():
         assert np.abs(U[:, :2]).max() <= 1e-12
+
+
+def test_pickled_physics_is_refactorised(physics):
+    import pickle
+
+    copy = pickle.loads(pickle.dumps(physics))
+    F = np.random.default_rng(8).standard_normal((physics.n_nodes, 3))
+    assert np.allclose(copy.displace(F), physics.displace(F), rtol=1e-10, atol=1e-13)
+    assert np.array_equal(copy.E, physics.E) and copy.mesh.topology_id == physics.mesh.topology_id

@@ -46,7 +46,6 @@ __all__ = ["OUT_OF_PLANE", "element_frames", "element_stiffness", "material_fact
 OUT_OF_PLANE: tuple[str, ...] = ("thesis", "laplacian")
 """Forms of the out-of-plane block: eq 2.13 as printed, or the shape-aware P1 membrane."""
 
-_KZ_THESIS = np.array([[1.0, -0.5, -0.5], [-0.5, 1.0, -0.5], [-0.5, -0.5, 1.0]])
 
 
 def material_factor(E, nu: float) -> np.ndarray:
@@ -113,30 +112,25 @@ def _strain_displacement(xy: np.ndarray, area: np.ndarray) -> np.ndarray:
     return B
 
 
-def _material(E: np.ndarray, nu: float) -> np.ndarray:
-    """(m, 3, 3) plane-strain C of eq 2.12."""
-    r = nu / (1.0 - nu)
-    C0 = np.array([[1.0, r, 0.0], [r, 1.0, 0.0], [0.0, 0.0, (1 - 2 * nu) / (2 * (1 - nu))]])
-    return material_factor(E, nu)[:, None, None] * C0
+_KZ_ROOT = np.sqrt(1.5) * np.array([[1.0, -1.0, 0.0], [1.0, 1.0, -2.0]]) / np.sqrt([[2.0], [6.0]])
+"""W (2 x 3) with WᵀW = eq 2.13's matrix (1.5 I - 0.5 11ᵀ): its range is the complement of 1."""
 
 
-def inplane_stiffness(xy: np.ndarray, area: np.ndarray, E, nu: float) -> np.ndarray:
-    """(m, 6, 6) plane-strain CST ``A Bᵀ C B`` (unit thickness) over ``(u1, v1, u2, v2, u3, v3)``."""
-    B = _strain_displacement(xy, area)
-    return area[:, None, None] * (B.transpose(0, 2, 1) @ (_material(E, nu) @ B))
+def _inplane_factor(G: np.ndarray, area: np.ndarray, Ep: np.ndarray, nu: float) -> np.ndarray:
+    """(m, 3, 9) H with HᵀH = A Gᵀ C G (eq 2.12's C = E' C0, C0 = Σ λ v vᵀ over its eigenpairs)."""
+    r, s = nu / (1.0 - nu), (1 - 2 * nu) / (2 * (1 - nu))
+    g0, g1, g2 = G[:, 0], G[:, 1], G[:, 2]
+    H = np.stack([np.sqrt((1 + r) / 2) * (g0 + g1), np.sqrt((1 - r) / 2) * (g0 - g1), np.sqrt(s) * g2],
+                 axis=1)
+    return H * np.sqrt(area * Ep)[:, None, None]
 
 
-def outplane_stiffness(xy: np.ndarray, area: np.ndarray, E, nu: float,
-                       form: str = "thesis") -> np.ndarray:
-    """(m, 3, 3) out-of-plane block: eq 2.13 (``"thesis"``) or the P1 membrane (``"laplacian"``)."""
-    Ep = material_factor(E, nu)
+def _outplane_root(xy: np.ndarray, area: np.ndarray, Ep: np.ndarray, form: str) -> np.ndarray:
+    """(m, 2, 3) M with MᵀM = k_z: eq 2.13 (``"thesis"``) or the P1 membrane (``"laplacian"``)."""
     if form == "thesis":
-        return Ep[:, None, None] * _KZ_THESIS
-    if form == "laplacian":
-        dx, dy = _shape_gradients(xy, area)
-        grad = np.stack([dx, dy], axis=2)
-        return (np.sqrt(3.0) * Ep * area)[:, None, None] * (grad @ grad.transpose(0, 2, 1))
-    raise ValueError(f"out_of_plane must be one of {OUT_OF_PLANE}, got {form!r}")
+        return np.sqrt(Ep)[:, None, None] * _KZ_ROOT
+    dx, dy = _shape_gradients(xy, area)
+    return np.sqrt(np.sqrt(3.0) * Ep * area)[:, None, None] * np.stack([dx, dy], axis=1)
 
 
 def _check_E(E, m: int) -> np.ndarray:
@@ -172,11 +166,14 @@ def element_stiffness(tri, E, nu: float = 0.01, out_of_plane: str = "thesis") ->
 
     Notes
     -----
-    ``Tᵀ k T`` with the interleaved k of eq 2.14 is evaluated block-wise without forming T:
-    because k has no in-plane/out-of-plane coupling, the (I, J) node block is
-    ``Pᵀ k_xy[I, J] P + k_z[I, J] k̂ k̂ᵀ`` with ``P = [î; ĵ]`` (2 x 3), so the in-plane part is
-    ``A Gᵀ C G`` with the global strain-displacement matrix ``G = B · blockdiag(P, P, P)``.
-    The tests check this against the literal interleave-and-rotate construction.
+    ``Tᵀ k T`` with the interleaved k of eq 2.14 is evaluated without forming T. Because k has
+    no in-plane/out-of-plane coupling, the (I, J) node block is
+    ``Pᵀ k_xy[I, J] P + k_z[I, J] k̂ k̂ᵀ`` with ``P = [î; ĵ]`` (2 x 3): the in-plane part is
+    ``A Gᵀ C G`` with the global strain-displacement matrix ``G = B · blockdiag(P, P, P)``, and
+    the out-of-plane part acts on ``w_I = k̂ · u_I``. Both are written as ``JᵀJ`` with a 5 x 9
+    J per face (3 rows from C's eigen-decomposition, 2 from k_z = MᵀM, eq 2.13 having rank 2),
+    so each element matrix comes from one small product and is exactly symmetric and PSD. The
+    tests check the result against the literal interleave-and-rotate construction.
     """
     if not 0.0 <= nu < 0.5:
         raise ValueError(f"Poisson's ratio nu must be in [0, 0.5), got {nu!r}")
@@ -185,17 +182,11 @@ def element_stiffness(tri, E, nu: float = 0.01, out_of_plane: str = "thesis") ->
     lam, xy, area = element_frames(tri)
     m = len(lam)
     E = _check_E(E, m)
+    Ep = material_factor(E, nu)
     B = _strain_displacement(xy, area)  # (m, 3, 6)
     P = lam[:, :2, :]  # (m, 2, 3) rows î, ĵ
-    G = (B.reshape(m, 3, 3, 2) @ P[:, None]).reshape(m, 3, 9)
-    # A Gᵀ C G written out over C's nonzeros: elementwise outer products beat stacked 9x9 matmuls.
-    r, s = nu / (1.0 - nu), (1 - 2 * nu) / (2 * (1 - nu))
-    g0, g1, g2 = G[:, 0], G[:, 1], G[:, 2]
-    cross = g0[:, :, None] * g1[:, None, :]
-    k = g0[:, :, None] * g0[:, None, :] + g1[:, :, None] * g1[:, None, :]
-    k += r * (cross + cross.transpose(0, 2, 1)) + s * (g2[:, :, None] * g2[:, None, :])
-    k *= (area * material_factor(E, nu))[:, None, None]
-    kz = outplane_stiffness(xy, area, E, nu, out_of_plane)  # (m, 3, 3)
-    nn = lam[:, 2, :, None] * lam[:, 2, None, :]  # (m, 3, 3) k̂ k̂ᵀ
-    k += (kz[:, :, None, :, None] * nn[:, None, :, None, :]).reshape(m, 9, 9)
-    return k
+    G = (B.reshape(m, 3, 3, 2) @ P[:, None]).reshape(m, 3, 9)  # global strain-displacement
+    M = _outplane_root(xy, area, Ep, out_of_plane)  # (m, 2, 3)
+    N = (M[:, :, :, None] * lam[:, 2][:, None, None, :]).reshape(m, 2, 9)  # w_I = k̂ · u_I
+    J = np.concatenate([_inplane_factor(G, area, Ep, nu), N], axis=1)  # (m, 5, 9)
+    return J.transpose(0, 2, 1) @ J

@@ -308,6 +308,16 @@ class Physics:
         U, _ = self.reach(dofs_, vals)
         return self.relinearized(U)
 
+    def __reduce__(self):
+        # The sparse factor cannot be pickled; a copy (e.g. sent to a worker process) is rebuilt
+        # and factorised again from the mesh and the per-face E.
+        return (_rebuild, (self.mesh, np.array(self.E), self.poisson, self.out_of_plane))
+
     def __repr__(self) -> str:
         return (f"Physics(mesh={self.mesh.name!r}, n_nodes={self.n_nodes}, n_faces={self.mesh.n_faces}, "
                 f"free_dofs={len(self.free_dofs)}, solver={self.solver!r})")
+
+
+def _rebuild(mesh: LipMesh, E: np.ndarray, poisson: float, out_of_plane: str) -> Physics:
+    """Unpickle a :class:`Physics` (the solver is chosen afresh on the receiving side)."""
+    return Physics(mesh, E, poisson, out_of_plane=out_of_plane)
