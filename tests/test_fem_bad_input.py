@@ -38,10 +38,21 @@ def test_single_anchor_on_flat_sheet_leaves_a_free_rotation(anchors):
         Physics(LipMesh(V, F, anchors=anchors))
 
 
-def test_two_anchors_hold_a_flat_sheet():
+def test_two_anchors_hold_a_flat_sheet_with_a_warning(caplog):
     V, F, idx = grid(bend=0.0)  # the thesis's Fig 2-2 fixes two corners
     ph = Physics(LipMesh(V, F, anchors=[idx[0, 0], idx[-1, -1]]))
     assert np.isfinite(ph.displace(np.ones((ph.n_nodes, 3)))).all()
+    assert "all on one line" in caplog.text  # the line through them is held by eq 2.13 only
+    caplog.clear()
+    Vb, Fb, _ = grid()  # three anchors on a line (along y) of a curved sheet: held, with a warning
+    Physics(LipMesh(Vb, Fb, anchors=idx[:3, 0]))
+    assert "all on one line" in caplog.text
+    caplog.clear()
+    Physics(bent_mesh())  # three anchors on the parabola: no warning
+    assert "one line" not in caplog.text
+    caplog.clear()
+    Physics(LipMesh(V, F, anchors=[idx[0, 0], idx[0, -1], idx[-1, 3]]))
+    assert "one line" not in caplog.text
 
 
 @pytest.mark.parametrize("solver", SOLVERS)

@@ -14,6 +14,7 @@ what is wrong and how to fix it, instead of as a failed or meaningless solve:
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 
 import numpy as np
@@ -27,6 +28,8 @@ from .element import element_stiffness
 
 __all__ = ["DEFAULT_STIFFNESS", "face_stiffness", "assemble_stiffness", "check_grounding",
            "element_dofs"]
+
+log = logging.getLogger(__name__)
 
 DEFAULT_STIFFNESS: dict[str, float] = {"lip": 1.0, "ridge": 2.0, "strip": 0.3, "skin": 1.5}
 """Relative E per region (thesis §2.4). ``lip`` 1.0 and ``ridge`` 2.0 are the thesis's values.
@@ -185,9 +188,12 @@ def _check_rigid_motions(mesh: LipMesh, K: sp.csr_matrix, nodes: np.ndarray,
     # A rigid mode of unit size per node costs ~ trace(Kc) when it strains the mesh.
     free = vec[:, w <= 1e-9 * max(float(Kc.diagonal().sum()), 1e-300)]
     if free.shape[1] == 0:
+        where = np.searchsorted(nodes, anchors)
+        _warn_if_held_by_tilt_penalty(mesh, R.reshape(len(nodes), 3, 6)[where].reshape(-1, 6), anchors)
         return
     where = np.searchsorted(nodes, anchors)
     Ra = R.reshape(len(nodes), 3, 6)[where].reshape(-1, 6)
+    _warn_if_held_by_tilt_penalty(mesh, Ra, anchors)
     _, s, vt = np.linalg.svd(Ra @ free, full_matrices=True)
     s = np.concatenate([s, np.zeros(free.shape[1] - len(s))])
     if s.min() > 1e-6:
@@ -205,3 +211,14 @@ def _check_rigid_motions(mesh: LipMesh, K: sp.csr_matrix, nodes: np.ndarray,
         f"node {int(nodes[0])} can {what} without strain, so K is singular. This happens with a "
         f"single anchor, or anchors all on one line across a flat patch; add an anchor off that "
         f"line (at least two for a flat sheet, three not on one line to be safe)")
+
+
+def _warn_if_held_by_tilt_penalty(mesh: LipMesh, Ra: np.ndarray, anchors: np.ndarray) -> None:
+    """Log a warning when the anchors alone do not block every rigid motion (one anchor, or all
+    on a line): such a mesh is held only because eq 2.13 charges out-of-plane tilts."""
+    sv = np.linalg.svd(Ra, compute_uv=False)
+    if len(sv) < 6 or sv[5] <= 1e-6 * sv[0]:
+        log.warning("the anchors %s of mesh %r are a single node or all on one line: the mesh can "
+                    "rotate about that line, and is held only by the element's out-of-plane term "
+                    "(eq 2.13), a weak and artificial restraint. Anchor at least three nodes not on "
+                    "one line", anchors[:10].tolist(), mesh.name)
