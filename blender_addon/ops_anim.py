@@ -14,8 +14,7 @@ from lipgen.addon.modebasis import SLIDER_LIMIT
 
 from . import bridge, lipobject
 from .lipobject import UserError
-from .ops_common import LipgenOperator
-from .ops_modes import _lipgen_object
+from .ops_common import LipgenOperator, lipgen_object
 
 
 def key_sliders(obj, frames: np.ndarray, sliders: np.ndarray) -> int:
@@ -51,7 +50,7 @@ class OBJECT_OT_lipgen_import_curves(LipgenOperator, bpy.types.Operator, ImportH
         return ImportHelper.invoke(self, context, event)
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         modes = obj.lipgen.modes
         if not len(modes):
             raise UserError("load or build modes before importing their curves")
@@ -96,7 +95,7 @@ class OBJECT_OT_lipgen_animate_visemes(LipgenOperator, bpy.types.Operator):
     def run(self, context):
         from lipgen.addon.speech import speech_displacements
 
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         if not len(obj.lipgen.modes):
             raise UserError("the sliders follow speech through modes: train modes from Speech "
                             "(Train > Speech) or load or build modes first")

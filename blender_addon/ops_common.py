@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import logging
 
+import bpy
+
 from lipgen.errors import LipgenError
 
 from .lipobject import UserError
@@ -43,3 +45,27 @@ class LipgenOperator:
 
     def run(self, context):  # pragma: no cover - every operator overrides it
         raise UserError(f"{type(self).__name__} does nothing")
+
+
+def active_mesh(context):
+    """The active mesh object, in Object Mode.
+
+    Edit Mode keeps its own copy of the mesh: leaving it first puts the artist's edits (moved
+    vertices, selection) into the mesh data, and keeps what the operator writes from being
+    overwritten when Edit Mode ends.
+    """
+    obj = context.active_object
+    if obj is None or obj.type != "MESH":
+        raise UserError("select a mesh object first")
+    if obj.mode != "OBJECT":
+        bpy.ops.object.mode_set(mode="OBJECT")
+    return obj
+
+
+def lipgen_object(context):
+    """:func:`active_mesh`, which must be set up for LipGen."""
+    obj = active_mesh(context)
+    if not obj.lipgen.enabled:
+        raise UserError(f"{obj.name!r} is not set up for LipGen: add LipGen lips, or press "
+                        "Set Up Physics for your own mesh")
+    return obj

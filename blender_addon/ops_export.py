@@ -20,8 +20,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from . import bridge, lipobject
 from .lipobject import UserError
-from .ops_common import LipgenOperator
-from .ops_modes import _lipgen_object
+from .ops_common import LipgenOperator, lipgen_object
 
 
 def ensure_pxr() -> None:
@@ -80,7 +79,7 @@ class OBJECT_OT_lipgen_export_usd(LipgenOperator, bpy.types.Operator, ExportHelp
     def run(self, context):
         from lipgen.usd import BAKED_POINTS, BLEND_SHAPES, export_usd
 
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         ensure_pxr()
         scene = context.scene
         frames = np.arange(scene.frame_start, scene.frame_end + 1)

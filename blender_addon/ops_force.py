@@ -17,8 +17,7 @@ from lipgen.addon import moved_nodes, reach_goals
 
 from . import bridge, lipobject, preview
 from .lipobject import REACH_KEY, UserError
-from .ops_common import LipgenOperator
-from .ops_modes import _lipgen_object
+from .ops_common import LipgenOperator, lipgen_object
 
 GOALS_GROUP = "LipGen Goals"
 SOLVED_ATTR = "lipgen_reach_solved"
@@ -46,8 +45,12 @@ class OBJECT_OT_lipgen_apply_force(LipgenOperator, bpy.types.Operator):
     use_normal: BoolProperty(name="Along normals", default=False)
     direction: FloatVectorProperty(name="Direction", subtype="DIRECTION", size=3,
                                    default=(0.0, -1.0, 0.0), description="World-space direction")
-    magnitude: FloatProperty(name="Magnitude", default=1.0, soft_min=-10.0, soft_max=10.0,
-                             description="Force on each vertex")
+    units: EnumProperty(
+        name="Magnitude is", default="PEAK",
+        items=(("PEAK", "Peak (mm)", "Largest vertex displacement, in mm"),
+               ("FORCE", "Force", "Force on each chosen vertex, in the physics' units")))
+    magnitude: FloatProperty(name="Magnitude", default=2.0, soft_min=-10.0, soft_max=10.0,
+                             description="Peak displacement (mm) or force on each vertex")
     result: EnumProperty(
         name="Result", default="SHAPE_KEY",
         items=(("SHAPE_KEY", "Shape key", "A new shape key at value 1"),
@@ -63,12 +66,13 @@ class OBJECT_OT_lipgen_apply_force(LipgenOperator, bpy.types.Operator):
         self.use_normal = s.force_use_normal
         self.direction = s.force_direction
         self.magnitude = s.force_magnitude
+        self.units = s.force_units
         return self.execute(context)
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         U = preview.force_displacement(obj, self.group, self.magnitude, self.use_normal,
-                                       self.direction, reuse=False)
+                                       self.direction, reuse=False, peak=self.units == "PEAK")
         if obj.lipgen.force_preview:
             obj.lipgen.force_preview = False  # removes the preview key
         name = _unique_key_name(obj, self.name)
@@ -98,7 +102,7 @@ class OBJECT_OT_lipgen_reach_start(LipgenOperator, bpy.types.Operator):
         return self.execute(context)
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         rest = bridge.rest_vertices(obj)
         kb = bridge.ensure_shape_key(obj, self.name, rest, (-10.0, 10.0))
         kb.value = 1.0
@@ -125,10 +129,7 @@ class OBJECT_OT_lipgen_reach_solve(LipgenOperator, bpy.types.Operator):
                                 description="Selected vertices that did not move stay in place")
 
     def run(self, context):
-        obj = context.active_object
-        if obj is not None and obj.mode == "EDIT":
-            bpy.ops.object.mode_set(mode="OBJECT")
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         keys = obj.data.shape_keys
         kb = None if keys is None else keys.key_blocks.get(self.name)
         if kb is None:

@@ -13,7 +13,7 @@ from lipgen.mesh import REGIONS
 
 from . import bridge, lipobject, preview
 from .lipobject import GROUPS, REGION_ATTR, UserError
-from .ops_common import LipgenOperator
+from .ops_common import LipgenOperator, active_mesh
 
 
 def _describe(phys, seconds: float) -> str:
@@ -89,7 +89,7 @@ class OBJECT_OT_lipgen_setup_mesh(LipgenOperator, bpy.types.Operator):
         "object scale")
 
     def run(self, context):
-        obj = lipobject.mesh_object(context.active_object)
+        obj = active_mesh(context)
         s = obj.lipgen
         if self.unit_mm > 0:
             unit = self.unit_mm
@@ -131,7 +131,7 @@ class OBJECT_OT_lipgen_build_physics(LipgenOperator, bpy.types.Operator):
     bl_label = "Build Physics"
 
     def run(self, context):
-        obj = lipobject.mesh_object(context.active_object)
+        obj = active_mesh(context)
         t0 = time.perf_counter()
         phys = lipobject.physics(obj)
         obj.lipgen.status = _describe(phys, time.perf_counter() - t0)
@@ -149,10 +149,7 @@ class OBJECT_OT_lipgen_assign_group(LipgenOperator, bpy.types.Operator):
                          description="Which LipGen setting names the group")
 
     def run(self, context):
-        obj = context.active_object
-        if obj.mode == "EDIT":
-            bpy.ops.object.mode_set(mode="OBJECT")
-        obj = lipobject.mesh_object(obj)
+        obj = active_mesh(context)
         nodes = bridge.selected_vertices(obj.data)
         if len(nodes) == 0:
             raise UserError("no vertex is selected; select vertices in Edit Mode first")

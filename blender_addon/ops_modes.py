@@ -13,15 +13,7 @@ from lipgen.addon import ModeBasis
 
 from . import bridge, lipobject
 from .lipobject import UserError
-from .ops_common import LipgenOperator
-
-
-def _lipgen_object(context):
-    obj = lipobject.mesh_object(context.active_object)
-    if not obj.lipgen.enabled:
-        raise UserError(f"{obj.name!r} is not set up for LipGen: add LipGen lips, or press "
-                        "Set Up Physics for your own mesh")
-    return obj
+from .ops_common import LipgenOperator, lipgen_object
 
 
 class OBJECT_OT_lipgen_load_modes(LipgenOperator, bpy.types.Operator, ImportHelper):
@@ -36,7 +28,7 @@ class OBJECT_OT_lipgen_load_modes(LipgenOperator, bpy.types.Operator, ImportHelp
     def run(self, context):
         from lipgen.modes import ModeModel
 
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         path = Path(bpy.path.abspath(self.filepath))
         model = ModeModel.load(path)
         # The core's own check: refuses (TopologyMismatchError) a model of another topology.
@@ -54,8 +46,11 @@ class OBJECT_OT_lipgen_build_modes(LipgenOperator, bpy.types.Operator):
 
     n_modes: IntProperty(name="Modes", default=10, min=1, max=64)
 
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self)
+
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         basis = ModeBasis.from_physics(lipobject.physics(obj), self.n_modes)
         lipobject.apply_mode_basis(obj, basis)
         self.report({"INFO"}, f"built {basis.n_modes} modes from the physics")
@@ -92,6 +87,9 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
     filepath: StringProperty(name="File", subtype="FILE_PATH", default="")
     n_modes: IntProperty(name="Modes", default=10, min=1, max=64)
 
+    def invoke(self, context, event):
+        return context.window_manager.invoke_props_dialog(self, width=360)
+
     def _frames(self, context, obj) -> np.ndarray:
         unit = obj.lipgen.unit_mm
         rest = bridge.rest_vertices(obj)
@@ -119,7 +117,7 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
         return np.array(frames)
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         U = self._frames(context, obj)
         if len(U) < 2:
             raise UserError(f"training needs at least 2 example shapes, found {len(U)} "
@@ -140,7 +138,7 @@ class OBJECT_OT_lipgen_clear_modes(LipgenOperator, bpy.types.Operator):
     bl_label = "Clear Modes"
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         n = len(obj.lipgen.modes)
         lipobject.clear_modes(obj)
         obj.update_tag()
@@ -154,7 +152,7 @@ class OBJECT_OT_lipgen_key_modes(LipgenOperator, bpy.types.Operator):
     bl_label = "Keyframe Sliders"
 
     def run(self, context):
-        obj = _lipgen_object(context)
+        obj = lipgen_object(context)
         frame = context.scene.frame_current
         if not len(obj.lipgen.modes):
             raise UserError("there are no mode sliders to keyframe; load or build modes first")

@@ -117,7 +117,9 @@ class VIEW3D_PT_lipgen_force(_LipgenPanel, bpy.types.Panel):
         layout.prop(s, "force_use_normal")
         if not s.force_use_normal:
             layout.prop(s, "force_direction", text="")
-        layout.prop(s, "force_magnitude")
+        row = layout.row(align=True)
+        row.prop(s, "force_magnitude")
+        row.prop(s, "force_units", text="")
         layout.prop(s, "force_preview", toggle=True, icon="HIDE_OFF")
         if s.force_status:
             layout.label(text=s.force_status)

@@ -78,14 +78,16 @@ def _responses(obj, group: str, reuse: bool) -> ForceResponses:
 
 
 def force_displacement(obj, group: str, magnitude: float, use_normal: bool,
-                       world_direction=(0.0, 0.0, 1.0), reuse: bool = True) -> np.ndarray:
+                       world_direction=(0.0, 0.0, 1.0), reuse: bool = True,
+                       peak: bool = False) -> np.ndarray:
     """(n, 3) displacement in mm of ``magnitude`` per vertex of ``group``.
 
-    Along each vertex normal if ``use_normal``, else along ``world_direction``.
+    Along each vertex normal if ``use_normal``, else along ``world_direction``. With ``peak``
+    the magnitude is the largest vertex displacement in mm instead of the force.
     """
     resp = _responses(obj, group, reuse)
     direction = None if use_normal else local_direction(obj, world_direction)
-    return resp.displacement(magnitude, direction)
+    return resp.displacement(magnitude, direction, peak=peak)
 
 
 def _apply(settings, reuse: bool) -> None:
@@ -100,7 +102,8 @@ def _apply(settings, reuse: bool) -> None:
         return
     try:
         U = force_displacement(obj, settings.force_group, settings.force_magnitude,
-                               settings.force_use_normal, settings.force_direction, reuse=reuse)
+                               settings.force_use_normal, settings.force_direction, reuse=reuse,
+                               peak=settings.force_units == "PEAK")
         lipobject.write_displacement_key(obj, lipobject.PREVIEW_KEY, U, 1.0)
         settings.force_status = f"peak {np.linalg.norm(U, axis=1).max():.3g} mm"
     except (lipobject.UserError, LipgenError, ValueError) as exc:

@@ -6,6 +6,7 @@ import bpy
 from bpy.props import (
     BoolProperty,
     CollectionProperty,
+    EnumProperty,
     FloatProperty,
     FloatVectorProperty,
     IntProperty,
@@ -91,9 +92,15 @@ class LIPGEN_PG_settings(bpy.types.PropertyGroup):
     force_direction: FloatVectorProperty(
         name="Direction", subtype="DIRECTION", size=3, default=(0.0, -1.0, 0.0),
         update=preview.update, description="Force direction in world space")
+    force_units: EnumProperty(
+        name="Magnitude is", default="PEAK", update=preview.update,
+        items=(("PEAK", "Peak (mm)", "The force is scaled so the largest vertex displacement is "
+                "the magnitude, in mm"),
+               ("FORCE", "Force", "The force on each chosen vertex, in the physics' units")))
     force_magnitude: FloatProperty(
-        name="Magnitude", default=1.0, soft_min=-10.0, soft_max=10.0, update=preview.update,
-        description="Force on each vertex (negative pulls the other way)")
+        name="Magnitude", default=2.0, soft_min=-10.0, soft_max=10.0, update=preview.update,
+        description="Peak displacement in mm, or the force on each vertex (see Magnitude is); "
+        "negative pushes the other way")
     force_preview: BoolProperty(
         name="Live preview", default=False, update=preview.update_settings,
         description="Show the deformation as a shape key while the settings change")

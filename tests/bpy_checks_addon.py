@@ -333,24 +333,25 @@ def check_force(resolution: int = 0) -> dict:
     set_group(obj, "LipGen Force", nodes)
     out = {}
     # One world direction: world -Y is the model's +z (out of the face).
-    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", direction=(0, -1, 0), magnitude=0.7,
-                                             name="push") == {"FINISHED"}
+    force = bpy.ops.object.lipgen_apply_force
+    assert force(group="LipGen Force", units="FORCE", direction=(0, -1, 0), magnitude=0.7,
+                 name="push") == {"FINISHED"}
     F = np.zeros((lm.n_nodes, 3))
     F[nodes] = [0.0, 0.0, 0.7]
     out["direction_max_dev_mm"] = float(np.abs(evaluated(obj) - lm.vertices - phys.displace(F)).max())
     out["peak_mm"] = float(np.abs(phys.displace(F)).max())
     obj.data.shape_keys.key_blocks["push"].value = 0.0
     # Along the normals.
-    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", use_normal=True, magnitude=-0.4,
-                                             name="pull") == {"FINISHED"}
+    assert force(group="LipGen Force", units="FORCE", use_normal=True, magnitude=-0.4,
+                 name="pull") == {"FINISHED"}
     F = np.zeros((lm.n_nodes, 3))
     F[nodes] = -0.4 * lm.vertex_normals()[nodes]
     out["normal_max_dev_mm"] = float(np.abs(evaluated(obj) - lm.vertices - phys.displace(F)).max())
     obj.data.shape_keys.key_blocks["pull"].value = 0.0
     # Keyframed: 0 -> 1 -> 0 around frame 10.
     bpy.context.scene.frame_set(10)
-    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", direction=(1, 0, 0), magnitude=1.0,
-                                             result="KEYFRAME", ramp=4, name="key") == {"FINISHED"}
+    assert force(group="LipGen Force", units="FORCE", direction=(1, 0, 0), magnitude=1.0,
+                 result="KEYFRAME", ramp=4, name="key") == {"FINISHED"}
     F = np.zeros((lm.n_nodes, 3))
     F[nodes] = [1.0, 0.0, 0.0]
     U = phys.displace(F)
@@ -365,6 +366,7 @@ def check_force(resolution: int = 0) -> dict:
     s.force_group = "LipGen Force"
     s.force_use_normal = False
     s.force_direction = (0.0, 0.0, 1.0)  # world +Z = model +y
+    s.force_units = "FORCE"
     s.force_magnitude = 0.25
     s.force_preview = True
     assert "LipGen Preview" in obj.data.shape_keys.key_blocks, s.force_status
@@ -372,6 +374,16 @@ def check_force(resolution: int = 0) -> dict:
     F = np.zeros((lm.n_nodes, 3))
     F[nodes] = [0.0, 0.5, 0.0]
     out["preview_max_dev_mm"] = float(np.abs(evaluated(obj) - lm.vertices - phys.displace(F)).max())
+    # Magnitude as a peak displacement: the same force, scaled so the largest motion is 1.5 mm.
+    s.force_units = "PEAK"
+    s.force_magnitude = -1.5
+    F = np.zeros((lm.n_nodes, 3))
+    F[nodes] = [0.0, 1.0, 0.0]
+    U = phys.displace(F)
+    U *= -1.5 / np.linalg.norm(U, axis=1).max()
+    got = evaluated(obj) - lm.vertices
+    out["peak_preview_max_dev_mm"] = float(np.abs(got - U).max())
+    out["peak_preview_mm"] = float(np.linalg.norm(got, axis=1).max())
     s.force_preview = False
     assert "LipGen Preview" not in obj.data.shape_keys.key_blocks
     return out
@@ -432,3 +444,61 @@ def _sheet(name: str, nx: int = 12, ny: int = 8, island: bool = False, sliver: b
     bpy.context.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
     return obj
+
+
+# ---- panels -------------------------------------------------------------------------------------
+class _Layout:
+    """Stands in for bpy.types.UILayout (which only Blender's UI can make): records every call
+    and checks that each property and operator a panel names exists."""
+
+    def __init__(self, log):
+        self.log = log
+
+    def _sub(self, *a, **kw):
+        return _Layout(self.log)
+
+    row = column = box = split = _sub
+
+    def label(self, **kw):
+        self.log.append(("label", kw.get("text", "")))
+
+    def prop(self, data, name, **kw):
+        assert name in data.bl_rna.properties, f"{type(data).__name__} has no property {name!r}"
+        self.log.append(("prop", name))
+
+    def prop_search(self, data, name, search_data, search_name, **kw):
+        assert name in data.bl_rna.properties and search_name in search_data.bl_rna.properties
+        self.log.append(("prop_search", name))
+
+    def operator(self, idname, **kw):
+        mod, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, mod), name), f"no operator {idname}"
+        self.log.append(("operator", idname))
+
+        class _Props:
+            pass
+
+        return _Props()
+
+
+def check_panels_draw() -> dict:
+    fresh()
+    addon = _addon()
+    panels = [c for c in addon.classes if issubclass(c, bpy.types.Panel)]
+    drawn = {}
+
+    def draw_all():
+        for cls in panels:
+            if hasattr(cls, "poll") and not cls.poll(bpy.context):
+                continue
+            log = []
+            cls.draw(type("P", (), {"layout": _Layout(log)})(), bpy.context)
+            drawn.setdefault(cls.__name__, set()).update(name for kind, name in log if kind != "label")
+
+    draw_all()  # nothing selected
+    obj = add_lips(0)
+    draw_all()
+    bpy.ops.object.lipgen_build_modes(n_modes=2)
+    obj.lipgen.force_preview = True
+    draw_all()
+    return {k: sorted(v) for k, v in drawn.items()}

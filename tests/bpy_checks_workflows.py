@@ -43,7 +43,7 @@ def check_user_mesh() -> dict:
     phys = Physics(mesh, stiffness=dict(spec.stiffness), poisson=spec.poisson)
     top = np.flatnonzero(V[:, 1] > V[:, 1].max() - 1e-6)
     set_group(obj, "LipGen Force", top)
-    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", direction=(0, 0, 1),
+    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", units="FORCE", direction=(0, 0, 1),
                                              magnitude=0.2) == {"FINISHED"}
     F = np.zeros((mesh.n_nodes, 3))
     F[top] = [0.0, 0.0, 0.2]
@@ -237,3 +237,41 @@ def check_visemes() -> dict:
     refused = call_error(bpy.ops.object.lipgen_animate_visemes, script="AA")
     return {"max_dev_mm": max(devs), "frames": len(U), "peak_mm": float(np.abs(U).max()),
             "modes_follow_performer_mm": max(follow), "refusal": refused}
+
+
+# ---- files --------------------------------------------------------------------------------------
+def check_save_reload(tmp: str) -> dict:
+    """Everything LipGen keeps lives in the .blend (sliders, drivers, groups, settings); the
+    physics is rebuilt on first use after opening the file."""
+    from blender_addon import bridge
+    from lipgen.addon import clear_physics_cache
+    from lipgen.addon.physics_cache import cached_count
+
+    fresh()
+    obj = add_lips(0)
+    model = fitted_model(f"{tmp}/model.npz")
+    bpy.ops.object.lipgen_load_modes(filepath=f"{tmp}/model.npz")
+    lm = lip_mesh(0)
+    set_group(obj, "LipGen Force", lm.markers[:2])
+    obj.lipgen.modes[1].value = 0.8
+    path = f"{tmp}/lips.blend"
+    assert bpy.ops.wm.save_as_mainfile(filepath=path) == {"FINISHED"}
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    clear_physics_cache()
+    assert bpy.ops.wm.open_mainfile(filepath=path) == {"FINISHED"}
+    obj = bpy.data.objects["LipGen Lips"]
+    bpy.context.view_layer.objects.active = obj
+    coef = np.zeros(len(model.components_))
+    coef[1] = 0.8 * obj.lipgen.modes[1].scale
+    dev_modes = float(np.abs(evaluated(obj) - lm.vertices - model.synthesize(coef)).max())
+    obj.lipgen.modes[1].value = 0.0  # the driver still follows the slider
+    dev_zero = float(np.abs(evaluated(obj) - lm.vertices - model.synthesize(np.zeros_like(coef))).max())
+    assert cached_count() == 0
+    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", units="FORCE", direction=(0, -1, 0),
+                                             magnitude=1.0) == {"FINISHED"}
+    assert cached_count() == 1
+    F = np.zeros((lm.n_nodes, 3))
+    F[lm.markers[:2]] = [0.0, 0.0, 1.0]
+    kb = obj.data.shape_keys.key_blocks["LipGen Force"]
+    dev_force = float(np.abs(bridge.shape_key_co(kb) - lm.vertices - Physics(lm).displace(F)).max())
+    return {"modes_max_dev_mm": dev_modes, "zero_max_dev_mm": dev_zero, "force_max_dev_mm": dev_force}

@@ -28,7 +28,7 @@ def main(zip_path: str, out: str) -> None:
     nodes = [int(i) for i in lipgen.lip_mesh(0).markers[:3]]
     vg = obj.vertex_groups.new(name="LipGen Force")
     vg.add(nodes, 1.0, "REPLACE")
-    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", direction=(0, -1, 0),
+    assert bpy.ops.object.lipgen_apply_force(group="LipGen Force", units="FORCE", direction=(0, -1, 0),
                                              magnitude=1.0) == {"FINISHED"}
     dg = bpy.context.evaluated_depsgraph_get()
     me = obj.evaluated_get(dg).to_mesh()

@@ -244,3 +244,16 @@ def test_speech_on_the_procedural_lips(mesh):
     assert np.array_equal(U, full[:, : mesh.n_nodes]) and np.abs(U).max() > 2.0
     with pytest.raises(ValueError):
         speech_displacements("NOT_A_VISEME", 24.0, 0)
+
+
+def test_force_as_peak_displacement(mesh, physics):
+    nodes = mesh.markers[[1, 4]]
+    resp = ForceResponses(physics, nodes, mesh.vertex_normals())
+    U = resp.displacement(-2.5, [0, 1, 0], peak=True)
+    assert np.isclose(np.linalg.norm(U, axis=1).max(), 2.5)
+    scale = resp.force_scale(-2.5, [0, 1, 0], peak=True)
+    F = force_field(mesh.n_nodes, nodes, scale, direction=[0, 1, 0])
+    assert np.allclose(U, physics.displace(F), atol=1e-12)
+    anchored = ForceResponses(physics, mesh.anchors[:3], mesh.vertex_normals())
+    with pytest.raises(ValueError, match="moves no vertex"):
+        anchored.displacement(1.0, [0, 0, 1], peak=True)

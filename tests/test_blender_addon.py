@@ -31,7 +31,7 @@ def blender():
 class _Checks:
     """``checks.check_x`` names the worker-side function ``module:check_x``."""
 
-    _more = ("check_user_mesh", "check_undo", "check_usd_export", "check_visemes")
+    _more = ("check_user_mesh", "check_undo", "check_usd_export", "check_visemes", "check_save_reload")
 
     def __getattr__(self, name):
         return f"{'bpy_checks_workflows' if name in self._more else 'bpy_checks_addon'}:{name}"
@@ -90,8 +90,9 @@ def test_train_modes_from_shape_keys(blender, checks):
 def test_force_matches_displace(blender, checks):
     out = blender.run(checks.check_force, 0)
     assert out["peak_mm"] > 0.1
+    assert abs(out["peak_preview_mm"] - 1.5) < 1e-5
     for key in ("direction_max_dev_mm", "normal_max_dev_mm", "keyframed_max_dev_mm",
-                "preview_max_dev_mm"):
+                "preview_max_dev_mm", "peak_preview_max_dev_mm"):
         assert out[key] < TOL_MM, (key, out)
 
 
@@ -150,3 +151,19 @@ def test_viseme_script_drives_sliders(blender, checks):
     assert out["frames"] > 20 and out["peak_mm"] > 2.0
     assert out["max_dev_mm"] < MIXED_MM, out
     assert "not LipGen's procedural lips" in out["refusal"]
+
+
+def test_save_and_reopen_keeps_the_rig_and_rebuilds_physics(blender, checks, tmp_path):
+    out = blender.run(checks.check_save_reload, str(tmp_path))
+    for key in ("modes_max_dev_mm", "zero_max_dev_mm", "force_max_dev_mm"):
+        assert out[key] < TOL_MM, (key, out)
+
+
+def test_panels_draw_with_existing_properties_and_operators(blender, checks):
+    drawn = blender.run(checks.check_panels_draw)
+    assert set(drawn) == {"VIEW3D_PT_lipgen", "VIEW3D_PT_lipgen_physics", "VIEW3D_PT_lipgen_modes",
+                          "VIEW3D_PT_lipgen_force", "VIEW3D_PT_lipgen_output"}
+    every = set().union(*drawn.values())
+    ops = blender.run(checks.check_register_twice)["operators"]
+    assert {f"object.{o}" for o in ops} <= every, "every operator has a button"
+    assert {"force_magnitude", "force_preview", "value", "anchors_group"} <= every

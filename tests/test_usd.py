@@ -384,3 +384,35 @@ def test_command_line_viseme_script(tmp_path, mesh, fitted, capsys):
     assert main(["export-usd", "--model", str(tmp_path / "model.npz"), "--script", "AA", "--mesh",
                  str(tmp_path / "m.npz"), "--out", str(tmp_path / "x.usda")]) == 1
     assert "--script needs the procedural lips" in capsys.readouterr().err
+
+
+def test_command_line_dataset_ground_truth(tmp_path, mesh, fitted, capsys):
+    """--dataset: the ground-truth vertices of a (tiny) generated dataset, baked, at its fps;
+    a model of another mesh is refused with the reason."""
+    from lipgen.cli import main
+    from lipgen.dataset import Dataset, GenerateSettings
+    from lipgen.generate import generate
+
+    root = generate(tmp_path / "ds", GenerateSettings(frames=3, seed=2, size=(160, 120), calib_frames=0,
+                                                      fps=25), progress=False)
+    ds = Dataset(root)
+    truth = np.stack([f.truth["vertices"] for f in ds])
+    out = tmp_path / "truth.usdc"
+    assert main(["export-usd", "--dataset", str(root), "--out", str(out)]) == 0
+    assert "3 frame(s) at 25 fps, baked points" in capsys.readouterr().out
+    anim = usd.read_animation(out)
+    assert anim.fps == 25 and not anim.skinned
+    assert np.array_equal(anim.points, truth.astype(np.float32).astype(np.float64))
+    model, _ = fitted  # fitted on lip_mesh(0); the dataset's subject is the finer lip_mesh(1)
+    model.save(tmp_path / "model.npz")
+    code = main(["export-usd", "--dataset", str(root), "--model", str(tmp_path / "model.npz"),
+                 "--out", str(tmp_path / "x.usdc")])
+    assert code == 1 and "nodes" in capsys.readouterr().err and not (tmp_path / "x.usdc").exists()
+    # A model of the subject's own mesh: the truth also goes onto its modes (2 modes span 3 frames,
+    # so the blend shapes give the truth back).
+    ModeModel(2).fit(truth - ds.mesh.vertices, mesh=ds.mesh).save(tmp_path / "own.npz")
+    assert main(["export-usd", "--dataset", str(root), "--model", str(tmp_path / "own.npz"),
+                 "--out", str(tmp_path / "both.usdc")]) == 0
+    assert "blend shapes + baked points" in capsys.readouterr().out
+    skel = usd.read_animation(tmp_path / "both.usdc")
+    assert skel.skinned and np.abs(skel.points - truth).max() < 1e-4

@@ -91,12 +91,29 @@ class ForceResponses:
         self.axes = U[:3]
         self.normal = U[3]
 
-    def displacement(self, magnitude: float, direction=None) -> np.ndarray:
-        """(n, 3) displacement for ``magnitude`` per node along ``direction`` (None: normals)."""
+    def displacement(self, magnitude: float, direction=None, peak: bool = False) -> np.ndarray:
+        """(n, 3) displacement for ``magnitude`` per node along ``direction`` (None: normals).
+
+        With ``peak`` the magnitude is a length instead: the force is scaled so that the
+        largest vertex displacement is ``|magnitude|`` mm (the sign still picks the direction).
+        """
         if direction is None:
-            return float(magnitude) * self.normal
-        d = _unit(direction) * float(magnitude)
-        return np.tensordot(d, self.axes, axes=(0, 0))
+            U = self.normal.copy()
+        else:
+            U = np.tensordot(_unit(direction), self.axes, axes=(0, 0))
+        if peak:
+            top = float(np.linalg.norm(U, axis=1).max())
+            if top <= tol.zero:
+                raise ValueError("the force moves no vertex (are all the chosen vertices anchored?)")
+            return U * (float(magnitude) / top)
+        return U * float(magnitude)
+
+    def force_scale(self, magnitude: float, direction=None, peak: bool = False) -> float:
+        """The force on each node that :meth:`displacement` applies for these settings."""
+        if not peak:
+            return float(magnitude)
+        U = self.displacement(1.0, direction)
+        return float(magnitude) / float(np.linalg.norm(U, axis=1).max())
 
 
 @dataclass(frozen=True)

@@ -13,17 +13,24 @@ _EPILOG = """\
 examples:
   lipgen export-usd --model model.npz --weights weights.npy --fps 30 --out lips.usda
   lipgen export-usd --model model.npz --script "AA EE OO M:0.3" --bake --out speech.usdc
+  lipgen export-usd --dataset DATASET --out truth.usdc     (a dataset's ground truth, baked)
   lipgen export-usd --model model.npz --weights weights.npz --out lips.usdz --weight-range unit
   lipgen export-usd --model model.npz --out rig.usdc          (the modes, all weights zero)
 
 The mesh is the default procedural lips (--resolution) unless --mesh gives a LipMesh file
 (LipMesh.save). --weights takes an .npy array (F, k) of mode coefficients, as
 ModeModel.project returns them, or an .npz holding one array (or one named "weights").
+
 --script runs a viseme script on the synthetic subject (lipgen.motion: visemes -> muscle-like
 activations -> simulated vertices) and projects its displacements onto the model's modes;
---bake adds the simulated vertices themselves as baked points. --points adds baked points
-(F, n, 3) in mm. With a model as well, both encodings go into one file as the variant set
-"encoding". Blender clamps shape-key values to [0, 1] on import: use
+--bake adds the simulated vertices themselves as baked points.
+
+--dataset exports a dataset's ground-truth vertices (lipgen generate) as baked points on its
+subject mesh, at its frame rate; with --model (a model of that mesh) the truth is also
+projected onto the modes and written as blend shapes.
+
+--points adds baked points (F, n, 3) in mm. With a model as well, both encodings go into one
+file as the variant set "encoding". Blender clamps shape-key values to [0, 1] on import: use
 --weight-range unit for files meant for Blender's importer.
 """
 
@@ -43,6 +50,8 @@ def add_parser(sub) -> None:
     src.add_argument("--weights", help="mode coefficients per frame: .npy (F, k) or .npz")
     src.add_argument("--script", help='viseme script, e.g. "AA:0.3 EE OO M:0.15" (NAME[:SECONDS], '
                      "0.2 s by default), simulated on the synthetic subject and projected on the modes")
+    src.add_argument("--dataset", help="dataset folder (lipgen generate): export its ground-truth "
+                     "animation as baked points")
     p.add_argument("--bake", action="store_true", help="with --script: also write the simulated vertices "
                    "as baked points")
     p.add_argument("--seed", type=int, default=0,
@@ -50,7 +59,8 @@ def add_parser(sub) -> None:
     p.add_argument("--points", help="baked vertex positions per frame: .npy (F, n, 3) in mm")
     p.add_argument("--mesh", help="LipMesh file (.npz, LipMesh.save); default: the procedural lips")
     p.add_argument("--resolution", type=int, default=0, help="resolution of the procedural lips (default 0)")
-    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
+    p.add_argument("--fps", type=float, default=None,
+                   help="frames per second (default: the dataset's with --dataset, else 30)")
     p.add_argument("--start", type=int, default=0, help="time code of the first frame (default 0)")
     p.add_argument("--weight-range", choices=("signed", "unit"), default="signed",
                    help="blend-shape weights in standard deviations, one shape a mode (signed), or in "
@@ -91,7 +101,7 @@ def _mesh(args):
     return lipgen.lip_mesh(args.resolution)
 
 
-def _script_motion(args, mesh, model):
+def _script_motion(args, mesh, model, fps):
     """Weights (F, k) and vertices (F, n, 3) of a viseme script on the synthetic subject.
 
     The subject lives on a finer procedural mesh whose first nodes are the nodes of the coarser
@@ -106,21 +116,39 @@ def _script_motion(args, mesh, model):
     n = mesh.n_nodes
     if subject.mesh.n_nodes < n or not np.allclose(subject.mesh.vertices[:n], mesh.vertices, atol=1e-9):
         raise ValueError(f"the synthetic subject's mesh does not contain lip_mesh({args.resolution})'s nodes")
-    sim = motion.simulate(subject, motion.viseme_activations(args.script, fps=args.fps), fps=args.fps)
+    sim = motion.simulate(subject, motion.viseme_activations(args.script, fps=fps), fps=fps)
     U = sim.displacements[:, :n]
     return model.project(U), mesh.vertices + U
+
+
+def _dataset_truth(args):
+    """The subject mesh, ground-truth vertices (F, n, 3) and fps of a dataset folder."""
+    from ..dataset import Dataset
+
+    for flag, value in (("--mesh", args.mesh), ("--points", args.points)):
+        if value:
+            raise ValueError(f"--dataset brings its own mesh and points; drop {flag}")
+    ds = Dataset(args.dataset)
+    if len(ds) == 0:
+        raise ValueError(f"dataset {args.dataset} has no frames")
+    vertices = np.stack([frame.truth["vertices"] for frame in ds])
+    return ds.mesh, vertices, ds.fps
 
 
 def _run(args) -> int:
     from ..modes import ModeModel
     from ..usd import export_usd, validate
 
-    if not (args.model or args.points):
+    if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
-                         "bare modes) and/or --points")
-    mesh = _mesh(args)
+                         "bare modes), --points, or --dataset")
     points = None
     model = ModeModel.load(args.model) if args.model else None
+    if args.dataset:
+        mesh, points, fps = _dataset_truth(args)
+    else:
+        mesh, fps = _mesh(args), 30.0
+    fps = fps if args.fps is None else args.fps
     weights = None
     if args.weights:
         if model is None:
@@ -129,21 +157,24 @@ def _run(args) -> int:
     elif args.script:
         if model is None:
             raise ValueError("--script needs --model (the simulated motion is projected onto its modes)")
-        weights, simulated = _script_motion(args, mesh, model)
+        weights, simulated = _script_motion(args, mesh, model, fps)
         if args.bake:
             points = simulated
+    elif args.dataset and model is not None:  # the truth on the modes, beside the baked truth
+        model.check_mesh(mesh)
+        weights = model.project(points - mesh.vertices)
     if args.bake and not args.script:
         raise ValueError("--bake goes with --script (use --points to add other baked points)")
     if args.points:
         if points is not None:
             raise ValueError("--points and --bake both give baked points; choose one")
         points = _load_array(args.points, "points", "points")
-    out = export_usd(args.out, mesh, model, weights, points, fps=args.fps, start=args.start,
+    out = export_usd(args.out, mesh, model, weights, points, fps=fps, start=args.start,
                      weight_range=args.weight_range, markers=not args.no_markers,
                      regions=not args.no_regions, default_encoding=args.default_encoding)
     n = len(weights) if weights is not None else (len(points) if points is not None else 0)
     kinds = [k for k, on in (("blend shapes", model is not None), ("baked points", points is not None)) if on]
-    sys.stdout.write(f"wrote {out}: {n} frame(s) at {args.fps:g} fps, {' + '.join(kinds)}\n")
+    sys.stdout.write(f"wrote {out}: {n} frame(s) at {fps:g} fps, {' + '.join(kinds)}\n")
     if args.no_validate:
         return 0
     issues = validate(out)
