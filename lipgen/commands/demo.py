@@ -78,12 +78,44 @@ def step_named_forces(mesh, physics, out: Path, peak_mm: float = 4.0) -> Path:
             ax.set_title(f"{name} ({view})", fontsize=10)
     fig.colorbar(ScalarMappable(Normalize(0.0, peak_mm), "magma"), ax=axes.ravel().tolist(),
                  shrink=0.5, label="displacement (mm)")
-    fig.suptitle(f"Default lips ({mesh.n_nodes} nodes) under named forces; anchors at the strip's end",
+    fig.suptitle(f"Default lips ({mesh.n_nodes} nodes) under named forces; anchors marked x",
                  fontsize=11)
     path = out / "physics_forces.png"
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png")
     return path
+
+
+def step_rest_state(mesh, physics, out: Path, close_mm: float = 1.5):
+    """Thesis §2.4 / Fig 4-1: reach marker goals (the lips closing by ``close_mm`` each at the
+    midline, the other markers held where they are) and re-linearise there."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .. import dofs
+    from .._io import atomic_path
+    from ..plot_mesh import draw_mesh
+
+    goals = np.zeros((len(mesh.markers), 3))
+    for name, sign in (("upper_mid", -1.0), ("lower_mid", 1.0)):
+        goals[mesh.marker_names.index(name), 1] = sign * close_mm
+    d = dofs(mesh.markers, "xyz")
+    rest = physics.to_rest_state(d, goals.ravel())
+    U = rest.mesh.vertices - mesh.vertices
+    fig = Figure(figsize=(10, 8), dpi=100, layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, 2)
+    for row, (label, V) in enumerate((("initial", mesh.vertices), ("rest state", rest.mesh.vertices))):
+        for ax, view in zip(axes[row], ("front", "profile"), strict=True):
+            draw_mesh(ax, mesh, view, vertices=V, values=np.linalg.norm(U, axis=1) if row else None,
+                      cmap="magma", vmin=0.0, vmax=close_mm, nose=False)
+            ax.set_title(f"{label} ({view})", fontsize=10)
+    fig.suptitle("Deformation to the rest state (thesis Fig 4-1): marker goals reached with the "
+                 "least-norm force (eq 4.3), physics re-linearised there", fontsize=10)
+    path = out / "rest_state.png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png")
+    return rest, path
 
 
 def step_fig_2_2(out: Path) -> Path:
@@ -170,6 +202,8 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
     written = []
     mesh, physics = step_physics(resolution)
     written.append(step_named_forces(mesh, physics, out))
+    _rest, path = step_rest_state(mesh, physics, out)
+    written.append(path)
     written.append(step_fig_2_2(out))
     if physics_only:
         return written
@@ -210,11 +244,12 @@ def add_parser(sub) -> None:
         "demo",
         help="the whole loop on the default subject: physics pictures, dataset, reconstruction, "
         "modes, evaluation against the truth, USD; report in OUT/demo/report/",
-        description="Build the default lips and their physics and draw them under named forces "
-        "and the thesis's Fig 2-2; then generate a camera-mirror dataset of the default subject, "
-        "reconstruct it from the images (calibrate, track, triangulate, normalise, reach), train "
-        "the modes, evaluate every stage against the ground truth and export the model to USD. "
-        "Everything goes to OUT/demo/; the report is OUT/demo/report/report.md.",
+        description="Build the default lips and their physics and draw them under named forces, "
+        "deformed to a rest state from marker goals (thesis Fig 4-1) and the thesis's Fig 2-2; then "
+        "generate a camera-mirror dataset of the default subject, reconstruct it from the images "
+        "(calibrate, track, triangulate, normalise, reach), train the modes, evaluate every stage "
+        "against the ground truth and export the model to USD. Everything goes to OUT/demo/; the "
+        "report is OUT/demo/report/report.md.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument("--out", default="renders", help="output folder (pictures go to OUT/demo/)")
