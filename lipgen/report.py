@@ -79,6 +79,9 @@ def _frame_picture(ds, recon, frame: int, out: Path) -> str:
         d_uv = ds.rig.to_raw(view, recon.uv[v, frame])
         ax.scatter(d_uv[:, 0], d_uv[:, 1], s=14, marker="+", color="red", lw=1.0,
                    label="tracked" if v == 0 else None)
+    marks = np.vstack([ds.rig.to_raw(view, truth["uv"][v]) for v, view in enumerate(VIEWS)])
+    top, bottom = np.nanmin(marks[:, 1]), np.nanmax(marks[:, 1])
+    ax.set_ylim(min(h - 0.5, bottom + 40), max(-0.5, top - 40))   # the band of the face's marks
     ax.set_title(f"raw frame {frame}: tracked (red +) and true (green o) marks")
     ax.legend(loc="lower right", fontsize=8)
     ax.axis("off")
@@ -215,7 +218,11 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           "## Table 5.1 on these data (mean squared error per DOF over the test frames)", ""]
     L += _table51_md(s["table51"], s["thesis_unit_mm"])
     var = s["variance"]
+    cum = var["cumulative_share"][:10]
     L += ["", f"Variance captured by 10 modes: **{100 * var['ten_modes']:.2f}%** (thesis: 99.2%).", "",
+          "| modes | " + " | ".join(str(i + 1) for i in range(len(cum))) + " |",
+          "|---" * (len(cum) + 1) + "|",
+          "| variance captured (%) | " + " | ".join(f"{100 * c:.2f}" for c in cum) + " |", "",
           f"![variance captured]({pics['variance']})", "", "## Pictures", "",
           f"![mean and first modes]({pics['modes']})", "", f"![raw frame]({pics['frame']})", ""]
     if "overlay" in pics:
