@@ -5,12 +5,12 @@ import pytest
 from synthetic_images import background, frame, marker_paths
 
 from lipgen.dots import DotSettings, as_gray, detect_dots
+from lipgen.pointreg import match_to_expected
 from lipgen.track import (
     CORRELATION_ONLY,
     LOST,
     RECOVERED,
     TRACKED,
-    match_to_expected,
     normalized_correlation,
     track_markers,
 )
