@@ -339,3 +339,29 @@ def check_panels_draw() -> dict:
     obj.lipgen.force_preview = True
     draw_all()
     return {k: sorted(v) for k, v in drawn.items()}
+
+
+# ---- training from a dataset --------------------------------------------------------------------
+def check_train_from_dataset(folder: str) -> dict:
+    """Modes trained on a lipgen dataset's true vertices (its finer subject mesh, nested) equal
+    the core's ModeModel fitted on the same frames' first nodes."""
+    from lipgen.dataset import Dataset
+
+    fresh()
+    obj = add_lips(0)
+    assert bpy.ops.object.lipgen_train_modes(source="DATASET", filepath=folder, n_modes=4) == {"FINISHED"}
+    lm = lip_mesh(0)
+    ds = Dataset(folder)
+    n = lm.n_nodes
+    U = np.array([f.truth["vertices"][:n] - ds.mesh.vertices[:n] for f in ds])
+    model = ModeModel(4).fit(U, mesh=lm)
+    coef = model.project(U[len(U) // 2])
+    for i, item in enumerate(obj.lipgen.modes):
+        item.value = coef[i] / item.scale
+    dev = float(np.abs(evaluated(obj) - lm.vertices - model.synthesize(coef)).max())
+    sheet = _sheet("NotLips")
+    V = np.array([v.co for v in sheet.data.vertices])
+    set_group(sheet, "LipGen Anchors", np.flatnonzero(V[:, 1] < V[:, 1].min() + 1e-6))
+    bpy.ops.object.lipgen_setup_mesh()
+    refused = call_error(bpy.ops.object.lipgen_train_modes, source="DATASET", filepath=folder)
+    return {"max_dev_mm": dev, "frames": len(U), "peak_mm": float(np.abs(U).max()), "refusal": refused}

@@ -33,7 +33,8 @@ class _Checks:
 
     _where = {"bpy_checks_physics": ("check_force", "check_reach", "check_live_reach"),
               "bpy_checks_workflows": ("check_user_mesh", "check_undo", "check_usd_export",
-                                       "check_visemes", "check_save_reload", "check_panels_draw")}
+                                       "check_visemes", "check_save_reload", "check_panels_draw",
+                                       "check_train_from_dataset")}
 
     def __getattr__(self, name):
         module = next((m for m, names in self._where.items() if name in names), "bpy_checks_addon")
@@ -176,3 +177,19 @@ def test_live_reach_step_follows_the_drag(blender, checks):
     out = blender.run(checks.check_live_reach)
     assert out["step_max_dev_mm"] < TOL_MM, out
     assert out["key_max_dev_mm"] < TOL_MM, out
+
+
+@pytest.mark.render
+def test_train_modes_from_a_dataset(blender, checks, tmp_path):
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from lipgen.generate import GenerateSettings, generate
+
+    # A tiny dataset (rendered here, outside the Blender worker): 8 frames of the subject.
+    folder = generate(tmp_path / "ds", GenerateSettings(frames=8, size=(160, 120), calib_frames=0),
+                      progress=False)
+    out = blender.run(checks.check_train_from_dataset, str(folder))
+    assert out["frames"] == 8 and out["peak_mm"] > 0.5
+    assert out["max_dev_mm"] < MIXED_MM, out
+    assert "not this mesh" in out["refusal"], out
