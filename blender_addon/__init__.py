@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import bpy
 
-from . import ops_anim, ops_export, ops_force, ops_mesh, ops_modes, panels, preview, properties
+from . import ops_anim, ops_export, ops_force, ops_mesh, ops_modes, ops_reach, panels, preview, properties
 
 classes = (
     *properties.classes,
     *ops_mesh.classes,
     *ops_modes.classes,
     *ops_force.classes,
+    *ops_reach.classes,
     *ops_anim.classes,
     *ops_export.classes,
     *panels.classes,

@@ -16,6 +16,7 @@ __all__ = [
     "set_point_vectors", "vertex_group_nodes", "set_vertex_group", "shape_key_co", "set_shape_key_co",
     "ensure_basis", "ensure_shape_key", "remove_shape_key", "add_sum_driver", "remove_driver",
     "fcurve_ensure", "set_keyframes", "remove_fcurves", "evaluated_vertices", "rest_vertices",
+    "edit_vertices", "set_edit_vertices",
 ]
 
 
@@ -153,6 +154,20 @@ def set_vertex_group(obj: bpy.types.Object, name: str, nodes) -> bpy.types.Verte
     if idx:
         vg.add(idx, 1.0, "REPLACE")
     return vg
+
+
+# ---- edit mode ----------------------------------------------------------------------------
+def edit_vertices(bm) -> np.ndarray:
+    """(n, 3) float64 positions of a BMesh's vertices (in Edit Mode: the edited shape key)."""
+    return np.array([v.co[:] for v in bm.verts], dtype=np.float64).reshape(-1, 3)
+
+
+def set_edit_vertices(bm, co: np.ndarray, nodes: np.ndarray) -> None:
+    """Move vertices ``nodes`` of a BMesh to ``co[nodes]``."""
+    bm.verts.ensure_lookup_table()
+    verts = bm.verts
+    for i in np.asarray(nodes, np.int64).tolist():
+        verts[i].co = co[i]
 
 
 # ---- shape keys ---------------------------------------------------------------------------

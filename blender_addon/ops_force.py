@@ -1,4 +1,4 @@
-"""Operators for forces and reach goals (thesis eq 4.3): the physics moves the rest of the lip."""
+"""The force operator: push chosen vertices, keep the physical response as a shape key."""
 
 from __future__ import annotations
 
@@ -13,15 +13,8 @@ from bpy.props import (
     StringProperty,
 )
 
-from lipgen.addon import moved_nodes, reach_goals
-
 from . import bridge, lipobject, preview
-from .lipobject import REACH_KEY, UserError
 from .ops_common import LipgenOperator, lipgen_object
-
-GOALS_GROUP = "LipGen Goals"
-SOLVED_ATTR = "lipgen_reach_solved"
-"""Point attribute: the reach key as last solved, to tell newly moved vertices from followers."""
 
 
 def _unique_key_name(obj, base: str) -> str:
@@ -88,79 +81,4 @@ class OBJECT_OT_lipgen_apply_force(LipgenOperator, bpy.types.Operator):
         self.report({"INFO"}, f"{name}: peak displacement {np.linalg.norm(U, axis=1).max():.3g} mm")
 
 
-class OBJECT_OT_lipgen_reach_start(LipgenOperator, bpy.types.Operator):
-    """Start a reach edit: a fresh shape key to drag a few vertices on; Solve Reach moves the rest"""
-
-    bl_idname = "object.lipgen_reach_start"
-    bl_label = "New Reach Shape"
-
-    name: StringProperty(name="Shape key", default=REACH_KEY)
-    edit: BoolProperty(name="Enter Edit Mode", default=False, options={"SKIP_SAVE"})
-
-    def invoke(self, context, event):
-        self.edit = True
-        return self.execute(context)
-
-    def run(self, context):
-        obj = lipgen_object(context)
-        rest = bridge.rest_vertices(obj)
-        kb = bridge.ensure_shape_key(obj, self.name, rest, (-10.0, 10.0))
-        kb.value = 1.0
-        bridge.remove_driver(kb)
-        if obj.vertex_groups.get(GOALS_GROUP) is not None:
-            obj.vertex_groups.remove(obj.vertex_groups[GOALS_GROUP])
-        bridge.set_point_vectors(obj.data, SOLVED_ATTR, None)
-        obj.active_shape_key_index = list(obj.data.shape_keys.key_blocks).index(kb)
-        obj.data.update()
-        if self.edit:
-            bpy.ops.object.mode_set(mode="EDIT")
-
-
-class OBJECT_OT_lipgen_reach_solve(LipgenOperator, bpy.types.Operator):
-    """Solve the reach shape: moved vertices stay, the physics moves the rest with least strain (eq 4.3)"""
-
-    bl_idname = "object.lipgen_reach_solve"
-    bl_label = "Solve Reach"
-
-    name: StringProperty(name="Shape key", default=REACH_KEY)
-    threshold: FloatProperty(name="Moved by more than (mm)", default=1e-3, min=0.0, precision=4,
-                             description="A vertex counts as moved (a goal) beyond this distance")
-    hold_selected: BoolProperty(name="Hold selected", default=False,
-                                description="Selected vertices that did not move stay in place")
-
-    def run(self, context):
-        obj = lipgen_object(context)
-        keys = obj.data.shape_keys
-        kb = None if keys is None else keys.key_blocks.get(self.name)
-        if kb is None:
-            raise UserError(f"no shape key {self.name!r}: press New Reach Shape, move a few "
-                            "vertices of it in Edit Mode, then Solve Reach")
-        unit = obj.lipgen.unit_mm
-        rest = bridge.rest_vertices(obj)
-        target = bridge.shape_key_co(kb)
-        solved = bridge.point_vectors(obj.data, SOLVED_ATTR)
-        baseline = rest if solved is None else solved
-        goals = set(moved_nodes(baseline * unit, target * unit, self.threshold).tolist())
-        if obj.vertex_groups.get(GOALS_GROUP) is not None:
-            goals.update(bridge.vertex_group_nodes(obj, GOALS_GROUP).tolist())
-        if self.hold_selected:
-            goals.update(bridge.selected_vertices(obj.data).tolist())
-        spec = lipobject.physics_spec(obj)
-        phys = lipobject.physics_for_object(obj, spec)
-        rg = reach_goals(rest * unit, target * unit, sorted(goals), spec.anchors)
-        U, _F = phys.reach(rg.dofs, rg.values)
-        new = rest + np.asarray(U) / unit
-        bridge.set_shape_key_co(kb, new)
-        bridge.set_point_vectors(obj.data, SOLVED_ATTR, new)
-        bridge.set_vertex_group(obj, GOALS_GROUP, rg.nodes)
-        obj.data.update()
-        obj.update_tag()
-        msg = f"{len(rg.nodes)} goal vertices, peak displacement {np.linalg.norm(U, axis=1).max():.3g} mm"
-        if len(rg.skipped_anchors):
-            msg += f"; {len(rg.skipped_anchors)} anchored vertices cannot move and were ignored"
-            self.report({"WARNING"}, msg)
-        else:
-            self.report({"INFO"}, msg)
-
-
-classes = (OBJECT_OT_lipgen_apply_force, OBJECT_OT_lipgen_reach_start, OBJECT_OT_lipgen_reach_solve)
+classes = (OBJECT_OT_lipgen_apply_force,)

@@ -83,7 +83,9 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
                ("ANIMATION", "Animation", "The evaluated mesh at every frame of the scene range"),
                ("FILE", "File", "An npz with 'displacements' or 'vertices' (frames, n, 3) in mm"),
                ("SPEECH", "Speech", "Random gestures of every action of lipgen's synthetic "
-                "subject (LipGen's lips only): modes that can follow viseme scripts")))
+                "subject (LipGen's lips only): modes that can follow viseme scripts"),
+               ("DATASET", "Dataset", "The true vertices of a lipgen dataset folder (lipgen "
+                "generate); pick the folder or its manifest.json")))
     filepath: StringProperty(name="File", subtype="FILE_PATH", default="")
     n_modes: IntProperty(name="Modes", default=10, min=1, max=64)
 
@@ -95,6 +97,13 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
         rest = bridge.rest_vertices(obj)
         if self.source == "FILE":
             return _frames_from_file(Path(bpy.path.abspath(self.filepath)), rest * unit)
+        if self.source == "DATASET":
+            from lipgen.addon.training import dataset_displacements
+
+            if not self.filepath:
+                raise UserError("choose the dataset folder (or its manifest.json) in File")
+            return dataset_displacements(bpy.path.abspath(self.filepath), len(rest),
+                                         lipobject.topology_id(obj))
         if self.source == "SPEECH":
             from lipgen.addon.speech import gesture_displacements
 

@@ -133,6 +133,7 @@ class VIEW3D_PT_lipgen_force(_LipgenPanel, bpy.types.Panel):
         row = box.row(align=True)
         row.operator("object.lipgen_reach_start", icon="ADD")
         row.operator("object.lipgen_reach_solve", icon="CHECKMARK")
+        box.operator("object.lipgen_reach_live", icon="PLAY")
 
 
 class VIEW3D_PT_lipgen_output(_LipgenPanel, bpy.types.Panel):

@@ -181,7 +181,8 @@ class MirrorRig:
         return triangulate(self.real_view, uv_real, self.virtual_view, uv_virtual)
 
     # ---- images --------------------------------------------------------------------------
-    def _halves(self) -> tuple[slice, slice]:
+    def halves(self) -> tuple[slice, slice]:
+        """Raw-frame column slices of the (mirror, direct) halves."""
         s = self.split
         return (slice(0, s), slice(s, None)) if self.mirror_side == "left" else (slice(s, None), slice(0, s))
 
@@ -195,7 +196,7 @@ class MirrorRig:
         if raw.ndim not in (2, 3) or raw.shape[:2] != (H, W):
             raise ValueError(f"raw frame must have shape ({H}, {W}) or ({H}, {W}, C) for this rig, "
                              f"got {raw.shape}")
-        mirror, direct = self._halves()
+        mirror, direct = self.halves()
         return raw[:, mirror][:, ::-1].copy(), raw[:, direct].copy()
 
     def compose(self, virtual: np.ndarray, real: np.ndarray) -> np.ndarray:
@@ -208,7 +209,7 @@ class MirrorRig:
             raise ValueError(f"view images differ in channels or dtype: {virtual.shape} {virtual.dtype} "
                              f"vs {real.shape} {real.dtype}")
         raw = np.empty((self.camera.height, self.camera.width) + real.shape[2:], real.dtype)
-        mirror, direct = self._halves()
+        mirror, direct = self.halves()
         raw[:, mirror] = virtual[:, ::-1]
         raw[:, direct] = real
         return raw
@@ -269,7 +270,7 @@ class MirrorRig:
                 f"{self._cols('virtual')}")
 
     def _cols(self, view: str) -> str:
-        mirror, direct = self._halves()
+        mirror, direct = self.halves()
         s = mirror if view == "virtual" else direct
         return f"[{s.start}, {self.camera.width if s.stop is None else s.stop})"
 

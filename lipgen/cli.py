@@ -26,6 +26,9 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.blender_extension",
     "lipgen.commands.generate",
     "lipgen.commands.show",
+    "lipgen.commands.reconstruct",
+    "lipgen.commands.train",
+    "lipgen.commands.evaluate",
 )
 
 _DESCRIPTION = """\

@@ -326,8 +326,8 @@ def save_annotated(ds: Dataset, index: int, out) -> Path:
         for j, name in enumerate(names):
             ax.annotate(name, uv[j], xytext=(4, -4), textcoords="offset points", fontsize=5,
                         color="lime" if vis[j] else "red")
-    for label, cols in (("mirror (virtual view, flipped)", ds.rig._halves()[0]),
-                        ("direct (real view)", ds.rig._halves()[1])):
+    for label, cols in (("mirror (virtual view, flipped)", ds.rig.halves()[0]),
+                        ("direct (real view)", ds.rig.halves()[1])):
         x0 = cols.start or 0
         ax.text(x0 + 4, 12, label, color="white", fontsize=7, va="top")
     ax.set_xlim(-0.5, w - 0.5)

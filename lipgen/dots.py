@@ -37,13 +37,22 @@ class DotSettings:
     noise_k : float
         A peak must also exceed ``noise_k`` robust standard deviations of the response.
     min_separation : float
-        Two peaks closer than this (pixels) are one dot. Defaults to ``3 * sigma``.
+        Two peaks closer than this (pixels) are one dot. Defaults to ``2 * sigma``.
+    smoothing : float
+        The response is smoothed by ``smoothing * sigma`` before peaks are picked: 1 is the
+        matched filter (best against noise), smaller keeps close pairs of dots apart (at 0.6,
+        dots of sigma 1.3 px are resolved from 4 px apart, against 5 px at 1).
+    min_roundness : float
+        Least ratio of the weaker to the stronger principal curvature of the response at a peak:
+        1 for a round dot, 0 along a line; rejects the mouth slit and creases.
     """
 
     sigma: float = 1.5
     min_contrast: float = 0.04
-    noise_k: float = 6.0
+    noise_k: float = 4.5
     min_separation: float | None = None
+    smoothing: float = 0.6
+    min_roundness: float = 0.3
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0.3 <= self.sigma <= 50):
@@ -53,7 +62,7 @@ class DotSettings:
 
     @property
     def separation(self) -> float:
-        return float(self.min_separation if self.min_separation is not None else 3.0 * self.sigma)
+        return float(self.min_separation if self.min_separation is not None else 2.0 * self.sigma)
 
 
 def as_gray(image) -> np.ndarray:
@@ -96,9 +105,8 @@ def darkness(gray: np.ndarray, sigma: float) -> np.ndarray:
     (h, w) float, >= 0
     """
     radius = int(np.ceil(3.0 * sigma)) + 1
-    yy, xx = np.mgrid[-radius:radius + 1, -radius:radius + 1]
-    disc = xx ** 2 + yy ** 2 <= radius ** 2
-    closed = ndimage.grey_closing(gray, footprint=disc, mode="nearest")
+    # A square element (separable, so fast) a little wider than the dot.
+    closed = ndimage.grey_closing(gray, size=(2 * radius + 1, 2 * radius + 1), mode="nearest")
     return closed - gray
 
 
@@ -123,7 +131,7 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
     """
     gray = as_gray(image)
     dark = darkness(gray, settings.sigma)
-    response = ndimage.gaussian_filter(dark, settings.sigma, mode="nearest")
+    response = ndimage.gaussian_filter(dark, settings.smoothing * settings.sigma, mode="nearest")
     # A robust noise floor: most pixels are not dots, so the median absolute deviation of the
     # response measures the texture and noise that a dot must stand out from.
     med = np.median(response)
@@ -131,18 +139,34 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
     threshold = max(settings.min_contrast, med + settings.noise_k * mad)
     size = 2 * int(np.floor(settings.separation / 2)) + 1
     peaks = (response == ndimage.maximum_filter(response, size=size, mode="nearest")) & (response > threshold)
+    # The closing is unreliable within a dot radius of the border (it cannot see past it).
+    edge = int(np.ceil(2.0 * settings.sigma))
+    peaks[:edge], peaks[-edge:], peaks[:, :edge], peaks[:, -edge:] = False, False, False, False
     if mask is not None:
         m = np.asarray(mask, dtype=bool)
         if m.shape != gray.shape:
             raise ValueError(f"mask must have the image's shape {gray.shape}, got {m.shape}")
         peaks &= m
     rows, cols = np.nonzero(peaks)
+    # Round blobs only: at a dot both principal curvatures of the response are strongly
+    # negative; along a dark line or slit (the mouth opening, a crease) one of them is near 0.
+    ryy = response[rows + 1, cols] + response[rows - 1, cols] - 2 * response[rows, cols]
+    rxx = response[rows, cols + 1] + response[rows, cols - 1] - 2 * response[rows, cols]
+    rxy = 0.25 * (response[rows + 1, cols + 1] + response[rows - 1, cols - 1]
+                  - response[rows + 1, cols - 1] - response[rows - 1, cols + 1])
+    half_trace, det_root = 0.5 * (rxx + ryy), np.sqrt(0.25 * (rxx - ryy) ** 2 + rxy ** 2)
+    weak, strong = half_trace + det_root, half_trace - det_root      # eigenvalues, weak >= strong
+    round_ = (strong < 0) & (-weak >= settings.min_roundness * -strong)
+    rows, cols = rows[round_], cols[round_]
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
     uv0 = np.column_stack([cols[order], rows[order]]).astype(np.float64)
     uv = refine_centroids(gray, uv0, settings.sigma)
     # A plateau can give two maxima a pixel apart that converge to one dot: keep the stronger.
-    keep = _dedupe(uv, settings.separation / 2)
+    # Fits that end outside the image (edge artefacts of the closing) are not dots.
+    h, w = gray.shape
+    inside = (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
+    keep = _dedupe(uv, settings.separation / 2) & inside
     return uv[keep], strength[order][keep]
 
 
@@ -155,8 +179,8 @@ def _dedupe(uv: np.ndarray, radius: float) -> np.ndarray:
     return keep
 
 
-def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations: int = 15
-                     ) -> np.ndarray:
+def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations: int = 15,
+                     deblend: int = 2) -> np.ndarray:
     """Sub-pixel dot centres by fitting a Gaussian dot on a quadratic background.
 
     Each patch of radius ``ceil(3 sigma) + 1`` around a starting point is fitted (batched
@@ -165,7 +189,10 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
         I(x, y) = c0 + c1 dx + c2 dy + c3 dx^2 + c4 dx dy + c5 dy^2 - a exp(-|(x, y) - (u, v)|^2 / 2 s^2)
 
     so shading and texture gradients under the dot do not pull the centre, as they pull a plain
-    centroid.
+    centroid. Dots close enough to share a patch are deblended: each fit sees the image with the
+    other dots' current Gaussians added back (they are dark, so they are subtracted from the
+    darkness), and the fits are repeated ``deblend`` times. Without it two dots 4 px apart
+    (sigma 1.3 px) both converge to their midpoint.
 
     Parameters
     ----------
@@ -176,7 +203,9 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
     sigma : float
         Expected dot radius (pixels); the fitted radius is free.
     iterations : int
-        Levenberg-Marquardt steps.
+        Levenberg-Marquardt steps per fit.
+    deblend : int
+        Extra fitting rounds for dots with a neighbour in their patch.
 
     Returns
     -------
@@ -196,7 +225,7 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
     img = gray[rows[:, :, None], cols[:, None, :]].reshape(k, -1)          # (k, p*p)
     dy, dx = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
     bg = np.stack([np.ones_like(dx), dx, dy, dx * dx, dx * dy, dy * dy], axis=1)   # (p*p, 6)
-    # Start: the dot at the start point, depth from the patch, background by linear least squares.
+    # Start: the dot at the start point, background and depth by linear least squares.
     u = uv0[:, 0] - base[:, 0]
     v = uv0[:, 1] - base[:, 1]
     s = np.full(k, float(sigma))
@@ -204,6 +233,31 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
     design = np.concatenate([np.broadcast_to(bg, (k, *bg.shape)), -g[:, :, None]], axis=2)
     lin = (np.linalg.pinv(design) @ img[:, :, None])[..., 0]
     params = np.column_stack([u, v, s, lin[:, 6], lin[:, :6]])              # (k, 10)
+    # Pixel positions of every patch in image coordinates, for the neighbours' contributions.
+    px = base[:, 0, None] + dx
+    py = base[:, 1, None] + dy
+    close = np.linalg.norm(uv0[:, None] - uv0[None], axis=2) < 2 * half
+    np.fill_diagonal(close, False)
+    params = _lm_fit(img, bg, dx, dy, params, iterations, sigma)
+    crowded = np.flatnonzero(close.any(1))
+    for _ in range(deblend if len(crowded) else 0):
+        others = np.zeros((len(crowded), img.shape[1]))
+        cu, cv = base[:, 0] + params[:, 0], base[:, 1] + params[:, 1]
+        for row, i in enumerate(crowded):
+            nb = np.flatnonzero(close[i])
+            r2 = (px[i] - cu[nb, None]) ** 2 + (py[i] - cv[nb, None]) ** 2
+            others[row] = (np.maximum(params[nb, 3], 0.0)[:, None]
+                           * np.exp(-r2 / (2 * params[nb, 2, None] ** 2))).sum(0)
+        params[crowded] = _lm_fit(img[crowded] + others, bg, dx, dy, params[crowded], iterations, sigma)
+    out = base + params[:, :2]
+    bad = (np.abs(params[:, :2]).max(1) > half - 1) | (params[:, 3] <= 0) | ~np.isfinite(out).all(1)
+    out[bad] = uv0[bad]
+    return out
+
+
+def _lm_fit(img, bg, dx, dy, params, iterations, sigma):
+    """Batched Levenberg-Marquardt of the dot model (see :func:`refine_centroids`)."""
+    params = params.copy()
 
     def residual_and_jac(p):
         pu, pv, ps, pa = p[:, 0:1], p[:, 1:2], p[:, 2:3], p[:, 3:4]
@@ -217,13 +271,14 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
             np.broadcast_to(bg, (len(p), *bg.shape))], axis=2)
         return model - img, jac
 
-    lam = np.full(k, 1e-3)
+    lam = np.full(len(params), 1e-3)
     res, jac = residual_and_jac(params)
     cost = (res * res).sum(1)
     eye = np.eye(params.shape[1])
     for _ in range(iterations):
-        jtj = np.einsum("kpi,kpj->kij", jac, jac)
-        jtr = np.einsum("kpi,kp->ki", jac, res)
+        jt = jac.transpose(0, 2, 1)
+        jtj = jt @ jac
+        jtr = (jt @ res[..., None])[..., 0]
         damp = jtj + lam[:, None, None] * (eye * np.diagonal(jtj, axis1=1, axis2=2)[:, None, :] + 1e-12 * eye)
         step = np.linalg.solve(damp, -jtr[..., None])[..., 0]
         trial = params + step
@@ -234,7 +289,4 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
         params[better], res[better], jac[better], cost[better] = trial[better], r_new[better], \
             j_new[better], c_new[better]
         lam = np.where(better, lam * 0.3, lam * 10.0)
-    out = base + params[:, :2]
-    bad = (np.abs(params[:, :2]).max(1) > half - 1) | (params[:, 3] <= 0) | ~np.isfinite(out).all(1)
-    out[bad] = uv0[bad]
-    return out
+    return params

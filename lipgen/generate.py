@@ -15,7 +15,7 @@ import json
 import logging
 import multiprocessing
 import os
-from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -134,6 +134,13 @@ def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndar
 
 
 def _run_job(job: tuple[str, int]) -> tuple[str, int]:
+    """Render and write one frame (or calibration frame)."""
+    _write(*_render_job(job))
+    return job
+
+
+def _render_job(job: tuple[str, int]):
+    """The image, truth and destination of one job (nothing written yet)."""
     w = _WORKER
     ctx, s, rig = w["ctx"], w["s"], w["rig"]
     kind, i = job
@@ -160,9 +167,13 @@ def _run_job(job: tuple[str, int]) -> tuple[str, int]:
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
         png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
-    atomic_write_bytes(png, _png_bytes(image, s.png_compress_level))
+    return image, truth, png, npz, kind_tag, s.png_compress_level
+
+
+def _write(image, truth, png, npz, kind_tag, level) -> None:
+    """Write a frame's PNG then its truth, each atomically (the frame counts once both exist)."""
+    atomic_write_bytes(png, _png_bytes(image, level))
     save_npz(npz, kind_tag, SCHEMA, truth)
-    return job
 
 
 def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
@@ -280,11 +291,21 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     try:
         if workers == 1 or len(jobs) <= 1:
             _init_worker(ctx)
+            # encode and write frame k in a thread while frame k + 1 renders (PNG/zlib release the GIL)
+            writer = ThreadPoolExecutor(1)
             try:
+                pending = None
                 for job in jobs:
-                    _run_job(job)
+                    result = _render_job(job)
+                    if pending is not None:
+                        pending.result()
+                        bar.update()
+                    pending = writer.submit(_write, *result)
+                if pending is not None:
+                    pending.result()
                     bar.update()
             finally:
+                writer.shutdown(wait=True)
                 _WORKER.pop("renderer").close()
                 _WORKER.clear()
         else:

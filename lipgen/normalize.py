@@ -194,6 +194,8 @@ class Normalization:
         Frames whose lip frame was taken from the nearest good frame (too few visible markers).
     fit_rms : float
         RMS residual (mm) of the similarity fit on the reference frame.
+    reference_frame : int
+        The frame the similarity was fitted on.
     """
 
     markers: np.ndarray
@@ -202,10 +204,11 @@ class Normalization:
     plane_angle: np.ndarray
     borrowed: np.ndarray
     fit_rms: float
+    reference_frame: int = 0
 
 
 def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=None, visible=None,
-                      up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0), reference_frame: int = 0
+                      up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0), reference_frame: int | str = 0
                       ) -> Normalization:
     """Bring triangulated markers into the model frame (thesis §3).
 
@@ -226,8 +229,11 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
         Which markers were seen; defaults to the finite ones.
     up, x_hint : (3,) float
         Global up and a subject's-left direction in the data's frame (see :func:`lip_frame`).
-    reference_frame : int
-        The frame the similarity is fitted on (the thesis's first frame).
+    reference_frame : int or "auto"
+        The frame the similarity is fitted on. The thesis used the first frame, which assumes
+        the subject starts at rest. ``"auto"`` takes the frame whose lip-frame markers a
+        similarity brings closest to the model's rest markers (the most neutral-looking frame,
+        among those that see the most markers).
 
     Returns
     -------
@@ -243,8 +249,9 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
     if vis.shape != (F, P):
         raise ValueError(f"visible must have shape ({F}, {P}), got {vis.shape}")
     vis = vis & np.all(np.isfinite(X), axis=2)
-    if not 0 <= reference_frame < F:
-        raise ValueError(f"reference_frame {reference_frame} is out of range for {F} frames")
+    if reference_frame != "auto" and not (isinstance(reference_frame, int | np.integer)
+                                          and 0 <= reference_frame < F):
+        raise ValueError(f"reference_frame must be 'auto' or a frame in [0, {F}), got {reference_frame!r}")
     rel = X - N[:, None, :]
     rotations = np.full((F, 3, 3), np.nan)
     angle = np.full(F, np.nan)
@@ -265,6 +272,10 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
         log.warning("%d frame(s) borrowed the lip frame of a neighbour (too few visible markers)",
                     int(borrowed.sum()))
     local = np.einsum("fij,fpj->fpi", rotations, rel)
+    if reference_frame == "auto":
+        reference_frame = _most_neutral(local, vis, M, model_nose)
+        log.info("normalisation: frame %d looks the most neutral; the similarity is fitted there",
+                 reference_frame)
     seen = vis[reference_frame]
     src, dst = local[reference_frame, seen], M[seen]
     if model_nose is not None:
@@ -277,4 +288,24 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
     fit_rms = float(np.sqrt(((sim.apply(src) - dst) ** 2).sum(1).mean()))
     out = sim.apply(local)
     out[~vis] = np.nan
-    return Normalization(out, rotations, sim, angle, borrowed, fit_rms)
+    return Normalization(out, rotations, sim, angle, borrowed, fit_rms, int(reference_frame))
+
+
+def _most_neutral(local: np.ndarray, vis: np.ndarray, model_markers: np.ndarray, model_nose) -> int:
+    """The frame (among those seeing the most markers) whose similarity fit to the rest markers
+    leaves the smallest RMS residual."""
+    counts = vis.sum(1)
+    best, best_rms = -1, np.inf
+    for f in np.flatnonzero(counts == counts.max()):
+        src, dst = local[f, vis[f]], model_markers[vis[f]]
+        if model_nose is not None:
+            src, dst = np.vstack([src, np.zeros(3)]), np.vstack([dst, model_nose])
+        if len(src) < 3:
+            continue
+        sim = umeyama(src, dst)
+        rms = float(np.sqrt(((sim.apply(src) - dst) ** 2).sum(1).mean()))
+        if rms < best_rms:
+            best, best_rms = int(f), rms
+    if best < 0:
+        raise ValueError("no frame has 3 visible markers to fit the similarity to the model")
+    return best

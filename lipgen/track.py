@@ -20,23 +20,31 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
-from scipy.optimize import linear_sum_assignment
+from scipy.signal import fftconvolve
 
 from ._validate import as_float_array
+from .association import (
+    CORRELATION_ONLY,
+    LOST,
+    RECOVERED,
+    TRACKED,
+    assign_two_routes,
+    carry_lost_markers,
+    drop_merged,
+    fix_order,
+    predict,
+)
 from .dots import DotSettings, as_gray, detect_dots
+from .pointreg import assign
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
-    "normalized_correlation", "register_points", "match_to_expected", "track_markers",
+    "normalized_correlation", "MarkerTracker", "track_markers",
 ]
 
-TRACKED, RECOVERED, CORRELATION_ONLY, LOST = 0, 1, 2, 3
-"""Per-frame status of a marker: correlation agreed with a detected dot; correlation failed and
-the dot was found from the motion prediction; no dot detected but a confident correlation peak;
-not found (not visible)."""
-
-_BIG = 1e12
+# Per-frame status of a marker (lipgen.association): TRACKED, correlation agreed with a detected
+# dot; RECOVERED, correlation failed and the dot was found from the motion prediction;
+# CORRELATION_ONLY, no dot detected but a confident correlation peak; LOST, not found.
 
 
 @dataclass(frozen=True)
@@ -59,23 +67,34 @@ class TrackerSettings:
         Largest distance from the correlation peak to the dot it is snapped to.
     recovery_gate : float
         Largest distance from the prediction to a dot when correlation failed; it grows by
-        ``gate`` for every frame the marker has been lost.
+        ``gate`` for each of the first three frames the marker has been lost.
     max_jump : float
         A correlation peak farther than this from the prediction is a failure.
     motion_penalty : float
         Correlation given up for a match at the edge of the search window (quadratic in the
         distance from the prediction); breaks ties between look-alike dots.
+    min_strength_ratio : float
+        A dot must be at least this fraction as dark as the marker's dot has been.
+    twin_distance : float, optional
+        Markers closer than this in the reference layout cannot be told apart in this view (their
+        dots merge); they are never tracked there. Defaults to ``2.5 * dots.sigma``.
     """
 
     dots: DotSettings = DotSettings()
     template_radius: int = 7
     search_radius: int = 14
     min_correlation: float = 0.5
-    confident_correlation: float = 0.9
+    confident_correlation: float = 0.95
     gate: float = 3.0
     recovery_gate: float = 8.0
     max_jump: float = 12.0
     motion_penalty: float = 0.3
+    twin_distance: float | None = None
+    min_strength_ratio: float = 0.5
+
+    @property
+    def twins(self) -> float:
+        return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,12 +141,16 @@ def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarr
     """
     t = template - template.mean()
     tn = np.sqrt((t * t).sum())
-    win = sliding_window_view(search, template.shape)
-    mean = win.mean(axis=(2, 3))
-    num = np.einsum("ijkl,kl->ij", win, t)            # sum((win - mean) * t) == sum(win * t)
-    var = (win * win).sum(axis=(2, 3)) - mean * mean * t.size
+    h, w = template.shape
+    num = fftconvolve(search, t[::-1, ::-1], mode="valid")   # sum((win - mean) t) = sum(win t)
+    # Window sums of the search and its square from integral images.
+    def box(a):
+        c = np.pad(a, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+        return c[h:, w:] - c[:-h, w:] - c[h:, :-w] + c[:-h, :-w]
+    mean = box(search) / t.size
+    var = box(search * search) - mean * mean * t.size
     den = np.sqrt(np.maximum(var, 0.0)) * tn
-    return np.where(den > 1e-12, num / np.maximum(den, 1e-300), 0.0)
+    return np.where(den > 1e-9 * max(tn, 1e-300), num / np.maximum(den, 1e-300), 0.0)
 
 
 def _parabola_offset(left: float, mid: float, right: float) -> float:
@@ -165,259 +188,99 @@ def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radiu
     return uv, float(ncc[i, j])
 
 
-def _assign(points: np.ndarray, dots: np.ndarray, gates: np.ndarray) -> np.ndarray:
-    """One-to-one nearest assignment within per-point gates; -1 where none. (P,) int."""
-    out = np.full(len(points), -1, dtype=np.int64)
-    ok_pts = np.all(np.isfinite(points), axis=1)
-    if len(dots) == 0 or not ok_pts.any():
-        return out
-    dist = np.linalg.norm(points[:, None, :] - dots[None, :, :], axis=2)
-    dist[~ok_pts] = np.inf
-    cost = np.where(dist <= gates[:, None], dist, _BIG)
-    rows, cols = linear_sum_assignment(cost)
-    good = cost[rows, cols] < _BIG
-    out[rows[good]] = cols[good]
-    return out
-
-
-def _assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
-                       pred_gates: np.ndarray, corr_ok: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One-to-one assignment of markers to dots, preferring the correlation peak.
-
-    A dot within ``gates`` of a marker's correlation peak costs its distance; a dot within
-    ``pred_gates`` of the motion prediction costs that distance plus the largest peak gate, so it
-    is taken only when the peak route is not available (the correlation locked onto a dot
-    another marker owns, or failed). Returns (match (P,) int, -1 for none; via_correlation (P,)).
-    """
-    out = np.full(len(cand), -1, dtype=np.int64)
-    via = np.zeros(len(cand), dtype=bool)
-    ok = np.all(np.isfinite(pred), axis=1)
-    if len(dots) == 0 or not ok.any():
-        return out, via
-    d_cand = np.linalg.norm(cand[:, None] - dots[None], axis=2)
-    d_pred = np.linalg.norm(pred[:, None] - dots[None], axis=2)
-    peak_route = corr_ok[:, None] & (d_cand <= gates[:, None])
-    pred_route = d_pred <= pred_gates[:, None]
-    cost = np.where(peak_route, d_cand, np.where(pred_route, d_pred + gates.max() + 1.0, _BIG))
-    cost[~ok] = _BIG
-    rows, cols = linear_sum_assignment(cost)
-    good = cost[rows, cols] < _BIG
-    out[rows[good]] = cols[good]
-    via[rows[good]] = peak_route[rows[good], cols[good]]
-    return out, via
-
-
-def _similarity_2d(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Least-squares 2-D similarity (s, R, t) with dst ~ s R src + t (Umeyama)."""
-    ms, md = src.mean(0), dst.mean(0)
-    a, b = src - ms, dst - md
-    U, S, Vt = np.linalg.svd(b.T @ a)
-    d = np.diag([1.0, np.sign(np.linalg.det(U @ Vt)) or 1.0])
-    R = U @ d @ Vt
-    var = (a * a).sum()
-    s = float(np.trace(np.diag(S) @ d) / var) if var > 0 else 1.0
-    return s, R, md - s * R @ ms
-
-
-def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarray:
-    """The best similarity from two-point correspondences (RANSAC over all dot pairs).
-
-    For a few well-separated pairs of layout points, every ordered pair of dots defines a
-    similarity (as complex numbers, z -> a z + b); the one that brings the most layout points
-    within ``gate`` of some dot wins. Returns the moved layout (P, 2).
-    """
-    e = expected[:, 0] + 1j * expected[:, 1]
-    d = dots[:, 0] + 1j * dots[:, 1]
-    centred = expected - expected.mean(0)
-    _, _, axes = np.linalg.svd(centred, full_matrices=False)
-    proj = centred @ axes.T
-    ends = {int(np.argmin(proj[:, 0])), int(np.argmax(proj[:, 0])), int(np.argmin(proj[:, 1])),
-            int(np.argmax(proj[:, 1]))}
-    ends = sorted(ends)
-    pairs = [(a, b) for i, a in enumerate(ends) for b in ends[i + 1:]]
-    ii, jj = np.nonzero(~np.eye(len(d), dtype=bool))
-    best, best_key = expected, (-1, 0.0)
-    for a, b in pairs:
-        if abs(e[b] - e[a]) < 1e-9:
-            continue
-        z = (d[jj] - d[ii]) / (e[b] - e[a])
-        plausible = (np.abs(z) > 0.5) & (np.abs(z) < 2.0) & (np.abs(np.angle(z)) < np.deg2rad(60))
-        z, off = z[plausible], d[ii][plausible] - z[plausible] * e[a]
-        if len(z) == 0:
-            continue
-        moved = z[:, None] * e[None, :] + off[:, None]                        # (H, P)
-        near = np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)       # (H, P)
-        inliers = (near < gate).sum(1)
-        spread = -np.minimum(near, gate).sum(1)
-        h = int(np.lexsort((spread, inliers))[-1])
-        if (int(inliers[h]), float(spread[h])) > best_key:
-            best_key = (int(inliers[h]), float(spread[h]))
-            best = np.column_stack([moved[h].real, moved[h].imag])
-    return best
-
-
-def _icp(dots: np.ndarray, expected: np.ndarray, start: np.ndarray, gate: float, iterations: int
-         ) -> tuple[np.ndarray, np.ndarray]:
-    cur, current_gate = start, 4.0 * gate
-    match = _assign(cur, dots, np.full(len(expected), current_gate))
-    for _ in range(iterations):
-        m = match >= 0
-        if m.sum() < 2:
-            break
-        s, R, t = _similarity_2d(expected[m], dots[match[m]])
-        cur = s * expected @ R.T + t
-        current_gate = max(0.8 * current_gate, gate)
-        new = _assign(cur, dots, np.full(len(expected), current_gate))
-        if np.array_equal(new, match) and current_gate == gate:
-            break
-        match = new
-    return _assign(cur, dots, np.full(len(expected), gate)), cur
-
-
-def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterations: int = 30,
-                    accept: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
-    """Align a marker layout to detected dots: 2-D similarity ICP with one-to-one matching.
-
-    ICP from the layout as given (alternately assign one-to-one within a gate shrinking from
-    ``4 * gate`` to ``gate``, and refit the similarity mapping the layout onto its dots). When
-    that matches fewer than ``accept`` of the markers, the start is instead the best two-point
-    RANSAC hypothesis over all dot pairs, which finds large rotations, scalings, jumps and
-    clutter that ICP alone would fall into a wrong neighbour for.
+class MarkerTracker:
+    """Tracks markers in one view, one image at a time (so several views can run in lock-step).
 
     Parameters
     ----------
-    dots : (k, 2) float
-        Detected dot centres.
-    expected : (P, 2) float
-        The layout: where each marker should be, roughly (shape matters more than placement).
-    gate : float
-        Largest residual (pixels) of a match after alignment.
-
-    Returns
-    -------
-    match : (P,) int
-        Index into ``dots`` for each marker, -1 where no dot matches.
-    aligned : (P, 2) float
-        The layout moved by the fitted similarity (the best guess for unmatched markers too).
-    """
-    dots = as_float_array(dots, "dots", (None, 2))
-    expected = as_float_array(expected, "expected", (None, 2))
-    if len(dots) == 0 or len(expected) == 0:
-        return np.full(len(expected), -1, dtype=np.int64), expected
-    match, cur = _icp(dots, expected, expected, gate, iterations)
-    if (match >= 0).sum() >= accept * len(expected) or len(dots) < 2 or len(expected) < 2:
-        return match, cur
-    alt_match, alt_cur = _icp(dots, expected, _hypotheses(dots, expected, gate), gate, iterations)
-    if (alt_match >= 0).sum() > (match >= 0).sum():
-        return alt_match, alt_cur
-    return match, cur
-
-
-def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarray:
-    """Match the first frame's dots to the expected marker positions (the thesis's GUI step).
-
-    Returns
-    -------
-    (P,) int
-        Index into ``dots`` for each marker, -1 where none matches (see :func:`register_points`).
-    """
-    return register_points(dots, expected, gate)[0]
-
-
-def _predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.ndarray | None,
-             dots: np.ndarray, gate: float) -> np.ndarray:
-    """Where each marker should be in this frame, NaN if unknown.
-
-    Constant velocity from the last sighting, corrected by the similarity that best aligns the
-    predicted layout with this frame's dots (this catches sudden global jumps, which would
-    otherwise take the correlation to a neighbouring dot). Markers never seen are placed by the
-    similarity from the reference layout onto the seen ones.
-    """
-    pred = last + vel * (gap + 1)[:, None]
-    known = np.all(np.isfinite(pred), axis=1)
-    if known.sum() >= 3 and len(dots) >= 3:
-        match, aligned = register_points(dots, pred[known], gate)
-        if (match >= 0).sum() >= max(3, known.sum() // 2):
-            pred[known] = aligned
-    if reference is not None and (~known).any() and known.sum() >= 2:
-        s, R, t = _similarity_2d(reference[known], pred[known])
-        pred[~known] = s * reference[~known] @ R.T + t
-    return pred
-
-
-def _carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray) -> None:
-    """Move the last-seen positions of lost markers with the markers seen in both frames.
-
-    Without this a lost marker waits where it was last seen while the face moves on, and its
-    search misses it when it reappears. Updates ``last`` in place.
-    """
-    pairs = visible & (gap == 0) & np.all(np.isfinite(last), axis=1)
-    lost = ~visible & np.all(np.isfinite(last), axis=1)
-    if lost.any() and pairs.sum() >= 3:
-        s, R, t = _similarity_2d(last[pairs], uv[pairs])
-        last[lost] = s * last[lost] @ R.T + t
-
-
-def track_markers(frames: Iterable, initial_uv: np.ndarray,
-                  settings: TrackerSettings = TrackerSettings(),
-                  reference_uv: np.ndarray | None = None) -> Tracks:
-    """Track markers through a sequence of images of one view.
-
-    Parameters
-    ----------
-    frames : iterable of (h, w) or (h, w, 3) arrays
-        The images, in order (read lazily, one at a time).
     initial_uv : (P, 2) float
-        Marker positions in the first frame, NaN for markers not found there (for example from
-        :func:`match_to_expected` on the first frame's :func:`~lipgen.dots.detect_dots`).
+        Marker positions in the first image, NaN for markers not found there (for example from
+        :func:`~lipgen.pointreg.match_to_expected` on the first image's dots).
     settings : TrackerSettings
     reference_uv : (P, 2) float, optional
         The expected layout of all markers (e.g. their projections at rest). With it, a marker
-        not seen yet is searched for where the layout, aligned to the seen markers, puts it.
-
-    Returns
-    -------
-    Tracks
+        not seen yet is searched for where the layout, aligned to the seen markers, puts it, and
+        markers too close together in it to be told apart (``settings.twins``) are not tracked.
+    roi_margin : float
+        After the first image, dots are detected only within this many pixels of the markers'
+        last known positions (the rest of the image is not searched).
     """
-    init = as_float_array(initial_uv, "initial_uv", (None, 2), finite=False)
-    P = len(init)
-    if reference_uv is not None:
-        reference_uv = as_float_array(reference_uv, "reference_uv", (P, 2))
-    cfg = settings
-    uv_all, vis_all, st_all, sc_all = [], [], [], []
-    last = init.copy()                      # last seen position (NaN if never seen)
-    vel = np.zeros((P, 2))
-    gap = np.zeros(P, dtype=np.int64)       # frames since last seen
-    # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
-    templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
-    for t, image in enumerate(frames):
+
+    def __init__(self, initial_uv, settings: TrackerSettings = TrackerSettings(), reference_uv=None,
+                 roi_margin: float = 60.0):
+        self.init = as_float_array(initial_uv, "initial_uv", (None, 2), finite=False)
+        P = len(self.init)
+        self.reference = (None if reference_uv is None
+                          else as_float_array(reference_uv, "reference_uv", (P, 2)))
+        self.cfg = settings
+        self.roi_margin = float(roi_margin)
+        self.strength = np.full(P, np.nan)           # typical darkness of each marker's dot
+        self.twins = np.zeros(P, dtype=bool)
+        if self.reference is not None and P > 1:
+            d = np.linalg.norm(self.reference[:, None] - self.reference[None], axis=2)
+            np.fill_diagonal(d, np.inf)
+            self.twins = d.min(1) < settings.twins
+            self.init[self.twins] = np.nan
+        self.last = self.init.copy()                  # last seen position (NaN if never seen)
+        self.vel = np.zeros((P, 2))
+        self.gap = np.zeros(P, dtype=np.int64)        # frames since last seen
+        # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
+        self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
+        self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+
+    def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        known = np.all(np.isfinite(self.last), axis=1)
+        if not self._out or not known.any():
+            return detect_dots(gray, self.cfg.dots)
+        h, w = gray.shape
+        lo = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
+        hi = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
+        if np.any(hi - lo < 8):
+            return detect_dots(gray, self.cfg.dots)
+        uv, strength = detect_dots(gray[lo[1]:hi[1], lo[0]:hi[0]], self.cfg.dots)
+        return uv + lo, strength
+
+    def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
+        cfg, P = self.cfg, len(self.init)
         gray = as_gray(image)
-        dots, _ = detect_dots(gray, cfg.dots)
+        dots, strength = self._dots(gray)
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
-        if t == 0:
-            seen = np.all(np.isfinite(init), axis=1)
+        first = not self._out
+        if first:
+            seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
-            snap = _assign(init, dots, np.where(seen, cfg.gate, 0.0))
-            uv[seen] = init[seen]
+            snap = assign(self.init, dots, np.where(seen, cfg.gate, 0.0))
+            uv[seen] = self.init[seen]
             uv[snap >= 0] = dots[snap[snap >= 0]]
             status[seen] = TRACKED
         else:
-            pred = _predict(last, vel, gap, reference_uv, dots, cfg.recovery_gate)
+            gap = self.gap
+            pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
-                gates[i] = cfg.recovery_gate + cfg.gate * gap[i]
-                if templates[i] is None:
+                gates[i] = cfg.recovery_gate + cfg.gate * min(gap[i], 3)
+                if self.templates[i] is None:
                     continue
-                patch, offset = templates[i]
-                radius = cfg.search_radius + int(np.ceil(cfg.gate * gap[i]))
+                patch, offset = self.templates[i]
+                radius = cfg.search_radius + int(np.ceil(cfg.gate * min(gap[i], 3)))
                 peak, score[i] = _correlate(gray, patch, pred[i], radius, cfg.motion_penalty)
                 peak = peak + offset
                 if score[i] >= cfg.min_correlation and np.linalg.norm(peak - pred[i]) <= cfg.max_jump:
                     cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
-            snap, via_corr = _assign_two_routes(cand, pred, dots, gates,
-                                                cfg.recovery_gate + cfg.gate * gap, corr_ok)
+            # A marker coming back after a loss must pass the unambiguity test even when the
+            # correlation found a peak: its template may be stale and its neighbours look alike.
+            back = gap > 0
+            guess = np.where((back & corr_ok)[:, None], cand, pred)
+            reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
+            # Only a dot about as dark as the marker's own will do: texture blobs are fainter
+            # than ink, and the correlation may follow the skin around a hidden dot.
+            dark_enough = (np.isnan(self.strength)[:, None]
+                           | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
+            snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
+                                                dark_enough)
             got = snap >= 0
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
@@ -425,22 +288,63 @@ def track_markers(frames: Iterable, initial_uv: np.ndarray,
             trust = ~got & corr_ok & (score >= cfg.confident_correlation)
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
+            drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
+                         max(cfg.gate, cfg.dots.separation))
+        status[self.twins] = LOST
+        uv[self.twins] = np.nan
+        if self.reference is not None:
+            fix_order(uv, status, self.reference, 4.0 * cfg.twins)
         visible = status != LOST
-        _carry_lost_markers(last, uv, visible, gap)
+        carry_lost_markers(self.last, uv, visible, self.gap)
         for i in np.flatnonzero(visible):
-            if gap[i] == 0 and t > 0 and np.all(np.isfinite(last[i])):
-                vel[i] = 0.5 * vel[i] + 0.5 * (uv[i] - last[i])   # damped constant velocity
+            if self.gap[i] == 0 and not first and np.all(np.isfinite(self.last[i])):
+                self.vel[i] = 0.5 * self.vel[i] + 0.5 * (uv[i] - self.last[i])   # damped constant velocity
             else:
-                vel[i] = 0.0
+                self.vel[i] = 0.0
             if status[i] != CORRELATION_ONLY:
-                templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
-        last[visible] = uv[visible]
-        gap[visible] = 0
-        gap[~visible & np.all(np.isfinite(last), axis=1)] += 1
-        uv_all.append(uv)
-        vis_all.append(visible)
-        st_all.append(status)
-        sc_all.append(score)
-    if not uv_all:
+                self.templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
+        self.last[visible] = uv[visible]
+        self.gap[visible] = 0
+        self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
+        got = visible & (status != CORRELATION_ONLY)
+        if got.any():
+            near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
+            mine = strength[near.argmin(1)]
+            seen_before = np.isfinite(self.strength[got])
+            self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
+        self._out.append((uv, status, score))
+        return uv, status, score
+
+    def tracks(self) -> Tracks:
+        """Everything tracked so far."""
+        if not self._out:
+            raise ValueError("the tracker has seen no frames")
+        uv, status, score = (np.stack(a) for a in zip(*self._out, strict=True))
+        return Tracks(uv, status != LOST, status, score)
+
+
+def track_markers(frames: Iterable, initial_uv: np.ndarray,
+                  settings: TrackerSettings = TrackerSettings(),
+                  reference_uv: np.ndarray | None = None) -> Tracks:
+    """Track markers through a sequence of images of one view (see :class:`MarkerTracker`).
+
+    Parameters
+    ----------
+    frames : iterable of (h, w) or (h, w, 3) arrays
+        The images, in order (read lazily, one at a time).
+    initial_uv : (P, 2) float
+        Marker positions in the first frame, NaN for markers not found there.
+    settings : TrackerSettings
+    reference_uv : (P, 2) float, optional
+        The expected layout of all markers, to place markers not seen yet.
+
+    Returns
+    -------
+    Tracks
+    """
+    tracker = MarkerTracker(initial_uv, settings, reference_uv)
+    for image in frames:
+        tracker.step(image)
+    if not tracker._out:
         raise ValueError("track_markers got no frames")
-    return Tracks(np.stack(uv_all), np.stack(vis_all), np.stack(st_all), np.stack(sc_all))
+    return tracker.tracks()

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-from bpy_checks_addon import _sheet, add_lips, call_error, evaluated, fitted_model, fresh, set_group
+from bpy_checks_addon import _addon, _sheet, add_lips, call_error, evaluated, fitted_model, fresh, set_group
 
 from lipgen import lip_mesh
 from lipgen.fem import Physics
@@ -127,6 +127,12 @@ def check_undo(tmp: str) -> dict:
         kb.data[int(lip_mesh(0).markers[0])].co.y += 1.0
 
     undoable(bpy.ops.object.lipgen_reach_solve, prepare=move_one)
+
+    def move_another():
+        kb = bpy.data.objects[name].data.shape_keys.key_blocks["LipGen Reach"]
+        kb.data[int(lip_mesh(0).markers[5])].co.x += 0.5
+
+    undoable(bpy.ops.object.lipgen_reach_live, prepare=move_another)
 
     def own_sheet():
         sheet = _sheet("Sheet")
@@ -275,3 +281,87 @@ def check_save_reload(tmp: str) -> dict:
     kb = obj.data.shape_keys.key_blocks["LipGen Force"]
     dev_force = float(np.abs(bridge.shape_key_co(kb) - lm.vertices - Physics(lm).displace(F)).max())
     return {"modes_max_dev_mm": dev_modes, "zero_max_dev_mm": dev_zero, "force_max_dev_mm": dev_force}
+
+
+# ---- panels -------------------------------------------------------------------------------------
+class _Layout:
+    """Stands in for bpy.types.UILayout (which only Blender's UI can make): records every call
+    and checks that each property and operator a panel names exists."""
+
+    def __init__(self, log):
+        self.log = log
+
+    def _sub(self, *a, **kw):
+        return _Layout(self.log)
+
+    row = column = box = split = _sub
+
+    def label(self, **kw):
+        self.log.append(("label", kw.get("text", "")))
+
+    def prop(self, data, name, **kw):
+        assert name in data.bl_rna.properties, f"{type(data).__name__} has no property {name!r}"
+        self.log.append(("prop", name))
+
+    def prop_search(self, data, name, search_data, search_name, **kw):
+        assert name in data.bl_rna.properties and search_name in search_data.bl_rna.properties
+        self.log.append(("prop_search", name))
+
+    def operator(self, idname, **kw):
+        mod, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, mod), name), f"no operator {idname}"
+        self.log.append(("operator", idname))
+
+        class _Props:
+            pass
+
+        return _Props()
+
+
+def check_panels_draw() -> dict:
+    fresh()
+    addon = _addon()
+    panels = [c for c in addon.classes if issubclass(c, bpy.types.Panel)]
+    drawn = {}
+
+    def draw_all():
+        for cls in panels:
+            if hasattr(cls, "poll") and not cls.poll(bpy.context):
+                continue
+            log = []
+            cls.draw(type("P", (), {"layout": _Layout(log)})(), bpy.context)
+            drawn.setdefault(cls.__name__, set()).update(name for kind, name in log if kind != "label")
+
+    draw_all()  # nothing selected
+    obj = add_lips(0)
+    draw_all()
+    bpy.ops.object.lipgen_build_modes(n_modes=2)
+    obj.lipgen.force_preview = True
+    draw_all()
+    return {k: sorted(v) for k, v in drawn.items()}
+
+
+# ---- training from a dataset --------------------------------------------------------------------
+def check_train_from_dataset(folder: str) -> dict:
+    """Modes trained on a lipgen dataset's true vertices (its finer subject mesh, nested) equal
+    the core's ModeModel fitted on the same frames' first nodes."""
+    from lipgen.dataset import Dataset
+
+    fresh()
+    obj = add_lips(0)
+    assert bpy.ops.object.lipgen_train_modes(source="DATASET", filepath=folder, n_modes=4) == {"FINISHED"}
+    lm = lip_mesh(0)
+    ds = Dataset(folder)
+    n = lm.n_nodes
+    U = np.array([f.truth["vertices"][:n] - ds.mesh.vertices[:n] for f in ds])
+    model = ModeModel(4).fit(U, mesh=lm)
+    coef = model.project(U[len(U) // 2])
+    for i, item in enumerate(obj.lipgen.modes):
+        item.value = coef[i] / item.scale
+    dev = float(np.abs(evaluated(obj) - lm.vertices - model.synthesize(coef)).max())
+    sheet = _sheet("NotLips")
+    V = np.array([v.co for v in sheet.data.vertices])
+    set_group(sheet, "LipGen Anchors", np.flatnonzero(V[:, 1] < V[:, 1].min() + 1e-6))
+    bpy.ops.object.lipgen_setup_mesh()
+    refused = call_error(bpy.ops.object.lipgen_train_modes, source="DATASET", filepath=folder)
+    return {"max_dev_mm": dev, "frames": len(U), "peak_mm": float(np.abs(U).max()), "refusal": refused}

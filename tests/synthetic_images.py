@@ -26,11 +26,16 @@ def draw_dots(base: np.ndarray, uv: np.ndarray, sigma: float = 1.5, depth: float
     """Subtract Gaussian dots of peak ``depth`` centred at ``uv (k, 2)`` (column, row)."""
     img = base.copy()
     h, w = img.shape
-    yy, xx = np.mgrid[0:h, 0:w]
+    r = int(np.ceil(5 * sigma))
     for k, (u, v) in enumerate(uv):
-        if visible is not None and not visible[k]:
+        if (visible is not None and not visible[k]) or not np.isfinite(u + v):
             continue
-        img -= depth * np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / (2 * sigma * sigma))
+        c0, r0 = max(int(u) - r, 0), max(int(v) - r, 0)
+        c1, r1 = min(int(u) + r + 1, w), min(int(v) + r + 1, h)
+        if c1 <= c0 or r1 <= r0:
+            continue
+        yy, xx = np.mgrid[r0:r1, c0:c1]
+        img[r0:r1, c0:c1] -= depth * np.exp(-((xx - u) ** 2 + (yy - v) ** 2) / (2 * sigma * sigma))
     return img
 
 
@@ -93,3 +98,22 @@ def render_board(camera, object_size, square, pose, supersample: int = 3, rng=No
     if noise and rng is not None:
         img = img + noise * rng.standard_normal(img.shape)
     return np.clip(img, 0, 1)
+
+
+def render_marker_frames(rig, points, rng, sigma: float = 1.3, depth: float = 0.35, noise: float = 0.01,
+                         hidden=None):
+    """Raw camera-mirror frames of dark dots at world ``points (F, P, 3)`` on textured skin.
+
+    Each view gets its own fixed background; dots outside a view (or behind the mirror) or
+    flagged in ``hidden (F, P)`` are not drawn. Returns a list of (H, W) uint8 frames.
+    """
+    backgrounds = [background((cam.height, cam.width), rng) for cam in rig.views]
+    frames = []
+    for f, X in enumerate(points):
+        uv, _, inside = rig.project(X)
+        views = []
+        for v, base in enumerate(backgrounds):
+            show = inside[v] if hidden is None else inside[v] & ~hidden[f]
+            views.append(frame(base, uv[v], rng, noise=noise, sigma=sigma, depth=depth, visible=show))
+        frames.append(rig.compose(*views))
+    return frames

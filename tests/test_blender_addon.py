@@ -31,10 +31,14 @@ def blender():
 class _Checks:
     """``checks.check_x`` names the worker-side function ``module:check_x``."""
 
-    _more = ("check_user_mesh", "check_undo", "check_usd_export", "check_visemes", "check_save_reload")
+    _where = {"bpy_checks_physics": ("check_force", "check_reach", "check_live_reach"),
+              "bpy_checks_workflows": ("check_user_mesh", "check_undo", "check_usd_export",
+                                       "check_visemes", "check_save_reload", "check_panels_draw",
+                                       "check_train_from_dataset")}
 
     def __getattr__(self, name):
-        return f"{'bpy_checks_workflows' if name in self._more else 'bpy_checks_addon'}:{name}"
+        module = next((m for m, names in self._where.items() if name in names), "bpy_checks_addon")
+        return f"{module}:{name}"
 
 
 @pytest.fixture(scope="module")
@@ -167,3 +171,25 @@ def test_panels_draw_with_existing_properties_and_operators(blender, checks):
     ops = blender.run(checks.check_register_twice)["operators"]
     assert {f"object.{o}" for o in ops} <= every, "every operator has a button"
     assert {"force_magnitude", "force_preview", "value", "anchors_group"} <= every
+
+
+def test_live_reach_step_follows_the_drag(blender, checks):
+    out = blender.run(checks.check_live_reach)
+    assert out["step_max_dev_mm"] < TOL_MM, out
+    assert out["key_max_dev_mm"] < TOL_MM, out
+
+
+@pytest.mark.render
+def test_train_modes_from_a_dataset(blender, checks, tmp_path):
+    import os
+
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    from lipgen.generate import GenerateSettings, generate
+
+    # A tiny dataset (rendered here, outside the Blender worker): 8 frames of the subject.
+    folder = generate(tmp_path / "ds", GenerateSettings(frames=8, size=(160, 120), calib_frames=0),
+                      progress=False)
+    out = blender.run(checks.check_train_from_dataset, str(folder))
+    assert out["frames"] == 8 and out["peak_mm"] > 0.5
+    assert out["max_dev_mm"] < MIXED_MM, out
+    assert "not this mesh" in out["refusal"], out

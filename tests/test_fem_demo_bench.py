@@ -14,7 +14,7 @@ def test_demo_writes_pictures(tmp_path):
     out = subprocess.run([sys.executable, "-m", "lipgen", "demo", "--out", str(tmp_path)],
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
-    for name in ("physics_forces.png", "fig_2_2.png"):
+    for name in ("physics_forces.png", "rest_state.png", "fig_2_2.png"):
         path = tmp_path / "demo" / name
         assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(path) in out.stdout

@@ -5,12 +5,13 @@ import pytest
 from synthetic_images import background, frame, marker_paths
 
 from lipgen.dots import DotSettings, as_gray, detect_dots
+from lipgen.pointreg import match_to_expected
 from lipgen.track import (
     CORRELATION_ONLY,
     LOST,
     RECOVERED,
     TRACKED,
-    match_to_expected,
+    TrackerSettings,
     normalized_correlation,
     track_markers,
 )
@@ -163,3 +164,18 @@ def test_status_codes_are_distinct_and_tracks_validate():
         track_markers([np.zeros(SHAPE)], np.zeros((3, 3)))
     with pytest.raises(ValueError, match="no frames"):
         track_markers([], np.zeros((3, 2)))
+
+
+def test_swapped_neighbours_are_put_back_by_the_layout():
+    # Two markers 5 px apart start swapped (as a first-frame match can leave them); the
+    # reference layout says which is left of which, and the tracker restores the order.
+    rng, base, paths = _sequence(seed=10, n_markers=6, spacing=22)
+    paths[:, 1] = paths[:, 0] + np.array([5.0, 0.0])
+    frames = [frame(base, p, rng, sigma=1.2) for p in paths]
+    init = paths[0].copy()
+    init[[0, 1]] = init[[1, 0]]
+    tracks = track_markers(frames, init, TrackerSettings(dots=DotSettings(sigma=1.2)), reference_uv=paths[0])
+    seen = tracks.visible[:, :2]
+    assert seen.mean() > 0.9
+    err = np.linalg.norm(tracks.uv[:, :2] - paths[:, :2], axis=2)
+    assert np.nanmax(err) < 1.0

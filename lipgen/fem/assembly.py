@@ -34,15 +34,18 @@ log = logging.getLogger(__name__)
 DEFAULT_STIFFNESS: dict[str, float] = {"lip": 1.0, "ridge": 2.0, "strip": 0.3, "skin": 1.5}
 """Relative E per region (thesis §2.4). ``lip`` 1.0 and ``ridge`` 2.0 are the thesis's values.
 
-``strip`` (the thesis says only "low") is 0.3. The strip is the lips' only attachment to the
-head, so its E sets how much the whole mouth swings on it. Measured on ``lip_mesh(0)`` with a
-downward pull on the three lower-lip markers, the upper lip midline follows the lower lip by
-89% at 0.01, 45-58% at 0.1, 20-31% at 0.3 and 6-11% at 1.0 (the range over skin E 1-3). At 0.3
-the lower lip moves mostly on its own, yet the upper lip still rides freely on the strip
-("relatively free deformation of the lips while still maintaining the necessary rigid
-constraints"). ``skin`` (the thesis's mesh has none) is 1.5: perioral skin taken a little
-stiffer than the lip, so the lips rather than the surrounding skin take up a deformation; it
-matters less (corner displacement under a corner pull changes by ~10% between 1.0 and 1.5)."""
+``strip`` (the thesis says only "low") is 0.3. With the thesis's grounding (only the strip's
+far end anchored, ``lip_mesh(anchor_border=False)``) the strip is the lips' only attachment to
+the head and its E sets how much the whole mouth swings on it: pulling the three lower-lip
+markers down, the upper lip midline follows by 89-93% at 0.01, 43-55% at 0.1, 19-28% at 0.3 and
+5-9% at 1.0 (range over skin E 1-3). At 0.3 the lower lip moves mostly on its own while the
+upper lip still rides freely on the strip ("relatively free deformation of the lips while still
+maintaining the necessary rigid constraints"). With the default lips' skin border anchored too,
+the strip matters less: a unit upward pull on the upper-lip markers raises the midline 1.09,
+0.97, 0.76 mm at strip E 0.1, 0.3, 1.0 (skin 1.0). ``skin`` (the thesis's mesh has none) is 1.5:
+perioral skin taken a little stiffer than the lip, so the lips rather than the surrounding skin
+take up a deformation (the lower lip's pull-down drops from 1.72 to 1.34 mm going from 1.0 to
+1.5)."""
 
 
 def face_stiffness(mesh: LipMesh, stiffness=None) -> np.ndarray:

@@ -31,6 +31,12 @@ refinement each child is similar to its parent, so it still converges, but to a 
 on the triangle shapes). The option ``out_of_plane="laplacian"`` replaces eq 2.13 by the P1
 membrane stiffness ``√3 · E' · A · ∇Nᵢ·∇Nⱼ``, which equals eq 2.13 *exactly* on an equilateral
 triangle and is consistent on any triangulation. The thesis's form stays the default.
+
+Measured (``tests/test_fem_physics.py``): a square sheet with held edges under uniform pressure,
+refined 8 -> 64 cells per side. The ``"laplacian"`` form converges to the closed-form membrane
+deflection for tension ``T = √3 E'`` (0.2% off at 32 cells). Eq 2.13 also converges, but on these
+right-isosceles triangles to the deflection of ``T = 2 E'``: the same element is 15% stiffer out
+of plane on this mesh than on an equilateral one.
 """
 
 from __future__ import annotations

@@ -1,0 +1,155 @@
+"""Frame-to-frame data association for :mod:`lipgen.track`: which dot is which marker.
+
+Prediction of every marker (motion, global jumps, local offsets for markers not seen yet), the
+one-to-one assignment that prefers the correlation peak but accepts motion-predicted matches
+only when unambiguous, and the guards that keep look-alike neighbours from swapping: merged
+dots, reversed pairs, and lost markers carried along with their neighbours.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from .pointreg import register_points, similarity_2d
+
+__all__ = ["TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST", "assign_two_routes", "predict", "drop_merged",
+           "fix_order", "carry_lost_markers"]
+
+TRACKED, RECOVERED, CORRELATION_ONLY, LOST = 0, 1, 2, 3
+"""Per-frame status of a marker: correlation agreed with a detected dot; correlation failed and
+the dot was found from the motion prediction; no dot detected but a confident correlation peak;
+not found (not visible)."""
+
+_BIG = 1e12
+
+
+def assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
+                       pred_gates: np.ndarray, corr_ok: np.ndarray, allowed: np.ndarray | None = None,
+                       ratio: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
+    """One-to-one assignment of markers to dots, preferring the correlation peak.
+
+    A dot within ``gates`` of a marker's correlation peak costs its distance. Without a
+    correlation peak (failed, or locked onto a dot another marker owns), a marker may take a
+    dot by its motion prediction only when the match is unambiguous: the dot is within
+    ``pred_gates``, it is the prediction's nearest dot by a margin (``ratio`` of the second
+    nearest), and no other marker's position is nearly as close to it. A wrong dot taken here
+    would otherwise start a chain of swaps. Such matches cost more than any peak match.
+    Returns (match (P,) int, -1 for none; via_correlation (P,) bool).
+    """
+    out = np.full(len(cand), -1, dtype=np.int64)
+    via = np.zeros(len(cand), dtype=bool)
+    ok = np.all(np.isfinite(pred), axis=1)
+    if len(dots) == 0 or not ok.any():
+        return out, via
+    d_cand = np.linalg.norm(cand[:, None] - dots[None], axis=2)
+    d_pred = np.linalg.norm(pred[:, None] - dots[None], axis=2)
+    d_cand[~ok] = d_pred[~ok] = np.inf
+    peak_route = corr_ok[:, None] & (d_cand <= gates[:, None])
+    pred_route = d_pred <= pred_gates[:, None]
+    if allowed is not None:
+        peak_route &= allowed
+        pred_route &= allowed
+    if len(dots) > 1:
+        two = np.partition(d_pred, 1, axis=1)[:, :2]
+        pred_route &= (d_pred == two[:, :1]) & (two[:, :1] < ratio * two[:, 1:])
+    if len(cand) > 1:
+        where = np.where(corr_ok[:, None], d_cand, d_pred)              # each marker's best guess
+        two = np.partition(where, 1, axis=0)[:2]
+        pred_route &= (d_pred < ratio * two[1:]) | ((where == two[:1]) & (two[:1] < ratio * two[1:]))
+    cost = np.where(peak_route, d_cand, np.where(pred_route, d_pred + gates.max() + 1.0, _BIG))
+    rows, cols = linear_sum_assignment(cost)
+    good = cost[rows, cols] < _BIG
+    out[rows[good]] = cols[good]
+    via[rows[good]] = peak_route[rows[good], cols[good]]
+    return out, via
+
+
+def predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.ndarray | None,
+             dots: np.ndarray, gate: float) -> np.ndarray:
+    """Where each marker should be in this frame, NaN if unknown.
+
+    Constant velocity from the last sighting, corrected by the similarity that best aligns the
+    predicted layout with this frame's dots (this catches sudden global jumps, which would
+    otherwise take the correlation to a neighbouring dot). Markers never seen are placed by the
+    local offsets from the seen ones (see the code).
+    """
+    pred = last + vel * (gap == 0)[:, None]   # a lost marker moves only with its neighbours
+    known = np.all(np.isfinite(pred), axis=1)
+    if known.sum() >= 3 and len(dots) >= 3:
+        match, aligned = register_points(dots, pred[known], gate)
+        if (match >= 0).sum() >= max(3, known.sum() // 2):
+            pred[known] = aligned
+    if reference is not None and (~known).any() and known.sum() >= 2:
+        # Local: from the nearest seen markers, each offset by its reference offset (turned and
+        # scaled by the global similarity), so deformation elsewhere does not move the guess.
+        s, R, _ = similarity_2d(reference[known], pred[known])
+        k_idx = np.flatnonzero(known)
+        for i in np.flatnonzero(~known):
+            d = np.linalg.norm(reference[k_idx] - reference[i], axis=1)
+            near = k_idx[np.argsort(d)[:3]]
+            pred[i] = (pred[near] + s * (reference[i] - reference[near]) @ R.T).mean(0)
+    return pred
+
+
+def fix_order(uv: np.ndarray, status: np.ndarray, reference: np.ndarray, radius: float) -> None:
+    """Swap back pairs of close markers whose positions came out in the wrong order (in place).
+
+    Two dots a few pixels apart can be exchanged by the assignment (each marker takes the
+    other's dot); they then move together, so nothing later corrects it. For markers closer
+    than ``radius`` in the reference layout, the vector between them keeps its direction under
+    any plausible lip motion; a pair whose tracked vector points against the reference one is
+    swapped.
+    """
+    seen = np.flatnonzero(status != LOST)
+    if len(seen) < 2:
+        return
+    ref = reference[seen]
+    d = np.linalg.norm(ref[:, None] - ref[None], axis=2)
+    ii, jj = np.nonzero(np.triu(d < radius, 1))
+    for a, b in zip(seen[ii[np.argsort(d[ii, jj])]], seen[jj[np.argsort(d[ii, jj])]], strict=True):
+        if (uv[b] - uv[a]) @ (reference[b] - reference[a]) < 0:
+            uv[[a, b]] = uv[[b, a]]
+
+
+def drop_merged(uv: np.ndarray, status: np.ndarray, cand: np.ndarray, searched: np.ndarray,
+                 radius: float) -> None:
+    """Mark markers whose dots have merged as lost (in place).
+
+    Two markers closer in the image than a dot's width give one blob: the assignment hands it
+    to one of them and the other finds nothing, or only a correlation peak on the same blob.
+    Neither position can be trusted then, so both are dropped: a marker that found no dot of its
+    own (lost, or correlation only) and whose candidate lies within ``radius`` of a dot another
+    marker took makes both lost.
+    """
+    own = np.isin(status, (TRACKED, RECOVERED))
+    orphan = searched & ~own & np.all(np.isfinite(cand), axis=1)
+    if not orphan.any() or not own.any():
+        return
+    d = np.linalg.norm(cand[orphan][:, None] - uv[own][None], axis=2)
+    near = d < radius
+    if near.any():
+        status[np.flatnonzero(orphan)[near.any(1)]] = LOST
+        status[np.flatnonzero(own)[near.any(0)]] = LOST
+        uv[status == LOST] = np.nan
+
+
+def carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray,
+                        neighbours: int = 4) -> None:
+    """Move the last-seen positions of lost markers with their nearest tracked neighbours.
+
+    Without this a lost marker waits where it was last seen while the face moves on, and its
+    search misses it when it reappears. Each lost marker moves by the inverse-distance weighted
+    mean displacement of its ``neighbours`` nearest markers seen in both frames: local, so a
+    lower-lip marker follows the lower lip when the jaw opens. Updates ``last`` in place.
+    """
+    pairs = np.flatnonzero(visible & (gap == 0) & np.all(np.isfinite(last), axis=1))
+    lost = np.flatnonzero(~visible & np.all(np.isfinite(last), axis=1))
+    if len(lost) == 0 or len(pairs) == 0:
+        return
+    moves = uv[pairs] - last[pairs]
+    d = np.linalg.norm(last[lost][:, None] - last[pairs][None], axis=2)
+    k = min(neighbours, len(pairs))
+    near = np.argsort(d, axis=1)[:, :k]
+    w = 1.0 / (np.take_along_axis(d, near, axis=1) + 1.0)
+    last[lost] += (w[..., None] * moves[near]).sum(1) / w.sum(1, keepdims=True)

@@ -1,0 +1,50 @@
+"""``lipgen train``: learn displacement modes from a reconstruction (thesis §4.2)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+_EPILOG = """\
+The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
+140 + 10) are held out for lipgen evaluate; frames without a field (too few markers seen) are
+skipped.
+
+example:
+  lipgen train recon.npz --out model.npz --modes 10
+"""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("train", help="learn displacement modes (ModeModel) from a reconstruction",
+                       description="Fit the learned modes (snapshot PCA, thesis Appendix B) to the training "
+                       "frames of a reconstruction written by lipgen reconstruct.",
+                       epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("recon", help="reconstruction file from lipgen reconstruct (.npz)")
+    p.add_argument("--out", required=True, help="model file to write (.npz)")
+    p.add_argument("--modes", type=int, default=10, help="number of modes (default 10)")
+    p.add_argument("--test-frames", type=int, default=None, help="frames held out at the end")
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    p.set_defaults(func=_run)
+
+
+def _run(args) -> int:
+    from ..evaluate import default_test_frames, split_frames
+    from ..modes import ModeModel
+    from ..pipeline import Reconstruction, model_mesh
+
+    out = Path(args.out)
+    if out.exists() and not args.force:
+        raise FileExistsError(f"{out} exists; choose another --out or pass --force to replace it")
+    recon = Reconstruction.load(args.recon)
+    F = len(recon.fields)
+    T = default_test_frames(F) if args.test_frames is None else args.test_frames
+    train, test = split_frames(recon.fields, T)
+    mesh = model_mesh(recon.info["mesh_source"])
+    model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
+    model.save(out)
+    share = 100 * model.explained_variance_ratio_.sum()
+    sys.stdout.write(f"trained {len(model.components_)} modes on {len(train)} frames ({share:.2f}% of the "
+                     f"variance); {len(test)} test frames held out -> {out}\n")
+    return 0

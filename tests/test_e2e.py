@@ -1,0 +1,173 @@
+"""End to end on a small rendered dataset: reconstruct, train, evaluate, scored against the truth.
+
+One short dataset (default rig, 640x480, 12 frames, 6 calibration frames) is rendered once for
+the module; the bad-input tests work on copies of it.
+"""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from lipgen import DatasetError, TopologyMismatchError
+from lipgen.evaluate import score, split_frames
+from lipgen.modes import ModeModel
+from lipgen.pipeline import Reconstruction, model_mesh, reconstruct_dataset
+from lipgen.report import write_report
+
+pytest.importorskip("cv2")
+pytestmark = pytest.mark.render
+
+FRAMES = 12
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    from lipgen.render import import_pyrender
+
+    try:
+        import_pyrender()
+    except Exception as exc:  # no GL here: the rendering tests cannot run
+        pytest.skip(f"no offscreen rendering: {exc}")
+    from lipgen.dataset import GenerateSettings
+    from lipgen.generate import generate
+
+    path = tmp_path_factory.mktemp("e2e") / "ds"
+    generate(path, GenerateSettings(frames=FRAMES, seed=3, calib_frames=6), workers=1, progress=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def recon(dataset):
+    return reconstruct_dataset(dataset)
+
+
+@pytest.fixture(scope="module")
+def scored(dataset, recon):
+    from lipgen.dataset import Dataset
+
+    train, _ = split_frames(recon.fields, 3)
+    mesh = model_mesh(recon.info["mesh_source"])
+    model = ModeModel(4).fit(recon.fields[train], mesh=mesh)
+    return score(Dataset(dataset), model, recon, test_frames=3, mesh=mesh), model, mesh
+
+
+def test_calibration_and_triangulation_against_the_truth(scored):
+    s, _, _ = scored
+    cal = s["calibration"]
+    assert cal["rms_px"]["all"] < 0.3
+    for view in ("virtual", "real"):
+        assert np.abs(cal["vs_truth"][view]["focal_px"]).max() < 5.0
+        assert cal["vs_truth"][view]["rotation_deg"] < 0.5
+    # The issue's bound: triangulated markers within 1 mm RMS with the default rig.
+    assert s["triangulation"]["rms_mm"] < 1.0
+    assert s["triangulation"]["visible_share"] > 0.8
+    for view in ("virtual", "real"):
+        assert s["tracking"][view]["rms_px"] < 1.0 and s["tracking"][view]["tracked_share"] > 0.8
+
+
+def test_full_surface_error_is_bounded(scored):
+    # Bound: the reach fields must carry real information about the true surface: their error
+    # must be well below the true displacement itself (predicting "no motion"), and below
+    # 2.5 mm per node. Why that much: the thesis's normalisation cannot remove a head nod (the
+    # subject turns by up to 4 degrees, ~1.3 mm at the lips), the resolution-0 model reaching
+    # 16 markers cannot copy the finer subject exactly (the floor printed in the report), and
+    # tracking adds ~0.2 mm.
+    s, _, _ = scored
+    f = s["fields"]
+    assert f["frames_without_field"] == 0
+    assert f["rms_mm_vs_truth"] < 0.75 * f["true_rms_displacement_mm"]
+    assert f["rms_mm_vs_truth"] < 2.5
+    assert f["reach_from_true_markers_rms_mm"] < f["rms_mm_vs_truth"]
+    assert s["normalisation"]["rms_mm"] < 2.0
+    for row in s["table51"].values():
+        assert all(np.isfinite(c["vs_truth"]) and c["vs_truth"] < 6.25 for c in row.values())
+
+
+def test_report_and_files(tmp_path, dataset, recon, scored):
+    from lipgen.dataset import Dataset
+
+    s, model, mesh = scored
+    recon.save(tmp_path / "recon.npz")
+    again = Reconstruction.load(tmp_path / "recon.npz")
+    assert np.array_equal(again.visible, recon.visible) and again.info == recon.info
+    path = write_report(tmp_path / "report", s, Dataset(dataset), model, recon, mesh)
+    text = path.read_text()
+    assert "Table 5.1" in text and "mm RMS" in text
+    for pic in ("modes.png", "variance.png", "frame.png", "overlay.png"):
+        assert (tmp_path / "report" / pic).stat().st_size > 1000
+    data = json.loads((tmp_path / "report" / "report.json").read_text())
+    assert data["triangulation"]["rms_mm"] == pytest.approx(s["triangulation"]["rms_mm"])
+
+
+def test_cli_train_and_evaluate(tmp_path, dataset, recon):
+    from lipgen.cli import main
+
+    recon.save(tmp_path / "recon.npz")
+    assert main(["train", str(tmp_path / "recon.npz"), "--out", str(tmp_path / "m.npz"), "--modes", "4",
+                 "--test-frames", "3"]) == 0
+    assert main(["train", str(tmp_path / "recon.npz"), "--out", str(tmp_path / "m.npz")]) == 1, \
+        "an existing model is not overwritten without --force"
+    assert main(["evaluate", str(dataset), "--model", str(tmp_path / "m.npz"), "--recon",
+                 str(tmp_path / "recon.npz"), "--out", str(tmp_path / "rep"), "--test-frames", "3"]) == 0
+    assert (tmp_path / "rep" / "report.md").is_file()
+
+
+def _copy(dataset, tmp_path):
+    dst = tmp_path / "copy"
+    shutil.copytree(dataset, dst)
+    return dst
+
+
+def test_missing_frames_are_a_clear_error(tmp_path, dataset):
+    ds = _copy(dataset, tmp_path)
+    (ds / "raw" / "000004.png").unlink()
+    with pytest.raises(DatasetError, match=r"1 of 12 frames are missing \(e\.g\. frame 4\).*--resume"):
+        reconstruct_dataset(ds)
+
+
+def test_lost_markers_degrade_gracefully(tmp_path, dataset, recon):
+    """Erase one marker's dot in the direct view for frames 4-7: it is flagged not visible there,
+    its neighbours and the other frames are unaffected, and every frame still gets a field."""
+    from PIL import Image
+
+    from lipgen.dataset import Dataset
+
+    ds = _copy(dataset, tmp_path)
+    data = Dataset(ds)
+    mark = data.marks.index("upper_left")
+    for f in range(4, 8):
+        png = ds / "raw" / f"{f:06d}.png"
+        img = np.asarray(Image.open(png).convert("RGB")).copy()
+        u, v = np.round(data[f].truth["uv_raw"][1, mark]).astype(int)
+        patch = img[v - 12:v + 13, u - 12:u + 13]
+        ring = np.concatenate([patch[0], patch[-1], patch[:, 0], patch[:, -1]])
+        img[v - 4:v + 5, u - 4:u + 5] = np.median(ring, axis=0).astype(np.uint8)
+        Image.fromarray(img).save(png)
+    hurt = reconstruct_dataset(ds)
+    assert not hurt.visible[4:8, mark].any()
+    assert hurt.visible[:4, mark].all() and hurt.visible[9:, mark].all()
+    assert np.isfinite(hurt.fields).all()
+    others = np.arange(hurt.visible.shape[1]) != mark
+    assert (hurt.visible[:, others] == recon.visible[:, others]).mean() > 0.97
+    # The frames without the marker still reconstruct it from the others, within a few mm.
+    err = np.linalg.norm(hurt.fields[4:8] - recon.fields[4:8], axis=-1)
+    assert np.sqrt((err ** 2).mean()) < 1.5
+
+
+def test_a_dataset_from_another_mesh_is_refused(tmp_path, dataset, recon):
+    from lipgen.dataset import Dataset
+    from lipgen.procedural import lip_mesh
+
+    base = lip_mesh(0)
+    other = base.__class__(base.vertices, base.faces, base.regions, base.anchors, base.markers,
+                           tuple(f"m{i}" for i in range(len(base.markers))), base.nose, name="other")
+    other.save(tmp_path / "other.npz")
+    with pytest.raises(TopologyMismatchError, match="different mesh"):
+        reconstruct_dataset(dataset, str(tmp_path / "other.npz"))
+    # A model trained on another mesh is refused by the evaluation.
+    wrong = ModeModel(2).fit(np.random.default_rng(0).normal(size=(5, lip_mesh(1).n_nodes, 3)),
+                             mesh=lip_mesh(1))
+    with pytest.raises(TopologyMismatchError, match="nodes"):
+        score(Dataset(dataset), wrong, recon, test_frames=3)
