@@ -11,9 +11,10 @@ from ._rotation import corrective_triple, orient_frames, rotations_from_triple
 from ._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
 from .bmm import min_trace_norm_shapes, rank_k_shapes
 from .bregler import bregler_factorization
+from .emppca import em_ppca
 from .refine import bundle_adjust
 
-__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD"]
+__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "n_basis_shapes", "check_method_k"]
 
 log = logging.getLogger(__name__)
 
@@ -24,10 +25,38 @@ METHODS: dict[str, str] = {
            "triple, shapes of least trace norm reprojecting exactly (block matrix method), cut to rank K",
     "dai-ba": "'dai' followed by low-rank bundle adjustment of rotations, weights, basis and "
               "translation (Levenberg-Marquardt on the reprojection error)",
+    "em-ppca": "Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): mean shape plus K Gaussian "
+               "deformation modes, fitted by EM from a rigid start; here K counts the modes, so the "
+               "model has K + 1 basis shapes (rank 3(K + 1))",
 }
 """Method names accepted by :func:`reconstruct`, with what each does."""
 
 DEFAULT_METHOD = "dai"
+
+MEAN_PLUS_MODES = frozenset({"em-ppca"})
+"""Methods whose ``k`` counts deformation modes beyond a mean shape (``k + 1`` basis shapes)."""
+
+
+def n_basis_shapes(k: int, method: str) -> int:
+    """Number of basis shapes of ``method`` run with ``k``: ``k + 1`` for em-ppca, else ``k``."""
+    return k + 1 if method in MEAN_PLUS_MODES else k
+
+
+def check_method_k(k, method: str, n_frames: int, n_points: int, n_observed: int) -> int:
+    """:func:`check_k` for ``method``'s meaning of k (em-ppca: k >= 0 modes, k + 1 basis shapes)."""
+    if method not in MEAN_PLUS_MODES:
+        return check_k(k, n_frames, n_points, n_observed, unknowns_per_frame=5)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+        raise TypeError(f"k (number of deformation modes) must be an integer, got {k!r}")
+    if k < 0:
+        raise ValueError(f"k (number of deformation modes of {method!r}) must be at least 0, got {k}")
+    try:
+        check_k(int(k) + 1, n_frames, n_points, n_observed, unknowns_per_frame=5)
+    except ValueError as exc:
+        limit = min(2 * n_frames, n_points - 1) // 3 - 1
+        raise ValueError(f"k={k} is too large for method {method!r} (k deformation modes + the mean = "
+                         f"{int(k) + 1} basis shapes; here k <= {limit} at most): {exc}") from None
+    return int(k)
 
 
 @dataclass(frozen=True)
@@ -38,14 +67,16 @@ class Reconstruction:
     ----------
     rotations : (F, 3, 3) float
         Object-to-camera rotations; the third row is the cross product of the first two.
-    weights : (F, K) float
-        Configuration weights (they carry each frame's projection scale).
-    basis : (K, 3, P) float
+    weights : (F, N) float
+        Configuration weights (they carry each frame's projection scale). N = K basis shapes,
+        except for ``method="em-ppca"`` where N = K + 1 (mean shape first, then the K modes).
+    basis : (N, 3, P) float
         Basis shapes in the object frame.
     translation : (F, 2) float
         Image translation of each frame: ``W_f ~ (R_f S_f)[:2] + t_f``.
     method : str
     k : int
+        The K passed to :func:`reconstruct` (for em-ppca the number of modes beyond the mean).
     reprojection_rms : float
         RMS over observed coordinates of the reprojection residual, in the units of W.
     info : dict
@@ -103,7 +134,7 @@ def _reprojection_rms(tracks, R, C, B, t) -> float:
 
 
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
-                n_starts: int = 4, refine_iter: int = 100) -> Reconstruction:
+                n_starts: int = 4, refine_iter: int = 100, em_iter: int = 2000) -> Reconstruction:
     """Non-rigid structure from motion: rotations, weights and basis shapes from 2D tracks.
 
     Parameters
@@ -111,9 +142,11 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     W : (2F, P) array_like
         Tracks under (scaled) orthography, rows u1, v1, u2, v2, ...
     k : int
-        Number of basis shapes K (see :func:`lipgen.nrsfm.reprojection_curve` to choose it).
+        Number of basis shapes K (see :func:`lipgen.nrsfm.reprojection_curve` to choose it). For
+        ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
+        shapes): em-ppca with K modes spans the same rank-3(K + 1) model as ``"dai"`` with K + 1.
     method : str
-        One of :data:`METHODS`: ``"bregler"``, ``"dai"`` (default) or ``"dai-ba"``.
+        One of :data:`METHODS`: ``"bregler"``, ``"dai"`` (default), ``"dai-ba"`` or ``"em-ppca"``.
     visible : (F, P) array_like of bool, optional
         Observed points; unobserved entries of W are ignored (NaN allowed there). Every method
         accepts it: the rank-3K factor is then taken from a low-rank completion of W, and
@@ -124,6 +157,8 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         Starting points of the rotation search (``"dai"``, ``"dai-ba"``).
     refine_iter : int
         Iteration cap of the bundle adjustment (``"dai-ba"``).
+    em_iter : int
+        Iteration cap of EM (``"em-ppca"``).
 
     Returns
     -------
@@ -139,7 +174,11 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         raise ValueError(f"unknown NRSfM method {method!r}; choose one of {sorted(METHODS)}")
     tracks = check_tracks(W, visible)
     F, P = tracks.mask.shape
-    k = check_k(k, F, P, tracks.n_observed, unknowns_per_frame=5)
+    k = check_method_k(k, method, F, P, tracks.n_observed)
+    if method == "em-ppca":
+        R, C, B, t, info = em_ppca(tracks, k, max_iter=em_iter, n_starts=n_starts, seed=seed)
+        return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
+                              reprojection_rms=_reprojection_rms(tracks, R, C, B, t), info=info)
     full = complete_tracks(tracks, 3 * k)
     t = full.mean(axis=1)
     Wc = full - t[:, None]
