@@ -1,6 +1,6 @@
 """Non-rigid structure from motion under orthography.
 
-- :func:`reconstruct` (``method="bregler"``, ``"dai"`` or ``"dai-ba"``, see :data:`METHODS`):
+- :func:`reconstruct` (``method="bregler"``, ``"dai"``, ``"dai-ba"`` or ``"em-ppca"``, see :data:`METHODS`):
   rotations, weights and basis shapes from 2D tracks W (2F x P), optionally with missing points.
 - :func:`e3d`: the benchmark's normalised 3D error.
 - :func:`reprojection_curve` / :func:`choose_k`: K from the reprojection error (Bregler Fig 2).
@@ -9,13 +9,15 @@
 
 from __future__ import annotations
 
-from .core import DEFAULT_METHOD, METHODS, Reconstruction, reconstruct
+from .core import DEFAULT_METHOD, MEAN_PLUS_MODES, METHODS, Reconstruction, n_basis_shapes, reconstruct
 from .io import load_shapes, load_tracks, save_shapes
 from .metrics import KCurve, choose_k, e3d, plot_curve, reprojection_curve
 
 __all__ = [
     "DEFAULT_METHOD",
     "METHODS",
+    "MEAN_PLUS_MODES",
+    "n_basis_shapes",
     "Reconstruction",
     "reconstruct",
     "e3d",

@@ -14,7 +14,8 @@ from .bregler import bregler_factorization
 from .emppca import em_ppca
 from .refine import bundle_adjust
 
-__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "n_basis_shapes", "check_method_k"]
+__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
+           "check_method_k"]
 
 log = logging.getLogger(__name__)
 
@@ -134,7 +135,7 @@ def _reprojection_rms(tracks, R, C, B, t) -> float:
 
 
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
-                n_starts: int = 4, refine_iter: int = 100, em_iter: int = 2000) -> Reconstruction:
+                n_starts: int = 4, refine_iter: int = 100, em_iter: int = 500) -> Reconstruction:
     """Non-rigid structure from motion: rotations, weights and basis shapes from 2D tracks.
 
     Parameters

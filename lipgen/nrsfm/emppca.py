@@ -157,7 +157,7 @@ def _update_cameras(Q, A, C, n_steps: int = 3):
     return Q, np.abs(c)
 
 
-def em_ppca(tracks: Tracks, k: int, *, max_iter: int = 2000, tol: float = 1e-9, n_starts: int = 4,
+def em_ppca(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_starts: int = 4,
             seed: int = 0):
     """Fit EM-PPCA to checked tracks.
 

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validate import as_float_array
-from ._tracks import check_k, check_tracks
-from .core import DEFAULT_METHOD, reconstruct
+from ._tracks import check_tracks
+from .core import DEFAULT_METHOD, MEAN_PLUS_MODES, check_method_k, reconstruct
 
 __all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve"]
 
@@ -127,7 +127,8 @@ def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, r
     ----------
     W : (2F, P) array_like
     ks : iterable of int, optional
-        Ks to try; by default 1 up to the largest K the data allow, at most 15.
+        Ks to try; by default 1 up to the largest K the data allow, at most 15 (for ``"em-ppca"``,
+        whose K counts modes beyond the mean shape, 0 up to one less).
     method : str
         Method whose reprojection is measured (see :data:`lipgen.nrsfm.METHODS`).
     visible : (F, P) array_like of bool, optional
@@ -143,7 +144,9 @@ def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, r
     if ks is None:
         limit = min(2 * F, P - 1) // 3
         ks = range(1, min(limit, 15) + 1)
-    ks = np.array([check_k(int(k), F, P, tracks.n_observed, unknowns_per_frame=5) for k in ks])
+        if method in MEAN_PLUS_MODES:
+            ks = [k - 1 for k in ks]
+    ks = np.array([check_method_k(int(k), method, F, P, tracks.n_observed) for k in ks])
     if ks.size == 0:
         raise ValueError("ks is empty: give at least one K")
     seen = np.repeat(tracks.mask, 2, axis=0)
@@ -180,7 +183,8 @@ def plot_curve(curve: KCurve, path) -> None:
     i = int(np.flatnonzero(curve.ks == curve.chosen)[0])
     ax.semilogy([curve.chosen], [100 * curve.relative[i]], "s", ms=11, mfc="none", color="tab:red",
                 label=f"chosen K = {curve.chosen}")
-    ax.set_xlabel("number of basis shapes K")
+    ax.set_xlabel("deformation modes K (beyond the mean shape)" if curve.method in MEAN_PLUS_MODES
+                  else "number of basis shapes K")
     ax.set_ylabel("RMS reprojection error (% of track RMS)")
     ax.set_title("Reprojection error against K (Bregler et al. Fig 2)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
