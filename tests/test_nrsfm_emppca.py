@@ -82,3 +82,20 @@ def test_bad_inputs():
     line = np.outer(np.arange(40.0), np.ones(12)) * np.linspace(0, 1, 12)
     with pytest.raises(ValueError, match="rank 1 < 3"):
         reconstruct(line, 0, method="em-ppca")
+
+
+def test_cli_em_ppca(tmp_path, capsys):
+    from lipgen.cli import main
+    from lipgen.nrsfm import load_shapes
+
+    W, S = _ppca_sequence(40, 12, 1, np.random.default_rng(3))
+    tracks = tmp_path / "tracks.npz"
+    np.savez(tracks, W=W, S=S)
+    out = tmp_path / "shapes.npz"
+    assert main(["nrsfm", str(tracks), "--k", "auto", "--kmax", "2", "--method", "em-ppca",
+                 "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "chosen K = 1" in text and "\n0   " in text  # the curve starts at 0 modes
+    saved = load_shapes(out)
+    assert saved["weights"].shape == (40, 2) and saved["basis"].shape == (2, 3, 12)
+    assert e3d(saved["S"], S) < 1e-6

@@ -40,12 +40,14 @@ def add_parser(sub) -> None:
         help="non-rigid SfM on the standard sequences (drink, jaws) beside the published e3D",
         description="Run every NRSfM method on drink and jaws (from $LIPGEN_NRSFM_DATA, default "
         "/work/shared/benchmarks/nrsfm) at the published Ks and at the K chosen from the "
-        "reprojection curve, and on synthetic articulated sequences; write benchmarks.md, "
-        "benchmarks.json and the curves to --out. Takes minutes ('dai-ba' at K = 12-13 on drink).",
+        "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
+        "and on synthetic articulated sequences; write benchmarks.md, benchmarks.json and the "
+        "curves to --out. Takes minutes ('dai-ba' at K = 12-13 on drink).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     n.add_argument("--out", default="renders/nrsfm", help="output folder")
-    n.add_argument("--methods", nargs="+", default=["bregler", "dai", "dai-ba"], help="methods to run")
+    n.add_argument("--methods", nargs="+", default=["bregler", "dai", "dai-ba", "em-ppca"],
+                   help="methods to run")
     n.add_argument("--no-synthetic", action="store_true", help="skip the synthetic articulated sequences")
     n.set_defaults(func=_nrsfm)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

@@ -15,7 +15,8 @@ False where a point is not observed; W may hold NaN there). If it also holds S (
 ground truth, as the benchmark files do), the e3D error is printed.
 
 SHAPES.npz gets S (3F x P camera-frame shapes, rows x1, y1, z1, x2, ...), R (F x 3 x 3),
-weights (F x K), basis (K x 3 x P), translation (F x 2), method, k, reprojection_rms.
+weights (F x K), basis (K x 3 x P) (K + 1 for em-ppca), translation (F x 2), method, k,
+reprojection_rms.
 Depth has a global sign ambiguity under orthography (a mirror image fits equally well).
 
 Methods:
@@ -23,6 +24,10 @@ Methods:
            trace norm that reproject exactly, cut to rank K. Fast.
   dai-ba   dai, then low-rank bundle adjustment (Levenberg-Marquardt on the reprojection
            error). More accurate, slower; exact on noise-free low-rank data, with missing points.
+  em-ppca  Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): a mean shape plus K Gaussian
+           deformation modes, fitted by EM from a rigid start; handles missing points. Here
+           K counts the modes BEYOND the mean shape, so em-ppca --k 2 has 3 basis shapes (the
+           size of dai --k 3), and --k 0 is rigid; weights are F x (K+1), basis (K+1) x 3 x P.
   bregler  Bregler, Hertzmann & Biermann 1999 as written (3x3 metric upgrade).
 
 --k auto reconstructs for K = 1, 2, ... and picks the smallest K whose RMS reprojection error
@@ -38,7 +43,8 @@ def add_parser(sub) -> None:
                        description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("tracks", metavar="TRACKS.npz", help="tracks file (W, optional visible, optional S)")
     p.add_argument("--k", required=True, metavar="K",
-                   help="number of basis shapes, or 'auto' to choose it from the reprojection curve")
+                   help="number of basis shapes (em-ppca: deformation modes beyond the mean), or 'auto' "
+                   "to choose it from the reprojection curve")
     p.add_argument("--method", default=DEFAULT_METHOD, choices=sorted(METHODS),
                    help=f"reconstruction method (default {DEFAULT_METHOD})")
     p.add_argument("--out", required=True, metavar="SHAPES.npz", help="output file")
@@ -59,11 +65,20 @@ def _parse_k(text: str):
     try:
         return int(text)
     except ValueError:
-        raise ValueError(f"--k must be a positive integer or 'auto', got {text!r}") from None
+        raise ValueError(f"--k must be an integer (at least 1; at least 0 for em-ppca) or 'auto', "
+                         f"got {text!r}") from None
 
 
 def _run(args) -> int:
-    from ..nrsfm import e3d, load_tracks, plot_curve, reconstruct, reprojection_curve, save_shapes
+    from ..nrsfm import (
+        MEAN_PLUS_MODES,
+        e3d,
+        load_tracks,
+        plot_curve,
+        reconstruct,
+        reprojection_curve,
+        save_shapes,
+    )
 
     out = Path(args.out)
     if out.exists() and not args.force:
@@ -76,7 +91,8 @@ def _run(args) -> int:
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
     if k == "auto" or plot:
-        ks = range(1, args.kmax + 1) if args.kmax else None
+        first = 0 if args.method in MEAN_PLUS_MODES else 1
+        ks = range(first, args.kmax + 1) if args.kmax else None
         curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
                                    progress=True, seed=args.seed)
         write("K   RMS reprojection   % of track RMS\n")
