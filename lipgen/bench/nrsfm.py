@@ -16,7 +16,7 @@ from .measure import time_call
 
 NAME = "nrsfm"
 
-_KS = {"bregler": (4, 8, 12, 13), "dai": (4, 8, 12, 13), "dai-ba": (4, 8, 12), "em-ppca": (5, 12, 13)}
+_KS = {"bregler": (4, 8, 12, 13), "dai": (4, 8, 12, 13), "dai-ba": (4, 8, 12), "em-ppca": (5, 11, 12)}
 _KS_QUICK = {"bregler": (4, 12), "dai": (4, 12), "dai-ba": (4,), "em-ppca": (5,)}
 """K per method; em-ppca's K counts modes beyond the mean shape (K + 1 basis shapes)."""
 

@@ -51,12 +51,18 @@ def check_method_k(k, method: str, n_frames: int, n_points: int, n_observed: int
         raise TypeError(f"k (number of deformation modes) must be an integer, got {k!r}")
     if k < 0:
         raise ValueError(f"k (number of deformation modes of {method!r}) must be at least 0, got {k}")
+    k = int(k)
+    limit = min(2 * n_frames, n_points - 1) // 3 - 1
+    if k > limit:
+        raise ValueError(
+            f"k={k} is too large for method {method!r} on tracks of {n_frames} frames and {n_points} "
+            f"points: k deformation modes + the mean = {k + 1} basis shapes, whose rank-3(k + 1) model "
+            f"needs 3(k + 1) <= min(2F, P - 1) = {min(2 * n_frames, n_points - 1)}, so k <= {limit}")
     try:
-        check_k(int(k) + 1, n_frames, n_points, n_observed, unknowns_per_frame=5)
+        check_k(k + 1, n_frames, n_points, n_observed, unknowns_per_frame=5)
     except ValueError as exc:
-        limit = min(2 * n_frames, n_points - 1) // 3 - 1
-        raise ValueError(f"k={k} is too large for method {method!r} (k deformation modes + the mean = "
-                         f"{int(k) + 1} basis shapes; here k <= {limit} at most): {exc}") from None
+        raise ValueError(f"method {method!r} with k={k} deformation modes ({k + 1} basis shapes): "
+                         f"{exc}") from None
     return int(k)
 
 
