@@ -13,7 +13,7 @@ _HINTS = {
     "pxr": "pip install 'lipgen[usd]'  (package usd-core)",
     "pyrender": "pip install 'lipgen[render]'  (pyrender, PyOpenGL; needs Mesa EGL: "
     "apt install libegl1 libgl1-mesa-dri)",
-    "cv2": "pip install opencv-python-headless",
+    "cv2": "pip install 'lipgen[vision]'  (opencv-python-headless)",
     "bpy": "pip install 'lipgen[blender]'  (bpy==5.0.1 needs Python 3.11)",
     "skfem": "pip install scikit-fem",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",

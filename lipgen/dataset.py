@@ -29,11 +29,12 @@ from .camera import VIEWS, MirrorRig
 from .errors import DatasetError, ModelFileError
 
 __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "TRUTH_FIELDS",
-           "build_manifest", "validate_manifest", "frame_paths", "calib_paths"]
+           "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels"]
 
 SCHEMA = 1
 FORMAT = "lipgen.dataset"
 FRAME_KIND, CALIB_KIND = "lipgen.dataset.frame", "lipgen.dataset.calibration"
+DEPTH_KIND = "lipgen.dataset.depth"
 
 TRUTH_FIELDS: dict[str, str] = {
     "index": "frame number", "time": "seconds",
@@ -74,6 +75,10 @@ class GenerateSettings:
     board: tuple[int, int, float] = (9, 6, 8.0)
     """Chessboard inner corners (cols, rows) and square size, mm."""
     png_compress_level: int = 1
+    depth: bool = False
+    """Also write each raw frame's depth (``depth/NNNNNN.npz``: view-camera z in mm, NaN off the face)."""
+    masks: bool = False
+    """Also write each raw frame's label mask (``masks/NNNNNN.png``: ids in ``manifest['mask_labels']``)."""
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -101,6 +106,9 @@ class GenerateSettings:
             from .motion import parse_script
 
             parse_script(self.script)  # unknown visemes: a clear error now, not after the simulation
+        for name in ("depth", "masks"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         c, r, sq = self.board
         object.__setattr__(self, "board", (int(c), int(r), float(sq)))
 
@@ -128,9 +136,33 @@ def calib_paths(root, i: int) -> tuple[Path, Path]:
     return Path(root) / "calib" / f"{i:06d}.png", Path(root) / "calib" / f"{i:06d}.npz"
 
 
+def extra_paths(root, i: int) -> tuple[Path, Path]:
+    """(depth npz, mask PNG) of frame ``i``, written when the settings ask for them."""
+    return Path(root) / "depth" / f"{i:06d}.npz", Path(root) / "masks" / f"{i:06d}.png"
+
+
+def _frame_entry(s: GenerateSettings, i: int) -> dict:
+    entry = {"index": i, "time": i / s.fps, "raw": f"raw/{i:06d}.png", "truth": f"truth/{i:06d}.npz"}
+    if s.depth:
+        entry["depth"] = f"depth/{i:06d}.npz"
+    if s.masks:
+        entry["mask"] = f"masks/{i:06d}.png"
+    return entry
+
+
+def mask_labels(mesh) -> dict[str, str]:
+    """Label id (as a string, for JSON) -> name, for the masks of a dataset of ``mesh``."""
+    from .face import DOT_LABEL0, LABELS
+
+    labels = {str(k): v for k, v in LABELS.items()}
+    labels.update({str(DOT_LABEL0 + k): f"dot:{n}" for k, n in enumerate([*mesh.marker_names, "nose"])})
+    return labels
+
+
 def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str) -> dict:
     """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths)."""
-    return {
+    extra = {"mask_labels": mask_labels(mesh)} if s.masks else {}
+    return extra | {
         "format": FORMAT, "schema_version": SCHEMA, "lipgen_version": version, "units": "mm",
         "convention": "opencv",
         "pixels": "pixel (0, 0) is the centre of the top-left pixel; uv = (column, row)",
@@ -139,8 +171,7 @@ def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str]
                  "resolution": s.subject_resolution, "n_nodes": mesh.n_nodes, "n_faces": mesh.n_faces,
                  "marker_names": list(mesh.marker_names), "regions": list(mesh.region_names)},
         "marks": list(mesh.marker_names) + ["nose"], "actions": list(actions),
-        "frames": [{"index": i, "time": i / s.fps, "raw": f"raw/{i:06d}.png", "truth": f"truth/{i:06d}.npz"}
-                   for i in range(s.frames)],
+        "frames": [_frame_entry(s, i) for i in range(s.frames)],
         "truth": {"kind": FRAME_KIND, "schema": SCHEMA, "fields": TRUTH_FIELDS},
         "calibration": {
             "board": {"type": "chessboard", "inner_cols": s.board[0], "inner_rows": s.board[1],
@@ -259,7 +290,31 @@ class Dataset:
     def missing(self) -> list[int]:
         """Frames whose files are not (yet) written; ``lipgen generate --resume`` completes them."""
         return [i for i, f in enumerate(self.manifest["frames"])
-                if not ((self.path / f["raw"]).is_file() and (self.path / f["truth"]).is_file())]
+                if not all((self.path / f[k]).is_file() for k in ("raw", "truth", "depth", "mask") if k in f)]
+
+    def depth(self, i: int) -> np.ndarray:
+        """(H, W) float32 depth of raw frame ``i``: each half's view-camera z, mm (the mirror half
+        measures along the reflected ray, as its virtual camera sees it); NaN where no surface."""
+        f = self._extra(i, "depth", "--depth")
+        return load_npz(self.path / f, DEPTH_KIND, SCHEMA)["depth"]
+
+    def mask(self, i: int) -> np.ndarray:
+        """(H, W) uint8 labels of raw frame ``i``; names in ``manifest['mask_labels']`` (0 background,
+        1 skin, 2 vermilion, 3 mouth, 10 + k the ink dot of mark k)."""
+        from PIL import Image
+
+        with Image.open(self.path / self._extra(i, "mask", "--masks")) as im:
+            return np.asarray(im)
+
+    def _extra(self, i: int, key: str, flag: str) -> str:
+        f = self.manifest["frames"][i]
+        if key not in f:
+            raise DatasetError(f"{self.path} was generated without {key}s; regenerate with lipgen generate "
+                               f"{flag}")
+        if not (self.path / f[key]).is_file():
+            raise DatasetError(f"{self.path}: {f[key]} is missing; finish the dataset with lipgen generate "
+                               "--resume (same settings)")
+        return f[key]
 
     def _load(self, rel_png: str, rel_npz: str, kind: str) -> tuple[np.ndarray, dict]:
         from PIL import Image

@@ -25,12 +25,12 @@ from .decal import make_decal, place_decal
 from .mesh import LipMesh
 from .scene import Light, Material, MeshItem, Scene, vertex_normals
 
-__all__ = ["FaceLook", "FaceModel", "LABELS", "boundary_loops"]
+__all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops"]
 
 LABELS = {0: "background", 1: "skin", 2: "vermilion", 3: "mouth"}
 """Label ids of label renders; ink dots are ``10 + k`` for marker k and ``10 + n_markers`` for the nose."""
 
-_DOT_LABEL0 = 10
+DOT_LABEL0 = 10
 # face profile: depth of the face surface at the midline against height (mm, model frame)
 _PROFILE_Y = np.array([-95, -80, -68, -50, -30, 0, 20, 35, 55, 75, 100, 130.0])
 _PROFILE_Z = np.array([-60, -30, -14, -10, -9, -4, -5, -8, -24, -26, -20, -30.0])
@@ -140,7 +140,7 @@ class FaceModel:
         self.materials = (Material("skin", look.skin, 0.65, label=1),
                           Material("vermilion", look.vermilion, 0.4, label=2),
                           Material("mucosa", look.mucosa, 0.4, double_sided=True, label=3))
-        self.ink = tuple(Material(f"ink_{k}", look.ink, 0.8, label=_DOT_LABEL0 + k)
+        self.ink = tuple(Material(f"ink_{k}", look.ink, 0.8, label=DOT_LABEL0 + k)
                          for k in range(len(mesh.markers) + 1))
         self.cavity_material = Material("cavity", look.cavity, 0.9, double_sided=True, label=3)
         if look.surroundings:
@@ -270,8 +270,8 @@ class FaceModel:
             items.append(MeshItem("cavity", Vc, Fc, (self.cavity_material,), None, Nc))
         items.append(_dots_item(dots, self.ink, self.look.dot_lift))
         labels = dict(LABELS)
-        labels.update({_DOT_LABEL0 + k: f"dot:{name}" for k, name in enumerate(self.mesh.marker_names)})
-        labels[_DOT_LABEL0 + len(self.mesh.markers)] = "dot:nose"
+        labels.update({DOT_LABEL0 + k: f"dot:{name}" for k, name in enumerate(self.mesh.marker_names)})
+        labels[DOT_LABEL0 + len(self.mesh.markers)] = "dot:nose"
         return Scene(tuple(items), default_lights() if lights is None else lights, (0.22, 0.2, 0.2),
                      self.look.background, labels)
 

@@ -15,7 +15,7 @@ import json
 import logging
 import multiprocessing
 import os
-from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,10 +26,12 @@ from ._io import atomic_write_bytes, atomic_write_json, save_npz
 from .camera import VIEWS, MirrorRig, default_rig
 from .dataset import (
     CALIB_KIND,
+    DEPTH_KIND,
     FRAME_KIND,
     SCHEMA,
     GenerateSettings,
     calib_paths,
+    extra_paths,
     frame_paths,
     validate_manifest,
 )
@@ -148,7 +150,9 @@ def _render_job(job: tuple[str, int]):
     rng = np.random.default_rng([s.seed, _NOISE_STREAM, 0 if kind == "frame" else 1, i])
     if kind == "frame":
         V, P = ctx.vertices[i], ctx.poses[i]
-        image = _noisy(w["renderer"].render(w["face"].scene(V, P)).image, s.noise, rng)
+        rendered = w["renderer"].render(w["face"].scene(V, P), depth=s.depth, labels=s.masks)
+        image = _noisy(rendered.image, s.noise, rng)
+        extras = _extras(rendered, *extra_paths(out, i), s.png_compress_level)
         truth = frame_truth(rig, w["face"], V, P)
         names = np.array(list(w["mesh"].marker_names) + ["nose"])
         truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
@@ -167,11 +171,27 @@ def _render_job(job: tuple[str, int]):
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
         png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
-    return image, truth, png, npz, kind_tag, s.png_compress_level
+        extras = []
+    return image, truth, png, npz, kind_tag, s.png_compress_level, extras
 
 
-def _write(image, truth, png, npz, kind_tag, level) -> None:
-    """Write a frame's PNG then its truth, each atomically (the frame counts once both exist)."""
+def _extras(rendered, depth_path: Path, mask_path: Path, level: int) -> list:
+    """The optional depth and mask files of a frame, as ``(path, writer)`` pairs."""
+    out = []
+    if rendered.depth is not None:
+        z = np.where(rendered.depth > 0, rendered.depth, np.nan).astype(np.float32)  # 0: nothing drawn
+        out.append((depth_path, lambda p: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z})))
+    if rendered.labels is not None:
+        mask = _png_bytes(rendered.labels.astype(np.uint8), level)
+        out.append((mask_path, lambda p: atomic_write_bytes(p, mask)))
+    return out
+
+
+def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
+    """Write a frame's depth and mask (if asked), its PNG, then its truth, each atomically; the frame
+    counts as written once the truth exists, so the truth goes last."""
+    for path, write in extras:
+        write(path)
     atomic_write_bytes(png, _png_bytes(image, level))
     save_npz(npz, kind_tag, SCHEMA, truth)
 
@@ -274,7 +294,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
     if not _prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
-    for sub in ("raw", "truth", "calib"):
+    for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
         (out / sub).mkdir(exist_ok=True)
     mesh_path = out / "mesh.npz"
     if not mesh_path.is_file():
@@ -316,7 +336,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
                 pending = set(futures)
                 try:
                     while pending:
-                        finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
                         for fut in finished:
                             fut.result()  # re-raise a worker's error here
                             bar.update()

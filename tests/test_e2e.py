@@ -111,7 +111,10 @@ def test_cli_train_and_evaluate(tmp_path, dataset, recon):
         "an existing model is not overwritten without --force"
     assert main(["evaluate", str(dataset), "--model", str(tmp_path / "m.npz"), "--recon",
                  str(tmp_path / "recon.npz"), "--out", str(tmp_path / "rep"), "--test-frames", "3"]) == 0
-    assert (tmp_path / "rep" / "report.md").is_file()
+    text = (tmp_path / "rep" / "report.md").read_text()
+    nrsfm = text[text.index("## Non-rigid SfM on one view"):]
+    assert "Not run" not in nrsfm
+    assert "the truth's projections" in nrsfm and "tracked by `track.py`" in nrsfm
 
 
 def _copy(dataset, tmp_path):

@@ -209,3 +209,21 @@ def test_evaluate_on_dataset(tmp_path):
     assert "e3D" in result["markdown"]
     with pytest.raises(ValueError, match="view must be one of"):
         evaluate_on_dataset(path, "left")
+
+    # Measured tracks: the truth's pixels plus 0.5 px noise, one mark lost for a few frames.
+    from lipgen._io import load_npz
+    from lipgen.dataset import FRAME_KIND, SCHEMA, Dataset
+    from lipgen.errors import DatasetError
+
+    ds = Dataset(path)
+    uv = np.array([load_npz(path / f["truth"], FRAME_KIND, SCHEMA)["uv"][1] for f in ds.manifest["frames"]])
+    noisy = uv + np.random.default_rng(0).normal(0.0, 0.5, uv.shape)
+    seen = np.isfinite(uv).all(axis=-1)
+    seen[3:7, 2] = False
+    data = dataset_tracks(path, "real", uv=noisy, seen=seen)
+    assert 0.5 < data["pixels_rms"] < 0.9  # 0.5 px per axis: ~0.71 px per point, against the truth
+    assert np.isnan(data["W"][2 * 3:2 * 7, 2]).all() and not data["visible"][3:7, 2].any()
+    measured = evaluate_on_dataset(path, "real", k=1, method="dai", uv=noisy, seen=seen)
+    assert "tracked by" in measured["markdown"] and np.isfinite(measured["e3d"])
+    with pytest.raises(DatasetError, match="were the tracks made from this dataset"):
+        dataset_tracks(path, "real", uv=noisy[:5], seen=seen[:5])

@@ -50,7 +50,8 @@ def _run(args) -> int:
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)
-    path = write_report(out, s, ds, model, recon, mesh, {"Non-rigid SfM on one view": nrsfm_section(ds)})
+    extra = {"Non-rigid SfM on one view": nrsfm_section(ds, recon)}
+    path = write_report(out, s, ds, model, recon, mesh, extra)
     sys.stdout.write(f"3-D markers {s['triangulation']['rms_mm']:.3f} mm RMS, normalisation "
                      f"{s['normalisation']['rms_mm']:.3f} mm RMS; report: {path}\n")
     return 0

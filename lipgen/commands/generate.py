@@ -8,7 +8,9 @@ import sys
 _EPILOG = """\
 The folder gets manifest.json, mesh.npz, raw/NNNNNN.png (the camera-mirror frames), truth/NNNNNN.npz
 (vertices, head pose, activations, 3-D marks and their projections and visibility in both views)
-and calib/ (a chessboard in known poses, to calibrate the rig from images). The same settings
+and calib/ (a chessboard in known poses, to calibrate the rig from images); with --depth also
+depth/NNNNNN.npz (per-pixel camera depth, mm) and with --masks masks/NNNNNN.png (per-pixel labels:
+skin, vermilion, mouth, each ink dot; legend in the manifest). The same settings
 give the same bytes. A run that was stopped continues with --resume; a folder holding anything
 else is never overwritten.
 
@@ -16,6 +18,7 @@ examples:
   lipgen generate --frames 150 --seed 0 --script "AA:0.3 EE:0.2 OO M:0.15 F REST:0.4" --out data/s0
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2 --resume
+  lipgen generate --frames 30 --depth --masks --out data/s2
 """
 
 
@@ -50,6 +53,8 @@ def add_parser(sub) -> None:
     opt("--head-translation", type=float, default=4.0, help="head translation range, mm (default 4)")
     opt("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
     opt("--dot-diameter", type=float, default=2.0, help="ink dot diameter, mm (default 2)")
+    opt("--depth", action="store_true", help="also write each frame's depth image (depth/NNNNNN.npz)")
+    opt("--masks", action="store_true", help="also write each frame's label mask (masks/NNNNNN.png)")
     opt("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -62,7 +67,7 @@ def _run(args) -> int:
         frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames)
+        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

@@ -5,11 +5,13 @@
 - :func:`e3d`: the benchmark's normalised 3D error.
 - :func:`reprojection_curve` / :func:`choose_k`: K from the reprojection error (Bregler Fig 2).
 - :func:`load_tracks` / :func:`save_shapes`: the ``lipgen nrsfm`` file formats.
+- :func:`evaluate_on_dataset`: one view of a ``lipgen generate`` dataset, scored against its truth.
 """
 
 from __future__ import annotations
 
 from .core import DEFAULT_METHOD, MEAN_PLUS_MODES, METHODS, Reconstruction, n_basis_shapes, reconstruct
+from .dataset_eval import dataset_tracks, evaluate_on_dataset
 from .io import load_shapes, load_tracks, save_shapes
 from .metrics import KCurve, choose_k, e3d, plot_curve, reprojection_curve
 
@@ -28,4 +30,6 @@ __all__ = [
     "load_tracks",
     "save_shapes",
     "load_shapes",
+    "dataset_tracks",
+    "evaluate_on_dataset",
 ]

@@ -26,7 +26,7 @@ __all__ = ["dataset_tracks", "evaluate_on_dataset"]
 log = logging.getLogger(__name__)
 
 
-def dataset_tracks(path, view: str = "real", marks=None):
+def dataset_tracks(path, view: str = "real", marks=None, uv=None, seen=None):
     """Weak-perspective tracks of one view of a dataset, with the camera-frame truth.
 
     Parameters
@@ -37,6 +37,12 @@ def dataset_tracks(path, view: str = "real", marks=None):
         ``"real"`` or ``"virtual"`` (the mirror view).
     marks : sequence of int, optional
         Mark indices to use (default all: 16 markers then the nose).
+    uv : (F, P_all, 2) float, optional
+        Measured pixel tracks of this view (e.g. ``Reconstruction.uv[v]`` from ``track.py``), in
+        the same corrected view coordinates as the truth's ``uv``, for all marks in dataset order.
+        Default: the truth's exact projections.
+    seen : (F, P_all) bool, optional
+        Where ``uv`` holds a sighting (required with ``uv``).
 
     Returns
     -------
@@ -45,7 +51,8 @@ def dataset_tracks(path, view: str = "real", marks=None):
         for every mark (occluded ones included, from the truth), ``visible`` (F, P),
         ``S`` (3F, P) true marks in the view camera's frame (mm), ``depth`` (mean true depth, mm),
         ``relief`` (RMS over frames of the marks' depth spread divided by their depth),
-        ``pixels_rms`` (RMS of the truth's projection check, px).
+        ``pixels_rms`` (RMS distance, px, between the tracks and the truth's projections: ~0 for
+        the truth's own pixels, the tracking error for measured ones).
     """
     from ..dataset import FRAME_KIND, SCHEMA, Dataset
 
@@ -58,21 +65,24 @@ def dataset_tracks(path, view: str = "real", marks=None):
     if ds.missing():
         raise DatasetError(f"{path}: frames {ds.missing()[:5]}... are not written; finish the dataset "
                            "with lipgen generate --resume")
-    uv, X, vis = [], [], []
+    measured = uv
+    uv_truth, X, vis = [], [], []
     for f in ds.manifest["frames"]:
         truth = load_npz(Path(path) / f["truth"], FRAME_KIND, SCHEMA)
-        uv.append(truth["uv"][v])
+        uv_truth.append(truth["uv"][v])
         X.append(truth["marks_world"])
         vis.append(truth["visible"][v])
-    uv, X, vis = np.array(uv, float), np.array(X, float), np.array(vis, bool)
+    uv, X, vis = np.array(uv_truth, float), np.array(X, float), np.array(vis, bool)
+    if measured is not None:
+        uv, vis = _measured_tracks(measured, seen, uv.shape)
     if marks is not None:
         idx = np.asarray(marks, dtype=int)
         uv, X, vis = uv[:, idx], X[:, idx], vis[:, idx]
     X_cam = X @ cam.R.T + cam.t                               # (F, P, 3) view camera frame, mm
     depth = float(X_cam[..., 2].mean())
     check = cam.project(X)
-    pixels_rms = float(np.sqrt(np.nanmean((check - uv) ** 2)))
-    xy = cam.normalized(uv) * depth                           # weak perspective, mm
+    pixels_rms = float(np.sqrt(np.nanmean(np.sum((check - uv) ** 2, axis=-1))))  # per point, px
+    xy = cam.normalized(np.where(vis[..., None], uv, 0.0)) * depth  # weak perspective, mm
     F, P = vis.shape
     W = xy.transpose(0, 2, 1).reshape(2 * F, P).copy()
     W[np.repeat(~vis, 2, axis=0)] = np.nan
@@ -85,8 +95,22 @@ def dataset_tracks(path, view: str = "real", marks=None):
             "pixels_rms": pixels_rms}
 
 
+def _measured_tracks(uv, seen, shape):
+    """Check tracker output against the truth's shape; unseen entries become NaN."""
+    uv = np.asarray(uv, dtype=float)
+    if seen is None:
+        raise ValueError("measured tracks need `seen` (F, P) bool: where each mark was sighted")
+    seen = np.asarray(seen, dtype=bool)
+    if uv.shape != shape or seen.shape != shape[:2]:
+        raise DatasetError(f"measured tracks have uv {uv.shape} and seen {seen.shape}, but the dataset "
+                           f"has {shape[0]} frames x {shape[1]} marks: (F, P, 2) and (F, P) expected; "
+                           "were the tracks made from this dataset?")
+    seen = seen & np.isfinite(uv).all(axis=-1)
+    return np.where(seen[..., None], uv, np.nan), seen
+
+
 def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFAULT_METHOD,
-                        marks=None, use_visibility: bool = True) -> dict:
+                        marks=None, use_visibility: bool = True, uv=None, seen=None) -> dict:
     """Reconstruct one view of a dataset by NRSfM and score it against the true marks.
 
     Parameters
@@ -103,7 +127,10 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
         Marks to use (default all 17: markers and nose).
     use_visibility : bool
         Treat marks the truth flags as not visible in this view as missing (default). If False,
-        every projection is used, occluded or not.
+        every projection is used, occluded or not (truth projections only).
+    uv, seen : (F, P_all, 2) float and (F, P_all) bool, optional
+        Measured tracks (``track.py``) to use instead of the truth's projections; see
+        :func:`dataset_tracks`.
 
     Returns
     -------
@@ -111,12 +138,14 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
         ``e3d`` (benchmark metric), ``flat_e3d`` (the same for the tracks with zero depth: the
         score of not reconstructing depth at all), ``mean_error_mm`` (mean point distance after the same
         alignment, in mm), ``frames``, ``points``, ``observed_fraction``, ``k``, ``method``,
-        ``view``, ``reprojection_rms_mm``, ``depth_mm``, ``relief``, and ``markdown`` (a
-        snippet for the end-to-end report).
+        ``view``, ``reprojection_rms_mm``, ``depth_mm``, ``relief``, ``tracks`` (which tracks
+        were used), ``tracking_rms_px`` (their error against the truth; 0 for the truth's own
+        projections), and ``markdown`` (a snippet for the end-to-end report).
     """
-    data = dataset_tracks(path, view, marks)
+    data = dataset_tracks(path, view, marks, uv=uv, seen=seen)
     W, visible, S = data["W"], data["visible"], data["S"]
-    if not use_visibility:
+    source = "tracked by `track.py`" if uv is not None else "the truth's projections"
+    if not use_visibility and uv is None:
         W, visible = data["W_all"], np.ones_like(visible)
     rec = reconstruct(W, k, method=method, visible=None if visible.all() else visible)
     err = e3d(rec.S, S)
@@ -129,14 +158,16 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
     result = {"e3d": err, "flat_e3d": flat_err, "mean_error_mm": err * s, "frames": F, "points": P,
               "observed_fraction": float(visible.mean()), "k": rec.k, "method": method, "view": view,
               "reprojection_rms_mm": rec.reprojection_rms, "depth_mm": data["depth"],
-              "relief": data["relief"]}
+              "relief": data["relief"], "tracks": source,
+              "tracking_rms_px": data["pixels_rms"] if uv is not None else 0.0}
     result["markdown"] = (
         f"**Monocular NRSfM ({method}, K = {rec.k}) on the {view} view**: {F} frames x {P} marks "
         f"({100 * result['observed_fraction']:.1f} % observed). e3D = **{err:.4f}** "
         f"(mean 3D error {result['mean_error_mm']:.3f} mm after one global rotation/reflection; "
         f"a flat reconstruction, the tracks with zero depth, scores {flat_err:.4f}), "
-        f"RMS reprojection {rec.reprojection_rms:.3f} mm. Tracks are the truth's projections made "
-        f"weak-perspective (normalised coordinates x mean depth {data['depth']:.0f} mm); the marks' "
+        f"RMS reprojection {rec.reprojection_rms:.3f} mm. Tracks are {source}"
+        + (f" ({data['pixels_rms']:.2f} px RMS from the truth)" if uv is not None else "")
+        + f", made weak-perspective (normalised coordinates x mean depth {data['depth']:.0f} mm); the marks' "
         f"depth relief is {100 * data['relief']:.2f} % of their depth, so perspective is part of "
         "the error, and the depth sign is fixed only up to one global reflection.")
     return result
