@@ -160,8 +160,9 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
 
     Each action gets gestures at random times (``gestures_per_second`` per action on average, the
     jaw twice as often, as in speech, the one-sided actions of :data:`ONE_SIDED` half as often;
-    every action at least once), so that symmetric and one-sided gestures mix; each a raised-cosine bump of
-    0.25-0.9 s and peak 0.2-1.0. Sums are saturated smoothly with tanh, so overlapping gestures
+    every symmetric action at least once, the one-sided ones only as drawn, so that a short clip
+    is mostly symmetric and a long sequence mixes in asymmetric expressions), each a raised-cosine
+    bump of 0.25-0.9 s and peak 0.2-1.0. Sums are saturated smoothly with tanh, so overlapping gestures
     stay below 1.
     """
     n_frames = int(n_frames)
@@ -176,7 +177,8 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
         raise ValueError(f"gestures_per_second must be >= 0, got {gestures_per_second}")
     for a, name in enumerate(ACTIONS):
         rate = gestures_per_second * (2.0 if name == "jaw_open" else 0.5 if name in ONE_SIDED else 1.0)
-        k = 1 + rng.poisson(rate * span)  # every action appears at least once
+        # Every symmetric action appears at least once; the one-sided ones are occasional.
+        k = (0 if name in ONE_SIDED else 1) + rng.poisson(rate * span)
         start = rng.uniform(-0.3, span - 0.3, size=k)
         dur = rng.uniform(0.25, 0.9, size=k)
         peak = rng.uniform(0.2, 1.0, size=k)
