@@ -179,7 +179,9 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
         rate = gestures_per_second * (2.0 if name == "jaw_open" else 0.5 if name in ONE_SIDED else 1.0)
         # Every symmetric action appears at least once; the one-sided ones are occasional.
         k = (0 if name in ONE_SIDED else 1) + rng.poisson(rate * span)
-        start = rng.uniform(-0.3, span - 0.3, size=k)
+        # One-sided gestures start within the clip, so that its first frame is symmetric (the
+        # tracker and the normalisation take their layout from it, as a recording starts at rest).
+        start = rng.uniform(0.0 if name in ONE_SIDED else -0.3, span - 0.3, size=k)
         dur = rng.uniform(0.25, 0.9, size=k)
         peak = rng.uniform(0.2, 1.0, size=k)
         phase = (t[:, None] - start) / dur
