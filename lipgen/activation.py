@@ -181,7 +181,8 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
         k = (0 if name in ONE_SIDED else 1) + rng.poisson(rate * span)
         # One-sided gestures start within the clip, so that its first frame is symmetric (the
         # tracker and the normalisation take their layout from it, as a recording starts at rest).
-        start = rng.uniform(0.0 if name in ONE_SIDED else -0.3, span - 0.3, size=k)
+        low = 0.0 if name in ONE_SIDED else -0.3
+        start = rng.uniform(low, max(span - 0.3, low), size=k)
         dur = rng.uniform(0.25, 0.9, size=k)
         peak = rng.uniform(0.2, 1.0, size=k)
         phase = (t[:, None] - start) / dur
