@@ -16,6 +16,15 @@ def _lip_object(context):
     return ob if ob is not None and ob.type == "MESH" else None
 
 
+class _SetUpLipsPanel(_LipgenPanel):
+    """A sub-panel shown only for a mesh that LipGen has been set up on."""
+
+    @classmethod
+    def poll(cls, context):
+        ob = _lip_object(context)
+        return ob is not None and ob.lipgen.enabled
+
+
 class VIEW3D_PT_lipgen(_LipgenPanel, bpy.types.Panel):
     bl_label = "LipGen"
 
@@ -64,14 +73,9 @@ class VIEW3D_PT_lipgen_physics(_LipgenPanel, bpy.types.Panel):
             layout.label(text=s.status)
 
 
-class VIEW3D_PT_lipgen_modes(_LipgenPanel, bpy.types.Panel):
+class VIEW3D_PT_lipgen_modes(_SetUpLipsPanel, bpy.types.Panel):
     bl_label = "Modes"
     bl_parent_id = "VIEW3D_PT_lipgen"
-
-    @classmethod
-    def poll(cls, context):
-        ob = _lip_object(context)
-        return ob is not None and ob.lipgen.enabled
 
     def draw(self, context):
         s = _lip_object(context).lipgen
@@ -96,14 +100,9 @@ class VIEW3D_PT_lipgen_modes(_LipgenPanel, bpy.types.Panel):
         layout.operator("object.lipgen_clear_modes", icon="X")
 
 
-class VIEW3D_PT_lipgen_force(_LipgenPanel, bpy.types.Panel):
+class VIEW3D_PT_lipgen_force(_SetUpLipsPanel, bpy.types.Panel):
     bl_label = "Force"
     bl_parent_id = "VIEW3D_PT_lipgen"
-
-    @classmethod
-    def poll(cls, context):
-        ob = _lip_object(context)
-        return ob is not None and ob.lipgen.enabled
 
     def draw(self, context):
         ob = _lip_object(context)
@@ -136,15 +135,10 @@ class VIEW3D_PT_lipgen_force(_LipgenPanel, bpy.types.Panel):
         box.operator("object.lipgen_reach_live", icon="PLAY")
 
 
-class VIEW3D_PT_lipgen_output(_LipgenPanel, bpy.types.Panel):
+class VIEW3D_PT_lipgen_output(_SetUpLipsPanel, bpy.types.Panel):
     bl_label = "Animation & Export"
     bl_parent_id = "VIEW3D_PT_lipgen"
     bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        ob = _lip_object(context)
-        return ob is not None and ob.lipgen.enabled
 
     def draw(self, context):
         layout = self.layout

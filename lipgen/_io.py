@@ -99,7 +99,8 @@ def load_npz(path: str | os.PathLike, kind: str, schema: int,
     if not p.is_file():
         raise FileNotFoundError(f"no such file: {p}")
     try:
-        with np.load(p, allow_pickle=False) as data:
+        # our own handle: np.load leaks its file when the zip is corrupt
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as data:
             out = {k: data[k] for k in data.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise ModelFileError(
