@@ -41,12 +41,12 @@ the test motions enters.
 Measured on the Table 5.1 experiment (``lipgen experiment table51``, seed 0, 140 training
 frames, 10 modes, the synthetic subject with one-sided actions; held-out log-likelihoods per frame):
 
-- noise-free markers: K_s⁻² (19.9 nats against −1.0 for the best K_s⁻¹), σ² = 0.032 of the
+- noise-free markers: K_s⁻² (19.4 nats against 0.0 for the best K_s⁻¹), σ² = 0.032 of the
   learned variance at the markers, τ² = 0; trained without the smile and the funneler: K_s⁻²,
   σ² share 0.010, τ² = 0;
-- 0.3 mm marker noise (true τ² = 0.09 mm²): K_s⁻² (−36.7 against −38.5), σ² share 0.24,
-  τ² = 0.067 mm²; without the smile and the funneler: σ² share 0.13, τ² = 0.071 mm². The noise is
-  found to within 20-26 %; the rest of it is read as physical residual.
+- 0.3 mm marker noise (true τ² = 0.09 mm²): K_s⁻² (−36.6 against −38.2), σ² share 0.24,
+  τ² = 0.067 mm²; without the smile and the funneler: σ² share 0.075, τ² = 0.094 mm². The noise
+  is found to within 5-25 %; the rest of it is read as physical residual.
 
 How reliably it beats both, on 12 small random realisations of the held-out-action protocol
 (140 training frames without the smile and the funneler, test frames that use them; seeds
@@ -70,10 +70,11 @@ with no noise variance: with noisy markers the full-rank prior then reaches ever
 exactly and chases the noise. τ² is now passed to the LLSE by default (``llse(dofs)`` uses
 ``noise_variance_``). Leave-*actions*-out folds (hold out the frames where one action is active,
 train on those where it is quiet; ``fit(folds=...)`` takes any split) chose larger shares (0.32
-noise-free, 0.56 noisy) and were worse on the held-out actions of Table 5.1 in five of its six
-rows (e.g. y-z, noise-free: 0.266 mm² against 0.256 with the blocks, and then no better than the
-physics alone), so the blocks are the default. ``renders/table51/report.md`` has the errors, and
-the rows where the combined model still does not beat both (0.3 mm noise: y-z and x-y).
+noise-free, 0.56 noisy) with no consistent gain on the held-out actions of Table 5.1 (xyz / yz /
+xy, mm²: noise-free 0.209 / 0.268 / 0.320 against 0.208 / 0.274 / 0.323 with the blocks; noisy
+0.253 / 0.350 / 0.377 against 0.256 / 0.346 / 0.353), and they need action labels that real
+marker data do not have, so the blocks are the default. ``renders/table51/report.md`` has the
+errors of one realisation, row by row, with the rows where the combined model does not beat both.
 
 Without :meth:`CombinedModel.fit`, σ² is a prior share of the learned variance at the markers
 (:func:`default_residual_variance`) and τ² = 0.
