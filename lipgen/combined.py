@@ -62,8 +62,23 @@ yz (16 points)        0.59 (10/12), 0.80 (8/12)   0.93 (10/12), 0.82 (9/12)
 xy (16 points)        0.89 (6/12), 0.67 (11/12)   0.95 (7/12), 0.71 (11/12)
 ====================  ==========================  ==========================
 
-(each cell: against learned-only, against physics-only.) On average it beats both in every row,
-but not in every realisation: in x-y it ties the learned-only estimate about half the time.
+(each cell: against learned-only, against physics-only.) The full experiment (head motion, 40
+test frames per realisation, 8 realisations; ``lipgen experiment table51``) is less kind:
+
+====================  ==========================  ==========================
+row                   noise-free                  0.3 mm marker noise
+====================  ==========================  ==========================
+xyz (8 points)        0.77 (8/8), 0.89 (7/8)      0.88 (7/8), **1.08** (3/8)
+yz (16 points)        0.62 (7/8), 0.57 (7/8)      0.86 (8/8), 0.68 (6/8)
+xy (16 points)        **1.09** (3/8), 0.40 (8/8)  0.97 (4/8), 0.61 (8/8)
+====================  ==========================  ==========================
+
+So it does not beat both in every row: from an x-y (frontal) view it is on average no better than
+the learned modes alone, and from 8 noisy points no better than the physics alone. A likely
+reading, not yet measured in detail: the x-y view cannot see depth, and the held-out smile and
+funneler move the lips much in depth; the physical residual explains the x-y misfit with a
+smooth field that carries little depth, while its weighting changes the mode coefficients that
+the depth is read from.
 
 Before, the share was a fixed 0.1 (0.01 or 1.0 picked on validation motions of held-out actions)
 with no noise variance: with noisy markers the full-rank prior then reaches every observation

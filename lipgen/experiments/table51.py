@@ -68,11 +68,14 @@ class Table51Settings:
     max_modes_curve: int = 40
     held_out_test: tuple[str, ...] = ("lip_corner_puller", "funneler")
     oos_frames: int = 40
+    oos_realisations: int = 8
 
     def __post_init__(self) -> None:
         if not 1 <= self.n_modes < self.n_train < self.n_frames:
             raise ValueError(f"need 1 <= n_modes < n_train < n_frames, got {self.n_modes}, "
                              f"{self.n_train}, {self.n_frames}")
+        if self.oos_realisations < 1:
+            raise ValueError(f"oos_realisations must be >= 1, got {self.oos_realisations}")
         if self.marker_noise_mm < 0:
             raise ValueError(f"marker_noise_mm must be >= 0, got {self.marker_noise_mm}")
         for name in self.held_out_test:
@@ -228,21 +231,37 @@ def _selection(cm: CombinedModel) -> dict:
     return {k: getattr(sel, k) for k in keys}
 
 
-def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
-    """The combined model on motions outside the training span: train without the held-out
-    actions, test on frames that use them."""
+def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int):
+    """One held-out-action realisation: (model, combined models, test data, rows)."""
     rows = {k: v for k, v in observation_rows(physics.mesh).items() if "points" in k}
     T = s.held_out_test
-    noise = s.marker_noise_mm
 
-    def session(acts, seed):
-        head = head_motion(len(acts), seed) if s.head else None
-        return observe(subject, physics, acts, head, noise, rng)
+    def session(acts, sd):
+        head = head_motion(len(acts), sd) if s.head else None
+        return observe(subject, physics, acts, head, s.marker_noise_mm, rng)
 
-    train = session(_without(random_activations(s.n_train, s.seed + 13), T), s.seed + 13)
+    train = session(_without(random_activations(s.n_train, seed), T), seed)
     model = ModeModel(s.n_modes).fit(train.reach, mesh=physics.mesh)
     combined = fit_combined(model, physics, train.reach)
-    test = session(_using(random_activations(400, s.seed + 14), T, s.oos_frames), s.seed + 14)
+    test = session(_using(random_activations(400, seed + 1), T, s.oos_frames), seed + 1)
+    return model, combined, test, rows
+
+
+def _versus(table: dict) -> dict:
+    """{row: (combined / best learned-only, combined / best physics-only)} against the truth."""
+    out = {}
+    for row, v in table.items():
+        c = v["combined"]["truth"]
+        out[row] = (c / min(v["modes"]["truth"], v["full"]["truth"]),
+                    c / min(v["physics_force"]["truth"], v["physics_energy"]["truth"]))
+    return out
+
+
+def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
+    """The combined model on motions outside the training span: train without the held-out
+    actions, test on frames that use them; the first realisation in full, then the ratios of
+    ``s.oos_realisations`` realisations (other seeds)."""
+    model, combined, test, rows = _realisation(s, subject, physics, noise_var, rng, s.seed + 13)
     table = _score(model, physics, test, rows, noise_var, combined)
     cm = combined["combined"]
     unit = default_residual_variance(model, physics, 1.0, kind=cm.kind)
@@ -250,9 +269,18 @@ def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
                                              noise_variance=cm.noise_variance_).llse(d), d,
                                test.reach, test.truth, _hidden(physics, d)) for sh in SHARES]
              for name, d in rows.items()}
-    return {"held_out_test": list(T), "n_test_frames": len(test.goals), "selection": _selection(cm),
-            "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
-            "variance_captured": float(np.sum(model.explained_variance_ratio_))}
+    ratios = {row: {"learned": [r[0]], "physics": [r[1]]} for row, r in _versus(table).items()}
+    for k in range(1, s.oos_realisations):
+        log.info("outside the span: realisation %d of %d", k + 1, s.oos_realisations)
+        m, c, t, _ = _realisation(s, subject, physics, noise_var, rng, s.seed + 13 + 1000 * k)
+        cols = ("modes", "full", "physics_force", "physics_energy", "combined")
+        for row, r in _versus(_score(m, physics, t, rows, noise_var, c, cols)).items():
+            ratios[row]["learned"].append(r[0])
+            ratios[row]["physics"].append(r[1])
+    return {"held_out_test": list(s.held_out_test), "n_test_frames": len(test.goals),
+            "selection": _selection(cm), "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
+            "variance_captured": float(np.sum(model.explained_variance_ratio_)),
+            "realisations": ratios}
 
 
 def run_table51(settings: Table51Settings | None = None) -> dict:
