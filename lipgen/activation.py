@@ -15,7 +15,7 @@ import re
 
 import numpy as np
 
-__all__ = ["ACTIONS", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS", "parse_script",
+__all__ = ["ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS", "parse_script",
            "random_activations", "viseme_activations", "head_motion", "action_index"]
 
 DEFAULT_FPS = 30.0
@@ -29,8 +29,24 @@ ACTIONS: tuple[str, ...] = (
     "lip_press",             # the lips pressed together, flattening, the lower lip pushed up
     "funneler",              # the lips flared forward into a funnel (as in "sh")
     "lower_lip_protrusion",  # mentalis: the lower lip pushed forward and up
+    # One-sided variants (left = the subject's left, +x): real expressions are rarely symmetric.
+    "upper_lip_raiser_left",
+    "upper_lip_raiser_right",
+    "lip_corner_puller_left",     # a one-sided smile
+    "lip_corner_puller_right",
+    "lip_corner_depressor_left",
+    "lip_corner_depressor_right",
+    "jaw_shift_left",        # lateral jaw excursion toward the subject's left (a rigid shift)
+    "jaw_shift_right",
 )
-"""The named muscle-like actions, in the column order of every activation array."""
+"""The named muscle-like actions, in the column order of every activation array.
+
+The first eight are symmetric; the ``_left``/``_right`` variants are the same muscles on one side
+only, and the jaw shifts move the jaw sideways. New actions are appended, so the columns (and the
+seeded random draws) of the older ones keep their place."""
+
+ONE_SIDED: tuple[str, ...] = tuple(a for a in ACTIONS if a.endswith(("_left", "_right")))
+"""The one-sided actions (drawn half as often as the others by :func:`random_activations`)."""
 
 VISEMES: dict[str, dict[str, float]] = {
     "REST": {},
@@ -143,8 +159,10 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
     """Smooth random activations ``(F, A)`` in [0, 1]: seeded gestures of every action.
 
     Each action gets gestures at random times (``gestures_per_second`` per action on average, the
-    jaw twice as often, as in speech; every action at least once), each a raised-cosine bump of
-    0.25-0.9 s and peak 0.2-1.0. Sums are saturated smoothly with tanh, so overlapping gestures
+    jaw twice as often, as in speech, the one-sided actions of :data:`ONE_SIDED` half as often;
+    every symmetric action at least once, the one-sided ones only as drawn, so that a short clip
+    is mostly symmetric and a long sequence mixes in asymmetric expressions), each a raised-cosine
+    bump of 0.25-0.9 s and peak 0.2-1.0. Sums are saturated smoothly with tanh, so overlapping gestures
     stay below 1.
     """
     n_frames = int(n_frames)
@@ -158,9 +176,13 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
     if not np.isfinite(gestures_per_second) or gestures_per_second < 0:
         raise ValueError(f"gestures_per_second must be >= 0, got {gestures_per_second}")
     for a, name in enumerate(ACTIONS):
-        rate = gestures_per_second * (2.0 if name == "jaw_open" else 1.0)
-        k = 1 + rng.poisson(rate * span)  # every action appears at least once
-        start = rng.uniform(-0.3, span - 0.3, size=k)
+        rate = gestures_per_second * (2.0 if name == "jaw_open" else 0.5 if name in ONE_SIDED else 1.0)
+        # Every symmetric action appears at least once; the one-sided ones are occasional.
+        k = (0 if name in ONE_SIDED else 1) + rng.poisson(rate * span)
+        # One-sided gestures start within the clip, so that its first frame is symmetric (the
+        # tracker and the normalisation take their layout from it, as a recording starts at rest).
+        low = 0.0 if name in ONE_SIDED else -0.3
+        start = rng.uniform(low, max(span - 0.3, low), size=k)
         dur = rng.uniform(0.25, 0.9, size=k)
         peak = rng.uniform(0.2, 1.0, size=k)
         phase = (t[:, None] - start) / dur

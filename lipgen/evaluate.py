@@ -78,16 +78,21 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     error per DOF against the frame's reach field (the thesis's reference) and against the true
     surface. Columns: the first ``n_modes`` modes, the full sample covariance, the combined
     learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
+
+    ``combined`` is True (the combined model with the default residual share and no noise),
+    False (no such column) or a :class:`lipgen.combined.CombinedModel`, e.g. one whose prior was
+    chosen from the training fields by :meth:`~lipgen.combined.CombinedModel.fit` (it then uses
+    its estimated marker-noise variance).
     """
     from .fem import dofs as node_dofs
 
     columns = {f"{n_modes} modes": lambda d: model.llse(d, n_modes=n_modes),
                "full covariance": lambda d: model.llse(d, n_modes="full")}
-    if combined:
+    if combined is not False and combined is not None:
         try:
             from .combined import CombinedModel
 
-            comb = CombinedModel(model, physics)
+            comb = combined if isinstance(combined, CombinedModel) else CombinedModel(model, physics)
             columns["combined"] = comb.llse
         except ImportError:
             log.warning("lipgen.combined is not available: no combined-model column")
@@ -199,7 +204,15 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                          _rms(np.linalg.norm(floor - true_fields, axis=-1))),
                      "frames_without_field": int((~ok).sum())}
     out["split"] = {"train": len(train), "test": test.tolist()}
-    out["table51"] = table51(model, physics, recon, test, true_fields, min(10, len(model.components_)))
+    from .combined import CombinedModel
+
+    # The combined model chooses its physical prior and the marker noise from the training fields.
+    comb = CombinedModel(model, physics).fit(recon.fields[train])
+    out["combined_choice"] = {"kind": comb.kind, "residual_share": comb.selection_.residual_share,
+                              "noise_variance_mm2": comb.noise_variance_,
+                              "log_likelihood": comb.selection_.log_likelihood}
+    out["table51"] = table51(model, physics, recon, test, true_fields, min(10, len(model.components_)),
+                             combined=comb)
     var = np.asarray(model.full_variance_)
     out["variance"] = {"cumulative_share": (np.cumsum(var) / model.total_variance_).tolist(),
                        "ten_modes": float(var[:10].sum() / model.total_variance_)}

@@ -19,7 +19,11 @@ with default stiffness, grounded at the strip only) in four ways:
 
 Each action is a force pattern (muscle-like pulls, see :data:`ACTIONS`) whose elastic response
 is scaled so that activation 1 gives a plausible displacement in mm (:data:`ACTION_TARGETS_MM`).
-The displacement of a frame is linear in the activations except for the jaw and the wrap.
+The upper-lip raiser, corner puller and corner depressor also come one-sided (``_left`` /
+``_right``, the same muscle on one side, calibrated on that side's marker), and the jaw can shift
+sideways (``jaw_shift_left`` / ``_right``, a rigid shift of :data:`JAW_SHIFT_MM` that the border
+and the gum pass on to the lips), so that asymmetric expressions occur as on real faces. The
+displacement of a frame is linear in the activations except for the jaw, the contact and the wrap.
 
 Frames
 ------
@@ -48,7 +52,7 @@ from .mesh import LipMesh
 
 __all__ = ["ACTIONS", "VISEMES", "ACTION_TARGETS_MM", "TRUTH_STIFFNESS", "Subject", "Motion",
            "default_subject", "simulate", "random_activations", "viseme_activations",
-           "head_motion", "parse_script", "action_index"]
+           "head_motion", "parse_script", "action_index", "JAW_SHIFT_MM"]
 
 TRUTH_STIFFNESS: dict[str, float] = {"lip": 1.4, "ridge": 3.0, "skin": 2.5, "strip": 0.05}
 """The truth subject's relative E per region (the reconstruction default differs: see
@@ -63,8 +67,18 @@ ACTION_TARGETS_MM: dict[str, tuple[str, float]] = {
     "lip_press": ("upper_mid", 3.0),
     "funneler": ("upper_mid", 4.0),
     "lower_lip_protrusion": ("lower_mid", 4.0),
+    "upper_lip_raiser_left": ("upper_left", 4.0),
+    "upper_lip_raiser_right": ("upper_right", 4.0),
+    "lip_corner_puller_left": ("corner_left", 8.0),
+    "lip_corner_puller_right": ("corner_right", 8.0),
+    "lip_corner_depressor_left": ("corner_left", 5.0),
+    "lip_corner_depressor_right": ("corner_right", 5.0),
 }
-"""Action -> (marker, displacement in mm at activation 1 of the default subject)."""
+"""Action -> (marker, displacement in mm at activation 1 of the default subject). The jaw shifts
+are rigid motions of the jaw instead (:data:`JAW_SHIFT_MM`)."""
+
+JAW_SHIFT_MM = 3.0
+"""Sideways shift of the jaw (mm, along x) at ``jaw_shift_left`` = 1 (``_right``: the other way)."""
 
 _HINGE = np.array([0.0, 25.0, -85.0])  # jaw hinge (temporomandibular joints), mm, on the x axis
 _GLIDE = np.array([0.0, -1.0, 2.5])  # condyle glide at full opening, mm (grows as angle^2)
@@ -107,16 +121,23 @@ def _force_patterns(mesh: LipMesh) -> dict[str, np.ndarray]:
     up, lo = 0.5 + 0.5 * np.tanh(y / 1.5), 0.5 - 0.5 * np.tanh(y / 1.5)
     M = {n: X[mesh.marker_index(n)] for n in mesh.marker_names}
     outside = ~_region_nodes(mesh, ("strip",)) | lips.astype(bool)  # muscles act outside the mouth
-    corners = outside * (_gauss(X, M["corner_left"], 6.0) + _gauss(X, M["corner_right"], 6.0))
+    corner = {s: outside * _gauss(X, M[f"corner_{s}"], 6.0) for s in ("left", "right")}
+    raiser = {s: lips * up * _gauss(X, M[f"upper_{s}"], 8.0) for s in ("left", "right")}
+    corners = corner["left"] + corner["right"]
     mid = np.exp(-x**2 / (2 * 12.0**2))
 
     def field(w, fx, fy, fz):
         return w[:, None] * np.stack(np.broadcast_arrays(fx, fy, fz, w)[:3], axis=1)
 
+    one_sided = {}
+    for s in ("left", "right"):  # the same muscles on one side only
+        one_sided[f"upper_lip_raiser_{s}"] = field(raiser[s], 0.0, 1.0, 0.35)
+        one_sided[f"lip_corner_puller_{s}"] = field(corner[s], 0.75 * sx, 0.5, -0.45)
+        one_sided[f"lip_corner_depressor_{s}"] = field(corner[s], 0.2 * sx, -1.0, 0.1)
     return {
+        **one_sided,
         "jaw_open": field(lips * lo * _gauss(X, M["lower_mid"], 12.0), 0.0, -1.0, 0.3),
-        "upper_lip_raiser": field(lips * up * (_gauss(X, M["upper_left"], 8.0)
-                                                + _gauss(X, M["upper_right"], 8.0)), 0.0, 1.0, 0.35),
+        "upper_lip_raiser": field(raiser["left"] + raiser["right"], 0.0, 1.0, 0.35),
         "lip_corner_puller": field(corners, 0.75 * sx, 0.5, -0.45),
         "lip_corner_depressor": field(corners, 0.2 * sx, -1.0, 0.1),
         "pucker": field(lips, -0.9 * x / 25.0, -0.3 * y / 10.0, 0.45),
@@ -136,10 +157,13 @@ def _rot_x(angle: np.ndarray) -> np.ndarray:
     return R
 
 
-def _jaw_rigid(X: np.ndarray, angle: np.ndarray, max_angle: float) -> np.ndarray:
-    """(b, n, 3) displacement of points ``X`` rigidly attached to the jaw, opened by ``angle`` rad."""
+def _jaw_rigid(X: np.ndarray, angle: np.ndarray, max_angle: float, shift=None) -> np.ndarray:
+    """(b, n, 3) displacement of points ``X`` rigidly attached to the jaw, opened by ``angle`` rad
+    and then shifted sideways by ``shift`` (b,) mm along x."""
     R = _rot_x(np.asarray(angle, float))
     glide = (np.asarray(angle, float) / max_angle)[:, None] ** 2 * _GLIDE
+    if shift is not None:
+        glide = glide + np.asarray(shift, float)[:, None] * np.array([1.0, 0.0, 0.0])
     moved = np.einsum("bij,nj->bni", R, X - _HINGE) + _HINGE + glide[:, None, :]
     return moved - X
 
@@ -185,6 +209,8 @@ class Subject:
         Facing nodes of the upper and lower inner lip contour, which may touch but not cross.
     contact_response : (p, n, 3) float
         Displacement under a unit pair of contact forces pushing pair k apart (mm per unit force).
+    jaw_shift_mm : float
+        Sideways jaw shift (mm) at ``jaw_shift_left`` = 1.
     """
 
     mesh: LipMesh
@@ -197,16 +223,18 @@ class Subject:
     seed: int
     contact_pairs: np.ndarray = None
     contact_response: np.ndarray = None
+    jaw_shift_mm: float = JAW_SHIFT_MM
 
     @property
     def n_nodes(self) -> int:
         return self.mesh.n_nodes
 
-    def jaw_displacement(self, angles) -> np.ndarray:
-        """(b, n, 3) elastic displacement (mm) caused by jaw openings ``angles`` (b,) in rad."""
+    def jaw_displacement(self, angles, shifts=None) -> np.ndarray:
+        """(b, n, 3) elastic displacement (mm) caused by jaw openings ``angles`` (b,) in rad and
+        sideways jaw shifts ``shifts`` (b,) in mm (+x: the subject's left; none by default)."""
         angles = np.atleast_1d(np.asarray(angles, float))
         X = self.mesh.vertices
-        rigid = _jaw_rigid(X, angles, self.jaw_max_angle)  # (b, n, 3)
+        rigid = _jaw_rigid(X, angles, self.jaw_max_angle, shifts)  # (b, n, 3)
         held = self.border_weight[None, :, None] * rigid  # prescribed on the border, 0 elsewhere
         force = self.carry[None] * rigid
         K = self.physics.K
@@ -217,7 +245,9 @@ class Subject:
         """(F, n, 3) vertex displacements in the model frame (mm) for activations (F, A)."""
         A = _activation_array(activations)
         lin = np.einsum("fa,ani->fni", A, self.responses)
-        lin += self.jaw_displacement(A[:, action_index("jaw_open")] * self.jaw_max_angle)
+        side = A[:, action_index("jaw_shift_left")] - A[:, action_index("jaw_shift_right")]
+        shift = self.jaw_shift_mm * side
+        lin += self.jaw_displacement(A[:, action_index("jaw_open")] * self.jaw_max_angle, shift)
         if self.contact_pairs is not None and len(self.contact_pairs):
             lin += np.einsum("fp,pni->fni", self._contact_forces(lin), self.contact_response)
         return _wrap(self.mesh.vertices, lin) - self.mesh.vertices
@@ -302,16 +332,21 @@ def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
     border_weight = np.where(border, _smoothstep((5.0 - y) / 25.0), 0.0)
 
     patterns = _force_patterns(mesh)
-    raw = physics.displace(np.stack([patterns[a] for a in ACTIONS]))
-    scale = np.ones(len(ACTIONS))
+    zero = np.zeros((mesh.n_nodes, 3))  # the jaw shifts are rigid jaw motions, not muscle forces
+    raw = physics.displace(np.stack([patterns.get(a, zero) for a in ACTIONS]))
+    scale = np.zeros(len(ACTIONS))
     for a, name in enumerate(ACTIONS):
+        if name not in ACTION_TARGETS_MM:
+            continue
         marker, mm = ACTION_TARGETS_MM[name]
         mm = (2.5 if name == "jaw_open" else mm) * target_scale[name]  # the depressor's share
         scale[a] = mm / np.linalg.norm(raw[a, mesh.marker_index(marker)])
     responses = raw * scale[:, None, None]
 
     lower_lip = _region_nodes(mesh, ("lip", "ridge")) * (0.5 - 0.5 * np.tanh(y / 1.5))
-    subject = Subject(mesh, physics, E, border_weight, responses, np.zeros((mesh.n_nodes, 3)), 1.0, int(seed))
+    shift_mm = JAW_SHIFT_MM * target_scale["jaw_shift_left"]
+    subject = Subject(mesh, physics, E, border_weight, responses, np.zeros((mesh.n_nodes, 3)), 1.0, int(seed),
+                      jaw_shift_mm=shift_mm)
     subject = _calibrate_jaw(subject, lower_lip, ACTION_TARGETS_MM["jaw_open"][1] * target_scale["jaw_open"])
     pairs = _contact_pairs(mesh)
     push = np.zeros((len(pairs), mesh.n_nodes, 3))

@@ -218,6 +218,15 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"{fld['frames_without_field']} frame(s) without a field.", "",
           "## Table 5.1 on these data (mean squared error per DOF over the test frames)", ""]
     L += _table51_md(s["table51"], s["thesis_unit_mm"])
+    if "combined_choice" in s:
+        cc = s["combined_choice"]
+        prior = {"force": "K_s⁻²", "energy": "K_s⁻¹"}.get(cc["kind"], cc["kind"])
+        L += ["", f"Combined model (§6.1): physical prior {prior}, residual variance "
+              f"{_fmt(cc['residual_share'])} of the learned variance at the markers, marker-noise variance "
+              f"{_fmt(cc['noise_variance_mm2'])} mm² (RMS {_fmt(cc['noise_variance_mm2'] ** 0.5)} mm per "
+              "coordinate), all chosen from the training frames' fields by 5-fold cross-validated "
+              "marginal likelihood (`CombinedModel.fit`); its estimates use that noise variance. The "
+              "other columns treat the markers as exact."]
     var = s["variance"]
     cum = var["cumulative_share"][:10]
     L += ["", f"Variance captured by 10 modes: **{100 * var['ten_modes']:.2f}%** (thesis: 99.2%).", "",

@@ -5,6 +5,7 @@ import pytest
 
 from lipgen.activation import (
     ACTIONS,
+    ONE_SIDED,
     VISEMES,
     head_motion,
     parse_script,
@@ -19,7 +20,9 @@ def test_random_activations_are_seeded_smooth_and_bounded():
     assert a.tobytes() == random_activations(150, seed=4).tobytes()
     assert not np.array_equal(a, random_activations(150, seed=5))
     assert a.min() >= 0 and a.max() < 1
-    assert (a.max(axis=0) > 0.05).all()  # every action is used
+    symmetric = [i for i, n in enumerate(ACTIONS) if n not in ONE_SIDED]
+    assert (a[:, symmetric].max(axis=0) > 0.05).all()  # every symmetric action is used
+    assert (a.max(axis=0) > 0.05).sum() > len(symmetric)  # and some one-sided ones
     assert np.abs(np.diff(a, axis=0)).max() < 0.35  # no jumps between frames at 30 fps
 
 

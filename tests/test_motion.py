@@ -1,5 +1,7 @@
 """The synthetic subject: determinism, symmetry, magnitudes, contact, frames and bad input."""
 
+import hashlib
+
 import numpy as np
 import pytest
 
@@ -55,6 +57,37 @@ def test_symmetric_actions_give_mirror_symmetric_lips(subject, action):
     assert np.abs(V - subject.mesh.vertices).max() > 1.0  # it does move
 
 
+@pytest.mark.parametrize("action", ["upper_lip_raiser", "lip_corner_puller", "lip_corner_depressor",
+                                    "jaw_shift"])
+def test_one_sided_actions_mirror_each_other(subject, action):
+    """The left variant is the mirror image of the right one, and it is not symmetric itself."""
+    perm = mirror_permutation(subject.mesh)
+    left = simulate(subject, _one(f"{action}_left")).vertices[0]
+    right = simulate(subject, _one(f"{action}_right")).vertices[0]
+    assert np.allclose(left[perm] * [-1.0, 1.0, 1.0], right, atol=1e-8)
+    U = left - subject.mesh.vertices
+    assert np.abs(U[perm] * [-1.0, 1.0, 1.0] - U).max() > 1.0  # one-sided: far from symmetric
+    mesh = subject.mesh
+    if action == "jaw_shift":  # the lower lip rides the jaw to the subject's left, the upper barely
+        lower, upper = U[mesh.marker_index("lower_mid")], U[mesh.marker_index("upper_mid")]
+        assert 1.5 < lower[0] < 3.0 and abs(upper[0]) < 0.5 * lower[0]
+    else:  # the calibrated side moves by its target; the other side much less
+        marker, mm = ACTION_TARGETS_MM[f"{action}_left"]
+        other = marker.replace("left", "right")
+        assert 0.75 * mm < np.linalg.norm(U[mesh.marker_index(marker)]) < 1.25 * mm
+        assert np.linalg.norm(U[mesh.marker_index(other)]) < 0.3 * mm
+
+
+def test_random_activations_mix_one_sided_gestures():
+    a = random_activations(300, seed=2)
+    sided = [ACTIONS.index(n) for n in ACTIONS if n.endswith(("_left", "_right"))]
+    assert len(sided) == 8 and (a[:, sided].max(axis=0) > 0.05).all()
+    # Appending actions kept the older columns' seeded draws (hash of the 8-action version's output).
+    assert hashlib.sha256(np.ascontiguousarray(a[:, :8]).tobytes()).hexdigest()[:16] == "3b6fbc51f4f4ab2e"
+    assert ACTIONS[:8] == ("jaw_open", "upper_lip_raiser", "lip_corner_puller", "lip_corner_depressor",
+                           "pucker", "lip_press", "funneler", "lower_lip_protrusion")
+
+
 def test_calibrated_magnitudes_in_mm(subject):
     mesh = subject.mesh
     for action, (marker, mm) in ACTION_TARGETS_MM.items():
@@ -105,7 +138,7 @@ def test_world_frame_follows_the_head_pose(subject):
 def test_bad_inputs(subject):
     with pytest.raises(ValueError, match=r"unknown action 'smirk'.*jaw_open"):
         simulate(subject, {"smirk": np.zeros(3)})
-    with pytest.raises(ValueError, match=r"shape \(F, 8\)"):
+    with pytest.raises(ValueError, match=rf"shape \(F, {len(ACTIONS)}\)"):
         simulate(subject, np.zeros((4, 5)))
     with pytest.raises(ValueError, match=r"\[0, 2\]"):
         simulate(subject, -_one("pucker"))

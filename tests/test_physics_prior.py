@@ -80,36 +80,81 @@ def test_woodbury_gain_equals_plain_llse(physics):
     assert np.allclose(est(y).ravel(), G @ y, atol=1e-9 * np.abs(G @ y).max())
 
 
-def test_combined_model_beats_both_on_motion_outside_the_training_span(physics):
-    """Train without the smile and the funneler; test on frames that use them."""
+def _outside_span_case(physics, noise_mm=0.0, seeds=(1, 2)):
+    """Train without the smile and the funneler; test on frames that use them (Table 5.1's protocol,
+    smaller). Returns the training reach fields, the test fields measured and true, and the true
+    fields of the training frames."""
     mesh = physics.mesh
     subject = default_subject(0, resolution=1)
     held = [ACTIONS.index("lip_corner_puller"), ACTIONS.index("funneler")]
-    train = random_activations(140, seed=1)
+    train = random_activations(140, seed=seeds[0])
     train[:, held] = 0.0
-    test = random_activations(90, seed=2)
+    test = random_activations(90, seed=seeds[1])
     test = test[test[:, held].max(axis=1) > 0.3]
     n0, md = mesh.n_nodes, dofs(mesh.markers)
+    rng = np.random.default_rng(7)
 
     def fields(act):
         motion = simulate(subject, act)
-        U, _ = physics.reach(md, (motion.markers - mesh.vertices[mesh.markers]).reshape(len(act), -1))
+        goals = motion.markers - mesh.vertices[mesh.markers]
+        goals = goals + rng.normal(scale=noise_mm, size=goals.shape) if noise_mm else goals
+        U, _ = physics.reach(md, goals.reshape(len(act), -1))
         return U, motion.vertices[:, :n0] - mesh.vertices  # nested meshes: node i is node i
 
     U_train, _ = fields(train)
-    _, truth = fields(test)
-    modes = ModeModel(10).fit(U_train, mesh=mesh)
-    combined = CombinedModel(modes, physics)
-    Y = truth.reshape(len(truth), -1)
-    for d in (dofs(mesh.markers[:8]), dofs(mesh.markers, "yz"), dofs(mesh.markers, "xy")):
-        hidden = np.setdiff1d(physics.free_dofs, d)  # the anchored DOFs are 0 in every estimate
-        err = {}
-        for name, est in (("modes", modes.llse(d)),
-                          ("physics_force", LLSE.build(PhysicsCovariance(physics, kind="force"), d)),
-                          ("physics_energy", LLSE.build(PhysicsCovariance(physics, kind="energy"), d)),
-                          ("combined", combined.llse(d))):
-            err[name] = np.mean((est(Y[:, d]).reshape(len(Y), -1) - Y)[:, hidden] ** 2)
-        assert err["combined"] < 0.98 * min(v for k, v in err.items() if k != "combined"), err
+    U_test, truth = fields(test)
+    return U_train, U_test, truth
+
+
+def _errors(physics, modes, combined, U_test, truth, d):
+    """MSE per hidden DOF against the true surface of each estimator, from ``U_test[:, d]``."""
+    Y, X = truth.reshape(len(truth), -1), U_test.reshape(len(U_test), -1)
+    hidden = np.setdiff1d(physics.free_dofs, d)  # the anchored DOFs are 0 in every estimate
+    err = {}
+    for name, est in (("modes", modes.llse(d)), ("full", modes.llse(d, "full")),
+                      ("physics_force", LLSE.build(PhysicsCovariance(physics, kind="force"), d)),
+                      ("physics_energy", LLSE.build(PhysicsCovariance(physics, kind="energy"), d)),
+                      ("combined", combined.llse(d))):
+        err[name] = np.mean((est(X[:, d]).reshape(len(Y), -1) - Y)[:, hidden] ** 2)
+    return err
+
+
+def test_combined_model_beats_both_on_motion_outside_the_training_span(physics):
+    """Noise-free markers, 8 random realisations of Table 5.1's held-out-action protocol (train
+    without the smile and the funneler, test on frames that use them); the combined model's prior
+    is chosen from each training set only. In every row, its error is below the best learned-only
+    (10 modes or full covariance) and the best physics-only (K_s⁻² or K_s⁻¹) error on geometric
+    average over the realisations, in this small configuration (no head motion). Per realisation
+    it is not (it beats both in x-y in only 4 of 8), and in the full Table 5.1 experiment the x-y
+    row is on average no better than the learned modes: see lipgen.combined."""
+    mesh = physics.mesh
+    rows = {"xyz (8 points)": dofs(mesh.markers[:8]), "yz": dofs(mesh.markers, "yz"),
+            "xy": dofs(mesh.markers, "xy")}
+    ratios = {row: {"learned": [], "physics": []} for row in rows}
+    for seed in range(8):
+        U_train, U_test, truth = _outside_span_case(physics, seeds=(seed, seed + 100))
+        modes = ModeModel(10).fit(U_train, mesh=mesh)
+        combined = CombinedModel(modes, physics).fit(U_train)
+        assert combined.noise_variance_ < 1e-3  # exact markers: (almost) no noise found
+        for row, d in rows.items():
+            err = _errors(physics, modes, combined, U_test, truth, d)
+            ratios[row]["learned"].append(err["combined"] / min(err["modes"], err["full"]))
+            ratios[row]["physics"].append(err["combined"] / min(err["physics_force"], err["physics_energy"]))
+    for row, r in ratios.items():
+        for kind, values in r.items():
+            assert np.exp(np.mean(np.log(values))) < 0.95, (row, kind, np.round(values, 3))
+    assert all(v < 1 for v in ratios["xyz (8 points)"]["physics"])  # from 8 points: every time
+
+
+def test_combined_model_estimates_the_marker_noise(physics):
+    """0.3 mm marker noise: the noise variance found from the training fields is near the truth
+    (0.09 mm²). Which of the three estimates wins then changes from row to row and run to run
+    (the Table 5.1 report), so that is not asserted here."""
+    U_train, _, _ = _outside_span_case(physics, noise_mm=0.3, seeds=(1, 101))
+    combined = CombinedModel(ModeModel(10).fit(U_train, mesh=physics.mesh), physics).fit(U_train)
+    assert 0.6 * 0.09 < combined.noise_variance_ < 1.3 * 0.09
+    assert combined.selection_.log_likelihood == max(v["log_likelihood"]
+                                                     for v in combined.selection_.by_kind.values())
 
 
 def test_fit_from_markers_trains_on_least_strain_fields(physics):

@@ -12,7 +12,8 @@ from lipgen.experiments.table51_report import write_report
 
 @pytest.fixture(scope="module")
 def small():
-    settings = Table51Settings(n_frames=60, n_train=50, n_modes=6, seed=1, max_modes_curve=8, oos_frames=12)
+    settings = Table51Settings(n_frames=60, n_train=50, n_modes=6, seed=1, max_modes_curve=8, oos_frames=12,
+                               oos_realisations=2)
     return run_table51(settings)
 
 
@@ -31,13 +32,21 @@ def test_small_run_is_consistent(small):
     assert xyz8["full"]["reach"] <= xyz8["modes"]["reach"]
     curve = small["modes_curve"]
     assert curve["k"] == list(range(1, 9)) and len(curve["xy (16 points)"]["truth"]) == 8
-    assert small["outside_span"]["chosen_share"] in small["outside_span"]["shares"]
+    for sel in (small["selection"], small["outside_span"]["selection"]):
+        # Noise-free markers: the choice from the training fields finds (almost) no noise.
+        assert sel["kind"] in ("force", "energy") and sel["residual_share"] > 0
+        assert sel["noise_variance"] < 1e-3
+        assert sel["by_kind"][sel["kind"]]["log_likelihood"] == sel["log_likelihood"]
 
 
 def test_report_and_command(small, tmp_path):
     report = write_report(small, tmp_path / "a")
     text = report.read_text()
     assert "Variance captured by 6 modes" in text and "units²" in text
+    assert "cross-validated marginal likelihood" in text and "Over 2 realisations" in text
+    ratios = small["outside_span"]["realisations"].values()
+    assert all(len(r["learned"]) == len(r["physics"]) == 2 for r in ratios)
+    assert text.count(" both: best learned-only ") == 3  # the verdict of each row outside the span
     for name in ("modes.png", "error_vs_modes.png", "outside_span.png", "table51.json"):
         assert (tmp_path / "a" / name).stat().st_size > 1000
     assert json.loads((tmp_path / "a" / "table51.json").read_text())[0]["settings"]["n_modes"] == 6

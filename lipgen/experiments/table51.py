@@ -17,8 +17,12 @@ Protocol (:func:`run_table51`)
 3. On the test frames, each observation row is reconstructed by each estimator; the error is the
    mean squared error per hidden DOF (the DOFs neither observed nor anchored), in mm² and in the
    thesis's normalised units².
-4. Outside the training span: actions held out of training test the combined model; its residual
-   share is chosen on validation motions that hold out a *different* action.
+4. Outside the training span: actions held out of training test the combined model.
+
+The combined model's prior kind, residual variance σ² and noise variance τ² are chosen from the
+training fields only, by cross-validated marginal likelihood of their markers
+(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ². The other estimators of the
+marker rows are given the true marker-noise variance.
 """
 
 from __future__ import annotations
@@ -28,25 +32,26 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..combined import DEFAULT_RESIDUAL_SHARE, CombinedModel, default_residual_variance
+from ..combined import CombinedModel, default_residual_variance
 from ..fem import Physics, dofs
 from ..llse import LLSE, PhysicsCovariance
 from ..modes import ModeModel
 from ..motion import ACTIONS, default_subject, head_motion, random_activations, simulate
 from ..procedural import lip_mesh, thesis_unit_mm
 
-__all__ = ["Table51Settings", "Observed", "observe", "observation_rows", "estimators", "row_errors",
-           "run_table51", "COLUMNS", "SHARES"]
+__all__ = ["Table51Settings", "Observed", "observe", "observation_rows", "estimators", "fit_combined",
+           "row_errors", "run_table51", "COLUMNS", "SHARES"]
 
 log = logging.getLogger(__name__)
 
 SHARES = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
-"""Residual shares tried for the combined model (see :mod:`lipgen.combined`)."""
+"""Residual shares of the test-set sensitivity sweep (reported, never used for the choice)."""
 
 COLUMNS = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_energy")
 """Estimators: the first k modes; the full sample covariance; the physics alone with the thesis's
 K_s⁻² (min-norm force, = ``Physics.reach``) and with K_s⁻¹ (least strain energy); the combined
-model (k modes + K_s⁻² residual, the default) and its K_s⁻¹ variant."""
+model (k modes + physical residual, kind, σ² and τ² chosen by :meth:`CombinedModel.fit`) and the
+same with the K_s⁻¹ prior imposed."""
 
 
 @dataclass(frozen=True)
@@ -62,20 +67,20 @@ class Table51Settings:
     head: bool = True
     max_modes_curve: int = 40
     held_out_test: tuple[str, ...] = ("lip_corner_puller", "funneler")
-    held_out_validation: tuple[str, ...] = ("pucker",)
     oos_frames: int = 40
+    oos_realisations: int = 8
 
     def __post_init__(self) -> None:
         if not 1 <= self.n_modes < self.n_train < self.n_frames:
             raise ValueError(f"need 1 <= n_modes < n_train < n_frames, got {self.n_modes}, "
                              f"{self.n_train}, {self.n_frames}")
+        if self.oos_realisations < 1:
+            raise ValueError(f"oos_realisations must be >= 1, got {self.oos_realisations}")
         if self.marker_noise_mm < 0:
             raise ValueError(f"marker_noise_mm must be >= 0, got {self.marker_noise_mm}")
-        for name in self.held_out_test + self.held_out_validation:
+        for name in self.held_out_test:
             if name not in ACTIONS:
                 raise ValueError(f"unknown action {name!r}; the known actions are {', '.join(ACTIONS)}")
-        if set(self.held_out_test) & set(self.held_out_validation):
-            raise ValueError("held_out_test and held_out_validation must not share actions")
 
 
 @dataclass(frozen=True)
@@ -129,20 +134,34 @@ def observation_rows(mesh) -> dict[str, np.ndarray]:
     }
 
 
+def fit_combined(model: ModeModel, physics: Physics, train_fields, n_modes: int | None = None) -> dict:
+    """The two combined columns, chosen from the training fields (:meth:`CombinedModel.fit`):
+    ``"combined"`` picks the prior kind, ``"combined_energy"`` is held to K_s⁻¹."""
+    k = len(model.components_) if n_modes is None else n_modes
+    return {"combined": CombinedModel(model, physics, n_modes=k).fit(train_fields),
+            "combined_energy": CombinedModel(model, physics, n_modes=k).fit(train_fields, kinds=("energy",))}
+
+
 def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_modes: int | None = None,
-               share: float = DEFAULT_RESIDUAL_SHARE) -> dict[str, LLSE]:
-    """The LLSE of each column of :data:`COLUMNS` for observed DOFs ``d``."""
+               combined: dict | None = None, combined_noise=None) -> dict[str, LLSE]:
+    """The LLSE of each column of :data:`COLUMNS` for observed DOFs ``d``.
+
+    ``noise`` (mm²) is given to the learned and physics-only columns; ``combined`` is
+    :func:`fit_combined`'s result (without it the combined columns use the default share and no
+    noise), and ``combined_noise`` their noise variance (their own estimate by default).
+    """
     k = len(model.components_) if n_modes is None else n_modes
     phys = {kind: PhysicsCovariance(physics, default_residual_variance(model, physics, 1.0, kind=kind), kind)
             for kind in ("force", "energy")}
+    if combined is None:
+        combined = {"combined": CombinedModel(model, physics, n_modes=k),
+                    "combined_energy": CombinedModel(model, physics, n_modes=k, kind="energy")}
     return {
         "modes": model.llse(d, k, noise=noise),
         "full": model.llse(d, "full", noise=noise),
         "physics_force": LLSE.build(phys["force"], d, noise=noise),
         "physics_energy": LLSE.build(phys["energy"], d, noise=noise),
-        "combined": CombinedModel(model, physics, n_modes=k, residual_share=share).llse(d, noise=noise),
-        "combined_energy": CombinedModel(model, physics, n_modes=k, residual_share=share,
-                                         kind="energy").llse(d, noise=noise),
+        **{name: cm.llse(d, noise=combined_noise) for name, cm in combined.items()},
     }
 
 
@@ -158,12 +177,13 @@ def _hidden(physics: Physics, d: np.ndarray) -> np.ndarray:
     return np.setdiff1d(physics.free_dofs, d)
 
 
-def _score(model, physics, data: Observed, rows, noise_var, share, columns=COLUMNS) -> dict:
+def _score(model, physics, data: Observed, rows, noise_var, combined, columns=COLUMNS) -> dict:
     """{row: {column: {"reach": mse, "truth": mse}}} for the frames of ``data``."""
     out = {}
     for name, d in rows.items():
-        markers_only = "points" in name
-        ests = estimators(model, physics, d, noise_var if markers_only else 0.0, share=share)
+        markers_only = "points" in name  # the "(all nodes)" rows observe noise-free fields
+        ests = estimators(model, physics, d, noise_var if markers_only else 0.0, combined=combined,
+                          combined_noise=None if markers_only else 0.0)
         out[name] = {}
         for col in columns:
             scores = {}
@@ -204,39 +224,63 @@ def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3) -> np.ndarra
     return acts[keep][:n]
 
 
-def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
-    """Combined model on motions outside the training span; share chosen on validation motions."""
+def _selection(cm: CombinedModel) -> dict:
+    sel = cm.selection_
+    keys = ("kind", "residual_share", "residual_variance", "noise_variance", "log_likelihood", "by_kind",
+            "n_folds")
+    return {k: getattr(sel, k) for k in keys}
+
+
+def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int):
+    """One held-out-action realisation: (model, combined models, test data, rows)."""
     rows = {k: v for k, v in observation_rows(physics.mesh).items() if "points" in k}
-    V, T = s.held_out_validation, s.held_out_test
-    noise = s.marker_noise_mm
+    T = s.held_out_test
 
-    def session(acts, seed):
-        head = head_motion(len(acts), seed) if s.head else None
-        return observe(subject, physics, acts, head, noise, rng)
+    def session(acts, sd):
+        head = head_motion(len(acts), sd) if s.head else None
+        return observe(subject, physics, acts, head, s.marker_noise_mm, rng)
 
-    # Selection: train without V and T, validate on motions that use V (not T).
-    sel_train = session(_without(random_activations(s.n_train, s.seed + 11), V + T), s.seed + 11)
-    sel_model = ModeModel(s.n_modes).fit(sel_train.reach, mesh=physics.mesh)
-    val = session(_using(_without(random_activations(400, s.seed + 12), T), V, s.oos_frames), s.seed + 12)
-    val_err = {}
-    for share in SHARES:
-        errs = [row_errors(CombinedModel(sel_model, physics, residual_share=share).llse(d, noise=noise_var),
-                           d, val.reach, val.truth, _hidden(physics, d)) for d in rows.values()]
-        val_err[share] = float(np.exp(np.mean(np.log(errs))))
-    chosen = min(val_err, key=val_err.get)
-    # Test: train without T (V allowed), test on motions that use T.
-    train = session(_without(random_activations(s.n_train, s.seed + 13), T), s.seed + 13)
+    train = session(_without(random_activations(s.n_train, seed), T), seed)
     model = ModeModel(s.n_modes).fit(train.reach, mesh=physics.mesh)
-    test = session(_using(random_activations(400, s.seed + 14), T, s.oos_frames), s.seed + 14)
-    table = _score(model, physics, test, rows, noise_var, chosen)
-    sweep = {name: [row_errors(CombinedModel(model, physics, residual_share=sh).llse(d, noise=noise_var), d,
+    combined = fit_combined(model, physics, train.reach)
+    test = session(_using(random_activations(400, seed + 1), T, s.oos_frames), seed + 1)
+    return model, combined, test, rows
+
+
+def _versus(table: dict) -> dict:
+    """{row: (combined / best learned-only, combined / best physics-only)} against the truth."""
+    out = {}
+    for row, v in table.items():
+        c = v["combined"]["truth"]
+        out[row] = (c / min(v["modes"]["truth"], v["full"]["truth"]),
+                    c / min(v["physics_force"]["truth"], v["physics_energy"]["truth"]))
+    return out
+
+
+def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
+    """The combined model on motions outside the training span: train without the held-out
+    actions, test on frames that use them; the first realisation in full, then the ratios of
+    ``s.oos_realisations`` realisations (other seeds)."""
+    model, combined, test, rows = _realisation(s, subject, physics, noise_var, rng, s.seed + 13)
+    table = _score(model, physics, test, rows, noise_var, combined)
+    cm = combined["combined"]
+    unit = default_residual_variance(model, physics, 1.0, kind=cm.kind)
+    sweep = {name: [row_errors(CombinedModel(model, physics, residual_variance=sh * unit, kind=cm.kind,
+                                             noise_variance=cm.noise_variance_).llse(d), d,
                                test.reach, test.truth, _hidden(physics, d)) for sh in SHARES]
              for name, d in rows.items()}
-    return {"held_out_test": list(T), "held_out_validation": list(V),
-            "n_validation_frames": len(val.goals), "n_test_frames": len(test.goals),
-            "validation_geomean_mse": {str(k): v for k, v in val_err.items()},
-            "chosen_share": chosen, "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
-            "variance_captured": float(np.sum(model.explained_variance_ratio_))}
+    ratios = {row: {"learned": [r[0]], "physics": [r[1]]} for row, r in _versus(table).items()}
+    for k in range(1, s.oos_realisations):
+        log.info("outside the span: realisation %d of %d", k + 1, s.oos_realisations)
+        m, c, t, _ = _realisation(s, subject, physics, noise_var, rng, s.seed + 13 + 1000 * k)
+        cols = ("modes", "full", "physics_force", "physics_energy", "combined")
+        for row, r in _versus(_score(m, physics, t, rows, noise_var, c, cols)).items():
+            ratios[row]["learned"].append(r[0])
+            ratios[row]["physics"].append(r[1])
+    return {"held_out_test": list(s.held_out_test), "n_test_frames": len(test.goals),
+            "selection": _selection(cm), "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
+            "variance_captured": float(np.sum(model.explained_variance_ratio_)),
+            "realisations": ratios}
 
 
 def run_table51(settings: Table51Settings | None = None) -> dict:
@@ -253,10 +297,10 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
     model = ModeModel(s.n_modes).fit(data.reach[:s.n_train], mesh=mesh)
     test = Observed(*(a[s.n_train:] for a in (data.goals, data.reach, data.truth, data.activations)))
     rows = observation_rows(mesh)
-    share = DEFAULT_RESIDUAL_SHARE
+    combined = fit_combined(model, physics, data.reach[:s.n_train])
     oos = _outside_span(s, subject, physics, noise_var, rng)
     log.info("table 5.1: scoring %d rows", len(rows))
-    table = _score(model, physics, test, rows, noise_var, oos["chosen_share"])
+    table = _score(model, physics, test, rows, noise_var, combined)
     curve = _modes_curve(model, physics, test, rows, noise_var, s.max_modes_curve)
     anchored = physics.anchored_dofs
     floor = float(np.mean(test.truth.reshape(len(test.truth), -1)[:, anchored] ** 2))
@@ -267,7 +311,7 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
         "cumulative_variance": np.cumsum(model.full_variance_ / model.total_variance_).tolist(),
         "reach_vs_truth_mse": float(np.mean((data.reach - data.truth).reshape(len(data.reach), -1)
                                             [:, physics.free_dofs] ** 2)),
-        "anchored_truth_mse": floor, "default_share": share,
+        "anchored_truth_mse": floor, "selection": _selection(combined["combined"]),
         "table": table, "modes_curve": curve, "outside_span": oos,
         "_model": model, "_mesh": mesh,
     }
