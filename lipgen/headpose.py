@@ -34,7 +34,8 @@ import numpy as np
 
 from ._validate import as_float_array
 
-__all__ = ["METRICS", "MarkerMetric", "rotation_vector", "rotation_matrix", "least_cost_rotations"]
+__all__ = ["METRICS", "MarkerMetric", "rotation_vector", "rotation_matrix", "least_cost_rotations",
+           "marker_cost_shares"]
 
 log = logging.getLogger(__name__)
 
@@ -186,3 +187,39 @@ def least_cost_rotations(points, targets, metric: MarkerMetric, visible, start, 
         y = (a @ R.T - b).ravel()
         cost[f] = float(np.sum((L.T @ y) ** 2))
     return out, cost, conv
+
+
+def marker_cost_shares(points, targets, metric: MarkerMetric, visible, rotations) -> np.ndarray:
+    """(F, P) share of each frame's cost ``yᵀ W y`` that leaving marker j out of the goals removes,
+    at the given rotations (0 for markers not visible; NaN rows for frames without a rotation).
+
+    Leaving goal block j out, the least cost of the rest is ``yᵀ W y - (W y)_jᵀ (W_jj)⁻¹ (W y)_j``
+    (the cost minimised over the free y_j), so the share is the second term over the first. A
+    marker far off the model's account of the others (a mis-track) carries most of the cost.
+    """
+    A = as_float_array(points, "points", (None, None, 3), finite=False)
+    F, P, _ = A.shape
+    B = as_float_array(targets, "targets", (P, 3))
+    vis = np.asarray(visible, bool)
+    R = np.asarray(rotations, float)
+    out = np.zeros((F, P))
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    for f in range(F):
+        v = vis[f]
+        if not np.all(np.isfinite(R[f])) or v.sum() < 3:
+            out[f] = np.nan
+            continue
+        key = v.tobytes()
+        if key not in cache:
+            idx = np.repeat(v, 3)
+            W = np.linalg.inv(metric.gram[np.ix_(idx, idx)])
+            blocks = np.stack([W[3 * k:3 * k + 3, 3 * k:3 * k + 3] for k in range(int(v.sum()))])
+            cache[key] = (W, np.linalg.inv(blocks))
+        W, inv_blocks = cache[key]
+        y = (A[f, v] @ R[f].T - B[v]).ravel()
+        g = (W @ y).reshape(-1, 3)
+        total = float(y @ W @ y)
+        if total <= 0:
+            continue
+        out[f, v] = np.einsum("ki,kij,kj->k", g, inv_blocks, g) / total
+    return out

@@ -54,7 +54,8 @@ class Reconstruction:
     ----------
     fields : (F, n, 3) float
         Least-strain displacement field of each frame on the model mesh (NaN rows: too few
-        markers seen).
+        markers seen). Markers the normalisation left out as outliers
+        (``info["normalisation"]["outliers"]``, [frame, marker] pairs) are not its goals.
     markers : (F, P, 3) float
         Normalised markers (NaN where not visible).
     visible : (F, P) bool
@@ -227,8 +228,11 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
                              model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
                              method=normalisation, physics=physics)
-    fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P], mesh.markers,
-                          settings.min_visible)
+    # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
+    # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
+    outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
+    fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
+                          mesh.markers, settings.min_visible)
     t_end = time.perf_counter()
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
@@ -240,6 +244,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "borrowed_frames": int(norm.borrowed.sum()),
+                          "outliers": np.argwhere(outliers).tolist(),
                           **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
                              if norm.method == "thesis" else {})},
         "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},

@@ -220,7 +220,9 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"{_fmt(nrm['head_rotation_deg_max'], 2)} deg here). The thesis's §3 lip-plane method on the exact "
           "marks, for comparison: "
           + ", ".join(f"{_fmt(v)} mm ({k})" for k, v in nrm["thesis_exact_input_rms_mm"].items())
-          + f". Reference-frame fit residual {_fmt(nrm['fit_rms_mm'])} mm, scale {_fmt(nrm['scale'], 4)}.",
+          + f". Reference-frame fit residual {_fmt(nrm['fit_rms_mm'])} mm, scale {_fmt(nrm['scale'], 4)}"
+          + (f"; {nrm['outliers']} marker sighting(s) left out of the pose fits (and of the fields) as "
+             "mis-measured." if nrm.get("method", "thesis") != "thesis" else "."),
           f"- Reach fields (training data) vs the true surface: {_fmt(fld['rms_mm_vs_truth'])} mm RMS per "
           f"node (the true displacement itself is {_fmt(fld['true_rms_displacement_mm'])} mm RMS; reach from "
           f"the TRUE model-frame markers, the model's own floor, "

@@ -170,3 +170,33 @@ def test_bad_inputs(model):
         MarkerMetric.from_physics(physics, "elastic")
     with pytest.raises(ValueError, match="metric is for 16 markers but the data have 3"):
         least_cost_rotations(M[None, :3], M[:3], MarkerMetric.euclidean(16), np.ones((1, 3), bool), np.eye(3))
+
+
+def test_a_mis_measured_marker_is_left_out_of_the_pose_fit(model):
+    """A marker 8 mm off in one frame (a mis-track) would turn that frame's pose; it is found
+    (the pose without it costs far less), left out of the fit, and the frame's other markers come
+    out exact. Full-strength one-sided expressions are never taken for outliers."""
+    mesh, physics = model
+    M, nose = mesh.vertices[mesh.markers], mesh.nose
+    rng = np.random.default_rng(4)
+    F = 4
+    Qs = np.stack([_head(rng, 4.0) for _ in range(F)])
+    X, N = _world(M, nose, np.zeros_like(M), Qs, rng.normal(0, 3, (F, 3)))
+    X[2, 5] += [6.0, -4.0, 3.5]
+    up, lo = lip_subsets(mesh.marker_names)
+    kw = dict(model_nose=nose, method="least-force", physics=physics, reference_frame=0)
+    plain = normalize_markers(X, N, up, lo, M, outlier_ratio=0, **kw)
+    assert np.abs(plain.markers[2, :5] - M[:5]).max() > 0.1 and not plain.outliers.any()
+    res = normalize_markers(X, N, up, lo, M, **kw)
+    assert np.argwhere(res.outliers).tolist() == [[2, 5]]
+    others = np.arange(len(M)) != 5
+    assert np.allclose(res.markers[:, others], np.broadcast_to(M, X.shape)[:, others], atol=1e-8)
+    assert np.linalg.norm(res.markers[2, 5] - M[5]) == pytest.approx(np.linalg.norm([6.0, -4.0, 3.5]))
+    # legitimate expressions with head motion: nothing left out
+    subject = default_subject(0)
+    U = subject.displacements(np.eye(len(ACTIONS)))[:, subject.mesh.markers]
+    Qs = np.stack([_head(rng, 4.0) for _ in range(len(U))])
+    X, N = _world(M, nose, U, Qs, rng.normal(0, 3, (len(U), 3)))
+    assert not normalize_markers(X, N, up, lo, M, **kw).outliers.any()
+    with pytest.raises(ValueError, match="outlier_ratio must be in"):
+        normalize_markers(X, N, up, lo, M, outlier_ratio=1.5, **kw)

@@ -55,7 +55,7 @@ def compare_normalisations(seeds=(0, 1, 2, 3, 4), frames: int = 150, methods=Non
                                   model_nose=mesh.nose, reference_frame="auto", method=method,
                                   physics=physics)
             row = out.setdefault(method, {"norm_mm": [], "fields_mm": [], "pose_deg_rms": [],
-                                          "pose_deg_max": []})
+                                          "pose_deg_max": [], "outliers": []})
             row["norm_mm"].append(_rms(n.markers - true))
             row["fields_mm"].append(fields_rms(n.markers))
             if method != "thesis":
@@ -64,6 +64,7 @@ def compare_normalisations(seeds=(0, 1, 2, 3, 4), frames: int = 150, methods=Non
                 err = np.degrees(np.linalg.norm(rotation_vector(R @ motion.poses[:, :3, :3]), axis=-1))
                 row["pose_deg_rms"].append(float(np.sqrt(np.mean(err ** 2))))
                 row["pose_deg_max"].append(float(err.max()))
+                row["outliers"].append(int(n.outliers.sum()))
         floor = out.setdefault("floor", {"fields_mm": [], "true_displacement_mm": []})
         floor["fields_mm"].append(fields_rms(true))
         floor["true_displacement_mm"].append(_rms(true_fields))
