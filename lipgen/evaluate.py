@@ -167,18 +167,30 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                             "per_mark_rms_mm": _rms(np.where(seen, err3, np.nan), 0).tolist(),
                             "visible_share": float(recon.visible.mean()),
                             "ray_gap_median_mm": float(np.nanmedian(recon.ray_gap))}
-    # Normalisation: the pipeline's, and the same method on the exact world marks.
+    # Normalisation: the pipeline's, the same method on the exact world marks, and the thesis's
+    # method on them for comparison.
     marks_model = truth["marks_model"][:, :P]
     upper, lower = lip_subsets(mesh.marker_names)
     info = recon.info["normalisation"]
-    exact = {ref: normalize_markers(truth["marks_world"][:, :P], truth["marks_world"][:, P], upper, lower,
-                                    mesh.vertices[mesh.markers], model_nose=mesh.nose, reference_frame=ref)
-             for ref in (info.get("reference_frame", 0), 0)}
+    method = info.get("method", "thesis")
+    ref_used = info.get("reference_frame", 0)
+    physics = Physics(mesh)
+
+    def exact(meth, ref):
+        n = normalize_markers(truth["marks_world"][:, :P], truth["marks_world"][:, P], upper, lower,
+                              mesh.vertices[mesh.markers], model_nose=mesh.nose, reference_frame=ref,
+                              method=meth, physics=physics)
+        return float(_rms(np.linalg.norm(n.markers - marks_model, axis=-1)))
+
+    thesis_exact = {("first frame" if ref == 0 else f"frame {ref}"): exact("thesis", ref)
+                    for ref in (ref_used, 0)}
     out["normalisation"] = {
+        "method": method,
         "rms_mm": float(_rms(np.linalg.norm(recon.markers - marks_model, axis=-1))),
-        "exact_input_rms_mm": {("first frame" if ref == 0 else f"frame {ref}"): float(
-            _rms(np.linalg.norm(n.markers - marks_model, axis=-1))) for ref, n in exact.items()},
-        "reference_frame": info.get("reference_frame", 0), "fit_rms_mm": info["fit_rms_mm"],
+        "exact_input_rms_mm": exact(method, ref_used) if method != "thesis" else thesis_exact[
+            "first frame" if ref_used == 0 else f"frame {ref_used}"],
+        "thesis_exact_input_rms_mm": thesis_exact,
+        "reference_frame": ref_used, "fit_rms_mm": info["fit_rms_mm"],
         "scale": info["scale"],
         "head_rotation_deg_max": float(np.degrees(max(np.arccos(np.clip((np.trace(p[:3, :3]) - 1) / 2, -1, 1))
                                                       for p in truth["pose"])))}
@@ -191,7 +203,6 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                          f"only {len(train)} training frames before its last {T}; use the same "
                          "--test-frames as lipgen train")
     ok = np.all(np.isfinite(recon.fields.reshape(F, -1)), axis=1)
-    physics = Physics(mesh)
     from .reconstruct import reach_fields
 
     # The model's own floor: reach from the TRUE model-frame markers (no tracking, no normalisation).

@@ -1,7 +1,9 @@
 """The reconstruction of a dataset folder: ``lipgen reconstruct DATASET --out recon.npz``.
 
 calibrate (chessboard frames) -> lab frame -> track both views -> triangulate -> normalise
-(thesis §3) -> ``Physics.reach`` per frame on the model mesh (§4.1). Nothing here reads the
+(by default the least-force head pose about the nose, :mod:`lipgen.headpose`; the thesis's §3
+lip-plane frame with ``normalisation="thesis"``) -> ``Physics.reach`` per frame on the model mesh
+(§4.1). Nothing here reads the
 ground truth: the truth files are used only by :mod:`lipgen.evaluate` to score the result.
 
 The lab frame. The calibration gives cameras in the frame of the chessboard in the first
@@ -28,7 +30,7 @@ from .calibrate import RigCalibration, calibrate_rig
 from .camera import VIEWS
 from .errors import DatasetError, TopologyMismatchError
 from .mesh import LipMesh
-from .normalize import lip_subsets, normalize_markers
+from .normalize import METHODS, lip_subsets, normalize_markers
 from .reconstruct import (
     ReconstructSettings,
     expected_projections,
@@ -67,9 +69,9 @@ class Reconstruction:
     lab_to_board : (4, 4) float
         Lab point p -> calibration-board point ``R p + t`` (for scoring against the world).
     similarity : (4, 4) float
-        The thesis's one similarity (lip frame -> model), as ``[[s R, t], [0, 1]]``.
+        The one similarity (reference frame -> model), as ``[[s R, t], [0, 1]]``.
     rotations : (F, 3, 3) float
-        Per-frame lip frames.
+        Per-frame rotations applied before it (the lip frames for the thesis method).
     info : dict
         Mesh source and topology, marker names, calibration, settings, timings, dataset path.
     """
@@ -168,11 +170,16 @@ def _check_marks(ds, mesh: LipMesh) -> None:
 
 
 def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: ReconstructSettings | None = None,
-                        progress: bool = False) -> Reconstruction:
-    """Run the whole reconstruction on a dataset folder (see the module docstring)."""
+                        progress: bool = False, normalisation: str = "least-force") -> Reconstruction:
+    """Run the whole reconstruction on a dataset folder (see the module docstring).
+
+    ``normalisation`` is one of :data:`lipgen.normalize.METHODS`.
+    """
     from .dataset import Dataset
     from .fem import Physics
 
+    if normalisation not in METHODS:
+        raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
     t0 = time.perf_counter()
     ds = Dataset(path)
     missing = ds.missing()
@@ -216,9 +223,11 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         log.warning("nose lost in %d frame(s): interpolated", int((~nose_seen).sum()))
         for a in range(3):
             points[~nose_seen, P, a] = np.interp(np.flatnonzero(~nose_seen), good, points[good, P, a])
+    physics = Physics(mesh)
     norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
-                             model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto")
-    fields = reach_fields(Physics(mesh), norm.markers - mesh.vertices[mesh.markers], vis[:, :P], mesh.markers,
+                             model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
+                             method=normalisation, physics=physics)
+    fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P], mesh.markers,
                           settings.min_visible)
     t_end = time.perf_counter()
     S = np.eye(4)
@@ -228,10 +237,11 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "dataset": str(os.path.abspath(path)), "mesh_source": mesh_source, "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
-        "normalisation": {"fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
+        "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "borrowed_frames": int(norm.borrowed.sum()),
-                          "plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))},
+                          **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
+                             if norm.method == "thesis" else {})},
         "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},
     }
     return Reconstruction(
