@@ -99,3 +99,18 @@ def test_cli_em_ppca(tmp_path, capsys):
     saved = load_shapes(out)
     assert saved["weights"].shape == (40, 2) and saved["basis"].shape == (2, 3, 12)
     assert e3d(saved["S"], S) < 1e-6
+
+
+def test_over_relaxation_keeps_the_answer_and_saves_iterations():
+    from lipgen.nrsfm._tracks import check_tracks
+    from lipgen.nrsfm.core import Reconstruction
+    from lipgen.nrsfm.emppca import em_ppca
+
+    W, S = _ppca_sequence(80, 18, 1, np.random.default_rng(21))
+    tracks = check_tracks(W)
+    iterations = {}
+    for growth in (1.0, 1.2):  # 1.0: plain EM
+        R, C, B, t, info = em_ppca(tracks, 1, relax_growth=growth)
+        assert e3d(Reconstruction(R, C, B, t, "em-ppca", 1, 0.0).S, S) < 1e-6
+        iterations[growth] = info["iterations"]
+    assert iterations[1.2] < 0.6 * iterations[1.0]

@@ -13,6 +13,12 @@ latent: EM alternates
   translations, the cameras (scale in closed form, rotation by Gauss-Newton steps on SO(3)
   with a descent check, so each M-step lowers the expected cost) and the noise variance s2.
 
+EM creeps on this model (camera and shape updates are coupled; with little noise it behaves like
+alternating least squares), so the steps are over-relaxed adaptively (Salakhutdinov & Roweis,
+ICML 2003): each step moves ``eta`` times as far as EM's, with ``eta`` growing while the marginal
+likelihood improves and reset to plain EM when it would not. Fixed points are EM's; on drink and
+jaws 500 such steps reach what 2000 plain EM steps reach.
+
 Unobserved points are simply left out of every sum (they are latent like z). The start is the
 rigid Tomasi-Kanade factorisation (the corrective triple of :mod:`._rotation` with r = 3) of the
 low-rank-completed tracks, with the modes seeded from the principal components of the rigid
@@ -157,8 +163,61 @@ def _update_cameras(Q, A, C, n_steps: int = 3):
     return Q, np.abs(c)
 
 
+def _e_step(data, theta):
+    """Posterior of z and the marginal negative log-likelihood per observed coordinate at theta."""
+    W3, m, complete, n_obs2 = data
+    Q, c, sbar, V, t, s2 = theta
+    Wt = (W3 - t[:, :, None]) * m[:, None, :]
+    Ez, cov, res, Atr, AtA = _posterior(Wt, m, c[:, None, None] * Q[:, :2], sbar, V, s2, complete)
+    return _neg_log_likelihood(res, Atr, Ez, AtA, s2, n_obs2), (Ez, cov)
+
+
+def _m_step(data, theta, post, ridge, floor):
+    """Shape, translations, cameras, noise variance, in that order, given the posterior of z."""
+    W3, m, complete, n_obs2 = data
+    Q, c, sbar, V, t, s2 = theta
+    Ez, cov = post
+    F = W3.shape[0]
+    G = c[:, None, None] * Q[:, :2]
+    Wt = (W3 - t[:, :, None]) * m[:, None, :]
+    Zh = np.concatenate([np.ones((F, 1)), Ez], axis=1)
+    ZZ = Zh[:, :, None] * Zh[:, None, :]
+    ZZ[:, 1:, 1:] += cov
+    B = _update_shape(Wt, m, G, Zh, ZZ, ridge, complete)      # (P, 3, K+1)
+    sbar, V = B[:, :, 0].T, B[:, :, 1:]
+    mean = _mean_shapes(B, Zh)                                 # (F, 3, P)
+    t = ((W3 - G @ mean) * m[:, None, :]).sum(2) / m.sum(1)[:, None]
+    Wt = (W3 - t[:, :, None]) * m[:, None, :]
+    A, C = _camera_terms(Wt, m, B, Zh, ZZ, complete)
+    Q, c = _update_cameras(Q, A, C)
+    G = c[:, None, None] * Q[:, :2]
+    fit = (Wt - G @ mean) * m[:, None, :]
+    spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
+    return Q, c, sbar, V, t, max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
+
+
+def _log_so3(R):
+    """Axis-angle vectors (..., 3) of rotations R (..., 3, 3) with angles below pi."""
+    vee = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
+                          R[..., 1, 0] - R[..., 0, 1]], axis=-1)
+    s = np.linalg.norm(vee, axis=-1, keepdims=True)
+    cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1)[..., None] - 1.0)
+    angle = np.arctan2(s, cos)
+    return vee * np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 1.0)
+
+
+def _extrapolate(theta0, theta1, eta, floor):
+    """theta0 + eta (theta1 - theta0): linear in shape and translation, geodesic in rotation,
+    geometric in scale and noise variance."""
+    Q0, c0, sbar0, V0, t0, s20 = theta0
+    Q1, c1, sbar1, V1, t1, s21 = theta1
+    Q = expm_so3(eta * _log_so3(Q1 @ Q0.transpose(0, 2, 1))) @ Q0
+    return (Q, c0 * (c1 / c0) ** eta, sbar0 + eta * (sbar1 - sbar0), V0 + eta * (V1 - V0),
+            t0 + eta * (t1 - t0), max(s20 * (s21 / s20) ** eta, floor))
+
+
 def em_ppca(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_starts: int = 4,
-            seed: int = 0):
+            seed: int = 0, relax_growth: float = 1.2, relax_max: float = 64.0):
     """Fit EM-PPCA to checked tracks.
 
     Parameters
@@ -174,6 +233,11 @@ def em_ppca(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n
         by less than this, or when the noise std falls below 1e-9 of the track spread.
     n_starts, seed : int
         Starts and seed of the rigid initialisation's metric upgrade.
+    relax_growth, relax_max : float
+        Adaptive over-relaxation: after each step that lowered the likelihood-based cost, the next
+        step goes ``eta`` times as far as EM's (``eta`` grows by ``relax_growth`` up to
+        ``relax_max``); a step that does not lower it is replaced by the plain EM step and ``eta``
+        falls back to 1. ``relax_growth=1`` gives plain EM.
 
     Returns
     -------
@@ -206,34 +270,32 @@ def em_ppca(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n
     if k and not np.any(V):
         V = 1e-3 * np.sqrt(spread2) * np.random.default_rng(seed).standard_normal((P, 3, k))
     ridge = 1e-12 * spread2
-    history = []
-    converged = False
-    it = 0
+    data = (W3, m, complete, n_obs2)
+    theta = (Q, c, sbar, V, t, s2)
+    nll, post = _e_step(data, theta)
+    history = [nll]
+    eta, converged, it = 1.0, False, 0
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        G = c[:, None, None] * Q[:, :2]
-        Wt = (W3 - t[:, :, None]) * m[:, None, :]
-        Ez, cov, res, Atr, AtA = _posterior(Wt, m, G, sbar, V, s2, complete)
-        history.append(_neg_log_likelihood(res, Atr, Ez, AtA, s2, n_obs2))
-        if len(history) > 1 and history[-2] - history[-1] < tol:
+        theta_em = _m_step(data, theta, post, ridge, floor)
+        if eta > 1.0:  # adaptive over-relaxation (Salakhutdinov & Roweis 2003), kept only if it helps
+            trial = _extrapolate(theta, theta_em, eta, floor)
+            nll_new, post_new = _e_step(data, trial)
+            if np.isfinite(nll_new) and nll_new < nll:
+                eta = min(eta * relax_growth, relax_max)
+            else:
+                trial, eta = theta_em, 1.0
+                nll_new, post_new = _e_step(data, trial)
+        else:
+            trial = theta_em
+            nll_new, post_new = _e_step(data, trial)
+            eta = relax_growth
+        done = nll - nll_new < tol or trial[5] <= floor
+        theta, nll, post = trial, nll_new, post_new
+        history.append(nll)
+        if done:
             converged = True
             break
-        Zh = np.concatenate([np.ones((F, 1)), Ez], axis=1)
-        ZZ = Zh[:, :, None] * Zh[:, None, :]
-        ZZ[:, 1:, 1:] += cov
-        B = _update_shape(Wt, m, G, Zh, ZZ, ridge, complete)              # (P, 3, K+1)
-        sbar, V = B[:, :, 0].T, B[:, :, 1:]
-        mean = _mean_shapes(B, Zh)                             # (F, 3, P)
-        t = ((W3 - G @ mean) * m[:, None, :]).sum(2) / m.sum(1)[:, None]
-        Wt = (W3 - t[:, :, None]) * m[:, None, :]
-        A, C = _camera_terms(Wt, m, B, Zh, ZZ, complete)
-        Q, c = _update_cameras(Q, A, C)
-        G = c[:, None, None] * Q[:, :2]
-        fit = (Wt - G @ mean) * m[:, None, :]
-        spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
-        s2 = max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
-        if s2 <= floor:
-            converged = True
-            break
+    Q, c, sbar, V, t, s2 = theta
     Wt = (W3 - t[:, :, None]) * m[:, None, :]
     Ez = _posterior(Wt, m, c[:, None, None] * Q[:, :2], sbar, V, s2, complete)[0]
     basis = np.concatenate([sbar.T[:, :, None], V], axis=2).transpose(2, 1, 0)   # (K+1, 3, P)
