@@ -346,8 +346,10 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
         if not 0 <= outlier_ratio < 1 or int(max_outliers) < 0:
             raise ValueError(f"outlier_ratio must be in [0, 1) and max_outliers >= 0, got {outlier_ratio} "
                              f"and {max_outliers}")
-        return _pose_normalize(rel, vis, M, model_nose, reference_frame, method, physics,
-                               float(outlier_ratio), int(max_outliers))
+        from .headpose import pose_normalize
+
+        return pose_normalize(rel, vis, M, model_nose, reference_frame, method, physics,
+                              float(outlier_ratio), int(max_outliers))
     rotations = np.full((F, 3, 3), np.nan)
     angle = np.full(F, np.nan)
     for f in range(F):
@@ -405,99 +407,3 @@ def _most_neutral(local: np.ndarray, vis: np.ndarray, model_markers: np.ndarray,
         raise ValueError("no frame has 3 visible markers to fit the similarity to the model")
     return best
 
-
-def _pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, reference_frame,
-                    method: str, physics, outlier_ratio: float, max_outliers: int) -> Normalization:
-    """The pose methods: one scale from the reference frame's similarity, then per frame the
-    rotation about the nose of least cost (:func:`lipgen.headpose.least_cost_rotations`)."""
-    from .headpose import MarkerMetric, least_cost_rotations
-
-    F, P, _ = rel.shape
-    if model_nose is None:
-        raise ValueError(f"method {method!r} rotates about the nose and needs model_nose, the model's nose "
-                         "point (3,) in the model frame (e.g. mesh.nose)")
-    n0 = as_float_array(model_nose, "model_nose", (3,))
-    if method == "procrustes":
-        metric = MarkerMetric.euclidean(P)
-    else:
-        if physics is None:
-            raise ValueError(f"method {method!r} weighs the residual with the lip model's physics; pass "
-                             "physics=Physics(mesh) of the model whose marker nodes model_markers are")
-        if len(physics.mesh.markers) != P or not np.allclose(
-                physics.mesh.vertices[physics.mesh.markers], M, atol=1e-6):
-            raise ValueError(f"physics is for a mesh with {len(physics.mesh.markers)} markers that are not "
-                             f"model_markers ({P}, 3); build it from the same model mesh")
-        metric = MarkerMetric.from_physics(physics, "force" if method == "least-force" else "energy")
-    zero = np.zeros((F, P, 3))
-    ref = _most_neutral(np.where(vis[..., None], rel, 0.0), vis, M, n0) if reference_frame == "auto" \
-        else int(reference_frame)
-    seen = vis[ref]
-    if seen.sum() < 3:
-        raise ValueError(f"reference frame {ref} has only {int(seen.sum())} visible markers; the "
-                         "similarity to the model needs 3")
-    sim0 = umeyama(np.vstack([rel[ref, seen], np.zeros(3)]), np.vstack([M[seen], n0]))
-    s = sim0.scale
-    A = np.where(vis[..., None], s * rel, zero)
-    R, cost, _ = least_cost_rotations(A, M - n0, metric, vis, sim0.rotation)
-    outliers = _trim_outliers(A, M - n0, metric, vis, sim0.rotation, R, cost, outlier_ratio, max_outliers)
-    borrowed = ~np.isfinite(cost)
-    good = np.flatnonzero(~borrowed)
-    if len(good) == 0:
-        raise ValueError("no frame has 3 visible markers off a line through the nose; cannot normalise")
-    if borrowed.any():
-        nearest = good[np.abs(good[None, :] - np.arange(F)[:, None]).argmin(1)]
-        R[borrowed] = R[nearest[borrowed]]
-        log.warning("%d frame(s) borrowed the head rotation of a neighbour (too few visible markers)",
-                    int(borrowed.sum()))
-    if borrowed[ref]:
-        raise ValueError(f"reference frame {ref}: no head rotation could be found (too few markers)")
-    out = s * np.einsum("fij,fpj->fpi", R, rel) + n0
-    out[~vis] = np.nan
-    fit_rms = float(np.sqrt(np.mean(np.sum((out[ref, seen] - M[seen]) ** 2, axis=1))))
-    Rref = R[ref]
-    sim = Similarity(s, Rref, n0.copy())
-    rotations = np.einsum("ij,fjk->fik", Rref.T, R)  # so that out = sim.apply(rotations @ rel)
-    return Normalization(out, rotations, sim, np.full(F, np.nan), borrowed, fit_rms, int(ref), method, cost,
-                         outliers)
-
-
-def _trim_outliers(A, B, metric, vis, start, R, cost, ratio: float, rounds: int) -> np.ndarray:
-    """Leave single mis-measured markers out of the pose fits; updates ``R`` and ``cost`` in place
-    and returns the (F, P) outlier mask.
-
-    Candidates are frames where one marker carries over half the cost at the current pose
-    (:func:`lipgen.headpose.marker_cost_shares`, cheap); for those, the pose is re-fitted
-    without each visible marker in turn, and the best one is left out if that cuts the cost
-    below ``ratio`` times the current.
-    """
-    from .headpose import least_cost_rotations, marker_cost_shares
-
-    use = vis.copy()
-    outliers = np.zeros_like(vis)
-    P = vis.shape[1]
-    for _ in range(rounds if ratio > 0 else 0):
-        share = np.nan_to_num(marker_cost_shares(A, B, metric, use, R))
-        cand = np.flatnonzero((share.max(1) > 0.5) & (use.sum(1) > 4) & np.isfinite(cost))
-        if len(cand) == 0:
-            break
-        frame, drop = np.nonzero(use[cand])  # one trial per (candidate, visible marker)
-        masks = use[cand][frame].copy()
-        masks[np.arange(len(frame)), drop] = False
-        Rt, ct, _ = least_cost_rotations(A[cand][frame], B, metric, masks, start)
-        ct = np.where(np.isfinite(ct), ct, np.inf)
-        trial_cost = np.full((len(cand), P), np.inf)
-        trial_cost[frame, drop] = ct
-        best = trial_cost.argmin(1)
-        changed = False
-        for k, f in enumerate(cand):
-            j = best[k]
-            if trial_cost[k, j] < ratio * cost[f]:
-                t = np.flatnonzero((frame == k) & (drop == j))[0]
-                log.info("frame %d: marker %d left out of the pose fit (cost %.3g -> %.3g)", f, j,
-                         cost[f], ct[t])
-                use[f, j], outliers[f, j] = False, True
-                R[f], cost[f] = Rt[t], ct[t]
-                changed = True
-        if not changed:
-            break
-    return outliers
