@@ -26,7 +26,8 @@ _BIG = 1e12
 
 def assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gates: np.ndarray,
                        pred_gates: np.ndarray, corr_ok: np.ndarray, allowed: np.ndarray | None = None,
-                       ratio: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
+                       ratio: float = 0.6, round_dots: np.ndarray | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
     """One-to-one assignment of markers to dots, preferring the correlation peak.
 
     A dot within ``gates`` of a marker's correlation peak costs its distance. Without a
@@ -35,6 +36,10 @@ def assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gate
     ``pred_gates``, it is the prediction's nearest dot by a margin (``ratio`` of the second
     nearest), and no other marker's position is nearly as close to it. A wrong dot taken here
     would otherwise start a chain of swaps. Such matches cost more than any peak match.
+    ``round_dots (k,) bool`` marks the dots that look like whole dots; the others (elongated
+    blobs, such as a dot foreshortened at the lip corner, or a crease) can be taken only by the
+    correlation route, but they still count as rivals in the prediction route's nearest-dot test:
+    a marker whose own dot is foreshortened must not take the nearest round blob instead.
     Returns (match (P,) int, -1 for none; via_correlation (P,) bool).
     """
     out = np.full(len(cand), -1, dtype=np.int64)
@@ -50,6 +55,8 @@ def assign_two_routes(cand: np.ndarray, pred: np.ndarray, dots: np.ndarray, gate
     if allowed is not None:
         peak_route &= allowed
         pred_route &= allowed
+    if round_dots is not None:
+        pred_route &= np.asarray(round_dots, dtype=bool)[None, :]
     if len(dots) > 1:
         two = np.partition(d_pred, 1, axis=1)[:, :2]
         pred_route &= (d_pred == two[:, :1]) & (two[:, :1] < ratio * two[:, 1:])

@@ -21,7 +21,8 @@ from scipy import ndimage
 
 from ._validate import as_float_array
 
-__all__ = ["DotSettings", "as_gray", "darkness", "detect_dots", "refine_centroids"]
+__all__ = ["DotSettings", "as_gray", "darkness", "detect_dots", "dot_peaks", "refine_peaks",
+           "refine_centroids"]
 
 
 @dataclass(frozen=True)
@@ -45,6 +46,11 @@ class DotSettings:
     min_roundness : float
         Least ratio of the weaker to the stronger principal curvature of the response at a peak:
         1 for a round dot, 0 along a line; rejects the mouth slit and creases.
+    min_foreshortened_roundness : float
+        Least roundness of a *candidate* peak (:func:`dot_peaks`): an ink dot on skin
+        turning away from the camera (the lip corner in a side view) is an ellipse and may fall
+        below ``min_roundness``; such blobs are kept as candidates that a tracker may snap to
+        only where its correlation already found the marker.
     """
 
     sigma: float = 1.5
@@ -53,6 +59,7 @@ class DotSettings:
     min_separation: float | None = None
     smoothing: float = 0.6
     min_roundness: float = 0.3
+    min_foreshortened_roundness: float = 0.1
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0.3 <= self.sigma <= 50):
@@ -130,6 +137,33 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
         Smoothed peak darkness of each dot (0..1 of full scale).
     """
     gray = as_gray(image)
+    peaks, strength, roundness = dot_peaks(gray, settings, mask)
+    round_ = roundness >= settings.min_roundness
+    uv, keep = refine_peaks(gray, peaks[round_], settings)
+    return uv, strength[round_][keep]
+
+
+def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Whole-pixel peaks of the dot response, round ones and elongated ones (not refined).
+
+    Parameters
+    ----------
+    gray : (h, w) float
+    settings : DotSettings
+    mask : (h, w) bool, optional
+
+    Returns
+    -------
+    uv : (k, 2) float
+        Peak pixels (column, row), strongest first.
+    strength : (k,) float
+        Smoothed peak darkness.
+    roundness : (k,) float
+        Ratio of the weaker to the stronger principal curvature of the response at the peak
+        (1 round, 0 a line); all are at least ``settings.min_foreshortened_roundness`` (or
+        ``min_roundness`` if lower). :func:`detect_dots` keeps those of ``min_roundness`` or more.
+    """
     dark = darkness(gray, settings.sigma)
     response = ndimage.gaussian_filter(dark, settings.smoothing * settings.sigma, mode="nearest")
     # A robust noise floor: most pixels are not dots, so the median absolute deviation of the
@@ -148,26 +182,35 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
             raise ValueError(f"mask must have the image's shape {gray.shape}, got {m.shape}")
         peaks &= m
     rows, cols = np.nonzero(peaks)
-    # Round blobs only: at a dot both principal curvatures of the response are strongly
-    # negative; along a dark line or slit (the mouth opening, a crease) one of them is near 0.
+    # Round blobs: at a dot both principal curvatures of the response are strongly negative;
+    # along a dark line or slit (the mouth opening, a crease) one of them is near 0. A dot seen
+    # obliquely (foreshortened) lies in between.
     ryy = response[rows + 1, cols] + response[rows - 1, cols] - 2 * response[rows, cols]
     rxx = response[rows, cols + 1] + response[rows, cols - 1] - 2 * response[rows, cols]
     rxy = 0.25 * (response[rows + 1, cols + 1] + response[rows - 1, cols - 1]
                   - response[rows + 1, cols - 1] - response[rows - 1, cols + 1])
     half_trace, det_root = 0.5 * (rxx + ryy), np.sqrt(0.25 * (rxx - ryy) ** 2 + rxy ** 2)
     weak, strong = half_trace + det_root, half_trace - det_root      # eigenvalues, weak >= strong
-    round_ = (strong < 0) & (-weak >= settings.min_roundness * -strong)
-    rows, cols = rows[round_], cols[round_]
+    roundness = np.where(strong < 0, np.clip(weak / np.minimum(strong, -1e-300), 0.0, 1.0), 0.0)
+    ok = (strong < 0) & (roundness >= min(settings.min_foreshortened_roundness, settings.min_roundness))
+    rows, cols, roundness = rows[ok], cols[ok], roundness[ok]
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
-    uv0 = np.column_stack([cols[order], rows[order]]).astype(np.float64)
-    uv = refine_centroids(gray, uv0, settings.sigma)
-    # A plateau can give two maxima a pixel apart that converge to one dot: keep the stronger.
-    # Fits that end outside the image (edge artefacts of the closing) are not dots.
+    uv = np.column_stack([cols[order], rows[order]]).astype(np.float64)
+    return uv, strength[order], roundness[order]
+
+
+def refine_peaks(gray: np.ndarray, peaks: np.ndarray, settings: DotSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-pixel centres of ``peaks (k, 2)`` (strongest first); returns (uv (m, 2), kept (k,) bool).
+
+    A plateau can give two maxima a pixel apart that converge to one dot: the stronger is kept.
+    Fits that end outside the image (edge artefacts of the closing) are not dots.
+    """
+    uv = refine_centroids(gray, peaks, settings.sigma)
     h, w = gray.shape
     inside = (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
     keep = _dedupe(uv, settings.separation / 2) & inside
-    return uv[keep], strength[order][keep]
+    return uv[keep], keep
 
 
 def _dedupe(uv: np.ndarray, radius: float) -> np.ndarray:

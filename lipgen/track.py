@@ -12,6 +12,13 @@ GUI (§3). Here the GUI is replaced by two things:
   position reported is the dot's sub-pixel centroid, so template drift does not accumulate. A
   marker with no dot in reach is marked not visible (``status = LOST``) and re-acquired, with a
   widening gate, when a dot reappears near its prediction.
+* **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
+  in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
+  blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
+  round dot at its correlation peak, elongated blobs near it (:func:`lipgen.dots.dot_peaks`)
+  become candidates: it may snap to one only where its correlation found it, and they count as
+  rivals when a dot is taken by the motion prediction, so the round blob beside a foreshortened
+  dot is never taken in its place.
 """
 
 from __future__ import annotations
@@ -34,7 +41,7 @@ from .association import (
     fix_order,
     predict,
 )
-from .dots import DotSettings, as_gray, detect_dots
+from .dots import DotSettings, _dedupe, as_gray, dot_peaks, refine_centroids, refine_peaks
 from .pointreg import assign
 
 __all__ = [
@@ -228,23 +235,52 @@ class MarkerTracker:
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
-    def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """This frame's round dots (uv, strength) and elongated peaks (whole pixels, strength).
+
+        After the first image only a region around the markers is searched.
+        """
         known = np.all(np.isfinite(self.last), axis=1)
-        if not self._out or not known.any():
-            return detect_dots(gray, self.cfg.dots)
-        h, w = gray.shape
-        lo = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
-        hi = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
-        if np.any(hi - lo < 8):
-            return detect_dots(gray, self.cfg.dots)
-        uv, strength = detect_dots(gray[lo[1]:hi[1], lo[0]:hi[0]], self.cfg.dots)
-        return uv + lo, strength
+        lo = np.zeros(2, dtype=int)
+        sub = gray
+        if self._out and known.any():
+            h, w = gray.shape
+            a = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
+            b = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
+            if np.all(b - a >= 8):
+                lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
+        peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
+        round_ = roundness >= self.cfg.dots.min_roundness
+        uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
+        return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
+
+    def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-pixel centres of the elongated ``peaks`` within ``radii`` of ``centres``.
+
+        Refined together with the round ``dots`` near them (deblending), and dropped where they
+        end on a round dot. Only markers whose own dot was not found need them, so this is
+        usually empty and costs nothing. Returns (uv (m, 2), index (m,) into ``peaks``).
+        """
+        idx = np.zeros(0, dtype=np.int64)
+        if len(peaks) and len(centres):
+            near = np.linalg.norm(peaks[:, None] - centres[None], axis=2) <= radii[None, :] + 1.0
+            idx = np.flatnonzero(near.any(1))
+        if len(idx) == 0:
+            return np.zeros((0, 2)), idx
+        reach = 2 * (np.ceil(3.0 * self.cfg.dots.sigma) + 1)
+        nb = (np.linalg.norm(dots[:, None] - peaks[idx][None], axis=2) < reach).any(1)
+        uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), self.cfg.dots.sigma)[:len(idx)]
+        sep = self.cfg.dots.separation / 2
+        ok = _dedupe(uv, sep)
+        if len(dots):
+            ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
+        return uv[ok], idx[ok]
 
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
         gray = as_gray(image)
-        dots, strength = self._dots(gray)
+        dots, strength, e_peaks, e_strength = self._dots(gray)
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
@@ -275,12 +311,25 @@ class MarkerTracker:
             back = gap > 0
             guess = np.where((back & corr_ok)[:, None], cand, pred)
             reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
+            # A dot seen obliquely (the lip corner turning away) is elongated and fails the
+            # detector's roundness test, and the nearest round blob may then be something else
+            # (the dark end of the mouth opening). For markers with no round dot at their
+            # correlation peak, elongated blobs near them become candidates: takeable only where
+            # the correlation found them, and rivals in the unambiguity test of the prediction.
+            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
+                  else np.full(P, np.inf))
+            need = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate)
+            e_uv, e_idx = self._foreshortened(gray, dots, e_peaks, np.vstack([cand[need], guess[need]]),
+                                              np.concatenate([gates[need], reach[need]]))
+            round_ = np.r_[np.ones(len(dots), dtype=bool), np.zeros(len(e_uv), dtype=bool)]
+            dots = np.vstack([dots, e_uv])
+            strength = np.concatenate([strength, e_strength[e_idx]])
             # Only a dot about as dark as the marker's own will do: texture blobs are fainter
             # than ink, and the correlation may follow the skin around a hidden dot.
             dark_enough = (np.isnan(self.strength)[:, None]
                            | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
             snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
-                                                dark_enough)
+                                                dark_enough, round_dots=round_)
             got = snap >= 0
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
