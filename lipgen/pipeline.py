@@ -208,7 +208,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
-    tracks = track_raw_frames(frames, ds.rig, expected, settings, (lambda _: bar.update()) if bar else None)
+    tracks = track_raw_frames(frames, ds.rig, expected, settings, (lambda _: bar.update()) if bar else None,
+                              cameras=lab.views)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()

@@ -5,7 +5,9 @@ The steps, each a small function so that tests and the evaluation can score them
 1. :func:`track_raw_frames`: split every raw frame into its (virtual, real) views, match the
    first frame's dots to the markers' expected positions (replacing the thesis's GUI), and
    track them with normalised correlation (:class:`lipgen.track.MarkerTracker`), both views in
-   lock-step so each raw frame is read once.
+   lock-step so each raw frame is read once. With the calibrated cameras, a sighting the other
+   view contradicts (rays more than ``max_ray_gap`` apart) is taken back in the tracker, so a
+   wrong dot is not followed.
 2. :func:`triangulate_tracks`: the closest point between the two rays of each marker (thesis
    Fig 3-5); a marker seen in one view only, or whose rays pass far apart (a mis-track), is
    marked not visible.
@@ -31,7 +33,7 @@ from .camera import VIEWS, MirrorRig
 from .dots import detect_dots
 from .pinhole import PinholeCamera, triangulate
 from .pointreg import match_to_expected
-from .track import MarkerTracker, TrackerSettings, Tracks
+from .track import LOST, MarkerTracker, TrackerSettings, Tracks
 
 __all__ = ["ReconstructSettings", "track_raw_frames", "triangulate_tracks", "reach_fields",
            "expected_projections"]
@@ -71,7 +73,8 @@ def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> 
 
 def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                      settings: ReconstructSettings = ReconstructSettings(),
-                     progress: Callable[[int], None] | None = None) -> tuple[Tracks, Tracks]:
+                     progress: Callable[[int], None] | None = None,
+                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None) -> tuple[Tracks, Tracks]:
     """Detect and track the markers in both views of a raw sequence.
 
     Parameters
@@ -86,6 +89,10 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     settings : ReconstructSettings
     progress : callable, optional
         Called with the frame index after each frame.
+    cameras : (virtual, real) PinholeCamera, optional
+        The calibrated views. With them, a first-frame match whose two rays pass farther apart
+        than ``settings.max_ray_gap`` is dropped in both views (one of the two is another
+        marker's dot or no marker's); the tracker acquires the marker later from the layout.
 
     Returns
     -------
@@ -96,6 +103,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
+            inits = []
             for v, img in enumerate(views):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 dots, _ = detect_dots(img, settings.tracker.dots)
@@ -105,14 +113,51 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 init[match >= 0] = dots[match[match >= 0]]
                 log.info("%s view: %d dots in the first frame, %d of %d markers matched", VIEWS[v],
                          len(dots), int((match >= 0).sum()), len(ok))
-                trackers.append(MarkerTracker(init, settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
+                inits.append(init)
+            if cameras is not None:
+                both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
+                gap = np.full(len(both), np.nan)
+                if both.any():
+                    gap[both] = triangulate(cameras[1], inits[1][both], cameras[0], inits[0][both])[1]
+                bad = both & (gap > settings.max_ray_gap)
+                if bad.any():
+                    log.info("first frame: %d marker match(es) inconsistent between the views dropped",
+                             int(bad.sum()))
+                    inits[0][bad] = inits[1][bad] = np.nan
+            for v in range(2):
+                ok = np.all(np.isfinite(exp[v]), axis=1)
+                trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
+        if cameras is not None and t > 0:
+            _check_views(trackers, cameras, settings.max_ray_gap)
         if progress is not None:
             progress(t)
     if not trackers:
         raise ValueError("track_raw_frames got no frames")
     return trackers[0].tracks(), trackers[1].tracks()
+
+
+def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None:
+    """Take back sightings whose two rays pass more than ``max_gap`` apart (a wrong dot in a view).
+
+    A sighting that continues a track (seen in the previous image) beats one just re-acquired:
+    only the latter is taken back. Otherwise both are, since a lost marker is far better than a
+    wrong one; each tracker then re-acquires it on its own.
+    """
+    (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
+    both = (st0 != LOST) & (st1 != LOST)
+    if not both.any():
+        return
+    gap = np.full(len(both), np.nan)
+    gap[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[1]
+    bad = np.flatnonzero(both & (gap > max_gap))
+    if len(bad) == 0:
+        return
+    fresh = [tr.reacquired[bad] for tr in trackers]
+    only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
+    trackers[0].reject(bad[~only1])
+    trackers[1].reject(bad[~only0])
 
 
 def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],

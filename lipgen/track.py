@@ -234,6 +234,7 @@ class MarkerTracker:
         # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """This frame's round dots (uv, strength) and elongated peaks (whole pixels, strength).
@@ -279,6 +280,7 @@ class MarkerTracker:
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
+        self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
         gray = as_gray(image)
         dots, strength, e_peaks, e_strength = self._dots(gray)
         uv = np.full((P, 2), np.nan)
@@ -363,6 +365,31 @@ class MarkerTracker:
             self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
         self._out.append((uv, status, score))
         return uv, status, score
+
+    @property
+    def reacquired(self) -> np.ndarray:
+        """(P,) bool: markers that were not seen in the image before the last one."""
+        return self._before[1] > 0 if self._out else np.zeros(len(self.init), dtype=bool)
+
+    def reject(self, markers) -> None:
+        """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
+
+        For a check from outside, such as the other view of a calibrated rig: the markers' state
+        (last position, template, darkness) is restored to what it was before that image, so a
+        wrong dot taken there is not followed.
+        """
+        idx = np.asarray(markers, dtype=np.int64).ravel()
+        if not self._out or len(idx) == 0:
+            return
+        last, gap, templates, strength = self._before
+        uv, status, _ = self._out[-1]
+        for i in idx:
+            if status[i] == LOST:
+                continue
+            uv[i], status[i] = np.nan, LOST
+            self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
+            self.templates[i] = templates[i]
+            self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
 
     def tracks(self) -> Tracks:
         """Everything tracked so far."""

@@ -225,3 +225,58 @@ def test_foreshortened_dot_beside_a_round_blob_is_not_swapped_for_it(seed):
     seen = tracks.visible
     assert np.all(err[seen] < 1.0), "never on the blob: tracked correctly or reported lost"
     assert seen[:, 0].mean() > 0.8 and seen[:, 1:].all()
+
+
+def test_reject_takes_a_sighting_back_and_the_marker_is_reacquired():
+    from lipgen.track import MarkerTracker
+    rng, base, paths = _sequence(n_frames=12, n_markers=6, seed=12)
+    tracker = MarkerTracker(paths[0])
+    for t, p in enumerate(paths):
+        tracker.step(frame(base, p, rng))
+        if t == 5:
+            assert not tracker.reacquired.any()
+            tracker.reject([2])
+    tracks = tracker.tracks()
+    assert tracks.status[5, 2] == LOST and np.isnan(tracks.uv[5, 2]).all()
+    assert tracks.visible[6:].all() and tracks.visible[:5].all()
+    assert np.nanmax(np.linalg.norm(tracks.uv - paths, axis=2)) < 0.8
+
+
+def test_a_sighting_the_other_view_contradicts_is_taken_back():
+    # Two calibrated views of six 3-D marks. From frame 6 mark 0's dot is hidden in view 1 and a
+    # round blob 6 px above it (off the epipolar line) takes its place; alone, that view's
+    # tracker follows the blob. Checked against view 0, the sighting is refused instead.
+    from lipgen.pinhole import PinholeCamera
+    from lipgen.reconstruct import _check_views
+    from lipgen.track import MarkerTracker
+    K = np.array([[400.0, 0, 80], [0, 400.0, 60], [0, 0, 1]])
+    a = np.deg2rad(20)
+    Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    cams = (PinholeCamera(K, np.eye(3), np.array([0, 0, 300.0]), 160, 120),
+            PinholeCamera(K, Ry, np.array([0, 0, 300.0]), 160, 120))
+    rng = np.random.default_rng(13)
+    grid = np.array([(x, y, 0.0) for y in (-6.0, 6.0) for x in (-12.0, 0.0, 12.0)])
+    t = np.arange(14)[:, None, None]
+    marks = grid[None] + np.array([2.0, 1.0, 3.0]) * np.sin(0.3 * t)
+    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])        # (2, F, P, 2)
+    bases = [background((120, 160), rng) for _ in cams]
+    for check in (False, True):
+        trackers = [MarkerTracker(uv[v, 0]) for v in range(2)]
+        for f in range(len(marks)):
+            for v in range(2):
+                img_uv, shown = uv[v, f].copy(), np.ones(6, dtype=bool)
+                if v == 1 and f >= 6:
+                    shown[0] = False
+                    img_uv = np.vstack([img_uv, img_uv[0] + [0.0, -6.0]])
+                    shown = np.r_[shown, True]
+                trackers[v].step(frame(bases[v], img_uv, rng, visible=shown))
+            if check and f > 0:
+                _check_views(trackers, cams, 2.0)
+        err = np.linalg.norm(trackers[1].tracks().uv[6:, 0] - uv[1, 6:, 0], axis=1)
+        if not check:
+            assert np.nanmin(err) > 4, "alone, the view follows the blob"
+        else:
+            assert not trackers[1].tracks().visible[6:, 0].any(), "checked, the mark is reported lost"
+            for v in range(2):
+                tr = trackers[v].tracks()
+                assert np.all(np.linalg.norm(tr.uv - uv[v], axis=2)[tr.visible] < 1.0)
