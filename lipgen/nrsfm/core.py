@@ -12,6 +12,7 @@ from ._tracks import check_k, check_tracks, complete_tracks, factor, numerical_r
 from .bmm import min_trace_norm_shapes, rank_k_shapes
 from .bregler import bregler_factorization
 from .emppca import em_ppca
+from .lowrank import fit_rank_k
 from .refine import bundle_adjust
 
 __all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
@@ -23,7 +24,9 @@ METHODS: dict[str, str] = {
     "bregler": "Bregler, Hertzmann & Biermann 1999 as written: rank-3K SVD, per-frame rank-1 "
                "pose/weights, one 3x3 metric upgrade",
     "dai": "Dai, Li & He 2012 (prior-free): rotations from the orthonormality of one corrective "
-           "triple, shapes of least trace norm reprojecting exactly (block matrix method), cut to rank K",
+           "triple, shapes of least trace norm reprojecting exactly (block matrix method), cut to rank K; "
+           "then exactly K basis shapes fitted to the tracks with the rotations fixed (variable "
+           "projection, restarted when noise-free tracks are not fitted exactly)",
     "dai-ba": "'dai' followed by low-rank bundle adjustment of rotations, weights, basis and "
               "translation (Levenberg-Marquardt on the reprojection error)",
     "em-ppca": "Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): mean shape plus K Gaussian "
@@ -140,8 +143,19 @@ def _reprojection_rms(tracks, R, C, B, t) -> float:
     return float(np.sqrt((res**2).sum() / (2 * tracks.n_observed)))
 
 
+def _tidy(R, C, B, t):
+    """Orient the frames (per-frame sign, see :func:`orient_frames`) and centre the basis shapes,
+    moving their mean into the image translations."""
+    R, _, sign = orient_frames(R, np.einsum("fk,kip->fip", C, B))
+    C = C * sign[:, None]
+    centre = B.mean(axis=2)                                    # (K, 3)
+    t = t + np.einsum("fia,fa->fi", R[:, :2], C @ centre)
+    return R, C, B - centre[:, :, None], t
+
+
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
-                n_starts: int = 4, refine_iter: int = 100, em_iter: int = 500) -> Reconstruction:
+                n_starts: int = 4, shape_starts: int = 8, refine_iter: int = 100,
+                em_iter: int = 500) -> Reconstruction:
     """Non-rigid structure from motion: rotations, weights and basis shapes from 2D tracks.
 
     Parameters
@@ -162,6 +176,9 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         Seed of the random starts of the rotation search.
     n_starts : int
         Starting points of the rotation search (``"dai"``, ``"dai-ba"``).
+    shape_starts : int
+        Random restarts of the rank-K shape fit (``"dai"``, ``"dai-ba"``), tried only when the
+        tracks are exactly of rank <= 3K and the fit from the trace-norm shapes is not exact.
     refine_iter : int
         Iteration cap of the bundle adjustment (``"dai-ba"``).
     em_iter : int
@@ -208,7 +225,12 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         shapes = min_trace_norm_shapes(Wc, R, None if tracks.complete else tracks.mask)
         R, shapes, _ = orient_frames(R, shapes)
         C, B = rank_k_shapes(shapes, k)
+        # the trace-norm cut is only a start: with R fixed, fit exactly K basis shapes
+        C, B, fit = fit_rank_k(Wc, R, B, None if tracks.complete else tracks.mask,
+                               exact_model=rank <= 3 * k, n_starts=shape_starts, seed=seed)
+        R, C, B, t = _tidy(R, C, B, t)
         info["rotation_cost"] = cost
+        info.update(fit)
         if method == "dai-ba":
             R, C, B, t, history = bundle_adjust(tracks.W, R, C, B, t, None if tracks.complete else
                                                 tracks.mask, max_iter=refine_iter)
