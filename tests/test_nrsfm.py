@@ -83,6 +83,40 @@ def test_dai_recovers_low_rank_exactly(k):
     assert np.allclose(rec.reproject(), W, atol=1e-5 * np.abs(W).max())
 
 
+def _rank1_deformation_sequence(n_frames, n_points, n_rank1, rng):
+    """A mean shape plus ``n_rank1`` rank-1 deformations (direction times per-point amount, as in
+    Torresani's shark), turned by uniformly random rotations: tracks of rank 3 + n_rank1 < 3K."""
+    k = 1 + n_rank1
+    basis = np.zeros((k, 3, n_points))
+    basis[0] = rng.standard_normal((3, n_points))
+    for i in range(1, k):
+        d = rng.standard_normal(3)
+        basis[i] = np.outer(d / np.linalg.norm(d), rng.standard_normal(n_points))
+    basis -= basis.mean(axis=2, keepdims=True)
+    weights = np.ones((n_frames, k))
+    weights[:, 1:] = 0.5 * rng.standard_normal((n_frames, k - 1))
+    shapes = random_rotations(n_frames, rng) @ np.einsum("fk,kip->fip", weights, basis)
+    W = (shapes[:, :2] + rng.standard_normal((n_frames, 2, 1))).reshape(2 * n_frames, n_points)
+    return W, shapes.reshape(3 * n_frames, n_points), k
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_dai_exact_on_degenerate_rank_with_large_rotations(seed):
+    # the least-trace-norm shapes are not of rank K here (the relaxation is not tight); the rank-K
+    # fit with the rotations fixed must still land on the exact K-shape solution
+    W, S, k = _rank1_deformation_sequence(120, 30, 2, np.random.default_rng(seed))
+    assert np.linalg.matrix_rank(W - W.mean(1, keepdims=True), tol=1e-9 * np.abs(W).max()) == 5
+    rec = reconstruct(W, k, method="dai")
+    assert e3d(rec.S, S) < 1e-8
+    assert rec.info["shape_exact"]
+    _check_rotations(rec.rotations)
+
+
+def test_dai_exact_on_smoothly_turning_low_rank_sequence():
+    W, S, _ = low_rank_sequence(150, 30, 3, np.random.default_rng(1), smooth=True)
+    assert e3d(reconstruct(W, 3, method="dai").S, S) < 1e-6
+
+
 def test_dai_ba_exact_and_bregler_is_not():
     rng = np.random.default_rng(3)
     W, S, _ = low_rank_sequence(100, 20, 3, rng)
