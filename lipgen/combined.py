@@ -99,9 +99,14 @@ Without :meth:`CombinedModel.fit`, σ² is a prior share of the learned variance
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .llse import LLSE, PhysicsCovariance, SumCovariance
+
+if TYPE_CHECKING:
+    from .mixture import ScaleMixtureLLSE
 
 __all__ = ["CombinedModel", "DEFAULT_RESIDUAL_SHARE", "default_residual_variance"]
 
@@ -223,3 +228,34 @@ class CombinedModel:
         """
         noise = self.noise_variance_ if noise is None else noise
         return LLSE.build(self.covariance(), dofs, mean=self.modes.mean_, noise=noise)
+
+    def mixture(self, dofs, noise=None, shares=None) -> ScaleMixtureLLSE:
+        """The estimate of all DOFs from ``dofs`` with σ² unknown per frame (a scale mixture).
+
+        Each frame's observations weigh a log-uniform grid of residual variances, σ²_j =
+        ``shares`` × the learned variance at the markers per unit of P (see
+        :mod:`lipgen.mixture`); the estimate is the posterior mean over the grid. Use it for
+        motion that may lie outside the training span; :meth:`llse` (one σ², linear) for motion
+        like the training frames.
+
+        Parameters
+        ----------
+        dofs : (d,) int
+            Observed DOFs.
+        noise : float or (d,) float, optional
+            Observation-noise variance (mm²); ``noise_variance_`` by default.
+        shares : (J,) float, optional
+            The grid as shares of the learned variance; :data:`lipgen.mixture.MIXTURE_SHARES` by
+            default (1e-5 to 10, 4 per decade).
+        """
+        from .mixture import MIXTURE_SHARES, ScaleMixtureLLSE
+
+        noise = self.noise_variance_ if noise is None else noise
+        shares = MIXTURE_SHARES if shares is None else np.asarray(shares, dtype=np.float64)
+        unit = default_residual_variance(self.modes, self.physics, 1.0, kind=self.kind)
+        learned = self.modes.covariance(self.n_modes)
+
+        def make(s2):
+            return SumCovariance(learned, PhysicsCovariance(self.physics, s2, self.kind))
+
+        return ScaleMixtureLLSE.build(make, unit * shares, dofs, mean=self.modes.mean_, noise=noise)
