@@ -19,10 +19,12 @@ Protocol (:func:`run_table51`)
    thesis's normalised units².
 4. Outside the training span: actions held out of training test the combined model.
 
-The combined model's prior kind, residual variance σ² and noise variance τ² are chosen from the
-training fields only, by cross-validated marginal likelihood of their markers
-(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ². The other estimators of the
-marker rows are given the true marker-noise variance.
+The combined model's prior kind and noise variance τ² are chosen from the training fields only,
+by cross-validated marginal likelihood of their markers
+(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ², and weighs the residual variance
+σ² per frame by the frame's own observations (:meth:`~lipgen.combined.CombinedModel.mixture`).
+The column "combined_fixed" is the linear LLSE at the cross-validated σ². The other estimators of
+the marker rows are given the true marker-noise variance.
 """
 
 from __future__ import annotations
