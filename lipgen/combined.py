@@ -136,6 +136,10 @@ def default_residual_variance(modes, physics, share: float = DEFAULT_RESIDUAL_SH
 class CombinedModel:
     """Learned modes as the prior for the gross deformation, full-rank physics for the residual.
 
+    :meth:`fit` chooses the prior kind and the noise from training fields; :meth:`mixture` is
+    the estimate for motion that may lie outside the training span (σ² weighed per frame),
+    :meth:`llse` the linear one at a single σ².
+
     Parameters
     ----------
     modes : lipgen.modes.ModeModel
