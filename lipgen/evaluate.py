@@ -79,10 +79,11 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     surface. Columns: the first ``n_modes`` modes, the full sample covariance, the combined
     learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
 
-    ``combined`` is True (the combined model with the default residual share and no noise),
-    False (no such column) or a :class:`lipgen.combined.CombinedModel`, e.g. one whose prior was
-    chosen from the training fields by :meth:`~lipgen.combined.CombinedModel.fit` (it then uses
-    its estimated marker-noise variance).
+    ``combined`` is True (the combined model with the default prior and no noise), False (no
+    such column) or a :class:`lipgen.combined.CombinedModel`, e.g. one whose prior was chosen
+    from the training fields by :meth:`~lipgen.combined.CombinedModel.fit` (it then uses its
+    estimated marker-noise variance). Its estimate is the scale mixture
+    (:meth:`~lipgen.combined.CombinedModel.mixture`: the residual variance weighed per frame).
     """
     from .fem import dofs as node_dofs
 
@@ -93,7 +94,7 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
             from .combined import CombinedModel
 
             comb = combined if isinstance(combined, CombinedModel) else CombinedModel(model, physics)
-            columns["combined"] = comb.llse
+            columns["combined"] = comb.mixture
         except ImportError:
             log.warning("lipgen.combined is not available: no combined-model column")
     markers = np.asarray(physics.mesh.markers)

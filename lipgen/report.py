@@ -233,12 +233,13 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
     if "combined_choice" in s:
         cc = s["combined_choice"]
         prior = {"force": "K_s⁻²", "energy": "K_s⁻¹"}.get(cc["kind"], cc["kind"])
-        L += ["", f"Combined model (§6.1): physical prior {prior}, residual variance "
-              f"{_fmt(cc['residual_share'])} of the learned variance at the markers, marker-noise variance "
+        L += ["", f"Combined model (§6.1): physical prior {prior} and marker-noise variance "
               f"{_fmt(cc['noise_variance_mm2'])} mm² (RMS {_fmt(cc['noise_variance_mm2'] ** 0.5)} mm per "
-              "coordinate), all chosen from the training frames' fields by 5-fold cross-validated "
-              "marginal likelihood (`CombinedModel.fit`); its estimates use that noise variance. The "
-              "other columns treat the markers as exact."]
+              "coordinate), chosen from the training frames' fields by 5-fold cross-validated marginal "
+              f"likelihood (`CombinedModel.fit`; its residual variance there: {_fmt(cc['residual_share'])} "
+              "of the learned variance at the markers). Its estimates use that noise variance and weigh "
+              "a log-uniform grid of residual variances per frame by the frame's own markers "
+              "(`CombinedModel.mixture`). The other columns treat the markers as exact."]
     var = s["variance"]
     cum = var["cumulative_share"][:10]
     L += ["", f"Variance captured by 10 modes: **{100 * var['ten_modes']:.2f}%** (thesis: 99.2%).", "",

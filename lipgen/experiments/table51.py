@@ -19,10 +19,12 @@ Protocol (:func:`run_table51`)
    thesis's normalised units².
 4. Outside the training span: actions held out of training test the combined model.
 
-The combined model's prior kind, residual variance σ² and noise variance τ² are chosen from the
-training fields only, by cross-validated marginal likelihood of their markers
-(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ². The other estimators of the
-marker rows are given the true marker-noise variance.
+The combined model's prior kind and noise variance τ² are chosen from the training fields only,
+by cross-validated marginal likelihood of their markers
+(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ², and weighs the residual variance
+σ² per frame by the frame's own observations (:meth:`~lipgen.combined.CombinedModel.mixture`).
+The column "combined_fixed" is the linear LLSE at the cross-validated σ². The other estimators of
+the marker rows are given the true marker-noise variance.
 """
 
 from __future__ import annotations
@@ -47,11 +49,13 @@ log = logging.getLogger(__name__)
 SHARES = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
 """Residual shares of the test-set sensitivity sweep (reported, never used for the choice)."""
 
-COLUMNS = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_energy")
+COLUMNS = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_fixed",
+           "combined_energy")
 """Estimators: the first k modes; the full sample covariance; the physics alone with the thesis's
 K_s⁻² (min-norm force, = ``Physics.reach``) and with K_s⁻¹ (least strain energy); the combined
-model (k modes + physical residual, kind, σ² and τ² chosen by :meth:`CombinedModel.fit`) and the
-same with the K_s⁻¹ prior imposed."""
+model (k modes + physical residual; kind and τ² chosen by :meth:`CombinedModel.fit`, σ² unknown
+per frame: :meth:`CombinedModel.mixture`); the same with the one σ² of :meth:`CombinedModel.fit`
+(linear, :meth:`CombinedModel.llse`); and that with the K_s⁻¹ prior imposed."""
 
 
 @dataclass(frozen=True)
@@ -143,8 +147,9 @@ def fit_combined(model: ModeModel, physics: Physics, train_fields, n_modes: int 
 
 
 def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_modes: int | None = None,
-               combined: dict | None = None, combined_noise=None) -> dict[str, LLSE]:
-    """The LLSE of each column of :data:`COLUMNS` for observed DOFs ``d``.
+               combined: dict | None = None, combined_noise=None) -> dict:
+    """The estimator of each column of :data:`COLUMNS` for observed DOFs ``d`` (an
+    :class:`~lipgen.llse.LLSE`, or a :class:`~lipgen.mixture.ScaleMixtureLLSE` for "combined").
 
     ``noise`` (mm²) is given to the learned and physics-only columns; ``combined`` is
     :func:`fit_combined`'s result (without it the combined columns use the default share and no
@@ -161,7 +166,9 @@ def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_mode
         "full": model.llse(d, "full", noise=noise),
         "physics_force": LLSE.build(phys["force"], d, noise=noise),
         "physics_energy": LLSE.build(phys["energy"], d, noise=noise),
-        **{name: cm.llse(d, noise=combined_noise) for name, cm in combined.items()},
+        "combined": combined["combined"].mixture(d, noise=combined_noise),
+        "combined_fixed": combined["combined"].llse(d, noise=combined_noise),
+        "combined_energy": combined["combined_energy"].llse(d, noise=combined_noise),
     }
 
 
@@ -247,11 +254,11 @@ def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int
     return model, combined, test, rows
 
 
-def _versus(table: dict) -> dict:
-    """{row: (combined / best learned-only, combined / best physics-only)} against the truth."""
+def _versus(table: dict, column: str = "combined") -> dict:
+    """{row: (column / best learned-only, column / best physics-only)} against the truth."""
     out = {}
     for row, v in table.items():
-        c = v["combined"]["truth"]
+        c = v[column]["truth"]
         out[row] = (c / min(v["modes"]["truth"], v["full"]["truth"]),
                     c / min(v["physics_force"]["truth"], v["physics_energy"]["truth"]))
     return out
@@ -269,14 +276,20 @@ def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
                                              noise_variance=cm.noise_variance_).llse(d), d,
                                test.reach, test.truth, _hidden(physics, d)) for sh in SHARES]
              for name, d in rows.items()}
-    ratios = {row: {"learned": [r[0]], "physics": [r[1]]} for row, r in _versus(table).items()}
+    ratios = {row: {"learned": [], "physics": [], "learned_fixed": [], "physics_fixed": []} for row in rows}
+
+    def add(tab):
+        for suffix, col in (("", "combined"), ("_fixed", "combined_fixed")):
+            for row, r in _versus(tab, col).items():
+                ratios[row]["learned" + suffix].append(r[0])
+                ratios[row]["physics" + suffix].append(r[1])
+
+    add(table)
     for k in range(1, s.oos_realisations):
         log.info("outside the span: realisation %d of %d", k + 1, s.oos_realisations)
         m, c, t, _ = _realisation(s, subject, physics, noise_var, rng, s.seed + 13 + 1000 * k)
-        cols = ("modes", "full", "physics_force", "physics_energy", "combined")
-        for row, r in _versus(_score(m, physics, t, rows, noise_var, c, cols)).items():
-            ratios[row]["learned"].append(r[0])
-            ratios[row]["physics"].append(r[1])
+        cols = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_fixed")
+        add(_score(m, physics, t, rows, noise_var, c, cols))
     return {"held_out_test": list(s.held_out_test), "n_test_frames": len(test.goals),
             "selection": _selection(cm), "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
             "variance_captured": float(np.sum(model.explained_variance_ratio_)),
