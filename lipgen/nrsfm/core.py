@@ -226,9 +226,9 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         R, shapes, _ = orient_frames(R, shapes)
         C, B = rank_k_shapes(shapes, k)
         # the trace-norm cut is only a start: with R fixed, fit exactly K basis shapes
-        C, B, fit = fit_rank_k(Wc, R, B, None if tracks.complete else tracks.mask,
-                               exact_model=rank <= 3 * k, n_starts=shape_starts, seed=seed)
-        R, C, B, t = _tidy(R, C, B, t)
+        C, B, shift, fit = fit_rank_k(Wc, R, B, None if tracks.complete else tracks.mask,
+                                      exact_model=rank <= 3 * k, n_starts=shape_starts, seed=seed)
+        R, C, B, t = _tidy(R, C, B, t + shift)
         info["rotation_cost"] = cost
         info.update(fit)
         if method == "dai-ba":

@@ -28,17 +28,24 @@ log = logging.getLogger(__name__)
 
 
 def _frame_systems(R2, B, Wm, m):
-    """Per-frame design A (F, 2P, K), inverse normal matrices (F, K, K), weights (F, K), residual (F, 2P)."""
+    """Per frame, the linear unknowns given the basis: weights (K) and an image shift (2).
+
+    Returns the design A (F, 2P, K + 2), its inverse normal matrices (F, K + 2, K + 2), the
+    weights (F, K), the shifts (F, 2) and the residual (F, 2P).
+    """
     F, P = m.shape
     K = B.shape[0]
-    A = (np.einsum("fij,kjp->fipk", R2, B) * m[:, None, :, None]).reshape(F, 2 * P, K)
+    A = np.zeros((F, 2, P, K + 2))
+    A[..., :K] = np.einsum("fij,kjp->fipk", R2, B) * m[:, None, :, None]
+    A[:, 0, :, K] = m   # the shift: the translation taken from (completed) track means is only a
+    A[:, 1, :, K + 1] = m   # start when points are missing
+    A = A.reshape(F, 2 * P, K + 2)
     AtA = np.matmul(A.transpose(0, 2, 1), A)
     reg = 1e-13 * np.trace(AtA, axis1=1, axis2=2)[:, None, None] + 1e-300
-    Minv = np.linalg.inv(AtA + reg * np.eye(K))
-    C = np.matmul(Minv, np.matmul(A.transpose(0, 2, 1), Wm[..., None]))[..., 0]
-    res = Wm - np.matmul(A, C[..., None])[..., 0]
-    return A, Minv, C, res
-
+    Minv = np.linalg.inv(AtA + reg * np.eye(K + 2))
+    x = np.matmul(Minv, np.matmul(A.transpose(0, 2, 1), Wm[..., None]))[..., 0]
+    res = Wm - np.matmul(A, x[..., None])[..., 0]
+    return A, Minv, x[:, :K], x[:, K:], res
 
 
 def _operators(R2, m, A, Minv, C):
@@ -128,6 +135,8 @@ def fit_rank_k_basis(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.nda
     weights : (F, K) float
     basis : (K, 3, P) float
         Orthonormal as 3P-vectors.
+    shift : (F, 2) float
+        Image shift of each frame to add to the translation removed from ``Wc``.
     history : list of float
         Cost (half the sum of squared residuals) after each accepted step, the start first.
     """
@@ -143,7 +152,7 @@ def fit_rank_k_basis(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.nda
         return q.T.reshape(K, 3, P)
 
     B = orthonormal(B0)
-    A, Minv, C, res = _frame_systems(R2, B, Wm, m)
+    A, Minv, C, shift, res = _frame_systems(R2, B, Wm, m)
     cost = 0.5 * float((res**2).sum())
     history = [cost]
     lam = 1e-3
@@ -164,12 +173,12 @@ def fit_rank_k_basis(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.nda
             x = _pcg((G, Gt, proj), (lam * damp).reshape(P, K, 3).transpose(1, 2, 0),
                      np.linalg.inv(V + lam * damp[:, :, None] * np.eye(n)), g, cg_iter, cg_tol)
             Bn = orthonormal(B + x)
-            An, Mn, Cn, resn = _frame_systems(R2, Bn, Wm, m)
+            An, Mn, Cn, shiftn, resn = _frame_systems(R2, Bn, Wm, m)
             new = 0.5 * float((resn**2).sum())
             if new < cost:
                 accepted = True
                 gain = (cost - new) / cost
-                B, A, Minv, C, res, cost = Bn, An, Mn, Cn, resn, new
+                B, A, Minv, C, shift, res, cost = Bn, An, Mn, Cn, shiftn, resn, new
                 lam = max(lam / 5, 1e-9)
             else:
                 lam *= 5
@@ -178,7 +187,7 @@ def fit_rank_k_basis(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.nda
             break
     log.debug("rank-K basis (variable projection): %d steps, cost %.3e -> %.3e", len(history) - 1,
               history[0], cost)
-    return C, B, history
+    return C, B, shift, history
 
 
 EXACT_RTOL = 1e-10
@@ -213,6 +222,8 @@ def fit_rank_k(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.ndarray |
     -------
     weights : (F, K) float
     basis : (K, 3, P) float
+    shift : (F, 2) float
+        See :func:`fit_rank_k_basis`.
     info : dict
         ``shape_cost`` (relative to the zero model: first start, final), ``shape_starts`` used,
         ``shape_exact``.
@@ -220,21 +231,22 @@ def fit_rank_k(Wc: np.ndarray, R: np.ndarray, B0: np.ndarray, mask: np.ndarray |
     F, P = R.shape[0], Wc.shape[1]
     seen = np.ones((F, P), dtype=bool) if mask is None else mask
     zero = 0.5 * float((np.where(seen[:, None, :], Wc.reshape(F, 2, P), 0.0) ** 2).sum())
-    C, B, hist = fit_rank_k_basis(Wc, R, B0, mask, max_iter=max_iter)
+    C, B, shift, hist = fit_rank_k_basis(Wc, R, B0, mask, max_iter=max_iter)
     first = hist[-1] / zero
-    best = (hist[-1], C, B)
+    best = (hist[-1], C, B, shift)
     used = 1
     if exact_model and best[0] > EXACT_RTOL * zero:
         rng = np.random.default_rng(seed)
         for _ in range(n_starts):
-            C, B, hist = fit_rank_k_basis(Wc, R, rng.standard_normal(B0.shape), mask, max_iter=max_iter)
+            C, B, shift, hist = fit_rank_k_basis(Wc, R, rng.standard_normal(B0.shape), mask,
+                                                 max_iter=max_iter)
             used += 1
             if hist[-1] < best[0]:
-                best = (hist[-1], C, B)
+                best = (hist[-1], C, B, shift)
             if best[0] <= EXACT_RTOL * zero:
                 break
         log.info("rank-K shapes: start from the trace-norm cut stuck at %.2e of the track energy; %d "
                  "random restarts, best %.2e", first, used - 1, best[0] / zero)
-    cost, C, B = best
-    return C, B, {"shape_cost": [first, cost / zero], "shape_starts": used,
+    cost, C, B, shift = best
+    return C, B, shift, {"shape_cost": [first, cost / zero], "shape_starts": used,
                   "shape_exact": bool(cost <= EXACT_RTOL * zero)}
