@@ -223,6 +223,19 @@ def _noise_vector(noise, d: int) -> np.ndarray:
     return r
 
 
+def observed_values(values, d: int) -> np.ndarray:
+    """Check observed values: ``(d,)`` or ``(b, d)`` finite floats for ``d`` observed DOFs."""
+    Y = np.asarray(values, dtype=np.float64)
+    if Y.ndim not in (1, 2) or Y.shape[-1] != d:
+        raise ValueError(f"values must have shape ({d},) or (b, {d}) for the {d} observed DOFs, "
+                         f"got {Y.shape}")
+    if not np.isfinite(Y).all():
+        bad = np.argwhere(~np.isfinite(Y))[0]
+        raise ValueError(f"values of shape {Y.shape} hold NaN or inf (first at {tuple(bad)}); "
+                         "drop those observations from dofs instead")
+    return Y
+
+
 @dataclass(frozen=True, eq=False)
 class LLSE:
     """The LLSE for one set of observed DOFs, with its gain precomputed (eq 4.7).
@@ -301,15 +314,7 @@ class LLSE:
 
     def estimate(self, values) -> np.ndarray:
         """Estimated fields: ``(n, 3)`` for ``values (d,)``, ``(b, n, 3)`` for ``values (b, d)`` (mm)."""
-        Y = np.asarray(values, dtype=np.float64)
-        d = len(self.dofs)
-        if Y.ndim not in (1, 2) or Y.shape[-1] != d:
-            raise ValueError(f"values must have shape ({d},) or (b, {d}) for the {d} observed DOFs, "
-                             f"got {Y.shape}")
-        if not np.isfinite(Y).all():
-            bad = np.argwhere(~np.isfinite(Y))[0]
-            raise ValueError(f"values of shape {Y.shape} hold NaN or inf (first at {tuple(bad)}); "
-                             "drop those observations from dofs instead")
+        Y = observed_values(values, len(self.dofs))
         X = Y @ self.gain_t
         X += self.offset
         return X.reshape(*Y.shape[:-1], self.n_nodes, 3)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._validate import as_float_array
-from .llse import LLSE
+from .llse import LLSE, observed_values
 from .tol import tol
 
 __all__ = ["ScaleMixtureLLSE", "MIXTURE_SHARES"]
@@ -113,14 +113,7 @@ class ScaleMixtureLLSE:
         return self.components[0].n_nodes
 
     def _values(self, values) -> np.ndarray:
-        Y = np.asarray(values, dtype=np.float64)
-        d = len(self.dofs)
-        if Y.ndim not in (1, 2) or Y.shape[-1] != d:
-            raise ValueError(f"values must have shape ({d},) or (b, {d}) for the {d} observed DOFs, "
-                             f"got {Y.shape}")
-        if not np.isfinite(Y).all():
-            raise ValueError(f"values of shape {Y.shape} hold NaN or inf; drop those observations from dofs")
-        return Y
+        return observed_values(values, len(self.dofs))
 
     def log_evidence(self, values) -> np.ndarray:
         """(b, J) or (J,): log N(y; x̄_o, Λ_j[o, o] + R) of each frame under each σ²_j (nats)."""
