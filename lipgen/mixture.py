@@ -24,7 +24,7 @@ estimate is no longer linear in ``y``; its cost is J LLSE products and J Gaussia
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -72,6 +72,24 @@ class ScaleMixtureLLSE:
     components: tuple
     log_prior: np.ndarray
     factors: tuple
+    # Stacked so a batch costs one BLAS product: the gains (J*d, 3n) (each component's gain_t
+    # becomes a view of its block, so memory is not doubled), offsets (J, 3n), and the evidence
+    # whitening [Q_j / sqrt(w_j)] (d, J*d) with its log-determinants (J,).
+    _gains: np.ndarray = field(init=False, repr=False)
+    _offsets: np.ndarray = field(init=False, repr=False)
+    _whiten: np.ndarray = field(init=False, repr=False)
+    _logdets: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        put = object.__setattr__
+        gains = np.concatenate([c.gain_t for c in self.components], axis=0)
+        d = len(self.dofs)
+        put(self, "components", tuple(replace(c, gain_t=gains[j * d:(j + 1) * d])
+                                      for j, c in enumerate(self.components)))
+        put(self, "_gains", gains)
+        put(self, "_offsets", np.stack([c.offset for c in self.components]))
+        put(self, "_whiten", np.concatenate([Q / np.sqrt(w) for Q, w in self.factors], axis=1))
+        put(self, "_logdets", np.array([np.sum(np.log(w)) for _, w in self.factors]))
 
     @classmethod
     def build(cls, make_covariance, variances, dofs, mean=None, noise=0.0,
@@ -119,11 +137,9 @@ class ScaleMixtureLLSE:
         """(b, J) or (J,): log N(y; x̄_o, Λ_j[o, o] + R) of each frame under each σ²_j (nats)."""
         Y = self._values(values)
         R = np.atleast_2d(Y) - self.components[0].mean[self.dofs]
-        d = len(self.dofs)
-        out = np.empty((len(R), len(self.factors)))
-        for j, (Q, w) in enumerate(self.factors):
-            z = R @ Q
-            out[:, j] = -0.5 * (np.sum(np.log(w)) + np.sum(z * z / w, axis=1) + d * np.log(2 * np.pi))
+        d, J = len(self.dofs), len(self.factors)
+        z = (R @ self._whiten).reshape(len(R), J, d)
+        out = -0.5 * (self._logdets + np.einsum("bjd,bjd->bj", z, z) + d * np.log(2 * np.pi))
         return out if Y.ndim == 2 else out[0]
 
     def weights(self, values) -> np.ndarray:
@@ -139,9 +155,10 @@ class ScaleMixtureLLSE:
         Y = self._values(values)
         Yb = np.atleast_2d(Y)
         W = np.atleast_2d(self.weights(Yb))
-        X = np.zeros((len(Yb), 3 * self.n_nodes))
-        for j, est in enumerate(self.components):
-            X += W[:, j, None] * (Yb @ est.gain_t + est.offset)
+        # sum_j w_bj (y_b G_j + o_j) as one product: each frame's weighted copies of its
+        # observations (b, J*d) times the stacked gains.
+        Z = (W[:, :, None] * Yb[:, None, :]).reshape(len(Yb), -1)
+        X = Z @ self._gains + W @ self._offsets
         return X.reshape(*Y.shape[:-1], self.n_nodes, 3)
 
     def posterior_variance(self, values) -> np.ndarray:

@@ -58,7 +58,10 @@ def test_weights_and_estimate_are_bayes_over_the_grid(physics, setup):
     assert np.allclose(est(y).ravel(), want, atol=1e-8 * np.abs(want).max())
     # A batch gives each frame its own weights.
     Y = np.stack([y, mean[d] + 1e-3 * rng.normal(size=len(d))])
-    assert np.allclose(est(Y)[0], est(y)) and est.weights(Y).shape == (2, 3)
+    assert np.allclose(est(Y)[0], est(y)) and np.allclose(est(Y)[1], est(Y[1]))
+    assert est.weights(Y).shape == (2, 3)
+    # The components' gains are views of the stacked gains, not copies.
+    assert all(np.shares_memory(c.gain_t, est._gains) for c in est.components)
     assert np.allclose(est.mean_variance(Y), est.weights(Y) @ s2)
 
 

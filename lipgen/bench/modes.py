@@ -1,7 +1,10 @@
 """Bench suite ``modes``: LLSE reconstruction throughput and mode fitting time.
 
 Throughput is compared with a bare numpy matmul of the same shapes, timed in the same run: once
-the gain is precomputed, reconstructing a batch of frames is that product plus an offset.
+the gain is precomputed, reconstructing a batch of frames is that product plus an offset. The
+combined model's scale mixture (``CombinedModel.mixture``) is timed against the same baseline: it
+evaluates one gain per residual variance of its grid plus each frame's evidence, so it is slower
+by about the grid size.
 """
 
 from __future__ import annotations
@@ -40,6 +43,31 @@ def _throughput(resolution: int, quick: bool, rng) -> dict:
             "llse_over_matmul_time": t_llse / t_bare}
 
 
+def _combined(quick: bool, rng) -> dict:
+    """Frames/s of the combined model at resolution 0: one-σ² LLSE and the scale mixture."""
+    from .. import Physics, lip_mesh
+    from ..combined import CombinedModel
+    from ..fem import dofs
+    from ..modes import ModeModel
+
+    mesh = lip_mesh(0)
+    cm = CombinedModel(ModeModel(10).fit(_fields(rng, 150, mesh.n_dofs)), Physics(mesh),
+                       residual_share=0.05, noise_variance=0.01)
+    d = dofs(mesh.markers)
+    one, mix = cm.llse(d), cm.mixture(d)
+    batch = 2000 if quick else 10000
+    Y = rng.normal(size=(batch, len(d)))
+    G = one.gain_t.copy()
+    repeat = 3 if quick else 5
+    t_one = time_call(lambda: one(Y), repeat=repeat)["best_s"]
+    t_mix = time_call(lambda: mix(Y), repeat=repeat)["best_s"]
+    t_bare = time_call(lambda: Y @ G, repeat=repeat)["best_s"]
+    return {"batch": batch, "observed_dofs": len(d), "grid_size": len(mix.variances),
+            "one_sigma_frames_per_s": batch / t_one, "mixture_frames_per_s": batch / t_mix,
+            "matmul_frames_per_s": batch / t_bare, "mixture_over_one_sigma_time": t_mix / t_one,
+            "mixture_over_matmul_time": t_mix / t_bare}
+
+
 def _fit_time(quick: bool, rng) -> dict:
     from .. import lip_mesh
     from ..modes import ModeModel
@@ -58,12 +86,14 @@ def _fit_time(quick: bool, rng) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    """LLSE frames/s at resolutions 0 and 3 (16 markers), ratio to a bare matmul; fit time."""
+    """LLSE frames/s at resolutions 0 and 3 (16 markers) and the combined model's at 0, against a
+    bare matmul; fit time."""
     import os
 
     rng = np.random.default_rng(0)
     out = {"load_average": list(os.getloadavg())}
     for r in (0, 3):
         out[f"llse_res{r}"] = _throughput(r, quick, rng)
+    out["combined_res0"] = _combined(quick, rng)
     out["fit"] = _fit_time(quick, rng)
     return out
