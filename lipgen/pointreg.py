@@ -103,7 +103,8 @@ def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterati
     """Align a marker layout to detected dots: 2-D similarity ICP with one-to-one matching.
 
     ICP from the layout as given (alternately assign one-to-one within a gate shrinking from
-    ``4 * gate`` to ``gate``, and refit the similarity mapping the layout onto its dots). When
+    ``4 * gate`` to ``gate``, and refit the similarity mapping the layout onto its dots); the
+    layout left where it is wins if it has more dots within ``gate``. When
     that matches fewer than ``accept`` of the markers, the start is instead the best two-point
     RANSAC hypothesis over all dot pairs, which finds large rotations, scalings, jumps and
     clutter that ICP alone would fall into a wrong neighbour for.
@@ -129,6 +130,11 @@ def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterati
     if len(dots) == 0 or len(expected) == 0:
         return np.full(len(expected), -1, dtype=np.int64), expected
     match, cur = _icp(dots, expected, expected, gate, iterations)
+    # ICP's wide first gate can slide into clutter; never move the layout to where it explains
+    # fewer dots than it does as given.
+    still = assign(expected, dots, np.full(len(expected), gate))
+    if (still >= 0).sum() > (match >= 0).sum():
+        match, cur = still, expected
     if (match >= 0).sum() >= accept * len(expected) or len(dots) < 2 or len(expected) < 2:
         return match, cur
     alt_match, alt_cur = _icp(dots, expected, _hypotheses(dots, expected, gate), gate, iterations)

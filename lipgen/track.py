@@ -41,7 +41,7 @@ from .association import (
     fix_order,
     predict,
 )
-from .dots import DotSettings, _dedupe, as_gray, dot_peaks, refine_centroids, refine_peaks
+from .dots import DotSettings, _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from .pointreg import assign
 
 __all__ = [
@@ -281,7 +281,7 @@ class MarkerTracker:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
-        gray = as_gray(image)
+        gray = ink_gray(image)
         dots, strength, e_peaks, e_strength = self._dots(gray)
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
