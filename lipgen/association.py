@@ -1,9 +1,9 @@
 """Frame-to-frame data association for :mod:`lipgen.track`: which dot is which marker.
 
-Prediction of every marker (motion, global jumps, local offsets for markers not seen yet), the
-one-to-one assignment that prefers the correlation peak but accepts motion-predicted matches
-only when unambiguous, and the guards that keep look-alike neighbours from swapping: merged
-dots, reversed pairs, and lost markers carried along with their neighbours.
+Prediction of every marker (motion, global jumps, groups jumping on their own, local offsets for
+markers not seen yet), the one-to-one assignment that prefers the correlation peak but accepts
+motion-predicted matches only when unambiguous, and the guards that keep look-alike neighbours
+from swapping: merged dots, reversed pairs, and lost markers carried along with their neighbours.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from scipy.optimize import linear_sum_assignment
 
 from .pointreg import register_points, similarity_2d
 
-__all__ = ["TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST", "assign_two_routes", "predict", "drop_merged",
-           "fix_order", "carry_lost_markers"]
+__all__ = ["TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST", "assign_two_routes", "predict", "shift_group",
+           "drop_merged", "fix_order", "carry_lost_markers"]
 
 TRACKED, RECOVERED, CORRELATION_ONLY, LOST = 0, 1, 2, 3
 """Per-frame status of a marker: correlation agreed with a detected dot; correlation failed and
@@ -81,7 +81,7 @@ def predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.nd
     otherwise take the correlation to a neighbouring dot). Markers never seen are placed by the
     local offsets from the seen ones (see the code).
     """
-    pred = last + vel * (gap == 0)[:, None]   # a lost marker moves only with its neighbours
+    pred = last + vel * (gap == 0)[:, None]   # a lost marker was carried with its neighbours
     known = np.all(np.isfinite(pred), axis=1)
     if known.sum() >= 3 and len(dots) >= 3:
         match, aligned = register_points(dots, pred[known], gate)
@@ -97,6 +97,52 @@ def predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.nd
             near = k_idx[np.argsort(d)[:3]]
             pred[i] = (pred[near] + s * (reference[i] - reference[near]) @ R.T).mean(0)
     return pred
+
+
+def shift_group(pred: np.ndarray, dots: np.ndarray, gate: float, tol: float, reach: float,
+                min_group: int = 3, share: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
+    """Move the markers that no dot explains by the one shift that puts them on the spare dots.
+
+    A group of markers that jumped together beyond the search (the lower lip dropping) leaves
+    its predictions on bare skin and its dots unclaimed; the similarity of :func:`predict`,
+    fitted to all markers, does not follow it, and neither do the neighbours when the whole group
+    went. The markers with no dot within ``gate`` of ``pred (P, 2)`` form the group, the dots
+    farther than ``gate`` from every prediction are spare. Every offset up to ``reach`` from a
+    group marker to a spare dot is a hypothesis; the one that puts most of the group within
+    ``tol`` of a spare dot wins if it puts at least ``min_group`` markers and ``share`` of the
+    group there and no other offset (``tol`` or more away) does as well. ``tol`` is tight, a
+    dot's snap distance, and ``share`` high: a row of look-alike dots shifted by one spacing
+    fits part of a group that did not move as one, and must not win. The moved markers should
+    still pass the tracker's unambiguity test (they are guesses, not sightings).
+    Returns (pred moved (P, 2), moved (P,) bool).
+    """
+    moved = np.zeros(len(pred), dtype=bool)
+    ok = np.all(np.isfinite(pred), axis=1)
+    if len(dots) < min_group or ok.sum() < min_group:
+        return pred, moved
+    d = np.linalg.norm(pred[:, None] - dots[None], axis=2)
+    d[~ok] = np.inf
+    group = np.flatnonzero(ok & (d.min(1) > gate))
+    spare = dots[d.min(0) > gate]
+    if len(group) < min_group or len(spare) < min_group:
+        return pred, moved
+    offsets = (spare[None] - pred[group][:, None]).reshape(-1, 2)
+    offsets = offsets[np.linalg.norm(offsets, axis=1) <= reach]
+    if len(offsets) == 0:
+        return pred, moved
+    to = pred[group][None, :, None] + offsets[:, None, None] - spare[None, None]    # (H, G, S, 2)
+    hit = np.linalg.norm(to, axis=3).min(2) <= tol                                  # (H, G)
+    count = hit.sum(1)
+    best = int(np.argmax(count))
+    rivals = np.linalg.norm(offsets - offsets[best], axis=1) >= tol
+    if count[best] < max(min_group, share * len(group)) or (rivals & (count >= count[best])).any():
+        return pred, moved
+    on = group[hit[best]]
+    near = np.linalg.norm(pred[on][:, None] + offsets[best] - spare[None], axis=2).argmin(1)
+    out = pred.copy()
+    out[group] += np.mean(spare[near] - pred[on], axis=0)
+    moved[group] = True
+    return out, moved
 
 
 def fix_order(uv: np.ndarray, status: np.ndarray, reference: np.ndarray, radius: float) -> None:
@@ -141,22 +187,36 @@ def drop_merged(uv: np.ndarray, status: np.ndarray, cand: np.ndarray, searched: 
         uv[status == LOST] = np.nan
 
 
-def carry_lost_markers(last: np.ndarray, uv: np.ndarray, visible: np.ndarray, gap: np.ndarray,
-                        neighbours: int = 4) -> None:
-    """Move the last-seen positions of lost markers with their nearest tracked neighbours.
+def carry_lost_markers(last: np.ndarray, before: np.ndarray, uv: np.ndarray, visible: np.ndarray,
+                        neighbours: int = 6, shrink: float = 0.1) -> None:
+    """Move the last-seen positions of lost markers with their nearest seen neighbours (in place).
 
     Without this a lost marker waits where it was last seen while the face moves on, and its
-    search misses it when it reappears. Each lost marker moves by the inverse-distance weighted
-    mean displacement of its ``neighbours`` nearest markers seen in both frames: local, so a
-    lower-lip marker follows the lower lip when the jaw opens. Updates ``last`` in place.
+    search misses it when it reappears. ``before (P, 2)`` are the markers' positions before the
+    image (seen or carried), ``uv (P, 2)`` and ``visible (P,)`` what it showed. Each marker not
+    visible there moves as the displacements ``uv - before`` of its ``neighbours`` nearest visible
+    markers say, by a local affine fit (weights 1 / (1 + distance)^2): local, so a lower-lip
+    marker follows the lower lip when the jaw opens, and affine, so a marker between a lip corner
+    that barely moved and a lip middle that dropped drops part of the way (a plain mean of the
+    neighbours is off by half a jump). The fit's gradient is shrunk toward none by ``shrink`` of
+    the neighbours' weighted spread, which keeps nearly collinear neighbours from extrapolating.
+    A neighbour just re-acquired counts with its whole jump from where it was carried: when a
+    group of markers jumps together and some are lost, the first found again tells where the
+    others went. Updates ``last`` of the markers not visible.
     """
-    pairs = np.flatnonzero(visible & (gap == 0) & np.all(np.isfinite(last), axis=1))
-    lost = np.flatnonzero(~visible & np.all(np.isfinite(last), axis=1))
+    ok = np.all(np.isfinite(before), axis=1)
+    pairs = np.flatnonzero(visible & ok)
+    lost = np.flatnonzero(~visible & ok)
     if len(lost) == 0 or len(pairs) == 0:
         return
-    moves = uv[pairs] - last[pairs]
-    d = np.linalg.norm(last[lost][:, None] - last[pairs][None], axis=2)
+    moves = uv[pairs] - before[pairs]
     k = min(neighbours, len(pairs))
-    near = np.argsort(d, axis=1)[:, :k]
-    w = 1.0 / (np.take_along_axis(d, near, axis=1) + 1.0)
-    last[lost] += (w[..., None] * moves[near]).sum(1) / w.sum(1, keepdims=True)
+    for i in lost:
+        x = before[pairs] - before[i]
+        near = np.argsort(np.linalg.norm(x, axis=1))[:k]
+        x = x[near]
+        w = 1.0 / (1.0 + np.linalg.norm(x, axis=1)) ** 2
+        A = np.column_stack([np.ones(k), x])                       # move ~ c0 + x @ (c1, c2)
+        lhs = A.T @ (w[:, None] * A)
+        lhs[1:, 1:] += np.eye(2) * shrink * 0.5 * (w * (x * x).sum(1)).sum()
+        last[i] = before[i] + np.linalg.lstsq(lhs, A.T @ (w[:, None] * moves[near]), rcond=None)[0][0]

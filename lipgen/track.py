@@ -11,7 +11,10 @@ GUI (§3). Here the GUI is replaced by two things:
   is weak or jumps too far) is then snapped to a detected dot by a one-to-one assignment. The
   position reported is the dot's sub-pixel centroid, so template drift does not accumulate. A
   marker with no dot in reach is marked not visible (``status = LOST``) and re-acquired, with a
-  widening gate, when a dot reappears near its prediction.
+  widening gate, when a dot reappears near its prediction. A lost marker is carried with its
+  neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
+  that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
+  shift (:func:`lipgen.association.shift_group`).
 * **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
   in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
   blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
@@ -40,6 +43,7 @@ from .association import (
     drop_merged,
     fix_order,
     predict,
+    shift_group,
 )
 from .dots import DotSettings, _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from .pointreg import assign
@@ -280,6 +284,11 @@ class MarkerTracker:
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
+        if self._out:
+            # Carried only now, after any outside check took back sightings of the last image:
+            # a wrong dot's jump must not drag its lost neighbours along.
+            prev_uv, prev_status, _ = self._out[-1]
+            carry_lost_markers(self.last, self._before[0], prev_uv, prev_status != LOST)
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
         gray = ink_gray(image)
         dots, strength, e_peaks, e_strength = self._dots(gray)
@@ -287,6 +296,7 @@ class MarkerTracker:
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
         first = not self._out
+        shifted = np.zeros(P, dtype=bool)
         if first:
             seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
@@ -297,6 +307,7 @@ class MarkerTracker:
         else:
             gap = self.gap
             pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
+            pred, shifted = shift_group(pred, dots, cfg.recovery_gate, cfg.gate, 3 * cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
                 gates[i] = cfg.recovery_gate + cfg.gate * min(gap[i], 3)
@@ -310,16 +321,18 @@ class MarkerTracker:
                     cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
             # A marker coming back after a loss must pass the unambiguity test even when the
             # correlation found a peak: its template may be stale and its neighbours look alike.
-            back = gap > 0
-            guess = np.where((back & corr_ok)[:, None], cand, pred)
+            # A peak with no dot at it is the skin where the dot was; the prediction, carried
+            # with the neighbours, is the better guess then.
+            back = (gap > 0) | shifted
+            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
+                  else np.full(P, np.inf))
+            guess = np.where((back & corr_ok & (d0 <= cfg.gate))[:, None], cand, pred)
             reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
             # A dot seen obliquely (the lip corner turning away) is elongated and fails the
             # detector's roundness test, and the nearest round blob may then be something else
             # (the dark end of the mouth opening). For markers with no round dot at their
             # correlation peak, elongated blobs near them become candidates: takeable only where
             # the correlation found them, and rivals in the unambiguity test of the prediction.
-            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
-                  else np.full(P, np.inf))
             need = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate)
             e_uv, e_idx = self._foreshortened(gray, dots, e_peaks, np.vstack([cand[need], guess[need]]),
                                               np.concatenate([gates[need], reach[need]]))
@@ -346,9 +359,8 @@ class MarkerTracker:
         if self.reference is not None:
             fix_order(uv, status, self.reference, 4.0 * cfg.twins)
         visible = status != LOST
-        carry_lost_markers(self.last, uv, visible, self.gap)
         for i in np.flatnonzero(visible):
-            if self.gap[i] == 0 and not first and np.all(np.isfinite(self.last[i])):
+            if self.gap[i] == 0 and not first and not shifted[i] and np.all(np.isfinite(self.last[i])):
                 self.vel[i] = 0.5 * self.vel[i] + 0.5 * (uv[i] - self.last[i])   # damped constant velocity
             else:
                 self.vel[i] = 0.0

@@ -280,3 +280,66 @@ def test_a_sighting_the_other_view_contradicts_is_taken_back():
             for v in range(2):
                 tr = trackers[v].tracks()
                 assert np.all(np.linalg.norm(tr.uv - uv[v], axis=2)[tr.visible] < 1.0)
+
+
+def _row_drop(seed, drop, n_frames=12, at=6):
+    """A 3 x 5 grid whose bottom row (markers 10-14) drops by ``drop`` px (one per marker, or
+    one for all) at frame ``at`` while the rest stays: the lower lip opening, in small."""
+    rng = np.random.default_rng(seed)
+    base = background(SHAPE, rng)
+    paths = marker_paths(n_frames, 15, rng, SHAPE, spacing=16, amplitude=2.0, own=0.5)
+    paths[at:, 10:, 1] += np.asarray(drop, dtype=float)
+    return rng, base, paths
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_lost_markers_follow_their_group_after_a_sudden_jump(seed):
+    # The bottom row drops 11 px at frame 6 (the correlation follows) and two of its markers are
+    # taken back there (as when the other view contradicts a wrong dot). Before, they came back
+    # 11 px from where they were last seen, too far and too near their neighbours for the
+    # unambiguous recovery (and the correlation found the bare skin where their dots had been),
+    # and stayed lost. Carried with the row's markers seen dropping, they are re-acquired in the
+    # next frame, all on their dots.
+    from lipgen.track import MarkerTracker
+    rng, base, paths = _row_drop(seed, 11.0)
+    tracker = MarkerTracker(paths[0], reference_uv=paths[0])
+    for t, p in enumerate(paths):
+        tracker.step(frame(base, p, rng))
+        if t == 6:
+            tracker.reject([12, 13])
+    tracks = tracker.tracks()
+    assert tracks.visible[7:].all() and tracks.visible[:6].all()
+    assert np.nanmax(np.linalg.norm(tracks.uv - paths, axis=2)) < 0.8
+
+
+def test_a_group_jumping_beyond_the_search_is_reacquired_at_once():
+    # 20 px: beyond the correlation's reach and the recovery gate, and more than a row spacing.
+    # Before, the whole row was lost for the rest of the clip (nothing near its predictions,
+    # and no neighbour seen moving with it).
+    rng, base, paths = _row_drop(1, 20.0)
+    tracks = track_markers([frame(base, p, rng) for p in paths], paths[0], reference_uv=paths[0])
+    assert tracks.visible.all()
+    assert np.nanmax(np.linalg.norm(tracks.uv - paths, axis=2)) < 0.8
+
+
+def test_a_group_that_did_not_move_as_one_is_not_shifted_onto_look_alike_dots():
+    # A row dropping unevenly fits no single shift; shifted by one dot spacing it would put three
+    # of its five markers on their neighbours' dots. Lost is fine, a wrong dot is not.
+    for seed in range(4):
+        rng, base, paths = _row_drop(seed, [12.0, 16.0, 20.0, 16.0, 12.0])
+        tracks = track_markers([frame(base, p, rng) for p in paths], paths[0], reference_uv=paths[0])
+        err = np.linalg.norm(tracks.uv - paths, axis=2)
+        assert np.all(err[tracks.visible] < 1.0) and tracks.visible[:, :10].all()
+
+
+def test_shift_group_moves_only_a_group_that_moved_as_one():
+    from lipgen.association import shift_group
+    grid = np.array([(16.0 * c, 16.0 * r) for r in range(3) for c in range(5)]) + 20.0
+    dots = grid.copy()
+    dots[10:, 1] += 20.0                                   # the bottom row dropped together
+    pred, moved = shift_group(grid, dots, gate=8.0, tol=3.0, reach=24.0)
+    assert np.array_equal(moved, np.arange(15) >= 10)
+    assert np.allclose(pred, dots)
+    dots[10:, 1] = grid[10:, 1] + [12.0, 16.0, 20.0, 16.0, 12.0]     # unevenly: no one shift
+    pred, moved = shift_group(grid, dots, gate=8.0, tol=3.0, reach=24.0)
+    assert not moved.any() and np.array_equal(pred, grid)
