@@ -103,16 +103,7 @@ def ink_gray(image) -> np.ndarray:
     line and the mouth corners are nearly as dark against the skin as the ink is against the lip
     (54 vs 71 grey levels in our renders), so a corner's tip passes for a dot and a centroid is
     pulled toward edges; in the brightest channel they differ far more (26 vs 139). A grey image
-    is returned as it is (scaled to [0, 1]).
-
-    Parameters
-    ----------
-    image : (h, w) or (h, w, 3|4) array
-        uint8 (0..255), uint16, or float already in [0, 1].
-
-    Returns
-    -------
-    (h, w) float
+    is returned as it is (scaled to [0, 1]). ``image`` and the result are as in :func:`as_gray`.
     """
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] in (3, 4):
