@@ -12,7 +12,7 @@ import importlib
 import logging
 import sys
 
-from . import __version__
+from lipgen import __version__
 
 __all__ = ["main", "build_parser"]
 

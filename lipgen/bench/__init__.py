@@ -19,7 +19,7 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from .._io import atomic_write_json
+from lipgen._io import atomic_write_json
 
 __all__ = ["SUITE_MODULES", "available_suites", "machine_info", "run_benchmarks"]
 

@@ -30,8 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import SingularStiffnessError
-from ..tol import tol
+from lipgen.errors import SingularStiffnessError
+from lipgen.tol import tol
 
 __all__ = ["SOLVERS", "Factor", "factorize", "cholmod_available"]
 
@@ -184,7 +184,7 @@ def factorize(A: sp.spmatrix, method: str = "auto") -> Factor:
     if method == "auto":
         method = "cholmod" if cholmod_available() else "superlu"
     elif method == "cholmod" and not cholmod_available():
-        from .._optional import require
+        from lipgen._optional import require
 
         require("cvxopt.cholmod", "solver='cholmod'")
     A = sp.csc_matrix(A)

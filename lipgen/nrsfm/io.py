@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import load_npz, save_npz
-from ..errors import ModelFileError
-from .core import Reconstruction
+from lipgen._io import load_npz, save_npz
+from lipgen.errors import ModelFileError
+from lipgen.nrsfm.core import Reconstruction
 
 __all__ = ["load_tracks", "save_shapes", "load_shapes", "SHAPES_KIND", "SHAPES_SCHEMA"]
 
