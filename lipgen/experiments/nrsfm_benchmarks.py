@@ -43,11 +43,13 @@ K = 2 on jaws is how Torresani et al.'s own shark demo runs it; on drink (41 poi
 
 
 def data_dir() -> Path:
+    """The folder of the benchmark sequences (``LIPGEN_NRSFM_DATA``, else the default)."""
     return Path(os.environ.get("LIPGEN_NRSFM_DATA", DEFAULT_DATA))
 
 
 @dataclass(frozen=True)
 class NrsfmBenchSettings:
+    """What ``lipgen experiment nrsfm`` runs: methods, sequences and basis sizes."""
     methods: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
     sequences: tuple[str, ...] = ("drink", "jaws")
     synthetic_seeds: tuple[int, ...] = (0, 1, 2, 3)
