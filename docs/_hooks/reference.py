@@ -47,7 +47,8 @@ def _package_page(stage: str) -> str:
     mods = _modules(f"lipgen.{stage}")
     lines = [f"# lipgen.{stage}", "", "Generated from the docstrings.", ""]
     for i, mod in enumerate(mods):
-        opts = "    options:\n      show_submodules: false\n      members: " + ("[]" if i == 0 else "true")
+        # the package itself: its docstring only (its names are documented where they are defined)
+        opts = "    options:\n      show_submodules: false" + ("\n      members: []" if i == 0 else "")
         lines += [f"::: {mod}", opts, ""]
     return "\n".join(lines)
 
