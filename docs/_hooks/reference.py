@@ -58,7 +58,7 @@ def _root_page() -> str:
 
     top = sorted(m.name for m in pkgutil.iter_modules(lipgen.__path__)
                  if not m.ispkg and not m.name.startswith("_") and m.name not in ("cli",))
-    lines = ["# lipgen", "", "The package and its shared pieces (errors, tolerances). Generated from the docstrings.", "",
+    lines = ["# lipgen", "", "The package and its shared pieces (errors, tolerances).", "",
              "::: lipgen", "    options:\n      show_submodules: false", ""]
     for name in top:
         lines += [f"::: lipgen.{name}", ""]
