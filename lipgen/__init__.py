@@ -27,9 +27,6 @@ from lipgen.errors import (
     SingularStiffnessError,
     TopologyMismatchError,
 )
-from lipgen.fem import DEFAULT_STIFFNESS, Physics, dofs
-from lipgen.mesh import LipMesh, lip_mesh
-from lipgen.modes import LLSE, ModeModel, llse
 from lipgen.tol import tol
 
 __version__ = "0.1.0"
@@ -41,11 +38,26 @@ _SUBPACKAGES = ("mesh", "fem", "modes", "usd", "rig", "subject", "dataset", "rec
                 "blender", "experiments", "bench", "commands")
 
 
+_LAZY = {"DEFAULT_STIFFNESS": "lipgen.fem", "Physics": "lipgen.fem", "dofs": "lipgen.fem",
+         "LipMesh": "lipgen.mesh", "lip_mesh": "lipgen.mesh",
+         "LLSE": "lipgen.modes", "ModeModel": "lipgen.modes", "llse": "lipgen.modes"}
+"""Top-level names imported on first use: ``import lipgen`` (and so every CLI start) must not
+pay for scipy and the physics (about 1 s) before it knows it needs them."""
+
+
 def __getattr__(name: str):
     # ``lipgen.usd``, ``lipgen.nrsfm`` ... without importing every stage up front
     if name in _SUBPACKAGES:
         return _importlib.import_module(f"lipgen.{name}")
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module 'lipgen' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBPACKAGES))
 
 __all__ = [
     "__version__",

@@ -36,16 +36,20 @@ plotted (Bregler et al. Fig 2).
 """
 
 
-def add_parser(sub) -> None:
-    from lipgen.nrsfm import DEFAULT_METHOD, METHODS
+METHOD_NAMES: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
+DEFAULT_METHOD = "dai"
+"""The choices of ``--method``, spelled out so that ``lipgen nrsfm --help`` need not import
+:mod:`lipgen.nrsfm` (and scipy.optimize); a test checks they match ``lipgen.nrsfm.METHODS``."""
 
+
+def add_parser(sub) -> None:
     p = sub.add_parser("nrsfm", help="non-rigid structure from motion: 2D tracks -> 3D shapes",
                        description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("tracks", metavar="TRACKS.npz", help="tracks file (W, optional visible, optional S)")
     p.add_argument("--k", required=True, metavar="K",
                    help="number of basis shapes (em-ppca: deformation modes beyond the mean), or 'auto' "
                    "to choose it from the reprojection curve")
-    p.add_argument("--method", default=DEFAULT_METHOD, choices=sorted(METHODS),
+    p.add_argument("--method", default=DEFAULT_METHOD, choices=METHOD_NAMES,
                    help=f"reconstruction method (default {DEFAULT_METHOD})")
     p.add_argument("--out", required=True, metavar="SHAPES.npz", help="output file")
     p.add_argument("--plot", metavar="CURVE.png",
