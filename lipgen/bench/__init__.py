@@ -34,6 +34,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.render",
     "lipgen.bench.blender",
     "lipgen.bench.startup",
+    "lipgen.bench.load",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 

@@ -74,6 +74,7 @@ def _parse_k(text: str):
 
 
 def _run(args) -> int:
+    from lipgen._threads import blas_threads
     from lipgen.nrsfm import (
         MEAN_PLUS_MODES,
         e3d,
@@ -97,8 +98,9 @@ def _run(args) -> int:
     if k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
         ks = range(first, args.kmax + 1) if args.kmax else None
-        curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
-                                   progress=True, seed=args.seed)
+        with blas_threads(1):
+            curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
+                                       progress=True, seed=args.seed)
         write("K   RMS reprojection   % of track RMS\n")
         for kk, rms, rel in zip(curve.ks, curve.rms, curve.relative, strict=True):
             write(f"{kk:<3d} {rms:<18.4g} {100 * rel:.3g}\n")
@@ -109,7 +111,8 @@ def _run(args) -> int:
         plot_curve(curve, plot)
         write(f"wrote {plot}\n")
     t0 = time.perf_counter()
-    rec = reconstruct(W, k, method=args.method, visible=visible, seed=args.seed)
+    with blas_threads(1):  # tracks are small: threads only wait on each other (lipgen._threads)
+        rec = reconstruct(W, k, method=args.method, visible=visible, seed=args.seed)
     seconds = time.perf_counter() - t0
     save_shapes(out, rec)
     write(f"method {rec.method}, K = {rec.k}: RMS reprojection {rec.reprojection_rms:.4g} "

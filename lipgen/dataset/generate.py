@@ -107,6 +107,14 @@ class _Context:
 _WORKER: dict = {}
 
 
+def _init_pool_worker(ctx: _Context) -> None:
+    """A spawned worker: one BLAS thread (its siblings use the other cores), then the renderer."""
+    from lipgen._threads import limit_worker_threads
+
+    limit_worker_threads(1)
+    _init_worker(ctx)
+
+
 def _init_worker(ctx: _Context) -> None:
     from lipgen.mesh.lipmesh import LipMesh
     from lipgen.rig.render import RigRenderer
@@ -330,7 +338,8 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
                 _WORKER.clear()
         else:
             spawn = multiprocessing.get_context("spawn")  # a fresh process per GL context
-            pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_worker, initargs=(ctx,))
+            pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_pool_worker,
+                                       initargs=(ctx,))
             with pool as ex:
                 futures = [ex.submit(_run_job, job) for job in jobs]
                 pending = set(futures)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from lipgen._io import atomic_write_bytes, atomic_write_json
+from lipgen._threads import single_threaded
 
 __all__ = ["DEFAULT_DATA", "PUBLISHED", "NrsfmBenchSettings", "run_nrsfm_benchmarks", "data_dir"]
 
@@ -82,6 +83,7 @@ def _run_one(W, S, k, method, **options) -> dict:
                 (W - W.mean(1, keepdims=True)) ** 2)))}
 
 
+@single_threaded  # tracks of tens of points: BLAS threads only wait (lipgen._threads)
 def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings()) -> dict:
     """Run everything, write the report into folder ``out``, return the figures."""
     from lipgen.nrsfm import MEAN_PLUS_MODES, plot_curve, reprojection_curve

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from lipgen._threads import single_threaded
 from lipgen._validate import as_float_array
 
 __all__ = ["DotSettings", "as_gray", "ink_gray", "darkness", "detect_dots", "dot_peaks", "refine_peaks",
@@ -239,6 +240,7 @@ def _dedupe(uv: np.ndarray, radius: float) -> np.ndarray:
     return keep
 
 
+@single_threaded  # a stack of 10x10 solves per iteration: threads only wait (lipgen._threads)
 def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations: int = 15,
                      deblend: int = 2) -> np.ndarray:
     """Sub-pixel dot centres by fitting a Gaussian dot on a quadratic background.

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from lipgen._io import load_npz, save_npz
+from lipgen._threads import blas_threads
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
@@ -192,7 +193,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
                            "reconstructing")
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
-    cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.board())
+    with blas_threads(1):  # a small bundle adjustment
+        cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.board())
     t_cal = time.perf_counter()
     T = lab_frame(cal)
     lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])
@@ -210,8 +212,9 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
-    tracks = track_raw_frames(frames, ds.rig, expected, settings, (lambda _: bar.update()) if bar else None,
-                              cameras=lab.views)
+    with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
+        tracks = track_raw_frames(frames, ds.rig, expected, settings,
+                                  (lambda _: bar.update()) if bar else None, cameras=lab.views)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()
@@ -227,15 +230,16 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         log.warning("nose lost in %d frame(s): interpolated", int((~nose_seen).sum()))
         for a in range(3):
             points[~nose_seen, P, a] = np.interp(np.flatnonzero(~nose_seen), good, points[good, P, a])
-    physics = Physics(mesh)
-    norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
-                             model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
-                             method=normalisation, physics=physics)
-    # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
-    # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
-    outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
-    fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
-                          mesh.markers, settings.min_visible)
+    physics = Physics(mesh)  # a large factorisation keeps its threads
+    with blas_threads(1):  # per-frame poses and reaches: many small products and solves
+        norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
+                                 model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
+                                 method=normalisation, physics=physics)
+        # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
+        # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
+        outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
+        fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
+                              mesh.markers, settings.min_visible)
     t_end = time.perf_counter()
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
