@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?= -n 2
 
-.PHONY: demo test bench lint venv clean docs docs-clean browser
+.PHONY: demo test test-fast test-slow test-all bench lint venv clean docs docs-clean browser
 
 venv: $(STAMP)
 
@@ -19,8 +19,19 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/lipgen demo --out renders
 
+# `test` leaves out the slow set (pyproject addopts: -m 'not slow'); `test-fast` also the
+# rendering and Blender tests; `test-slow` is the slow set alone (the full demo); `test-all` everything.
 test: $(STAMP)
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest $(PYTEST_ARGS) -m "not slow and not render and not blender"
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest $(PYTEST_ARGS) -m slow
+
+test-all: $(STAMP)
+	$(BIN)/python -m pytest $(PYTEST_ARGS) -m "slow or not slow"
 
 bench: $(STAMP)
 	$(BIN)/lipgen bench --out renders/bench.json

@@ -95,7 +95,7 @@ def test_resume_after_a_kill_completes_identically(reference, tmp_path):
             proc.send_signal(signal.SIGKILL)
             break
         time.sleep(0.02)
-    proc.wait(timeout=60)
+    proc.wait()  # killed above, or finished: no load-dependent timeout
     written = sorted((out / "truth").glob("[0-9]*.npz"))
     if proc.returncode == 0:
         pytest.skip("the run finished before it could be killed")

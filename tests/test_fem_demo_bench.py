@@ -10,14 +10,37 @@ from lipgen.bench import physics as bench_physics
 from lipgen.commands.demo import NAMED_FORCES, named_force
 
 
-def test_demo_writes_pictures(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "lipgen", "demo", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=300)
+def _check_demo(out, folder):
     assert out.returncode == 0, out.stderr
     for name in ("physics_forces.png", "rest_state.png", "fig_2_2.png"):
-        path = tmp_path / "demo" / name
+        path = folder / "demo" / name
         assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert str(path) in out.stdout
+    report = folder / "demo" / "report" / "report.md"
+    assert str(report) in out.stdout and "| total before the report |" in report.read_text()
+    for name in ("recon.npz", "model.npz"):
+        assert (folder / "demo" / name).stat().st_size > 1000
+
+
+def _run_demo(folder, *extra):
+    # No timeout: how long this takes depends on the machine's load, not on lipgen.
+    return subprocess.run([sys.executable, "-m", "lipgen", "demo", "--out", str(folder), "--no-progress",
+                           *extra], capture_output=True, text=True)
+
+
+@pytest.mark.render
+def test_small_demo_end_to_end(tmp_path):
+    """The whole loop (pictures, dataset, reconstruction, modes, evaluation, report) on 20
+    frames rendered by one process: what the default demo does, on an eighth of its frames."""
+    pytest.importorskip("cv2")
+    _check_demo(_run_demo(tmp_path, "--frames", "20", "--workers", "1"), tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_full_demo(tmp_path):
+    """`lipgen demo` with its defaults (150 frames, 2 workers); `make test-slow` runs it."""
+    _check_demo(_run_demo(tmp_path), tmp_path)
 
 
 def test_named_forces_reach_their_peak():

@@ -150,7 +150,7 @@ def test_missing_opengl_gives_a_clear_error():
             "try:\n    RigRenderer(default_rig(64, 48))\nexcept Exception as e:\n"
             "    print(type(e).__name__, e)\n")
     env = {**os.environ, "PYOPENGL_PLATFORM": "osmesa", "LD_LIBRARY_PATH": "/nonexistent"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     if "osmesa" not in out.stdout.lower() and out.stdout.strip() == "":
         pytest.skip("OSMesa is installed here; cannot simulate a missing GL")
     assert out.stdout.startswith("RenderBackendError"), out.stdout + out.stderr
