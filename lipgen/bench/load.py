@@ -98,6 +98,7 @@ def _small_dataset(folder: Path, frames: int) -> Path | None:
 
 
 def run(quick: bool = False) -> dict:
+    """Loaded wall time over quiet CPU time of dai (and reconstruct where pyrender renders)."""
     out: dict = {"load_average_before": load_average(), "busy_processes": 2, "target_ratio": TARGET_RATIO,
                  "cpu_count": os.cpu_count()}
     with tempfile.TemporaryDirectory(prefix="lipgen-bench-load-") as tmp:

@@ -37,6 +37,7 @@ def import_seconds(args: list[str]) -> float:
 
 
 def run(quick: bool = False) -> dict:
+    """Import times of the CLI and of a bare interpreter, interleaved over rounds (JSON-ready)."""
     rounds = 3 if quick else 7
     load = load_average()
     times: dict[str, list[float]] = {name: [] for name in _CASES}
