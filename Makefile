@@ -23,7 +23,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 bench: $(STAMP)
-	$(BIN)/lipgen bench --out renders/bench.json
+	$(BIN)/lipgen bench --force --out renders/bench.json
 
 lint: $(STAMP)
 	$(BIN)/ruff check lipgen tests blender_addon

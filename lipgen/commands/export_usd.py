@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lipgen.commands._output import add_force, check_file_output
+
 _EPILOG = """\
 examples:
   lipgen export-usd --model model.npz --weights weights.npy --fps 30 --out lips.usda
@@ -71,6 +73,7 @@ def add_parser(sub) -> None:
     p.add_argument("--no-regions", action="store_true", help="do not write the regions as GeomSubsets")
     p.add_argument("--no-validate", action="store_true", help="skip the validation after writing")
     p.add_argument("--out", required=True, help="output file; the extension chooses the format")
+    add_force(p)
     p.set_defaults(func=_run)
 
 
@@ -137,8 +140,10 @@ def _dataset_truth(args):
 
 def _run(args) -> int:
     from lipgen.modes.model import ModeModel
-    from lipgen.usd.export import export_usd, validate
+    from lipgen.usd.export import _check_extension, export_usd, validate
 
+    check_file_output(args.out, args.force)
+    _check_extension(args.out)
     if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
                          "bare modes), --points, or --dataset")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
+
+from lipgen.commands._output import check_file_output
 
 _DESCRIPTION = """\
 Reconstruct non-rigid 3D shape from 2D tracks under orthography.
@@ -80,9 +81,7 @@ def _run(args) -> int:
         save_shapes,
     )
 
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; pass --force to overwrite it or choose another --out")
+    out = check_file_output(args.out, args.force)
     k = _parse_k(args.k)
     data = load_tracks(args.tracks)
     W, visible = data["W"], data.get("visible")
@@ -90,6 +89,8 @@ def _run(args) -> int:
     write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
+    if plot:
+        check_file_output(plot, args.force, "--plot")
     if k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
         ks = range(first, args.kmax + 1) if args.kmax else None

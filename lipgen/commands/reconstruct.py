@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from lipgen.commands._output import check_file_output
 
 _EPILOG = """\
 steps: calibrate the camera and the mirror from the dataset's chessboard frames; detect and track
@@ -40,9 +41,7 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from lipgen.recon.pipeline import reconstruct_dataset
 
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; choose another --out or pass --force to replace it")
+    out = check_file_output(args.out, args.force)
     recon = reconstruct_dataset(args.dataset, args.mesh, progress=not args.no_progress,
                                 normalisation=args.normalisation)
     recon.save(out)

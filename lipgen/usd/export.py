@@ -263,7 +263,9 @@ def _write_layer(layer, tmp: Path, ext: str, stem: str) -> None:
         if not layer.Export(str(tmp)):
             raise OSError(f"USD could not write {tmp}")
         return
-    with tempfile.TemporaryDirectory(prefix="lipgen-usdz-") as work:
+    # the work folder sits beside the destination under its temporary name, so a killed export's
+    # leftovers are found and removed by the next one (lipgen._io.remove_stale_temporaries)
+    with tempfile.TemporaryDirectory(prefix=f"{tmp.name}-pkg-", dir=tmp.parent) as work:
         inner = Path(work) / f"{_identifier(stem)}.usdc"
         if not layer.Export(str(inner)):
             raise OSError(f"USD could not write {inner}")
