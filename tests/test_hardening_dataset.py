@@ -76,7 +76,7 @@ def test_a_refused_run_deletes_nothing(tmp_path):
 
     foreign = tmp_path / "foreign"
     foreign.mkdir()
-    keep = [foreign / ".manifest.json.tmp-mybackup", foreign / "notes.txt", foreign / ".manifest.json.tmp-1-x"]
+    keep = [foreign / n for n in (".manifest.json.tmp-mybackup", "notes.txt", ".manifest.json.tmp-1-x")]
     for p in keep:
         p.write_text("mine")
     with pytest.raises(DatasetError, match="nothing was written"):

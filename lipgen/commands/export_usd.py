@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -81,16 +82,25 @@ def _load_array(path: str, what: str, key: str) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{what} file not found: {p}")
-    if p.suffix == ".npy":
-        return np.load(p, allow_pickle=False)
-    if p.suffix == ".npz":
-        with np.load(p, allow_pickle=False) as data:
-            if key in data.files:
-                return data[key]
-            if len(data.files) == 1:
-                return data[data.files[0]]
-            raise ValueError(f"{p} holds arrays {data.files}; name the {what} array {key!r}")
-    raise ValueError(f"{what} must be an .npy or .npz file, got {p.name!r}")
+    if p.suffix not in (".npy", ".npz"):
+        raise ValueError(f"{what} must be an .npy or .npz file, got {p.name!r}")
+    try:
+        with open(p, "rb") as fh:
+            if p.suffix == ".npy":
+                return np.load(fh, allow_pickle=False)
+            with np.load(fh, allow_pickle=False) as data:
+                if key in data.files:
+                    return data[key]
+                if len(data.files) == 1:
+                    return data[data.files[0]]
+                raise ValueError(f"{p} holds arrays {data.files}; name the {what} array {key!r}")
+    except (EOFError, OSError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{what} file {p} is empty, truncated or not a numpy {p.suffix} file "
+                         f"({exc})") from exc
+    except ValueError as exc:
+        if str(p) in str(exc):
+            raise
+        raise ValueError(f"{what} file {p} cannot be read: {exc}") from exc
 
 
 def _mesh(args):

@@ -83,6 +83,10 @@ def _run(args) -> int:
 
     out = check_file_output(args.out, args.force)
     k = _parse_k(args.k)
+    if args.kmax is not None and args.kmax < 1:
+        raise ValueError(f"--kmax must be at least 1, got {args.kmax}")
+    if not (0 < args.rtol < 1):  # also refuses nan
+        raise ValueError(f"--rtol must be a number in (0, 1), got {args.rtol}")
     data = load_tracks(args.tracks)
     W, visible = data["W"], data.get("visible")
     write = sys.stdout.write
@@ -93,7 +97,7 @@ def _run(args) -> int:
         check_file_output(plot, args.force, "--plot")
     if k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
-        ks = range(first, args.kmax + 1) if args.kmax else None
+        ks = range(first, args.kmax + 1) if args.kmax is not None else None
         curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
                                    progress=True, seed=args.seed)
         write("K   RMS reprojection   % of track RMS\n")
