@@ -17,7 +17,7 @@ from lipgen._validate import as_float_array, as_index_array
 from lipgen.tol import tol
 
 __all__ = ["MOUTH_WIDTH_MM", "MESH_WIDTH_MM", "UNITS_MM", "UnitCheck", "check_units", "Cracks",
-           "find_cracks", "weld"]
+           "find_cracks", "weld", "anchor_warning"]
 
 MOUTH_WIDTH_MM = (40.0, 70.0)
 """Width of a human mouth, corner to corner (mm)."""
@@ -185,3 +185,20 @@ def weld(vertices, faces, distance: float | None = None) -> tuple[np.ndarray, np
     G = old_to_new[np.asarray(F, np.int64)]
     ok = (G[:, 0] != G[:, 1]) & (G[:, 1] != G[:, 2]) & (G[:, 0] != G[:, 2])
     return V[keep], G[ok], old_to_new
+
+
+def anchor_warning(vertices, anchors) -> str:
+    """A warning (empty if none) when the anchors do not hold the mesh firmly: fewer than three,
+    or all on one line. Such a mesh can turn about the line and is held only by the element's
+    out-of-plane term (eq 2.13), a weak, artificial restraint."""
+    V = as_float_array(vertices, "vertices", (None, 3))
+    a = as_index_array(anchors, "anchors", len(V))
+    if len(a) == 0:
+        return "no anchors: choose the vertices fixed to the head (e.g. the far edge of the strip)"
+    P = V[a] - V[a].mean(axis=0)
+    sv = np.linalg.svd(P, compute_uv=False) if len(a) > 1 else np.zeros(1)
+    if len(a) < 3 or len(sv) < 2 or sv[1] <= 1e-6 * max(sv[0], tol.zero):
+        return (f"only {len(a)} anchor(s)" if len(a) < 3 else f"the {len(a)} anchors lie on one line") + (
+            ": the mesh can turn about them and is held only weakly; anchor at least three vertices "
+            "not on one line (the far edge of the strip into the mouth)")
+    return ""
