@@ -111,3 +111,14 @@ def test_reach_energy_is_the_least_strain_field_and_force_the_thesis(lips):
     assert np.allclose(Ub[1], 2 * Ue, atol=1e-9)
     with pytest.raises(ValueError, match="objective"):
         physics.reach(d, g, objective="strain")
+
+
+@pytest.mark.parametrize("markers,expect", [(None, "markers numbered 1-16"), ([], "no markers"),
+                                            (list(range(12)), "markers numbered 1-12")])
+def test_plot_title_counts_the_markers(lips, markers, expect):
+    from lipgen.mesh.plot import plot_mesh
+
+    mesh = lips if markers is None else LipMesh(lips.vertices, lips.faces, lips.regions, lips.anchors,
+                                                lips.markers[markers], None, lips.nose, lips.region_names)
+    fig = plot_mesh(mesh, views=("front",))
+    assert expect in fig._suptitle.get_text()

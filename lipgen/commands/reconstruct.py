@@ -12,8 +12,9 @@ steps: calibrate the camera and the mirror from the dataset's chessboard frames;
 the ink dots in both views (normalised correlation, first frame matched to the model's markers);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
-thesis's section 3 lip planes with --normalisation thesis); and per frame the least-strain
-field of the model reaching the markers (Physics.reach). The ground truth is not read.
+thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the
+model reaching the markers with the least-norm force (Physics.reach, thesis eq 4.3). The ground
+truth is not read.
 
 examples:
   lipgen reconstruct data/s0 --out recon.npz
