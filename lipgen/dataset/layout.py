@@ -121,6 +121,8 @@ class GenerateSettings:
 
     @classmethod
     def from_dict(cls, d: dict) -> GenerateSettings:
+        if not isinstance(d, dict):
+            raise ValueError(f"generator settings must be a JSON object, got {type(d).__name__}")
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
