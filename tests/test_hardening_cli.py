@@ -293,3 +293,15 @@ def test_no_developer_path_ships(tmp_path):
 
     env = os.environ.get("LIPGEN_NRSFM_DATA")
     assert data_dir() == (Path(env) if env else root.parent / "benchmarks" / "nrsfm")
+
+
+def test_blender_extension_keeps_an_existing_zip(tmp_path, capsys):
+    import tomllib
+
+    meta = tomllib.loads((Path(__file__).parents[1] / "blender_addon" / "blender_manifest.toml").read_text())
+    out = tmp_path / "dist"
+    out.mkdir()
+    mine = out / f"{meta['id']}-{meta['version']}-linux_x64.zip"
+    mine.write_bytes(b"my build")
+    assert main(["blender-extension", "--out", str(out), "--platform", "linux-x64", "--offline"]) == 1
+    assert "--force" in _err(capsys) and mine.read_bytes() == b"my build"
