@@ -95,6 +95,7 @@ class Cracks:
 
     @property
     def ok(self) -> bool:
+        """True when nothing was found."""
         return len(self.pairs) == 0 and len(self.fins) == 0
 
     @property
@@ -104,6 +105,7 @@ class Cracks:
 
     @property
     def message(self) -> str:
+        """What was found, the vertices or edges named, and the fix (empty when ``ok``)."""
         parts = []
         if len(self.pairs):
             shown = ", ".join(f"{a}={b}" for a, b in self.pairs[:6].tolist())
