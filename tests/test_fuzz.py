@@ -122,8 +122,10 @@ def test_reach_raises_only_documented_errors(physics, nodes, axes, values):
             U, F = physics.reach(d, values, objective=objective)
         except ALLOWED:
             continue
-        assert np.isfinite(U).all() and np.allclose(U.reshape(-1, physics.n_dofs)[:, d],
-                                                    np.reshape(values, (-1, len(d))), atol=1e-6)
+        goals = np.reshape(values, (-1, len(d)))
+        scale = max(1.0, float(np.abs(goals).max()))  # linear: the error scales with the goals
+        assert np.isfinite(U).all()
+        assert np.abs(U.reshape(-1, physics.n_dofs)[:, d] - goals).max() <= 1e-9 * scale
 
 
 # ---- modes and LLSE ------------------------------------------------------------------------
