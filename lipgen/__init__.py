@@ -14,8 +14,6 @@ The package reads like the data flow; each stage uses only the stages above it i
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
-
 import importlib as _importlib
 
 from lipgen import _compat
@@ -33,6 +31,9 @@ from lipgen.fem import DEFAULT_STIFFNESS, Physics, dofs
 from lipgen.mesh import LipMesh, lip_mesh
 from lipgen.modes import LLSE, ModeModel, llse
 from lipgen.tol import tol
+
+__version__ = "0.1.0"
+"""The package version (PEP 440)."""
 
 _compat.install()
 

@@ -34,6 +34,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.render",
     "lipgen.bench.blender",
 )
+"""The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
              "opencv-python-headless")

@@ -53,6 +53,7 @@ TRUTH_FIELDS: dict[str, str] = {
     "visible": "(2, k) in_image and not occluded and facing",
     "dot_visible_fraction": "(2, k) share of the ink dot's rim seen", "views": "(2,) view names",
 }
+"""The arrays of a frame's truth file, with their shapes and units."""
 _REQUIRED = ("format", "schema_version", "units", "convention", "seed", "settings", "rig", "views", "mesh",
              "marks", "actions", "frames", "calibration", "lipgen_version")
 
@@ -115,12 +116,14 @@ class GenerateSettings:
         object.__setattr__(self, "board", (int(c), int(r), float(sq)))
 
     def to_dict(self) -> dict:
+        """The settings as a JSON-ready dict (as stored in the manifest)."""
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
         return d
 
     @classmethod
     def from_dict(cls, d: dict) -> GenerateSettings:
+        """Settings from a manifest's dict, checking every key and value."""
         if not isinstance(d, dict):
             raise ValueError(f"generator settings must be a JSON object, got {type(d).__name__}")
         known = {f.name for f in fields(cls)}

@@ -25,7 +25,9 @@ __all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table5
 log = logging.getLogger(__name__)
 
 ROWS = ("xyz (8 points)", "yz (all points)", "xy (all points)")
+"""The rows of the Table 5.1 analogue: which DOFs are observed (thesis Table 5.1)."""
 AXES = {"xyz (8 points)": (8, "xyz"), "yz (all points)": (None, "yz"), "xy (all points)": (None, "xy")}
+"""Per row: (number of marker points observed or None for all, the observed axes)."""
 
 
 def default_test_frames(n_frames: int) -> int:

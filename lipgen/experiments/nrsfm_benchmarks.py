@@ -51,6 +51,7 @@ def data_dir() -> Path:
 
 @dataclass(frozen=True)
 class NrsfmBenchSettings:
+    """What ``lipgen experiment nrsfm`` runs: methods, sequences and basis sizes."""
     methods: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
     sequences: tuple[str, ...] = ("drink", "jaws")
     synthetic_seeds: tuple[int, ...] = (0, 1, 2, 3)

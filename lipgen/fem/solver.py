@@ -38,6 +38,7 @@ __all__ = ["SOLVERS", "Factor", "factorize", "cholmod_available"]
 log = logging.getLogger(__name__)
 
 SOLVERS: tuple[str, ...] = ("auto", "cholmod", "superlu")
+"""Sparse factorisations: ``auto`` (CHOLMOD when cvxopt is installed, else SuperLU), or one by name."""
 
 _PIVOT_RATIO = 1e-13
 """Smallest/largest pivot (of the LDLᵀ form) below which K_s counts as numerically singular;

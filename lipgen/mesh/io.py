@@ -21,6 +21,7 @@ from lipgen.mesh.lipmesh import LipMesh
 __all__ = ["MESH_SUFFIXES", "read_mesh", "sidecar_path", "write_mesh"]
 
 MESH_SUFFIXES = (".obj", ".ply", ".npz")
+"""File suffixes :func:`read_mesh` and :func:`write_mesh` handle (STL reads too)."""
 _SIDECAR_KIND, _SIDECAR_SCHEMA = "lipgen.LipMesh.sidecar", 1
 
 

@@ -174,12 +174,15 @@ class SumCovariance:
         self.n_dofs = sizes.pop()
 
     def columns(self, dofs) -> np.ndarray:
+        """Columns ``dofs`` of the summed covariance, ``(3n, len(dofs))``."""
         return sum(p.columns(dofs) for p in self.parts)
 
     def diag_blocks(self, nodes=None) -> np.ndarray:
+        """Per-node 3x3 diagonal blocks of the summed covariance, ``(n, 3, 3)``."""
         return sum(p.diag_blocks(nodes) for p in self.parts)
 
     def matrix(self) -> np.ndarray:
+        """The summed covariance as a dense ``(3n, 3n)`` matrix."""
         return sum(p.matrix() for p in self.parts)
 
 

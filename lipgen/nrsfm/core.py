@@ -36,6 +36,7 @@ METHODS: dict[str, str] = {
 """Method names accepted by :func:`reconstruct`, with what each does."""
 
 DEFAULT_METHOD = "dai"
+"""The method :func:`reconstruct` uses unless told."""
 
 MEAN_PLUS_MODES = frozenset({"em-ppca"})
 """Methods whose ``k`` counts deformation modes beyond a mean shape (``k + 1`` basis shapes)."""

@@ -81,11 +81,13 @@ class RigCalibration:
         return RigCalibration(moved, dict(self.rms), dict(self.n_images), self.reference)
 
     def to_dict(self) -> dict:
+        """A JSON-ready dict of the calibration (cameras, errors, settings)."""
         return {"rig": self.rig.to_dict(), "rms_px": self.rms, "n_images": self.n_images,
                 "reference": self.reference}
 
     @classmethod
     def from_dict(cls, d: dict) -> RigCalibration:
+        """The calibration written by :meth:`to_dict`."""
         return cls(MirrorRig.from_dict(d["rig"]), dict(d["rms_px"]), dict(d["n_images"]), int(d["reference"]))
 
 

@@ -102,6 +102,7 @@ class Reconstruction:
         return self.calibration.in_frame(T[:3, :3], T[:3, 3])
 
     def save(self, path: str | os.PathLike) -> None:
+        """Write the reconstruction to an ``.npz`` file (atomic; schema-versioned)."""
         arrays = {k: getattr(self, k) for k in ("fields", "markers", "visible", "lab_points", "ray_gap", "uv",
                                                  "status", "score", "frame_index", "lab_to_board",
                                                  "similarity", "rotations")}
@@ -110,6 +111,7 @@ class Reconstruction:
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Reconstruction:
+        """Read a reconstruction written by :meth:`save`, checking its kind and schema."""
         names = ("fields", "markers", "visible", "lab_points", "ray_gap", "uv", "status", "score",
                  "frame_index", "lab_to_board", "similarity", "rotations", "info")
         d = load_npz(path, _KIND, _SCHEMA, required=names)

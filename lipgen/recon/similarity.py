@@ -33,6 +33,7 @@ class Similarity:
         return self.scale * X @ self.rotation.T + self.translation
 
     def inverse(self) -> Similarity:
+        """The similarity that undoes this one."""
         Rt = self.rotation.T
         return Similarity(1.0 / self.scale, Rt, -(Rt @ self.translation) / self.scale)
 

@@ -19,6 +19,7 @@ __all__ = ["ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS", "
            "random_activations", "viseme_activations", "head_motion", "action_index"]
 
 DEFAULT_FPS = 30.0
+"""Frames per second of activation curves unless given."""
 
 ACTIONS: tuple[str, ...] = (
     "jaw_open",              # jaw rotation with the lower-lip depressor: the lower lip drops

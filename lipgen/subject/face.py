@@ -31,6 +31,7 @@ LABELS = {0: "background", 1: "skin", 2: "vermilion", 3: "mouth"}
 """Label ids of label renders; ink dots are ``10 + k`` for marker k and ``10 + n_markers`` for the nose."""
 
 DOT_LABEL0 = 10
+"""Label id of marker 0's ink dot in label renders (marker k is ``DOT_LABEL0 + k``)."""
 # face profile: depth of the face surface at the midline against height (mm, model frame)
 _PROFILE_Y = np.array([-95, -80, -68, -50, -30, 0, 20, 35, 55, 75, 100, 130.0])
 _PROFILE_Z = np.array([-60, -30, -14, -10, -9, -4, -5, -8, -24, -26, -20, -30.0])

@@ -49,6 +49,7 @@ __all__ = ["export_usd", "read_animation", "validate", "UsdAnimation", "Validati
 log = logging.getLogger(__name__)
 
 EXTENSIONS = (".usda", ".usdc", ".usd", ".usdz")
+"""File extensions :func:`export_usd` writes: text, crate, either, and a zipped package."""
 _CHUNK = 2048  # frames per block when bounding the blend-shape animation
 
 
