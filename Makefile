@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?= -n 2
 
-.PHONY: demo test test-fast test-slow test-all bench lint venv clean docs docs-clean browser
+.PHONY: demo test test-fast test-slow test-all bench lint venv clean docs docs-clean browser fuzz bad-inputs
 
 venv: $(STAMP)
 
@@ -34,7 +34,15 @@ test-all: $(STAMP)
 	$(BIN)/python -m pytest $(PYTEST_ARGS) -m "slow or not slow"
 
 bench: $(STAMP)
-	$(BIN)/lipgen bench --out renders/bench.json
+	$(BIN)/lipgen bench --force --out renders/bench.json
+
+# Property-based fuzzing, long profile (make test runs a bounded one).
+fuzz: $(STAMP)
+	HYPOTHESIS_PROFILE=fuzz $(BIN)/python -m pytest tests/test_fuzz.py $(PYTEST_ARGS)
+
+# Regenerate docs/bad_inputs.md from the cases of tests/test_bad_inputs_table.py.
+bad-inputs: $(STAMP)
+	LIPGEN_UPDATE_DOCS=1 $(BIN)/python -m pytest tests/test_bad_inputs_table.py -n 0
 
 lint: $(STAMP)
 	$(BIN)/ruff check lipgen tests blender_addon docs/_hooks

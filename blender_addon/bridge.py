@@ -12,7 +12,8 @@ import numpy as np
 
 __all__ = [
     "mesh_vertices", "set_mesh_vertices", "mesh_triangles", "new_mesh", "polygon_loops",
-    "select_polygons", "selected_vertices", "face_attribute", "set_face_attribute", "point_vectors",
+    "select_polygons", "select_vertices", "selected_vertices", "face_attribute", "set_face_attribute",
+    "point_vectors",
     "set_point_vectors", "vertex_group_nodes", "set_vertex_group", "shape_key_co", "set_shape_key_co",
     "ensure_basis", "ensure_shape_key", "remove_shape_key", "add_sum_driver", "remove_driver",
     "fcurve_ensure", "set_keyframes", "remove_fcurves", "evaluated_vertices", "rest_vertices",
@@ -85,6 +86,15 @@ def select_polygons(mesh: bpy.types.Mesh, polygons) -> None:
     loop_vert, loop_start = polygon_loops(mesh)
     counts = np.diff(np.append(loop_start, len(loop_vert)))
     vsel[loop_vert[np.repeat(sel, counts)]] = True
+    mesh.vertices.foreach_set("select", vsel)
+    mesh.update()
+
+
+def select_vertices(mesh: bpy.types.Mesh, vertices) -> None:
+    """Select exactly ``vertices`` (no faces); object-mode data."""
+    mesh.polygons.foreach_set("select", np.zeros(len(mesh.polygons), bool))
+    vsel = np.zeros(len(mesh.vertices), bool)
+    vsel[np.asarray(vertices, np.int64)] = True
     mesh.vertices.foreach_set("select", vsel)
     mesh.update()
 

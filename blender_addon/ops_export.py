@@ -71,6 +71,12 @@ class OBJECT_OT_lipgen_export_usd(LipgenOperator, bpy.types.Operator, ExportHelp
         items=(("BLEND_SHAPES", "Blend shapes", "Modes as UsdSkel blend shapes; slider animation"),
                ("POINTS", "Baked points", "Every frame's evaluated vertices (forces, reach, all keys)"),
                ("BOTH", "Both", "One file, a variant set 'encoding' to switch")))
+    weight_range: EnumProperty(
+        name="Weights", default="UNIT",
+        items=(("UNIT", "Unit [0, 1]", "A positive and a negative shape per mode, weights in [0, 1]: "
+                "survives Blender's USD import, which clamps shape-key values to [0, 1]"),
+               ("SIGNED", "Signed", "One shape per mode, weights = slider values (any sign, beyond 1); "
+                "for importers that do not clamp")))
 
     def check(self, context):
         # Keep the extension the user typed (.usda/.usdc/.usd/.usdz) instead of forcing .usda.
@@ -99,7 +105,7 @@ class OBJECT_OT_lipgen_export_usd(LipgenOperator, bpy.types.Operator, ExportHelp
         fps = scene.render.fps / scene.render.fps_base
         path = Path(bpy.path.abspath(self.filepath))
         export_usd(path, mesh, model=model, weights=weights, points=points, fps=fps,
-                   start=int(frames[0]),
+                   start=int(frames[0]), weight_range=self.weight_range.lower(),
                    default_encoding=BLEND_SHAPES if want_shapes else BAKED_POINTS)
         self.report({"INFO"}, f"wrote {path.name}: {len(frames)} frames"
                               + (f", {len(obj.lipgen.modes)} blend shapes" if want_shapes else "")

@@ -22,6 +22,66 @@ def _describe(phys, seconds: float) -> str:
             f"({seconds:.2f} s)")
 
 
+def check_cracks(obj, rest_mm: np.ndarray, distance_mm: float | None = None) -> None:
+    """Refuse a cracked mesh (coincident vertices its faces do not share, fin edges): select the
+    vertices and say how to weld them."""
+    from lipgen.mesh.checks import find_cracks
+
+    tris, _ = bridge.mesh_triangles(obj.data)
+    cracks = find_cracks(rest_mm, tris, distance_mm)
+    if cracks.ok:
+        return
+    bridge.select_vertices(obj.data, cracks.vertices)
+    fix = " Weld Cracks in the LipGen panel merges the coincident ones." if len(cracks.pairs) else ""
+    raise UserError(f"{obj.name!r} is cracked: {cracks.message}. The {len(cracks.vertices)} vertices "
+                    f"are selected: look at them in Edit Mode.{fix}")
+
+
+def setup_warnings(rest: np.ndarray, unit_mm: float, mesh) -> str:
+    """Warnings for the panel and the status bar: units unlike a mouth, weak anchors."""
+    from lipgen.mesh.checks import anchor_warning, check_units
+
+    lines = [check_units(rest, unit_mm).message, anchor_warning(mesh.vertices, mesh.anchors)]
+    return "\n".join(f"- {w}" for w in lines if w)
+
+
+class OBJECT_OT_lipgen_weld_cracks(LipgenOperator, bpy.types.Operator):
+    """Merge vertices closer than the distance (cracks, split seams) so the faces share them"""
+
+    bl_idname = "object.lipgen_weld_cracks"
+    bl_label = "Weld Cracks"
+    bl_options = {"REGISTER", "UNDO"}
+
+    distance_mm: FloatProperty(name="Distance (mm)", default=1e-3, min=0.0, soft_max=0.1, precision=4,
+                               description="Vertices closer than this are welded into one")
+
+    def run(self, context):
+        import bmesh
+
+        from lipgen.mesh.checks import find_cracks
+
+        obj = active_mesh(context)
+        s = obj.lipgen
+        unit = s.unit_mm if s.unit_mm > 0 else 1.0
+        tris, _ = bridge.mesh_triangles(obj.data)
+        cracks = find_cracks(bridge.rest_vertices(obj) * unit, tris, self.distance_mm)
+        if not len(cracks.pairs):
+            self.report({"INFO"}, f"no coincident vertices within {self.distance_mm:g} mm")
+            return
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        bm.verts.ensure_lookup_table()
+        verts = [bm.verts[int(i)] for i in np.unique(cracks.pairs)]
+        before = len(bm.verts)
+        bmesh.ops.remove_doubles(bm, verts=verts, dist=self.distance_mm / unit)
+        bm.to_mesh(obj.data)
+        bm.free()
+        obj.data.update()
+        s.enabled = False  # the topology changed: set it up again
+        self.report({"INFO"}, f"welded {before - len(obj.data.vertices)} vertices within "
+                              f"{self.distance_mm:g} mm; set up the physics again")
+
+
 class OBJECT_OT_lipgen_add_lips(LipgenOperator, bpy.types.Operator):
     """Add LipGen's procedural lips, with anchors, ridge, strip, skin and markers as vertex groups"""
 
@@ -100,7 +160,9 @@ class OBJECT_OT_lipgen_setup_mesh(LipgenOperator, bpy.types.Operator):
             unit = 1000.0 * context.scene.unit_settings.scale_length * scale
         groups = {"ridge": s.ridge_group, "strip": s.strip_group, "skin": s.skin_group}
         codes = lipobject.region_codes_from_groups(obj, groups)
-        # Check everything (groups, mesh, grounding) before changing the object.
+        # Check everything (cracks, groups, mesh, grounding) before changing the object.
+        rest = bridge.rest_vertices(obj)
+        check_cracks(obj, rest * unit)
         old_unit = s.unit_mm
         old_codes = bridge.face_attribute(obj.data, REGION_ATTR)
         s.unit_mm = unit
@@ -121,7 +183,11 @@ class OBJECT_OT_lipgen_setup_mesh(LipgenOperator, bpy.types.Operator):
         s.status = _describe(phys, time.perf_counter() - t0)
         preview.drop_sessions(obj)
         counts = {r: int((codes == REGIONS.index(r)).sum()) for r in REGIONS}
-        self.report({"INFO"}, f"{s.status}; faces per region {counts}")
+        s.warnings = setup_warnings(rest, unit, phys.mesh)
+        if s.warnings:  # the status bar and the panel, not only the log
+            self.report({"WARNING"}, f"{s.status}; " + s.warnings.replace("\n", "; "))
+        else:
+            self.report({"INFO"}, f"{s.status}; faces per region {counts}")
 
 
 class OBJECT_OT_lipgen_build_physics(LipgenOperator, bpy.types.Operator):
@@ -164,4 +230,4 @@ class OBJECT_OT_lipgen_assign_group(LipgenOperator, bpy.types.Operator):
 
 
 classes = (OBJECT_OT_lipgen_add_lips, OBJECT_OT_lipgen_setup_mesh, OBJECT_OT_lipgen_build_physics,
-           OBJECT_OT_lipgen_assign_group)
+           OBJECT_OT_lipgen_assign_group, OBJECT_OT_lipgen_weld_cracks)

@@ -3,8 +3,9 @@
 The artist drags vertices of a shape key ("LipGen Reach"). Every vertex that moved since the
 last solve becomes a goal, and so stay the goals of earlier solves (vertex group "LipGen
 Goals"); the minimum-norm force that puts the goals exactly where they are moves every other
-vertex with least strain. *Solve Reach* does it once. *Live Reach* does it while the artist
-drags, in Edit Mode, from a window timer (a modal operator, not a handler).
+vertex (thesis eq 4.3: the least force, not the least strain; it can overshoot). *Solve Reach*
+does it once. *Live Reach* does it while the artist drags, in Edit Mode, from a window timer (a
+modal operator, not a handler).
 """
 
 from __future__ import annotations
@@ -125,7 +126,7 @@ class OBJECT_OT_lipgen_reach_start(LipgenOperator, bpy.types.Operator):
 
 
 class OBJECT_OT_lipgen_reach_solve(LipgenOperator, bpy.types.Operator):
-    """Solve the reach shape: moved vertices stay, the physics moves the rest with least strain (eq 4.3)"""
+    """Solve the reach shape: moved vertices stay, the least-norm force (eq 4.3) moves the rest"""
 
     bl_idname = "object.lipgen_reach_solve"
     bl_label = "Solve Reach"

@@ -11,6 +11,13 @@ class _LipgenPanel:
     bl_category = "LipGen"
 
 
+def _wrapped(text: str, width: int = 48) -> list[str]:
+    """Panel lines of a multi-line warning (labels do not wrap)."""
+    import textwrap
+
+    return [w for line in text.splitlines() for w in textwrap.wrap(line, width) or [""]]
+
+
 def _lip_object(context):
     ob = context.active_object
     return ob if ob is not None and ob.type == "MESH" else None
@@ -69,8 +76,15 @@ class VIEW3D_PT_lipgen_physics(_LipgenPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("object.lipgen_setup_mesh", icon="MOD_PHYSICS")
         row.operator("object.lipgen_build_physics", text="", icon="FILE_REFRESH")
+        row.operator("object.lipgen_weld_cracks", text="", icon="AUTOMERGE_ON")
         if s.status:
             layout.label(text=s.status)
+        if s.warnings:
+            box = layout.box()
+            for k, line in enumerate(_wrapped(s.warnings)):
+                box.label(text=line, icon="ERROR" if k == 0 or line.startswith("- ") else "BLANK1")
+        layout.label(text="Regions: a face joins a group's region only if all its vertices are in it",
+                     icon="INFO")
 
 
 class VIEW3D_PT_lipgen_modes(_SetUpLipsPanel, bpy.types.Panel):

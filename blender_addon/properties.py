@@ -72,6 +72,8 @@ class LIPGEN_PG_settings(bpy.types.PropertyGroup):
     topology_id: StringProperty(name="Topology", default="",
                                 description="Topology id of the mesh when it was set up")
     status: StringProperty(name="Status", default="")
+    warnings: StringProperty(name="Warnings", default="",
+                             description="Set-up warnings (units, anchors), one per line")
 
     # Modes.
     modes: CollectionProperty(type=LIPGEN_PG_mode)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
 import tempfile
 import zipfile
 from collections.abc import Iterator, Mapping
@@ -14,25 +15,94 @@ import numpy as np
 
 from lipgen.errors import ModelFileError
 
-__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_json", "save_npz", "load_npz"]
+__all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_json", "save_npz", "load_npz",
+           "stale_temporaries", "remove_stale_temporaries"]
+
+_TMP_TAG = ".tmp-"
+"""Temporary files are ``.{name}.tmp-{pid}-{random}{suffix}`` beside their destination: the pid
+tells a dead writer's leftovers (removed on the next write) from a running writer's."""
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # alive, another user's
+        return True
+    return True
+
+
+def stale_temporaries(dest: str | os.PathLike) -> list[Path]:
+    """Temporary files of earlier writes of ``dest`` whose writing process no longer runs.
+
+    Only names this module makes (``.{name}.tmp-{pid}-...``) are matched, so a user's own file
+    that merely looks similar (``.manifest.json.tmp-mybackup``) is never touched.
+    """
+    dest = Path(dest)
+    parent = dest.parent if str(dest.parent) else Path(".")
+    prefix = f".{dest.name}{_TMP_TAG}"
+    out = []
+    try:
+        entries = list(os.scandir(parent))
+    except OSError:
+        return out
+    for entry in entries:
+        if not entry.name.startswith(prefix):
+            continue
+        pid_text = entry.name[len(prefix):].split("-", 1)[0]
+        if pid_text.isdigit() and not _pid_alive(int(pid_text)) and not entry.is_symlink():
+            out.append(Path(entry.path))
+    return out
+
+
+def remove_stale_temporaries(dest: str | os.PathLike, folder: bool = False) -> list[Path]:
+    """Remove :func:`stale_temporaries` of ``dest`` (a killed writer's leftovers); returns them.
+
+    With ``folder``, ``dest`` is a folder and the stale temporaries of every file in it go.
+    """
+    if folder:
+        stale = []
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(dest):
+                if entry.name.startswith(".") and _TMP_TAG in entry.name:
+                    name = entry.name[1:].split(_TMP_TAG, 1)[0]
+                    stale += [p for p in stale_temporaries(Path(dest) / name) if p.name == entry.name]
+    else:
+        stale = stale_temporaries(dest)
+    removed = []
+    for p in stale:
+        with contextlib.suppress(FileNotFoundError):
+            if p.is_dir():  # a packager's work folder (usdz)
+                shutil.rmtree(p)
+            else:
+                p.unlink()
+            removed.append(p)
+    return removed
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
 
-    A crash or exception leaves the destination untouched and removes the temporary file.
-    ``suffix`` defaults to the destination's own (writers that choose a format by extension
-    need it).
+    A crash or exception leaves the destination untouched and removes the temporary file; the
+    leftovers of a writer that was killed (SIGKILL runs no clean-up) are removed by the next
+    write of the same destination. ``suffix`` defaults to the destination's own (writers that
+    choose a format by extension need it).
     """
     dest = Path(path)
     parent = dest.parent if str(dest.parent) else Path(".")
+    if dest.is_dir():
+        raise IsADirectoryError(f"cannot write {dest}: it is a folder; give a file name inside it")
     if not parent.is_dir():
         raise FileNotFoundError(f"cannot write {dest}: folder {parent} does not exist")
     if not os.access(parent, os.W_OK):
         raise PermissionError(f"cannot write {dest}: folder {parent} is not writable")
     ext = suffix if suffix is not None else dest.suffix
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.tmp-", suffix=ext, dir=parent)
+    remove_stale_temporaries(dest)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}{_TMP_TAG}{os.getpid()}-", suffix=ext, dir=parent)
     os.close(fd)
     tmp_path = Path(tmp)
     os.chmod(tmp_path, 0o666 & ~_umask())  # mkstemp makes 0600; final files get normal permissions

@@ -20,6 +20,9 @@ class Tolerance:
     """Faces with an area below this (mm^2) are degenerate."""
     merge: float = 1e-8
     """Vertices closer than this (mm) are the same point."""
+    weld: float = 1e-3
+    """Vertices of an artist's mesh closer than this (mm) are one point split by a crack or seam
+    (float32 files round ~60 mm coordinates to ~4e-6 mm)."""
     rank: float = 1e-10
     """Relative singular-value cutoff for pseudo-inverses and rank decisions."""
     solve: float = 1e-10

@@ -70,6 +70,7 @@ def _state() -> dict:
             "groups": sorted(g.name for g in ob.vertex_groups),
             "modes": [(m.name, round(m.value, 9)) for m in ob.lipgen.modes],
             "enabled": ob.lipgen.enabled,
+            "n_vertices": len(ob.data.vertices),
             "force_group": ob.lipgen.force_group,
             "attrs": sorted(a.name for a in ob.data.attributes if not a.name.startswith(".")),
             "action": None if ob.animation_data is None or ob.animation_data.action is None
@@ -133,6 +134,13 @@ def check_undo(tmp: str) -> dict:
         kb.data[int(lip_mesh(0).markers[5])].co.x += 0.5
 
     undoable(bpy.ops.object.lipgen_reach_live, prepare=move_another)
+
+    def cracked_sheet():
+        from bpy_checks_hardening import _cracked_sheet
+
+        bpy.context.view_layer.objects.active = _cracked_sheet("Cracked")[0]
+
+    undoable(bpy.ops.object.lipgen_weld_cracks, prepare=cracked_sheet)
 
     def own_sheet():
         sheet = _sheet("Sheet")

@@ -161,7 +161,9 @@ def test_show_writes_a_picture(reference, tmp_path, capsys):
     out = tmp_path / "x.png"
     assert main(["show", str(reference), "--frame", "3", "--out", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert main(["show", str(reference), "--frame", "99", "--out", str(out)]) == 1
+    assert main(["show", str(reference), "--frame", "3", "--out", str(out)]) == 1  # kept without --force
+    assert "--force" in capsys.readouterr().err
+    assert main(["show", str(reference), "--frame", "99", "--out", str(out), "--force"]) == 1
     assert "out of range" in capsys.readouterr().err
 
 

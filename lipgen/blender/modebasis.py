@@ -167,8 +167,12 @@ class ModeBasis:
     def as_model(self) -> _BasisModel:
         """A read-only stand-in with a fitted :class:`~lipgen.modes.ModeModel`'s attributes
         (``mean_``, ``components_``, ``explained_variance_ = scales**2``, ``n_nodes_``,
-        ``topology_id_``, ``check_mesh``, ``synthesize``), for :func:`lipgen.usd.export_usd`:
-        USD blend-shape weights then equal the rig's slider values."""
+        ``topology_id_``, ``check_mesh``, ``synthesize``), for :func:`lipgen.usd.export_usd`.
+
+        ``export_usd`` takes mode *coefficients* (mm), not slider values: pass
+        ``weights=basis.coefficients(sliders)``. With ``weight_range="signed"`` the USD
+        blend-shape weights then equal the slider values (passing the slider values themselves
+        would shrink every pose by its mode's scale)."""
         return _BasisModel(self)
 
     @classmethod

@@ -29,7 +29,7 @@ from pathlib import Path
 from lipgen.errors import MissingDependencyError
 
 __all__ = ["PLATFORMS", "BUNDLED", "PYTHON_VERSION", "ExtensionBuild", "build_extension",
-           "find_validator", "validate", "write_pure_wheel", "addon_source"]
+           "find_validator", "validate", "write_pure_wheel", "addon_source", "shipped_files"]
 
 log = logging.getLogger(__name__)
 
@@ -118,6 +118,30 @@ def _record_hash(data: bytes) -> str:
     return "sha256=" + base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
 
 
+SHIPPED_SUFFIXES = (".py",)
+"""What a wheel of a package folder holds: the modules of its (sub)packages, nothing else."""
+
+
+def shipped_files(package_dir: str | os.PathLike) -> list[Path]:
+    """The files a wheel of ``package_dir`` ships: the ``.py`` modules of the package and of every
+    subpackage (a folder with ``__init__.py``), listed, not globbed. Stray files (notes, data,
+    temporaries, caches, symlinks) and folders that are not packages stay out."""
+    root = Path(package_dir)
+    if not (root / "__init__.py").is_file():
+        raise ValueError(f"{root} is not a Python package (no __init__.py)")
+    out, todo = [], [root]
+    while todo:
+        pkg = todo.pop()
+        for p in sorted(pkg.iterdir()):
+            if p.is_symlink() or p.name.startswith("."):
+                continue
+            if p.is_dir() and (p / "__init__.py").is_file() and p.name != "__pycache__":
+                todo.append(p)
+            elif p.is_file() and p.suffix in SHIPPED_SUFFIXES:
+                out.append(p)
+    return sorted(out)
+
+
 def write_pure_wheel(package_dir: Path, out_dir: Path, name: str, version: str,
                      requires: list[str] | None = None, summary: str = "") -> Path:
     """Write a pure-Python wheel (``py3-none-any``) of one package folder.
@@ -125,8 +149,7 @@ def write_pure_wheel(package_dir: Path, out_dir: Path, name: str, version: str,
     ``__pycache__`` folders and compiled files are left out. The wheel has the METADATA,
     WHEEL and RECORD files of the wheel spec (PEP 427), so pip and Blender install it.
     """
-    files = sorted(p for p in Path(package_dir).rglob("*")
-                   if p.is_file() and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".pyo"))
+    files = shipped_files(package_dir)
     dist = f"{name}-{version}.dist-info"
     meta = ["Metadata-Version: 2.1", f"Name: {name}", f"Version: {version}"]
     if summary:
@@ -260,6 +283,9 @@ def build_extension(out_dir: str | os.PathLike, platforms: list[str] | None = No
     import lipgen
 
     src = Path(source) if source else addon_source()
+    if not (src / "blender_manifest.toml").is_file():
+        raise FileNotFoundError(f"--source {src} is not a Blender add-on folder (no blender_manifest.toml "
+                                "in it); pass the blender_addon/ folder of a lipgen checkout")
     chosen = list(platforms or PLATFORMS)
     unknown = [p for p in chosen if p not in PLATFORMS]
     if unknown:

@@ -6,6 +6,8 @@ import argparse
 import json
 import sys
 
+from lipgen.commands._output import add_force, check_file_output
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
@@ -21,6 +23,7 @@ def add_parser(sub) -> None:
                    help="run only this suite (repeatable); see --list")
     p.add_argument("--quick", action="store_true", help="smaller sizes, for a fast check")
     p.add_argument("--list", action="store_true", help="list the suites and exit")
+    add_force(p)
     p.set_defaults(func=_run)
 
 
@@ -31,6 +34,7 @@ def _run(args) -> int:
         for name, module in sorted(available_suites().items()):
             sys.stdout.write(f"{name}\t{module}\n")
         return 0
+    check_file_output(args.out, args.force)
     result = run_benchmarks(args.out, suites=args.suites, quick=args.quick)
     summary = {name: s["status"] for name, s in result["suites"].items()}
     sys.stdout.write(json.dumps(summary, indent=2) + f"\nwrote {args.out}\n")

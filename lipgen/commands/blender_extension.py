@@ -29,12 +29,25 @@ def add_parser(sub) -> None:
                    "source tree)")
     p.add_argument("--blender", default=None, help="a blender executable to build and validate "
                    "with (default: the tool inside the pip bpy module)")
+    p.add_argument("--force", action="store_true", help="replace zips of this version already in --out")
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
-    from lipgen.blender.packaging import build_extension
+    import tomllib
+    from pathlib import Path
 
+    from lipgen.blender.packaging import PLATFORMS, addon_source, build_extension
+    from lipgen.commands._output import check_folder_output
+
+    src = Path(args.source) if args.source else addon_source()
+    manifest = src / "blender_manifest.toml"
+    if not manifest.is_file():
+        raise FileNotFoundError(f"--source {src} is not a Blender add-on folder (no blender_manifest.toml "
+                                "in it); pass the blender_addon/ folder of a lipgen checkout")
+    meta = tomllib.loads(manifest.read_text())
+    zips = [f"{meta['id']}-{meta['version']}-{p.replace('-', '_')}.zip" for p in args.platforms or PLATFORMS]
+    check_folder_output(args.out, args.force, zips)
     build = build_extension(args.out, platforms=args.platforms, cache=args.wheel_cache,
                             offline=args.offline, source=args.source, blender=args.blender)
     for platform, path in sorted(build.zips.items()):

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from lipgen.commands._output import add_force, check_folder_output
 
 _EPILOG = """\
 REPORT/report.md gets the calibration against the true rig, the tracking error per mark (px), the
@@ -29,6 +30,7 @@ def add_parser(sub) -> None:
     p.add_argument("--recon", help="reconstruction of this dataset (default: run lipgen reconstruct)")
     p.add_argument("--out", required=True, help="report folder (created)")
     p.add_argument("--test-frames", type=int, default=None, help="as given to lipgen train")
+    add_force(p, "the report files in --out")
     p.set_defaults(func=_run)
 
 
@@ -39,7 +41,8 @@ def _run(args) -> int:
     from lipgen.modes.model import ModeModel
     from lipgen.recon.pipeline import Reconstruction, model_mesh, reconstruct_dataset
 
-    out = Path(args.out)
+    products = ("report.md", "report.json") + (() if args.recon else ("recon.npz",))
+    out = check_folder_output(args.out, args.force, products)
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
     if args.recon:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from lipgen.commands._output import add_force, check_folder_output
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
@@ -34,12 +36,14 @@ def add_parser(sub) -> None:
                    help="marker measurement noise (std per coordinate, mm); one report section per value")
     t.add_argument("--truth-resolution", type=int, default=1, help="lip_mesh resolution of the truth (>= 1)")
     t.add_argument("--no-head", action="store_true", help="no head motion")
+    add_force(t, "the report files in --out")
     t.set_defaults(func=_table51)
     n = exp.add_parser(
         "nrsfm",
         help="non-rigid SfM on the standard sequences (drink, jaws) beside the published e3D",
-        description="Run every NRSfM method on drink and jaws (from $LIPGEN_NRSFM_DATA, default "
-        "/work/shared/benchmarks/nrsfm) at the published Ks and at the K chosen from the "
+        description="Run every NRSfM method on drink and jaws (drink.npz and jaws.npz from --data, "
+        "else $LIPGEN_NRSFM_DATA, else benchmarks/nrsfm of the source tree) at the published Ks "
+        "and at the K chosen from the "
         "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
         "and on synthetic articulated sequences; write benchmarks.md, benchmarks.json and the "
         "curves to --out. Takes minutes ('dai-ba' at K = 12-13 on drink).",
@@ -48,7 +52,11 @@ def add_parser(sub) -> None:
     n.add_argument("--out", default="renders/nrsfm", help="output folder")
     n.add_argument("--methods", nargs="+", default=["bregler", "dai", "dai-ba", "em-ppca"],
                    help="methods to run")
+    n.add_argument("--data", default=None, metavar="DIR",
+                   help="folder holding drink.npz and jaws.npz (default: $LIPGEN_NRSFM_DATA, else "
+                   "benchmarks/nrsfm of the source tree)")
     n.add_argument("--no-synthetic", action="store_true", help="skip the synthetic articulated sequences")
+    add_force(n, "the report files in --out")
     n.set_defaults(func=_nrsfm)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -57,6 +65,7 @@ def _table51(args) -> int:
     from lipgen.experiments.table51 import Table51Settings, run_table51
     from lipgen.experiments.table51_report import write_report
 
+    check_folder_output(args.out, args.force, ("report.md", "table51.json"))
     runs = []
     for noise in args.noise_mm:
         settings = Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes,
@@ -75,6 +84,13 @@ def _nrsfm(args) -> int:
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:
         raise ValueError(f"unknown method(s) {unknown}; choose from {sorted(METHODS)}")
+    check_folder_output(args.out, args.force, ("benchmarks.md", "benchmarks.json"))
+    if args.data is not None:
+        import os
+
+        if not os.path.isdir(args.data):
+            raise FileNotFoundError(f"--data {args.data} is not a folder (it holds drink.npz, jaws.npz)")
+        os.environ["LIPGEN_NRSFM_DATA"] = args.data  # read by data_dir(), in this process only
     settings = NrsfmBenchSettings(methods=tuple(args.methods),
                                   synthetic_seeds=() if args.no_synthetic else (0, 1, 2, 3))
     run_nrsfm_benchmarks(args.out, settings)

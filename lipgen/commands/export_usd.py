@@ -5,9 +5,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
+
+from lipgen.commands._output import add_force, check_file_output
 
 _EPILOG = """\
 examples:
@@ -71,6 +74,7 @@ def add_parser(sub) -> None:
     p.add_argument("--no-regions", action="store_true", help="do not write the regions as GeomSubsets")
     p.add_argument("--no-validate", action="store_true", help="skip the validation after writing")
     p.add_argument("--out", required=True, help="output file; the extension chooses the format")
+    add_force(p)
     p.set_defaults(func=_run)
 
 
@@ -78,16 +82,25 @@ def _load_array(path: str, what: str, key: str) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"{what} file not found: {p}")
-    if p.suffix == ".npy":
-        return np.load(p, allow_pickle=False)
-    if p.suffix == ".npz":
-        with np.load(p, allow_pickle=False) as data:
-            if key in data.files:
-                return data[key]
-            if len(data.files) == 1:
-                return data[data.files[0]]
-            raise ValueError(f"{p} holds arrays {data.files}; name the {what} array {key!r}")
-    raise ValueError(f"{what} must be an .npy or .npz file, got {p.name!r}")
+    if p.suffix not in (".npy", ".npz"):
+        raise ValueError(f"{what} must be an .npy or .npz file, got {p.name!r}")
+    try:
+        with open(p, "rb") as fh:
+            if p.suffix == ".npy":
+                return np.load(fh, allow_pickle=False)
+            with np.load(fh, allow_pickle=False) as data:
+                if key in data.files:
+                    return data[key]
+                if len(data.files) == 1:
+                    return data[data.files[0]]
+                raise ValueError(f"{p} holds arrays {data.files}; name the {what} array {key!r}")
+    except (EOFError, OSError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{what} file {p} is empty, truncated or not a numpy {p.suffix} file "
+                         f"({exc})") from exc
+    except ValueError as exc:
+        if str(p) in str(exc):
+            raise
+        raise ValueError(f"{what} file {p} cannot be read: {exc}") from exc
 
 
 def _mesh(args):
@@ -137,8 +150,10 @@ def _dataset_truth(args):
 
 def _run(args) -> int:
     from lipgen.modes.model import ModeModel
-    from lipgen.usd.export import export_usd, validate
+    from lipgen.usd.export import _check_extension, export_usd, validate
 
+    check_file_output(args.out, args.force)
+    _check_extension(args.out)
     if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
                          "bare modes), --points, or --dataset")

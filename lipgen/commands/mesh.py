@@ -47,15 +47,15 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from pathlib import Path
 
+    from lipgen.commands._output import check_file_output
     from lipgen.mesh.io import read_mesh, sidecar_path, write_mesh
     from lipgen.mesh.procedural import lip_mesh
 
     targets = [Path(args.plot)] if args.plot else []
     if args.out:
         targets += [Path(args.out)] + ([] if args.out.lower().endswith(".npz") else [sidecar_path(args.out)])
-    for path in targets if not args.force else ():
-        if path.exists():
-            raise FileExistsError(f"{path} exists; choose another name or pass --force to replace it")
+    for path in targets:
+        check_file_output(path, args.force, "--plot" if args.plot and path == Path(args.plot) else "--out")
     if args.source:
         mesh = read_mesh(args.source)
     else:

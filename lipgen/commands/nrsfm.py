@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
+
+from lipgen.commands._output import check_file_output
 
 _DESCRIPTION = """\
 Reconstruct non-rigid 3D shape from 2D tracks under orthography.
@@ -85,19 +86,23 @@ def _run(args) -> int:
         save_shapes,
     )
 
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; pass --force to overwrite it or choose another --out")
+    out = check_file_output(args.out, args.force)
     k = _parse_k(args.k)
+    if args.kmax is not None and args.kmax < 1:
+        raise ValueError(f"--kmax must be at least 1, got {args.kmax}")
+    if not (0 < args.rtol < 1):  # also refuses nan
+        raise ValueError(f"--rtol must be a number in (0, 1), got {args.rtol}")
     data = load_tracks(args.tracks)
     W, visible = data["W"], data.get("visible")
     write = sys.stdout.write
     write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
+    if plot:
+        check_file_output(plot, args.force, "--plot")
     if k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
-        ks = range(first, args.kmax + 1) if args.kmax else None
+        ks = range(first, args.kmax + 1) if args.kmax is not None else None
         with blas_threads(1):
             curve = reprojection_curve(W, ks=ks, method=args.method, visible=visible, rtol=args.rtol,
                                        progress=True, seed=args.seed)

@@ -4,15 +4,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from lipgen.commands._output import check_file_output
 
 _EPILOG = """\
 steps: calibrate the camera and the mirror from the dataset's chessboard frames; detect and track
 the ink dots in both views (normalised correlation, first frame matched to the model's markers);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
-thesis's section 3 lip planes with --normalisation thesis); and per frame the least-strain
-field of the model reaching the markers (Physics.reach). The ground truth is not read.
+thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the
+model reaching the markers with the least-norm force (Physics.reach, thesis eq 4.3). The ground
+truth is not read.
 
 examples:
   lipgen reconstruct data/s0 --out recon.npz
@@ -40,9 +42,7 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from lipgen.recon.pipeline import reconstruct_dataset
 
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; choose another --out or pass --force to replace it")
+    out = check_file_output(args.out, args.force)
     recon = reconstruct_dataset(args.dataset, args.mesh, progress=not args.no_progress,
                                 normalisation=args.normalisation)
     recon.save(out)

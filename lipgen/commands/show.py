@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from lipgen.commands._output import add_force, check_file_output
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
@@ -16,12 +18,14 @@ def add_parser(sub) -> None:
     p.add_argument("dataset", help="dataset folder written by lipgen generate")
     p.add_argument("--frame", type=int, default=0, help="frame number")
     p.add_argument("--out", required=True, help="picture to write (.png, .pdf, .svg)")
+    add_force(p)
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
     from lipgen.dataset.layout import Dataset, save_annotated
 
+    check_file_output(args.out, args.force)
     ds = Dataset(args.dataset)
     if not 0 <= args.frame < len(ds):
         raise ValueError(f"--frame {args.frame} is out of range: {args.dataset} has frames 0..{len(ds) - 1}")

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
+
+from lipgen.commands._output import check_file_output
 
 _EPILOG = """\
 The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
@@ -34,9 +35,7 @@ def _run(args) -> int:
     from lipgen.modes.model import ModeModel
     from lipgen.recon.pipeline import Reconstruction, model_mesh
 
-    out = Path(args.out)
-    if out.exists() and not args.force:
-        raise FileExistsError(f"{out} exists; choose another --out or pass --force to replace it")
+    out = check_file_output(args.out, args.force)
     recon = Reconstruction.load(args.recon)
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames

@@ -22,7 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from lipgen import __version__
-from lipgen._io import atomic_write_bytes, atomic_write_json, save_npz
+from lipgen._io import (
+    atomic_write_bytes,
+    atomic_write_json,
+    remove_stale_temporaries,
+    save_npz,
+    stale_temporaries,
+)
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -32,6 +38,7 @@ from lipgen.dataset.layout import (
     calib_paths,
     extra_paths,
     frame_paths,
+    intact,
     validate_manifest,
 )
 from lipgen.errors import DatasetError
@@ -204,6 +211,13 @@ def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
     save_npz(npz, kind_tag, SCHEMA, truth)
 
 
+def _frame_intact(out: Path, i: int, s: GenerateSettings) -> bool:
+    files = list(zip(frame_paths(out, i), (None, FRAME_KIND), strict=True))
+    depth, mask = extra_paths(out, i)
+    files += ([(depth, DEPTH_KIND)] if s.depth else []) + ([(mask, None)] if s.masks else [])
+    return all(intact(p, k) for p, k in files)
+
+
 def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
     from lipgen.rig.target import board_poses
 
@@ -214,6 +228,28 @@ def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
     return _WORKER[key]
 
 
+_SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks")
+
+
+def _is_our_temporary(p: Path) -> bool:
+    """A temporary manifest or mesh left by a killed first run (the folder is still ours to fill)."""
+    for name in ("manifest.json", "mesh.npz"):
+        if p.name.startswith(f".{name}.tmp-"):
+            return p in stale_temporaries(p.parent / name)
+    return False
+
+
+def _check_inside(out: Path) -> None:
+    """Refuse a dataset whose subfolders or files are symlinks leading out of it: a resume must
+    neither write nor delete anything elsewhere."""
+    root = out.resolve()
+    for name in ("manifest.json", "mesh.npz", *_SUBFOLDERS):
+        p = out / name
+        if p.is_symlink() and not p.resolve().is_relative_to(root):
+            raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
+                               "through it (nothing was written). Replace it with a real folder")
+
+
 def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
 
@@ -221,10 +257,7 @@ def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """
     if out.exists() and not out.is_dir():
         raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
-    leftovers = list(out.glob(".manifest.json.tmp-*")) if out.is_dir() else []
-    for tmp in leftovers:  # a first run killed while writing its manifest
-        tmp.unlink()
-    if out.is_dir() and any(out.iterdir()):
+    if out.is_dir() and any(not _is_our_temporary(p) for p in out.iterdir()):
         mf = out / "manifest.json"
         if not mf.is_file():
             raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
@@ -246,10 +279,13 @@ def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
             raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
                                f"{': ' + detail if detail else ''}); resume only with the same settings, or "
                                "choose a new folder (nothing was overwritten)")
-        for sub in ("raw", "truth", "calib"):  # temporary files of writes cut short by a kill
-            for tmp in (out / sub).glob(".*.tmp-*") if (out / sub).is_dir() else ():
-                tmp.unlink()
+        _check_inside(out)
+        for sub in ("", *_SUBFOLDERS):  # temporary files of writes cut short by a kill
+            if (out / sub).is_dir():
+                remove_stale_temporaries(out / sub, folder=True)
         return True
+    if out.is_dir():  # only a killed first run's temporary manifest is here
+        remove_stale_temporaries(out, folder=True)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -300,15 +336,22 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     from lipgen.dataset.layout import build_manifest
 
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
+    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
+        from lipgen.rig.target import Chessboard, board_poses
+
+        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
+        board_poses(rig, Chessboard(*s.board), s.calib_frames, seed=rng)
     if not _prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
         (out / sub).mkdir(exist_ok=True)
     mesh_path = out / "mesh.npz"
-    if not mesh_path.is_file():
+    if not intact(mesh_path, "lipgen.LipMesh"):
         mesh.save(mesh_path)
-    jobs = [("calib", i) for i in range(s.calib_frames) if not all(p.is_file() for p in calib_paths(out, i))]
-    jobs += [("frame", i) for i in range(s.frames) if not all(p.is_file() for p in frame_paths(out, i))]
+    # a resume checks every file it keeps (a cheap decode): empty or truncated ones are redone
+    jobs = [("calib", i) for i in range(s.calib_frames)
+            if not all(intact(p, k) for p, k in zip(calib_paths(out, i), (None, CALIB_KIND), strict=True))]
+    jobs += [("frame", i) for i in range(s.frames) if not _frame_intact(out, i, s)]
     done = s.calib_frames + s.frames - len(jobs)
     if done:
         log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))

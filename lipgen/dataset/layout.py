@@ -25,11 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from lipgen._io import load_npz
+from lipgen.dataset.checks import _check_number, check_relative, intact
 from lipgen.errors import DatasetError, ModelFileError
 from lipgen.rig.camera import VIEWS, MirrorRig
 
 __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "TRUTH_FIELDS",
-           "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels"]
+           "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels",
+           "check_relative", "intact"]
 
 SCHEMA = 1
 FORMAT = "lipgen.dataset"
@@ -122,6 +124,8 @@ class GenerateSettings:
     @classmethod
     def from_dict(cls, d: dict) -> GenerateSettings:
         """Settings from a manifest's dict, checking every key and value."""
+        if not isinstance(d, dict):
+            raise ValueError(f"generator settings must be a JSON object, got {type(d).__name__}")
         known = {f.name for f in fields(cls)}
         unknown = set(d) - known
         if unknown:
@@ -189,7 +193,17 @@ def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str]
 
 
 def validate_manifest(m, where="manifest") -> None:
-    """Raise :class:`DatasetError` unless ``m`` is a well-formed manifest this lipgen reads."""
+    """Raise :class:`DatasetError` unless ``m`` is a well-formed manifest this lipgen reads.
+
+    Every file it names must be a relative path inside the dataset folder (:func:`check_relative`).
+    """
+    try:
+        _validate_manifest(m, where)
+    except (TypeError, AttributeError, KeyError, IndexError) as exc:  # a field of the wrong type
+        raise DatasetError(f"{where}: malformed manifest ({type(exc).__name__}: {exc})") from exc
+
+
+def _validate_manifest(m, where) -> None:
     if not isinstance(m, dict):
         raise DatasetError(f"{where}: a manifest is a JSON object, got {type(m).__name__}")
     missing = [k for k in _REQUIRED if k not in m]
@@ -205,21 +219,45 @@ def validate_manifest(m, where="manifest") -> None:
     try:
         GenerateSettings.from_dict(m["settings"])
         MirrorRig.from_dict(m["rig"])
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise DatasetError(f"{where}: bad settings or rig: {exc}") from exc
     n = m["settings"]["frames"]
     frames = m["frames"]
-    if not isinstance(frames, list) or len(frames) != n or any(
-            f.get("index") != i or not {"raw", "truth"} <= set(f) for i, f in enumerate(frames)):
-        raise DatasetError(f"{where}: the frame list must have {n} entries with index, raw, truth in order")
+    if not isinstance(frames, list) or len(frames) != n:
+        got = f"a list of {len(frames)}" if isinstance(frames, list) else type(frames).__name__
+        raise DatasetError(f"{where}: the frame list must have {n} entries (settings.frames), got {got}")
+    for i, f in enumerate(frames):
+        if not isinstance(f, dict) or f.get("index") != i or not {"raw", "truth"} <= set(f):
+            raise DatasetError(f"{where}: frames[{i}] must be an object with index {i}, raw and truth; got "
+                               f"{str(f)[:80]!r}")
+        _check_number(f.get("time", 0.0), f"{where}: frames[{i}].time")
+        for key in ("raw", "truth", "depth", "mask"):
+            if key in f:
+                check_relative(f[key], f"{where}: frames[{i}].{key}")
+    _check_number(m.get("fps", 1.0), f"{where}: fps", positive=True)
     mesh = m["mesh"]
-    if not {"file", "topology_id", "resolution", "n_nodes"} <= set(mesh):
-        raise DatasetError(f"{where}: mesh needs file, topology_id, resolution, n_nodes; got {sorted(mesh)}")
-    if len(m["marks"]) != len(mesh.get("marker_names", [])) + 1 or m["marks"][-1] != "nose":
+    if not isinstance(mesh, dict) or not {"file", "topology_id", "resolution", "n_nodes"} <= set(mesh):
+        raise DatasetError(f"{where}: mesh needs file, topology_id, resolution, n_nodes; got "
+                           f"{sorted(mesh) if isinstance(mesh, dict) else type(mesh).__name__}")
+    check_relative(mesh["file"], f"{where}: mesh.file")
+    marks, names = m["marks"], mesh.get("marker_names", [])
+    if (not isinstance(marks, list) or not isinstance(names, list) or len(marks) != len(names) + 1
+            or marks[-1:] != ["nose"]):
         raise DatasetError(f"{where}: marks must be the marker names then 'nose'")
     cal = m["calibration"]
-    if not {"board", "frames"} <= set(cal) or len(cal["frames"]) != m["settings"]["calib_frames"]:
-        raise DatasetError(f"{where}: calibration needs the board and {m['settings']['calib_frames']} frames")
+    n_cal = m["settings"]["calib_frames"]
+    if (not isinstance(cal, dict) or not {"board", "frames"} <= set(cal)
+            or not isinstance(cal["frames"], list) or len(cal["frames"]) != n_cal):
+        raise DatasetError(f"{where}: calibration needs the board and {n_cal} frames")
+    for i, f in enumerate(cal["frames"]):
+        if not isinstance(f, dict) or not {"raw", "truth"} <= set(f) or not isinstance(f.get("index"), int):
+            raise DatasetError(f"{where}: calibration.frames[{i}] must be an object with index, raw and "
+                               f"truth; got {str(f)[:80]!r}")
+        for key in ("raw", "truth"):
+            check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
+    board = cal["board"]
+    if not isinstance(board, dict) or not {"inner_cols", "inner_rows", "square"} <= set(board):
+        raise DatasetError(f"{where}: calibration.board needs inner_cols, inner_rows, square")
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,13 +307,24 @@ class Dataset:
         self.fps = float(self.manifest["fps"])
         self.marks = tuple(self.manifest["marks"])
 
+    def file(self, rel: str) -> Path:
+        """The path of manifest entry ``rel``, refused (:class:`DatasetError`) if it resolves
+        outside the dataset folder (an absolute path, ``..``, or a symlink leading out)."""
+        check_relative(rel, f"{self.path}/manifest.json entry")
+        p = self.path / rel
+        root, target = self.path.resolve(), p.resolve()
+        if not target.is_relative_to(root):
+            raise DatasetError(f"{self.path}: {rel} resolves to {target}, outside the dataset folder "
+                               "(a symlink leading out?); refusing to read it")
+        return p
+
     @cached_property
     def mesh(self):
         from lipgen.mesh.lipmesh import LipMesh
 
         info = self.manifest["mesh"]
         try:
-            mesh = LipMesh.load(self.path / info["file"])
+            mesh = LipMesh.load(self.file(info["file"]))
         except (FileNotFoundError, ModelFileError) as exc:
             raise DatasetError(f"{self.path}: cannot read the mesh: {exc}") from exc
         if mesh.topology_id != info["topology_id"]:
@@ -290,31 +339,42 @@ class Dataset:
     def __len__(self) -> int:
         return len(self.manifest["frames"])
 
-    def missing(self) -> list[int]:
-        """Frames whose files are not (yet) written; ``lipgen generate --resume`` completes them."""
-        return [i for i, f in enumerate(self.manifest["frames"])
-                if not all((self.path / f[k]).is_file() for k in ("raw", "truth", "depth", "mask") if k in f)]
+    def missing(self, verify: bool = True) -> list[int]:
+        """Frames whose files are not (yet) written, or (``verify``) do not decode (empty or
+        truncated); ``lipgen generate --resume`` completes them."""
+        kinds = {"raw": None, "truth": FRAME_KIND, "depth": DEPTH_KIND, "mask": None}
+        out = []
+        for i, f in enumerate(self.manifest["frames"]):
+            paths = [(self.file(f[k]), kind) for k, kind in kinds.items() if k in f]
+            if not all(intact(p, kind) if verify else p.is_file() for p, kind in paths):
+                out.append(i)
+        return out
 
     def depth(self, i: int) -> np.ndarray:
         """(H, W) float32 depth of raw frame ``i``: each half's view-camera z, mm (the mirror half
         measures along the reflected ray, as its virtual camera sees it); NaN where no surface."""
         f = self._extra(i, "depth", "--depth")
-        return load_npz(self.path / f, DEPTH_KIND, SCHEMA)["depth"]
+        return load_npz(self.file(f), DEPTH_KIND, SCHEMA)["depth"]
 
     def mask(self, i: int) -> np.ndarray:
         """(H, W) uint8 labels of raw frame ``i``; names in ``manifest['mask_labels']`` (0 background,
         1 skin, 2 vermilion, 3 mouth, 10 + k the ink dot of mark k)."""
         from PIL import Image
 
-        with Image.open(self.path / self._extra(i, "mask", "--masks")) as im:
-            return np.asarray(im)
+        path = self.file(self._extra(i, "mask", "--masks"))
+        try:
+            with Image.open(path) as im:
+                return np.asarray(im)
+        except (OSError, SyntaxError, ValueError) as exc:
+            raise DatasetError(f"{path} is not a readable PNG ({exc}); redo it with lipgen generate --resume "
+                               "(same settings)") from exc
 
     def _extra(self, i: int, key: str, flag: str) -> str:
         f = self.manifest["frames"][i]
         if key not in f:
             raise DatasetError(f"{self.path} was generated without {key}s; regenerate with lipgen generate "
                                f"{flag}")
-        if not (self.path / f[key]).is_file():
+        if not self.file(f[key]).is_file():
             raise DatasetError(f"{self.path}: {f[key]} is missing; finish the dataset with lipgen generate "
                                "--resume (same settings)")
         return f[key]
@@ -322,13 +382,21 @@ class Dataset:
     def _load(self, rel_png: str, rel_npz: str, kind: str) -> tuple[np.ndarray, dict]:
         from PIL import Image
 
-        png, npz = self.path / rel_png, self.path / rel_npz
+        png, npz = self.file(rel_png), self.file(rel_npz)
         if not png.is_file() or not npz.is_file():
             raise DatasetError(f"{self.path}: {rel_png} or {rel_npz} is missing; the dataset is incomplete. "
                                "Finish it with lipgen generate --resume (same settings)")
-        with Image.open(png) as im:
-            image = np.asarray(im.convert("RGB"))
-        return image, load_npz(npz, kind, SCHEMA)
+        try:
+            with Image.open(png) as im:
+                image = np.asarray(im.convert("RGB"))
+        except (OSError, SyntaxError, ValueError) as exc:  # PIL: truncated or not a PNG
+            raise DatasetError(f"{png} is not a readable image ({exc}); redo it with lipgen generate "
+                               "--resume (same settings)") from exc
+        try:
+            truth = load_npz(npz, kind, SCHEMA)
+        except ModelFileError as exc:
+            raise DatasetError(f"{exc}; redo it with lipgen generate --resume (same settings)") from exc
+        return image, truth
 
     def __getitem__(self, i: int) -> DatasetFrame:
         n = len(self)

@@ -19,8 +19,9 @@ __all__ = ["DEFAULT_DATA", "PUBLISHED", "NrsfmBenchSettings", "run_nrsfm_benchma
 
 log = logging.getLogger(__name__)
 
-DEFAULT_DATA = "/work/shared/benchmarks/nrsfm"
-"""Where the benchmark sequences live unless ``LIPGEN_NRSFM_DATA`` says otherwise."""
+DEFAULT_DATA = "benchmarks/nrsfm"
+"""Where the benchmark sequences live unless ``LIPGEN_NRSFM_DATA`` says otherwise: relative to the
+source tree's root (no machine's own path ships in the package)."""
 
 PUBLISHED = {
     "drink": [("Akhter et al. 2008, trajectory basis", 13, 0.025),
@@ -44,8 +45,9 @@ K = 2 on jaws is how Torresani et al.'s own shark demo runs it; on drink (41 poi
 
 
 def data_dir() -> Path:
-    """The folder of the benchmark sequences (``LIPGEN_NRSFM_DATA``, else the default)."""
-    return Path(os.environ.get("LIPGEN_NRSFM_DATA", DEFAULT_DATA))
+    """``$LIPGEN_NRSFM_DATA``, else :data:`DEFAULT_DATA` under the source tree's root."""
+    env = os.environ.get("LIPGEN_NRSFM_DATA")
+    return Path(env) if env else Path(__file__).resolve().parents[2] / DEFAULT_DATA
 
 
 @dataclass(frozen=True)

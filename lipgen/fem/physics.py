@@ -68,6 +68,15 @@ class _ReachPlan:
     Z: np.ndarray  # (3n, d)
 
 
+@dataclass(frozen=True)
+class _EnergyPlan:
+    """The least-strain-energy reach for one set of goal DOFs: S = K_s⁻¹ P (3n x d) and the
+    Cholesky factor L of C = S[d] = P K_s⁻¹ P; U = S C⁻¹ U_g."""
+
+    S: np.ndarray  # (3n, d)
+    L: np.ndarray  # (d, d) lower triangular
+
+
 class Physics:
     """Thin-shell FEM lips: forces to displacements and displacement goals to least-norm forces.
 
@@ -126,7 +135,7 @@ class Physics:
         Ks = self.K[self.free_dofs][:, self.free_dofs]
         self._factor = factorize(Ks, solver)
         self.solver = self._factor.method
-        self._plans: OrderedDict[tuple[int, ...], _ReachPlan] = OrderedDict()
+        self._plans: OrderedDict[tuple, _ReachPlan | _EnergyPlan] = OrderedDict()
         log.info("physics for %r: %d nodes, %d faces, %d free DOFs, solver %s", mesh.name,
                  mesh.n_nodes, mesh.n_faces, len(self.free_dofs), self.solver)
 
@@ -249,12 +258,20 @@ class Physics:
             self._plans.popitem(last=False)
         return plan
 
-    def reach(self, dofs_, values) -> tuple[np.ndarray, np.ndarray]:
-        """The least-norm force that reaches displacement goals, and its displacement (eq 4.3).
+    def reach(self, dofs_, values, objective: str = "force") -> tuple[np.ndarray, np.ndarray]:
+        """The displacement field that reaches displacement goals, and the forces causing it.
 
-        Minimises FᵀF subject to (K_s⁻¹ F)[dofs_] = values (Appendix A), i.e.
-        F = K_c⁻ᵀ (K_c⁻¹ K_c⁻ᵀ)⁻¹ U_g, then U = K_s⁻¹ F. The work per DOF set (2d solves and a
-        QR) is cached, so many frames with the same goal DOFs cost one matrix product each.
+        ``objective="force"`` (the thesis's eq 4.3, the default): the least-norm force,
+        minimising FᵀF subject to (K_s⁻¹ F)[dofs_] = values (Appendix A), i.e.
+        F = K_c⁻ᵀ (K_c⁻¹ K_c⁻ᵀ)⁻¹ U_g, then U = K_s⁻¹ F. It spreads force over every node, so the
+        field can overshoot the goals (a free lip edge moves further than its markers).
+
+        ``objective="energy"``: the least strain energy ½UᵀK_sU among fields that reach the goals;
+        its forces act on the goal DOFs only, F = P C⁻¹ U_g with C = K_s⁻¹[dofs_, dofs_], and
+        U = K_s⁻¹ F. No node moves further than the physics needs.
+
+        The work per DOF set (2d solves and a QR or a Cholesky) is cached, so many frames with
+        the same goal DOFs cost one matrix product each.
 
         Parameters
         ----------
@@ -263,22 +280,54 @@ class Physics:
             only some axes of a node. Distinct, not on anchored nodes.
         values : (d,) or (b, d) float
             Goal displacements in mm (b frames).
+        objective : {"force", "energy"}
+            What the field minimises (see above).
 
         Returns
         -------
         U, F : (n, 3) each, or (b, n, 3) each for batched values
             Displacements (equal to the goals at ``dofs_``) and the forces that cause them.
         """
+        if objective not in ("force", "energy"):
+            raise ValueError(f"objective must be 'force' (least-norm force, eq 4.3) or 'energy' (least "
+                             f"strain energy), got {objective!r}")
         d = self._goal_dofs(dofs_)
         vals = as_float_array(values, "values")
         if vals.ndim not in (1, 2) or vals.shape[-1] != len(d):
             raise ValueError(f"values must have shape ({len(d)},) or (b, {len(d)}) for {len(d)} goal "
                              f"DOFs, got {vals.shape}")
+        if objective == "energy":
+            return self._reach_energy(d, vals)
         plan = self._plan(d)
         alpha = sla.solve_triangular(plan.R, vals.reshape(-1, len(d)).T, trans="T")  # R⁻ᵀ U_g
         n = self.n_nodes
         U = (plan.Z @ alpha).T.reshape(-1, n, 3)
         F = (plan.Q @ alpha).T.reshape(-1, n, 3)
+        if vals.ndim == 1:
+            return U[0], F[0]
+        return U, F
+
+    def _reach_energy(self, d: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = ("energy", *(int(i) for i in d))
+        plan = self._plans.get(key)
+        if plan is None:
+            S = self.compliance_columns(d)  # K_s⁻¹ P, (3n, d)
+            try:
+                L = np.linalg.cholesky(S[d])  # C = K_s⁻¹[d, d], symmetric positive definite
+            except np.linalg.LinAlgError as exc:
+                raise SingularStiffnessError("the goal DOFs are (numerically) redundant: their compliance "
+                                             "block is singular; drop duplicate goal nodes") from exc
+            plan = _EnergyPlan(S, L)
+            self._plans[key] = plan
+            if len(self._plans) > _REACH_CACHE:
+                self._plans.popitem(last=False)
+        S, L = plan.S, plan.L
+        lam = sla.cho_solve((L, True), vals.reshape(-1, len(d)).T)  # C⁻¹ U_g, (d, b)
+        n = self.n_nodes
+        U = (S @ lam).T.reshape(-1, n, 3)
+        F = np.zeros((lam.shape[1], 3 * n))
+        F[:, d] = lam.T
+        F = F.reshape(-1, n, 3)
         if vals.ndim == 1:
             return U[0], F[0]
         return U, F

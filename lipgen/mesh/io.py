@@ -130,6 +130,9 @@ def read_mesh(path: str | os.PathLike) -> LipMesh:
                         "bare geometry with LipMesh.from_file(path, anchors=..., markers=...)")
     try:
         meta = json.loads(side.read_text())
+        if not isinstance(meta, dict):
+            raise MeshError(f"sidecar {side} must hold a JSON object (kind, schema, anchors, markers, ...), "
+                            f"got a JSON {type(meta).__name__}")
         if meta.get("kind") != _SIDECAR_KIND or meta.get("schema") != _SIDECAR_SCHEMA:
             raise ValueError(f"kind/schema {meta.get('kind')!r}/{meta.get('schema')!r}, expected "
                              f"{_SIDECAR_KIND!r}/{_SIDECAR_SCHEMA}")
@@ -137,13 +140,14 @@ def read_mesh(path: str | os.PathLike) -> LipMesh:
         mesh = LipMesh.from_file(p, anchors=meta["anchors"], markers=list(idx), marker_names=names,
                                  regions=meta["regions"], region_names=tuple(meta["region_names"]),
                                  nose=meta["nose"])
-    except (KeyError, TypeError, json.JSONDecodeError) as exc:
+    except (KeyError, TypeError, AttributeError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise MeshError(f"sidecar {side} is unreadable: {exc!r}") from exc
     except ValueError as exc:
         if isinstance(exc, MeshError):
             raise
         raise MeshError(f"{p} does not fit its sidecar {side.name}: {exc}") from exc
-    if (mesh.n_nodes, mesh.n_faces) != (meta["n_nodes"], meta["n_faces"]):
+    if (mesh.n_nodes, mesh.n_faces) != (meta.get("n_nodes"), meta.get("n_faces")):
         raise MeshError(f"{p} has {mesh.n_nodes} vertices and {mesh.n_faces} faces but its sidecar "
-                        f"describes {meta['n_nodes']} and {meta['n_faces']}; was it edited after export?")
+                        f"describes {meta.get('n_nodes')} and {meta.get('n_faces')}; was it edited after "
+                        "export?")
     return mesh

@@ -9,6 +9,7 @@ other module can trust it. The procedural default lips are built by
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -19,6 +20,8 @@ from lipgen._io import load_npz, save_npz
 from lipgen._validate import as_float_array, as_index_array
 from lipgen.errors import MeshError
 from lipgen.tol import tol
+
+log = logging.getLogger(__name__)
 
 __all__ = ["LipMesh", "REGIONS", "merge_coincident_vertices"]
 
@@ -207,7 +210,8 @@ class LipMesh:
 
     @classmethod
     def from_file(cls, path: str | os.PathLike, anchors, markers=(), marker_names=None,
-                  regions=None, region_names: tuple[str, ...] = REGIONS, nose=None) -> LipMesh:
+                  regions=None, region_names: tuple[str, ...] = REGIONS, nose=None, *,
+                  weld: float | None = None) -> LipMesh:
         """Load a user's triangle mesh (OBJ, PLY, STL, ... through trimesh).
 
         ``anchors`` and ``markers`` are node indices into the file's vertices; ``regions`` is
@@ -219,6 +223,13 @@ class LipMesh:
         vertices, so coincident corners (bit-identical coordinates, as STL writers produce) are
         merged; the nodes are then numbered in order of first appearance in the file's
         triangles, and ``anchors``/``markers`` refer to that numbering.
+
+        The mesh is checked before it is trusted (:mod:`lipgen.mesh.checks`): coincident vertices
+        that faces do not share (a crack or split seam, which tears under force) raise
+        :class:`MeshError` naming them unless ``weld`` (mm) is given, which merges vertices closer
+        than that (``anchors``, ``markers`` and per-face ``regions`` still refer to the file);
+        edges used by more than two faces (fins) raise :class:`MeshError`. A mesh whose size is not
+        that of a mouth in millimetres is logged as a warning with the likely unit.
         """
         import trimesh
 
@@ -237,6 +248,7 @@ class LipMesh:
         V, F = np.asarray(tm.vertices, float), np.asarray(tm.faces, np.int64)
         if kind == "stl":
             V, F = merge_coincident_vertices(V, F)
+        V, F, old_to_new, keep_faces = _checked_geometry(p, V, F, weld)
         if isinstance(regions, dict):
             codes = np.full(len(F), region_names.index("lip") if "lip" in region_names else 0)
             for rname, idx in regions.items():
@@ -244,7 +256,38 @@ class LipMesh:
                     raise ValueError(f"unknown region {rname!r}; known: {region_names}")
                 codes[as_index_array(idx, f"regions[{rname!r}]", len(F))] = region_names.index(rname)
             regions = codes
+        if old_to_new is not None:  # welded: the caller's indices refer to the file
+            n_file = len(old_to_new)
+            anchors = np.unique(old_to_new[as_index_array(anchors, "anchors", n_file)])
+            markers = old_to_new[as_index_array(markers, "markers", n_file)]
+            if regions is not None:
+                regions = np.asarray(regions)[keep_faces]
         return cls(V, F, regions, anchors, markers, marker_names, nose, region_names, name=p.stem)
+
+
+def _checked_geometry(p: Path, V: np.ndarray, F: np.ndarray, weld: float | None):
+    """``V, F`` after the crack and unit checks of :meth:`LipMesh.from_file` (welded if asked),
+    with the old -> new vertex map and the kept faces (None, None when nothing was welded)."""
+    from lipgen.mesh.checks import check_units, find_cracks
+    from lipgen.mesh.checks import weld as weld_vertices
+
+    cracks = find_cracks(V, F, weld)
+    if len(cracks.fins):
+        raise MeshError(f"{p}: {cracks.message}")
+    old_to_new = keep = None
+    if len(cracks.pairs):
+        if weld is None:
+            raise MeshError(f"{p}: {cracks.message}; pass weld=DISTANCE_MM to LipMesh.from_file to merge "
+                            "them (anchors and markers keep the file's numbering)")
+        G = F
+        V, F, old_to_new = weld_vertices(V, F, weld)
+        mapped = old_to_new[G]
+        keep = (np.diff(np.sort(mapped, axis=1), axis=1) > 0).all(axis=1)  # faces that did not collapse
+        log.info("%s: welded %d crack vertex pair(s) within %g mm", p, len(cracks.pairs), weld)
+    units = check_units(V)
+    if not units.ok:
+        log.warning("%s: %s", p, units.message)
+    return V, F, old_to_new, keep
 
 
 def merge_coincident_vertices(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

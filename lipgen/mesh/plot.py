@@ -153,8 +153,11 @@ def plot_mesh(mesh: LipMesh, path: str | os.PathLike | None = None, views=("fron
     else:
         norm, cmap = coll.lipgen_mappable
         fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=list(axes), label=value_label, shrink=0.8)
-    fig.suptitle(title or f"{mesh.name}: {mesh.n_nodes} nodes, {mesh.n_faces} faces "
-                 "(markers numbered 1-16 in thesis order)", fontsize=10)
+    n_markers = len(mesh.markers)
+    marked = (f"markers numbered 1-{n_markers} in thesis order" if n_markers > 1 else
+              "marker numbered 1" if n_markers == 1 else "no markers")
+    fig.suptitle(title or f"{mesh.name}: {mesh.n_nodes} nodes, {mesh.n_faces} faces ({marked})",
+                 fontsize=10)
     if path is not None:
         with atomic_path(path, suffix=Path(path).suffix or ".png") as tmp:
             fig.savefig(tmp, format=(Path(path).suffix.lstrip(".") or "png"))

@@ -271,6 +271,7 @@ class ModeModel:
             raise ModelFileError(f"{path} holds an inconsistent ModeModel (mean {mean.shape}, "
                                  f"components {S.shape}, variances {var.shape}, kept {k})")
         total = float(d["total_variance"])
+        _check_loaded(path, S, var, total)
         model.mean_, model.full_components_, model.full_variance_ = mean, S, var
         model.components_, model.explained_variance_ = S[:k], var[:k]
         model.total_variance_ = total
@@ -278,3 +279,18 @@ class ModeModel:
         model.n_nodes_, model.n_frames_ = mean.size // 3, int(d["n_frames"])
         model.topology_id_ = str(d["topology_id"])
         return model
+
+
+def _check_loaded(path, S: np.ndarray, var: np.ndarray, total: float) -> None:
+    """Refuse a model file whose numbers contradict each other: components that are not
+    orthonormal rows, or a total variance that is not a finite number at least the sum of the
+    mode variances (:meth:`ModeModel.fit` writes both so)."""
+    if len(S):
+        gram = S @ S.T
+        err = float(np.abs(gram - np.eye(len(S))).max())
+        if not err <= 1e-6:  # also catches NaN
+            raise ModelFileError(f"{path}: the components are not orthonormal (|S Sᵀ - I| up to {err:.3g}); "
+                                 "the file was altered or is not a lipgen model. Re-train it")
+    if not np.isfinite(total) or total < 0 or total < var.sum() * (1 - 1e-9) - 1e-12:
+        raise ModelFileError(f"{path}: total_variance {total!r} is not a finite number at least the sum of "
+                             f"the mode variances ({var.sum():.6g}); the file is inconsistent. Re-train it")

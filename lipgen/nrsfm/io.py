@@ -41,7 +41,32 @@ def load_tracks(path: str | os.PathLike) -> dict[str, np.ndarray]:
         raise ModelFileError(f"{p} is not a readable .npz tracks file ({exc})") from exc
     if "W" not in out:
         raise ModelFileError(f"{p} has no array 'W' (2F x P tracks, rows u1, v1, u2, ...); it holds {keys}")
+    _check_tracks(p, out)
     return out
+
+
+def _check_tracks(p: Path, data: dict[str, np.ndarray]) -> None:
+    """Shapes and types of a tracks file, checked before any work (no silent casts)."""
+    W = data["W"]
+    if W.dtype.kind not in "fiu" or W.dtype == bool:
+        raise ModelFileError(f"{p}: W must hold real numbers (pixels), got dtype {W.dtype}"
+                             + ("; a complex W has no meaning here" if W.dtype.kind == "c" else ""))
+    if W.ndim != 2 or W.shape[0] < 2 or W.shape[0] % 2 or W.shape[1] < 1:
+        raise ModelFileError(f"{p}: W must be 2F x P (rows u1, v1, u2, v2, ...), got shape {W.shape}")
+    F, P = W.shape[0] // 2, W.shape[1]
+    data["W"] = W.astype(np.float64)
+    if "visible" in data:
+        v = data["visible"]
+        if v.dtype != bool or v.shape != (F, P):
+            raise ModelFileError(f"{p}: visible must be a bool array of shape (F, P) = ({F}, {P}), got "
+                                 f"{v.dtype} {v.shape}")
+    if "S" in data:
+        S = data["S"]
+        if S.dtype.kind not in "fiu" or S.dtype == bool or S.shape != (3 * F, P):
+            raise ModelFileError(f"{p}: S (ground truth) must be real, of shape (3F, P) = ({3 * F}, {P}), "
+                                 "got "
+                                 f"{S.dtype} {S.shape}")
+        data["S"] = S.astype(np.float64)
 
 
 def save_shapes(path: str | os.PathLike, rec: Reconstruction) -> None:

@@ -107,7 +107,7 @@ class Reconstruction:
         arrays = {k: getattr(self, k) for k in ("fields", "markers", "visible", "lab_points", "ray_gap", "uv",
                                                  "status", "score", "frame_index", "lab_to_board",
                                                  "similarity", "rotations")}
-        arrays["info"] = np.array(json.dumps(self.info, sort_keys=True))
+        arrays["info"] = np.array(json.dumps(_paths_relative_to(self.info, path), sort_keys=True))
         save_npz(path, _KIND, _SCHEMA, arrays)
 
     @classmethod
@@ -116,8 +116,39 @@ class Reconstruction:
         names = ("fields", "markers", "visible", "lab_points", "ray_gap", "uv", "status", "score",
                  "frame_index", "lab_to_board", "similarity", "rotations", "info")
         d = load_npz(path, _KIND, _SCHEMA, required=names)
-        info = json.loads(str(d.pop("info")))
+        info = _paths_resolved_from(json.loads(str(d.pop("info"))), path)
         return cls(**{k: d[k] for k in names if k != "info"}, info=info)
+
+
+_PATH_KEYS = ("dataset", "mesh_source")
+"""Paths in ``Reconstruction.info``: absolute in memory, relative to the file on disk (a file
+names no folder of the machine it was made on, and still finds its dataset and mesh when the
+two move together)."""
+
+
+def _is_file_source(value) -> bool:
+    return isinstance(value, str) and bool(value) and not value.startswith("lip_mesh(")
+
+
+def _paths_relative_to(info: dict, path) -> dict:
+    base = os.path.dirname(os.path.abspath(path))
+    out = dict(info)
+    for key in _PATH_KEYS:
+        if _is_file_source(out.get(key)):
+            try:
+                out[key] = os.path.relpath(os.path.abspath(out[key]), base)
+            except ValueError:  # another drive (Windows): keep only the name
+                out[key] = os.path.basename(out[key])
+    return out
+
+
+def _paths_resolved_from(info: dict, path) -> dict:
+    base = os.path.dirname(os.path.abspath(path))
+    out = dict(info)
+    for key in _PATH_KEYS:
+        if _is_file_source(out.get(key)) and not os.path.isabs(out[key]):
+            out[key] = os.path.normpath(os.path.join(base, out[key]))
+    return out
 
 
 def model_mesh(source: str = "lip_mesh(0)") -> LipMesh:
@@ -245,7 +276,9 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
     S[:3, 3] = norm.similarity.translation
     info = {
-        "dataset": str(os.path.abspath(path)), "mesh_source": mesh_source, "topology_id": mesh.topology_id,
+        "dataset": str(os.path.abspath(path)),
+        "mesh_source": mesh_source if not _is_file_source(mesh_source) else os.path.abspath(mesh_source),
+        "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,

@@ -98,7 +98,7 @@ def _blend_shape_plan(mesh, model, weights, weight_range):
             raise ValueError(f"weights must have shape (F, {k}): one column per mode of the model, "
                              f"which has {k} modes; got shape {W.shape}")
         check_finite(W, "weights")
-    rest = (mesh.vertices + mean).astype(np.float32)
+    rest = mesh.vertices + mean
     if weight_range == "signed":
         scale = std
         names = [f"mode{i:02d}" for i in range(k)]
@@ -114,7 +114,8 @@ def _blend_shape_plan(mesh, model, weights, weight_range):
         shape_w = shape_w / np.repeat(scale, 2)
     else:
         raise ValueError(f"weight_range must be 'signed' or 'unit', got {weight_range!r}")
-    return rest, names, offsets.astype(np.float32), shape_w.astype(np.float32), scale
+    return (_check_float32(rest, "rest points (mesh + model mean)"), names,
+            _check_float32(offsets, "blend-shape offsets"), _check_float32(shape_w, "weights"), scale)
 
 
 def _skel_extent(rest32, offsets32, weights32) -> np.ndarray:
@@ -134,6 +135,20 @@ def _skel_extent(rest32, offsets32, weights32) -> np.ndarray:
     return float_extent(np.stack([lo, hi]), pad=pad)
 
 
+def _check_float32(arr, name: str) -> np.ndarray:
+    """``arr`` as float32, refusing values that are finite in float64 but not in float32 (USD
+    stores points, offsets and weights as float32: 1e39 would be written as inf)."""
+    arr = np.asarray(arr)
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = arr.astype(np.float32)
+    if not np.isfinite(out).all():
+        big = np.abs(arr[~np.isfinite(out)]).max() if np.isfinite(arr).all() else float("nan")
+        raise ValueError(f"{name} (shape {arr.shape}) has values beyond float32's range (|x| up to "
+                         f"{big:.3g}; USD stores float32, at most {np.finfo(np.float32).max:.3g}); "
+                         "nothing was written")
+    return out
+
+
 def _build_plan(mesh, model, weights, points, weight_range, root, markers, regions, start) -> Plan:
     n = mesh.n_nodes
     if weights is not None and model is None:
@@ -143,12 +158,16 @@ def _build_plan(mesh, model, weights, points, weight_range, root, markers, regio
         P = as_float_array(points, "points", (None, n, 3))
         if len(P) == 0:
             raise ValueError("points has no frames (shape (0, n, 3))")
-        baked = P.astype(np.float32)
+        baked = _check_float32(P, "points")
+    _check_float32(mesh.vertices, "mesh vertices")
     rest = skel_extent = None
     names, offsets, shape_w, attrs = [], np.zeros((0, n, 3), np.float32), np.zeros((0, 0), np.float32), {}
     if model is not None:
         rest, names, offsets, shape_w, scale = _blend_shape_plan(mesh, model, weights, weight_range)
         skel_extent = _skel_extent(rest, offsets, shape_w)
+        if not np.isfinite(skel_extent).all():
+            raise ValueError("weights drive the blend shapes beyond float32's range (the deformed points' "
+                             f"bound is {np.asarray(skel_extent).tolist()}); nothing was written")
         attrs["modeScale"] = scale
     n_frames = len(baked) if baked is not None else len(shape_w)
     if baked is not None and model is not None and weights is not None and len(shape_w) != len(baked):
@@ -264,7 +283,9 @@ def _write_layer(layer, tmp: Path, ext: str, stem: str) -> None:
         if not layer.Export(str(tmp)):
             raise OSError(f"USD could not write {tmp}")
         return
-    with tempfile.TemporaryDirectory(prefix="lipgen-usdz-") as work:
+    # the work folder sits beside the destination under its temporary name, so a killed export's
+    # leftovers are found and removed by the next one (lipgen._io.remove_stale_temporaries)
+    with tempfile.TemporaryDirectory(prefix=f"{tmp.name}-pkg-", dir=tmp.parent) as work:
         inner = Path(work) / f"{_identifier(stem)}.usdc"
         if not layer.Export(str(inner)):
             raise OSError(f"USD could not write {inner}")

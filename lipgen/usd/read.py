@@ -59,10 +59,16 @@ def _open_stage(path: str | os.PathLike):
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"no such USD file: {p}")
-    cached = Sdf.Layer.Find(str(p))
-    if cached:  # the layer registry would hand back a stale copy of a file rewritten since
-        cached.Reload(True)
-    stage = Usd.Stage.Open(str(p))
+    from pxr import Tf
+
+    try:
+        cached = Sdf.Layer.Find(str(p))
+        if cached:  # the layer registry would hand back a stale copy of a file rewritten since
+            cached.Reload(True)
+        stage = Usd.Stage.Open(str(p))
+    except Tf.ErrorException as exc:  # a file USD cannot parse: one line, not USD's report
+        first = str(exc).strip().splitlines()[0][:200] if str(exc).strip() else ""
+        raise ValueError(f"{p} is not a readable USD file ({first})") from None
     if stage is None:
         raise ValueError(f"USD could not open {p}")
     return stage
@@ -159,8 +165,36 @@ class ValidationIssue:
         return f"{self.severity}{where} {self.validator}/{self.name}: {self.message}"
 
 
-def _issues(ctx, stage, variant: str) -> list[ValidationIssue]:
+def _nonfinite_issues(stage, variant: str) -> list[ValidationIssue]:
+    """lipgen's own check: every float array attribute (points, extents, offsets, blend-shape
+    weights), at every time sample, must be finite. USD's validators do not look at values."""
     out = []
+    for prim in stage.Traverse():
+        for attr in prim.GetAttributes():
+            type_name = str(attr.GetTypeName())
+            if not any(t in type_name for t in ("float", "double", "point", "vector", "half")):
+                continue
+            times = attr.GetTimeSamples() or [None]
+            for t in times:
+                value = attr.Get() if t is None else attr.Get(t)
+                if value is None:
+                    continue
+                try:
+                    arr = np.asarray(value, dtype=np.float64)
+                except (TypeError, ValueError):
+                    continue
+                if not np.isfinite(arr).all():
+                    when = "" if t is None else f" at time {t:g}"
+                    out.append(ValidationIssue(
+                        severity="Error", name="NonFiniteValues", validator="lipgen:finite",
+                        message=f"{attr.GetPath()} holds {int((~np.isfinite(arr)).sum())} non-finite "
+                        f"value(s) (NaN or inf){when}", sites=(str(attr.GetPath()),), variant=variant))
+                    break
+    return out
+
+
+def _issues(ctx, stage, variant: str) -> list[ValidationIssue]:
+    out = _nonfinite_issues(stage, variant)
     for err in ctx.Validate(stage):
         if err.HasNoError():
             continue
@@ -179,7 +213,8 @@ def _issues(ctx, stage, variant: str) -> list[ValidationIssue]:
 
 
 def validate(path: str | os.PathLike, all_variants: bool = True) -> list[ValidationIssue]:
-    """Run every registered ``pxr.UsdValidation`` validator on a USD file.
+    """Run every registered ``pxr.UsdValidation`` validator on a USD file, and lipgen's check
+    that every float value (points, extents, offsets, weights) is finite.
 
     usd-core ships no ``usdchecker``; this is its library form. With ``all_variants``, a
     default prim holding the ``encoding`` variant set is validated once per variant as well.

@@ -1,0 +1,79 @@
+"""Output checks shared by every command that writes: done before any work, so a run that is
+refused (or would fail at its last step) writes nothing and loses nothing.
+
+Rules, the same for every command:
+
+- an existing file is replaced only with ``--force``;
+- a file destination must not be a folder, and its folder must exist and be writable (nothing is
+  created on the way: a mistyped path fails instead of making folders elsewhere);
+- a folder destination (reports) may be new (its parent must exist); an existing folder that
+  already holds any of the files the command writes needs ``--force``.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+__all__ = ["check_file_output", "check_folder_output", "add_force"]
+
+
+def add_force(parser, what: str = "--out") -> None:
+    """Add the shared ``--force`` flag to ``parser``."""
+    parser.add_argument("--force", action="store_true",
+                        help=f"replace {what} if it exists (default: refuse and keep the old file)")
+
+
+def _writable_folder(folder: Path, dest: Path, flag: str) -> None:
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{flag} {dest}: folder {folder} does not exist; create it first or "
+                                "choose another path (nothing was written)")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(f"{flag} {dest}: folder {folder} is not writable; choose another path "
+                              "(nothing was written)")
+
+
+def check_file_output(path, force: bool, flag: str = "--out") -> Path:
+    """Check that file ``path`` may be written; returns it as a :class:`Path`.
+
+    Raises
+    ------
+    IsADirectoryError
+        ``path`` is a folder.
+    FileExistsError
+        ``path`` exists and ``force`` is false.
+    FileNotFoundError, PermissionError
+        Its folder does not exist or is not writable.
+    """
+    dest = Path(path)
+    if not str(path).strip():
+        raise ValueError(f"{flag} is empty; give a file name")
+    if dest.is_dir():
+        raise IsADirectoryError(f"{flag} {dest} is a folder; give a file name inside it, e.g. "
+                                f"{dest / ('out' + (dest.suffix or ''))}")
+    if (dest.exists() or dest.is_symlink()) and not force:
+        raise FileExistsError(f"{flag} {dest} exists; choose another name or pass --force to replace it")
+    _writable_folder(dest.parent if str(dest.parent) else Path("."), dest, flag)
+    return dest
+
+
+def check_folder_output(path, force: bool, products: Iterable[str] = (), flag: str = "--out") -> Path:
+    """Check that folder ``path`` may receive the files ``products`` (names inside it).
+
+    A new folder is fine when its parent exists and is writable (the command creates it).
+    """
+    dest = Path(path)
+    if not str(path).strip():
+        raise ValueError(f"{flag} is empty; give a folder")
+    if dest.exists() and not dest.is_dir():
+        raise NotADirectoryError(f"{flag} {dest} is a file, not a folder; choose a folder")
+    if not dest.exists():
+        _writable_folder(dest.parent if str(dest.parent) else Path("."), dest, flag)
+        return dest
+    clash = sorted(p for p in products if (dest / p).exists())
+    if clash and not force:
+        raise FileExistsError(f"{flag} {dest} already holds {', '.join(clash)}; choose another folder or "
+                              "pass --force to replace them")
+    _writable_folder(dest, dest, flag)
+    return dest

@@ -1,0 +1,128 @@
+"""Hardening of the dataset folder: manifest paths stay inside, symlinks out are refused, a
+refused run deletes nothing, a resume redoes damaged files, and what can fail fails before
+the first write (issue 20, items 2-5 and 12)."""
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from lipgen.cli import main
+from lipgen.dataset.layout import Dataset, GenerateSettings, validate_manifest
+from lipgen.errors import DatasetError
+
+pytestmark = pytest.mark.render
+pytest.importorskip("lipgen.rig.render")
+pytest.importorskip("lipgen.subject.motion")
+
+SMALL = GenerateSettings(frames=3, seed=5, size=(160, 120), calib_frames=1)
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    from lipgen.dataset.generate import generate
+
+    return generate(tmp_path_factory.mktemp("small") / "ds", SMALL, progress=False)
+
+
+def _copy(src: Path, dst: Path) -> Path:
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _edit(ds: Path, edit) -> None:
+    m = json.loads((ds / "manifest.json").read_text())
+    edit(m)
+    (ds / "manifest.json").write_text(json.dumps(m))
+
+
+@pytest.mark.parametrize("bad", ["../../outside/x.png", "/etc/passwd", "raw/../../x.png", "C:\\x.png",
+                                 "~/x.png", "", 7])
+def test_manifest_paths_outside_the_folder_are_refused(small, tmp_path, bad):
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    shutil.copy(small / "raw" / "000000.png", outside / "x.png")
+    ds = _copy(small, tmp_path / "a" / "b" / "ds")
+    _edit(ds, lambda m: m["frames"][1].__setitem__("raw", bad))
+    with pytest.raises(DatasetError, match="frames\\[1\\].raw"):
+        Dataset(ds)
+    assert main(["show", str(ds), "--frame", "1", "--out", str(tmp_path / "p.png")]) == 1
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_a_symlink_leading_out_is_refused_by_reader_and_resume(small, tmp_path):
+    from lipgen.dataset.generate import generate
+
+    ds = _copy(small, tmp_path / "ds")
+    elsewhere = tmp_path / "elsewhere"
+    shutil.move(ds / "raw", elsewhere)
+    (elsewhere / ".000000.png.tmp-1-unrelated").write_text("not ours")
+    os.symlink(elsewhere, ds / "raw")
+    with pytest.raises(DatasetError, match="outside the dataset folder"):
+        Dataset(ds)[0]
+    with pytest.raises(DatasetError, match="outside the dataset folder"):
+        Dataset(ds).missing()
+    (elsewhere / "000001.png").unlink()
+    with pytest.raises(DatasetError, match="symlink"):
+        generate(ds, SMALL, resume=True, progress=False)
+    assert not (elsewhere / "000001.png").exists()  # nothing written through the link
+    assert (elsewhere / ".000000.png.tmp-1-unrelated").read_text() == "not ours"
+
+
+def test_a_refused_run_deletes_nothing(tmp_path):
+    from lipgen.dataset.generate import generate
+
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    keep = [foreign / n for n in (".manifest.json.tmp-mybackup", "notes.txt", ".manifest.json.tmp-1-x")]
+    for p in keep:
+        p.write_text("mine")
+    with pytest.raises(DatasetError, match="nothing was written"):
+        generate(foreign, SMALL, progress=False)
+    assert all(p.read_text() == "mine" for p in keep)
+
+
+def test_resume_redoes_damaged_files_and_cleans_temporaries(small, tmp_path):
+    from lipgen.dataset.generate import generate
+
+    ds = _copy(small, tmp_path / "ds")
+    good = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file() and p.name != "manifest.json"}
+    (ds / "truth" / "000001.npz").write_bytes((ds / "truth" / "000001.npz").read_bytes()[:200])  # truncated
+    (ds / "raw" / "000002.png").write_bytes(b"")  # empty
+    half = (ds / "calib" / "000000.png").read_bytes()
+    (ds / "calib" / "000000.png").write_bytes(half[: len(half) // 2])  # half a calibration PNG
+    assert Dataset(ds).missing() == [1, 2]
+    with pytest.raises(DatasetError, match="calib/000000.png"):
+        Dataset(ds).calibration()
+    dead = 2**22 + 12345  # above the default pid_max: never a running process
+    for sub in ("", "raw", "truth", "calib"):
+        (ds / sub / f".x.npz.tmp-{dead}-abc.npz").write_bytes(b"junk")
+    generate(ds, SMALL, resume=True, progress=False)
+    assert Dataset(ds).missing() == []
+    after = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file() and p.name != "manifest.json"}
+    assert after == good  # the same bytes as the first run, and no temporary left
+
+
+def test_manifest_garbage_gets_a_one_line_error(small):
+    m = json.loads((small / "manifest.json").read_text())
+    cases = [(lambda m: m["frames"].__setitem__(0, "raw/000000.png"), "frames\\[0\\]"),
+             (lambda m: m.__setitem__("fps", "fast"), "fps must be a positive finite number"),
+             (lambda m: m.__setitem__("settings", ["x"]), "bad settings"),
+             (lambda m: m.__setitem__("frames", "none"), "frame list"),
+             (lambda m: m["mesh"].__setitem__("file", "../mesh.npz"), "mesh.file"),
+             (lambda m: m["calibration"]["frames"][0].__setitem__("truth", "/tmp/x.npz"), "calibration")]
+    for edit, match in cases:
+        bad = json.loads(json.dumps(m))
+        edit(bad)
+        with pytest.raises(DatasetError, match=match):
+            validate_manifest(bad)
+
+
+def test_a_size_that_cannot_calibrate_fails_before_any_write(tmp_path, capsys):
+    out = tmp_path / "tiny"
+    assert main(["generate", "--out", str(out), "--size", "16x12", "--frames", "1", "--calib-frames", "1",
+                 "--no-progress"]) == 1
+    assert "board poses" in capsys.readouterr().err
+    assert not out.exists()
