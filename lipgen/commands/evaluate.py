@@ -42,6 +42,7 @@ def _run(args) -> int:
     out = Path(args.out)
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
+    ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
     if args.recon:
         recon = Reconstruction.load(args.recon)
     else:

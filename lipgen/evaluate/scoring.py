@@ -126,6 +126,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     from lipgen.fem import Physics
     from lipgen.recon.pipeline import model_mesh
 
+    ds.require_truth("scoring a reconstruction (lipgen evaluate)")
     F = len(ds)
     if len(recon.fields) != F:
         raise DatasetError(f"the reconstruction has {len(recon.fields)} frames but the dataset {F}; it was "
