@@ -4,6 +4,7 @@ One small dataset (480x360, 8 frames, 5 calibration frames) is rendered once for
 the tests work on copies of it: with the truth removed, with a marker's dot erased, as a video.
 """
 
+import json
 import shutil
 
 import numpy as np
@@ -67,7 +68,7 @@ def test_a_dataset_without_truth_reconstructs_the_same(tmp_path, dataset, recon)
 def test_train_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_path, dataset):
     bare = _without_truth(dataset, tmp_path)
     rec, model, rep = tmp_path / "r.npz", tmp_path / "m.npz", tmp_path / "rep"
-    assert main(["reconstruct", str(bare), "--out", str(rec), "--no-progress"]) == 0
+    assert main(["reconstruct", str(bare), "--out", str(rec), "--no-progress", "--allow-missing"]) == 0
     assert main(["train", str(rec), "--out", str(model), "--modes", "2", "--test-frames", "2"]) == 0
     pic = tmp_path / "f.png"
     assert main(["show", str(bare), "--frame", "1", "--recon", str(rec), "--out", str(pic)]) == 0
@@ -75,3 +76,51 @@ def test_train_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_pat
     with pytest.raises(DatasetError, match="no ground truth.*lipgen evaluate"):
         main(["-vv", "evaluate", str(bare), "--model", str(model), "--recon", str(rec), "--out", str(rep)])
     assert not rep.exists(), "nothing is written when the truth is missing"
+
+
+def _erase_marker(dataset, tmp_path, name, view=1):
+    """A copy of the dataset with mark ``name``'s ink dot painted over in ``view`` in every frame."""
+    from PIL import Image
+
+    from lipgen.dataset.layout import Dataset
+
+    dst = tmp_path / "erased"
+    shutil.copytree(dataset, dst)
+    data = Dataset(dst)
+    mark = data.marks.index(name)
+    for f in range(len(data)):
+        png = dst / "raw" / f"{f:06d}.png"
+        img = np.asarray(Image.open(png).convert("RGB")).copy()
+        u, v = np.round(data[f].truth["uv_raw"][view, mark]).astype(int)
+        patch = img[v - 12:v + 13, u - 12:u + 13]
+        ring = np.concatenate([patch[0], patch[-1], patch[:, 0], patch[:, -1]])
+        img[v - 4:v + 5, u - 4:u + 5] = np.median(ring, axis=0).astype(np.uint8)
+        Image.fromarray(img).save(png)
+    return dst
+
+
+def test_a_marker_never_seen_is_named_exits_3_and_evaluate_still_reports(tmp_path, dataset, capsys):
+    from lipgen.commands.reconstruct import MISSING_STATUS
+
+    ds = _erase_marker(dataset, tmp_path, "lower_left")
+    rec, model, rep = tmp_path / "r.npz", tmp_path / "m.npz", tmp_path / "rep"
+    assert main(["reconstruct", str(ds), "--out", str(rec), "--no-progress"]) == MISSING_STATUS == 3
+    err = capsys.readouterr().err
+    assert "never tracked in the real view: lower_left: no dot found" in err
+    assert "never accepted in any frame: lower_left" in err and "--allow-missing" in err
+    line = next(ln for ln in err.splitlines() if ln.strip().startswith("lower_left "))
+    assert "0 /   0 /   8 /   0 (0, 8)" in line, line          # accepted / rejected / unpaired / lost
+    assert main(["reconstruct", str(ds), "--out", str(rec), "--no-progress", "--allow-missing",
+                 "--force"]) == 0
+    assert main(["train", str(rec), "--out", str(model), "--modes", "2", "--test-frames", "2"]) == 0
+    assert main(["evaluate", str(ds), "--model", str(model), "--recon", str(rec), "--out", str(rep),
+                 "--test-frames", "2"]) == 0
+    text = (rep / "report.md").read_text()
+    assert "lower_left in the real view: no dot found" in text
+    nrsfm = text[text.index("## Non-rigid SfM on one view"):]
+    assert "Left out of the tracked run" in nrsfm and "lower_left (0 frames)" in nrsfm
+    # 8 frames are too few for the factorisation: the section says so instead of crashing
+    assert "tracked by `track.py`" in nrsfm or "on the tracks: not computed" in nrsfm
+    data = json.loads((rep / "report.json").read_text())
+    real = data["tracking"]["real"]
+    assert real["lost"] >= FRAMES and real["accepted"] + real["rejected"] + real["lost"] > 0

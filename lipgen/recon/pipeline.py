@@ -28,6 +28,7 @@ import numpy as np
 from lipgen._io import load_npz, save_npz
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
+from lipgen.recon.account import sighting_account
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.steps import (
@@ -208,8 +209,9 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
+    names = [*mesh.marker_names, "nose"]
     tracks = track_raw_frames(frames, ds.rig, expected, settings, (lambda _: bar.update()) if bar else None,
-                              cameras=lab.views)
+                              cameras=lab.views, names=names)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()
@@ -234,6 +236,14 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
     fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
                           mesh.markers, settings.min_visible)
+    account = sighting_account(tracks, vis, gap, settings.max_ray_gap, outliers, names, expected,
+                               [(c.width, c.height) for c in lab.views], settings.tracker.twins)
+    if account["never_tracked"]:
+        log.warning("never tracked in a view (why: info['sightings']['never_tracked']): %s",
+                    "; ".join(f"{n['mark']} ({n['view']})" for n in account["never_tracked"]))
+    if account["missing"]:
+        log.warning("no accepted sighting at all of %s: the fields reach the other markers only",
+                    ", ".join(account["missing"]))
     t_end = time.perf_counter()
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
@@ -248,6 +258,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
                           "outliers": np.argwhere(outliers).tolist(),
                           **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
                              if norm.method == "thesis" else {})},
+        "sightings": account,
         "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},
     }
     return Reconstruction(

@@ -74,7 +74,8 @@ def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> 
 def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                      settings: ReconstructSettings = ReconstructSettings(),
                      progress: Callable[[int], None] | None = None,
-                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None) -> tuple[Tracks, Tracks]:
+                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None,
+                     names=None) -> tuple[Tracks, Tracks]:
     """Detect and track the markers in both views of a raw sequence.
 
     Parameters
@@ -93,6 +94,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         The calibrated views. With them, a first-frame match whose two rays pass farther apart
         than ``settings.max_ray_gap`` is dropped in both views (one of the two is another
         marker's dot or no marker's); the tracker acquires the marker later from the layout.
+    names : sequence of str, optional
+        Marker names, for the log.
 
     Returns
     -------
@@ -103,7 +106,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
-            inits = []
+            inits, n_dots = [], []
             for v, img in enumerate(views):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 dots, _ = detect_dots(img, settings.tracker.dots)
@@ -111,9 +114,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 match = np.full(len(ok), -1)
                 match[ok] = match_to_expected(dots, exp[v][ok], settings.init_gate)
                 init[match >= 0] = dots[match[match >= 0]]
-                log.info("%s view: %d dots in the first frame, %d of %d markers matched", VIEWS[v],
-                         len(dots), int((match >= 0).sum()), len(ok))
                 inits.append(init)
+                n_dots.append(len(dots))
+            bad = np.zeros(len(exp[0]), dtype=bool)
             if cameras is not None:
                 both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
                 gap = np.full(len(both), np.nan)
@@ -127,8 +130,17 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
+                # What the tracker really starts with: twins and matches the views contradict are out.
+                started = np.all(np.isfinite(trackers[v].init), axis=1)
+                log.info("%s view: %d dots in the first frame, %d of %d markers matched%s", VIEWS[v],
+                         n_dots[v], int(started.sum()), len(ok),
+                         "" if started.all() else " (not: " + ", ".join(
+                             str(i) if names is None else names[i] for i in np.flatnonzero(~started)) + ")")
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
+        if t == 0:
+            for tracker in trackers:
+                tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
             _check_views(trackers, cameras, settings.max_ray_gap)
         if progress is not None:
