@@ -59,6 +59,8 @@ def test_a_dataset_without_truth_reconstructs_the_same(tmp_path, dataset, recon)
     assert not ds.has_truth and Dataset(dataset).has_truth
     assert ds[0].truth == {} and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
     again = reconstruct_dataset(bare)
+    # the normalisation's reference frame is a training frame (the default held-out tail is 2)
+    assert again.info["normalisation"]["reference_frame"] < FRAMES - 2
     for name in ("uv", "lab_points", "markers", "fields"):
         a, b = getattr(recon, name), getattr(again, name)
         assert np.array_equal(np.isnan(a), np.isnan(b)), name

@@ -40,11 +40,28 @@ def add_parser(sub) -> None:
     p.add_argument("--normalisation", default="least-force",
                    choices=("thesis", "least-force", "least-strain", "procrustes"),
                    help="how the head pose is removed (default least-force; see lipgen.recon.normalize)")
+    p.add_argument("--test-frames", type=int, default=None,
+                   help="held-out tail that lipgen train will use (default: 10, a fifth of short sequences); "
+                   "the normalisation's reference frame is chosen before it")
+    p.add_argument("--reference-frames", type=_frames, default=None, metavar="LIST",
+                   help="frames the normalisation may take its reference (most neutral) frame from, e.g. "
+                   "'0-20' or '3,7,12' (default: all training frames)")
     p.add_argument("--allow-missing", action="store_true",
                    help="exit 0 even when a whole marker was never accepted (default: exit status 3)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
+
+
+def _frames(text: str) -> list[int]:
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            a, _, b = part.strip().partition("-")
+            out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', got {text!r}") from None
+    return out
 
 
 MISSING_STATUS = 3
@@ -59,7 +76,8 @@ def _run(args) -> int:
     if out.exists() and not args.force:
         raise FileExistsError(f"{out} exists; choose another --out or pass --force to replace it")
     recon = reconstruct_dataset(args.dataset, args.mesh, progress=not args.no_progress,
-                                normalisation=args.normalisation)
+                                normalisation=args.normalisation, test_frames=args.test_frames,
+                                reference_frames=args.reference_frames)
     recon.save(out)
     account = recon.info["sightings"]
     sys.stderr.write("\n".join(account_lines(account)) + "\n")

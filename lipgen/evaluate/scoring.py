@@ -18,6 +18,7 @@ import numpy as np
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.recon.calibrate import compare_to_truth
 from lipgen.recon.normalize import lip_subsets, normalize_markers
+from lipgen.recon.split import default_test_frames
 from lipgen.rig.camera import VIEWS
 
 __all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "accepted_sightings",
@@ -27,11 +28,6 @@ log = logging.getLogger(__name__)
 
 ROWS = ("xyz (8 points)", "yz (all points)", "xy (all points)")
 AXES = {"xyz (8 points)": (8, "xyz"), "yz (all points)": (None, "yz"), "xy (all points)": (None, "xy")}
-
-
-def default_test_frames(n_frames: int) -> int:
-    """The held-out tail: 10 frames as in the thesis (140 + 10), a fifth of short sequences."""
-    return 10 if n_frames >= 50 else max(2, n_frames // 5)
 
 
 def split_frames(fields: np.ndarray, test_frames: int) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.account import sighting_account
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
+from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
     ReconstructSettings,
     expected_projections,
@@ -172,10 +173,14 @@ def _check_marks(ds, mesh: LipMesh) -> None:
 
 
 def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: ReconstructSettings | None = None,
-                        progress: bool = False, normalisation: str = "least-force") -> Reconstruction:
+                        progress: bool = False, normalisation: str = "least-force",
+                        test_frames: int | None = None, reference_frames=None) -> Reconstruction:
     """Run the whole reconstruction on a dataset folder (see the module docstring).
 
-    ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`.
+    ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`. The normalisation's
+    reference frame is the most neutral-looking of the training frames: all but the last
+    ``test_frames`` (default :func:`lipgen.recon.split.default_test_frames`, as ``lipgen train``
+    holds out), or only the ``reference_frames`` named.
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
@@ -184,6 +189,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
     t0 = time.perf_counter()
     ds = Dataset(path)
+    candidates = training_candidates(len(ds), test_frames, reference_frames)
     missing = ds.missing(truth=False)     # the truth is never read here: a recording has none
     if missing:
         raise DatasetError(f"{path}: {len(missing)} of {len(ds)} frames are missing (e.g. frame "
@@ -230,7 +236,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     physics = Physics(mesh)
     norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
                              model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
-                             method=normalisation, physics=physics)
+                             method=normalisation, physics=physics, reference_candidates=candidates)
     # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
     # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
     outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
@@ -254,6 +260,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
+                          "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"
+                                             if reference_frames is None else candidates.tolist()),
                           "borrowed_frames": int(norm.borrowed.sum()),
                           "outliers": np.argwhere(outliers).tolist(),
                           **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
