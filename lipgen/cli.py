@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.blender_extension",
     "lipgen.commands.generate",
     "lipgen.commands.show",
+    "lipgen.commands.recording",
     "lipgen.commands.reconstruct",
     "lipgen.commands.train",
     "lipgen.commands.evaluate",

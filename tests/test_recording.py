@@ -126,3 +126,114 @@ def test_a_marker_never_seen_is_named_exits_3_and_evaluate_still_reports(tmp_pat
     data = json.loads((rep / "report.json").read_text())
     real = data["tracking"]["real"]
     assert real["lost"] >= FRAMES and real["accepted"] + real["rejected"] + real["lost"] > 0
+
+
+def _video(dataset, path, crf="12"):
+    """The dataset's raw frames as an H.264 video (yuv420p, as cameras record)."""
+    imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
+    from PIL import Image
+
+    files = sorted((dataset / "raw").glob("*.png"))
+    w, h = Image.open(files[0]).size
+    writer = imageio_ffmpeg.write_frames(str(path), (w, h), fps=30, codec="libx264", macro_block_size=1,
+                                         output_params=["-crf", crf], pix_fmt_out="yuv420p")
+    writer.send(None)
+    for f in files:
+        writer.send(np.ascontiguousarray(np.asarray(Image.open(f).convert("RGB"))))
+    writer.close()
+    return path
+
+
+def test_a_video_and_chessboard_photos_reconstruct_like_the_png_frames(tmp_path, dataset, recon, capsys):
+    from lipgen.dataset.layout import Dataset
+
+    video = _video(dataset, tmp_path / "take.mp4")
+    rec = tmp_path / "rec"
+    assert main(["recording", "init", str(video), "--calib", str(dataset / "calib"), "--out", str(rec),
+                 "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "000004.png" in text and "mirror on the left" in text and "split column 320" in text
+    ds = Dataset(rec)
+    assert not ds.has_truth and len(ds) == FRAMES and ds.manifest["source"] == "recording"
+    assert ds.rig.mirror_side == "left" and ds.rig.split == 320
+    out = tmp_path / "r.npz"
+    assert main(["reconstruct", str(rec), "--out", str(out), "--no-progress"]) == 0
+    from lipgen.recon.pipeline import Reconstruction
+
+    got = Reconstruction.load(out)
+    d = np.linalg.norm(got.uv - recon.uv, axis=-1)
+    both = np.isfinite(d)
+    assert both.mean() > 0.97
+    assert np.sqrt(np.mean(d[both] ** 2)) < 0.3, "the video's tracks are within 0.3 px RMS of the PNG frames'"
+    per_image = got.calibration.per_image
+    assert len(per_image) == 5 and all(p["real"] < 0.5 and p["virtual"] < 0.5 for p in per_image)
+
+
+def test_bad_recording_inputs_are_named_and_nothing_is_written(tmp_path, dataset):
+    from PIL import Image
+
+    from lipgen.recon.recording import init_recording
+
+    video = _video(dataset, tmp_path / "take.mp4")
+    out = tmp_path / "rec"
+    junk = tmp_path / "junk.mp4"
+    junk.write_bytes(b"this is not a video" * 100)
+    with pytest.raises(DatasetError, match="junk.mp4 cannot be decoded"):
+        init_recording(junk, dataset / "calib", out)
+    with pytest.raises(DatasetError, match="no calibration folder"):
+        init_recording(video, tmp_path / "nowhere", out)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DatasetError, match="empty holds no calibration images"):
+        init_recording(video, tmp_path / "empty", out)
+    few = tmp_path / "few"
+    few.mkdir()
+    for f in sorted((dataset / "calib").glob("*.png"))[:3]:
+        shutil.copy(f, few / f.name)
+    with pytest.raises(DatasetError, match="holds 3 calibration image"):
+        init_recording(video, few, out)
+    faces = tmp_path / "faces"          # photos without a chessboard
+    faces.mkdir()
+    for f in sorted((dataset / "raw").glob("*.png"))[:4]:
+        shutil.copy(f, faces / f.name)
+    with pytest.raises(DatasetError, match="board .* was found whole in"):
+        init_recording(video, faces, out, mirror_side="left", split=320)
+    mixed = tmp_path / "mixed"
+    shutil.copytree(dataset / "calib", mixed)
+    Image.open(mixed / "000002.png").resize((320, 240)).save(mixed / "000002.png")
+    with pytest.raises(DatasetError, match="000002.png is 320x240 but the video frames are 640x480"):
+        init_recording(video, mixed, out)
+    assert not out.exists() and not list(tmp_path.glob(".rec.part*")), "nothing written"
+    # a recording without its calibration images is refused by reconstruct, naming them
+    init_recording(video, dataset / "calib", out, mirror_side="left", split=320)
+    (out / "calib" / "000001.png").unlink()
+    with pytest.raises(DatasetError, match=r"no calibration images \(calib/000001.png missing\)"):
+        reconstruct_dataset(out)
+    with pytest.raises(FileExistsError, match="--force"):
+        init_recording(video, dataset / "calib", out)
+
+
+def test_calibration_reports_each_image_and_drops_an_outlier(dataset, monkeypatch, caplog):
+    from PIL import Image
+
+    import lipgen.recon.calibrate as calibrate
+    from lipgen.dataset.layout import Dataset
+
+    ds = Dataset(dataset)
+    images = [np.asarray(Image.open(p).convert("RGB")) for p in sorted((dataset / "calib").glob("*.png"))]
+    clean = calibrate.calibrate_rig(images, ds.rig, ds.board())
+    assert clean.dropped == () and len(clean.per_image) == 5
+    found, calls = calibrate.find_corners, []
+
+    def blurred(image, board):      # image 3's direct view: corners off by ~2 px (a blurred board)
+        uv = found(image, board)
+        calls.append(1)
+        if len(calls) == 8 and uv is not None:
+            uv = uv + np.random.default_rng(0).normal(0, 2.0, uv.shape)
+        return uv
+
+    monkeypatch.setattr(calibrate, "find_corners", blurred)
+    cal = calibrate.calibrate_rig(images, ds.rig, ds.board())
+    assert [(d["image"], d["view"]) for d in cal.dropped] == [(3, "real")]
+    assert "calibration image 3: the real view's board reprojects" in caplog.text
+    assert cal.per_image[3]["real"] is None and cal.per_image[3]["virtual"] < 0.5
+    assert cal.rms["all"] < 1.5 * clean.rms["all"]

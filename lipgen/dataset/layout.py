@@ -199,8 +199,14 @@ def validate_manifest(m, where="manifest") -> None:
                            "Regenerate the dataset with this lipgen")
     if m["units"] != "mm" or m["convention"] != "opencv" or list(m["views"]) != list(VIEWS):
         raise DatasetError(f"{where}: expected units 'mm', convention 'opencv', views {list(VIEWS)}")
+    recording = m.get("source") == "recording"
     try:
-        GenerateSettings.from_dict(m["settings"])
+        if recording:
+            from lipgen.dataset.footage import RecordingSettings
+
+            RecordingSettings.from_dict(m["settings"])
+        else:
+            GenerateSettings.from_dict(m["settings"])
         MirrorRig.from_dict(m["rig"])
     except (KeyError, TypeError, ValueError) as exc:
         raise DatasetError(f"{where}: bad settings or rig: {exc}") from exc
@@ -283,7 +289,13 @@ class Dataset:
         return mesh
 
     @property
-    def settings(self) -> GenerateSettings:
+    def settings(self):
+        """:class:`GenerateSettings`, or :class:`~lipgen.dataset.footage.RecordingSettings` for a
+        user's recording (``manifest["source"] == "recording"``)."""
+        if self.manifest.get("source") == "recording":
+            from lipgen.dataset.footage import RecordingSettings
+
+            return RecordingSettings.from_dict(self.manifest["settings"])
         return GenerateSettings.from_dict(self.manifest["settings"])
 
     def __len__(self) -> int:

@@ -195,6 +195,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         raise DatasetError(f"{path}: {len(missing)} of {len(ds)} frames are missing (e.g. frame "
                            f"{missing[0]}); finish the dataset with lipgen generate --resume before "
                            "reconstructing")
+    calib = ds.manifest["calibration"]["frames"]
+    absent = [f["raw"] for f in calib if not (ds.path / f["raw"]).is_file()]
+    if len(calib) == 0 or absent:
+        what = "the manifest lists none" if not calib else ", ".join(absent) + " missing"
+        raise DatasetError(f"{path}: no calibration images ({what}); the rig is calibrated from chessboard "
+                           "photos: build the folder with lipgen recording init VIDEO --calib DIR")
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
     cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.board())
