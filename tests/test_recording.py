@@ -67,11 +67,12 @@ def test_a_dataset_without_truth_reconstructs_the_same(tmp_path, dataset, recon)
         np.testing.assert_allclose(b, a, atol=1e-6, rtol=0, equal_nan=True, err_msg=name)
 
 
-def test_train_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_path, dataset):
+def test_train_nrsfm_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_path, dataset):
     bare = _without_truth(dataset, tmp_path)
     rec, model, rep = tmp_path / "r.npz", tmp_path / "m.npz", tmp_path / "rep"
     assert main(["reconstruct", str(bare), "--out", str(rec), "--no-progress", "--allow-missing"]) == 0
     assert main(["train", str(rec), "--out", str(model), "--modes", "2", "--test-frames", "2"]) == 0
+    assert main(["nrsfm", str(rec), "--k", "1", "--out", str(tmp_path / "shapes.npz")]) == 0
     pic = tmp_path / "f.png"
     assert main(["show", str(bare), "--frame", "1", "--recon", str(rec), "--out", str(pic)]) == 0
     assert pic.stat().st_size > 1000
