@@ -32,6 +32,7 @@ from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
+from lipgen.recon.twins import resolve_twins
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
@@ -57,12 +58,16 @@ class ReconstructSettings:
         and the marker is treated as not seen in that frame.
     min_visible : int
         Fewest visible markers for a frame's field to be reconstructed (else its field is NaN).
+    twin_model : bool
+        Find markers whose dots merge in one view (twins) with a model of both dots on their
+        epipolar lines from the other view (:mod:`lipgen.recon.twins`).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
     init_gate: float = 6.0
     max_ray_gap: float = 2.0
     min_visible: int = 4
+    twin_model: bool = True
 
 
 def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
@@ -143,6 +148,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
             _check_views(trackers, cameras, settings.max_ray_gap)
+        if cameras is not None and settings.twin_model:
+            resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if progress is not None:
             progress(t)
     if not trackers:
