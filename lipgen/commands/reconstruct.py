@@ -33,7 +33,7 @@ def add_parser(sub) -> None:
                        description="Calibrate, track, triangulate, normalise and reach: turn a dataset's raw "
                        "camera-mirror frames into per-frame displacement fields of the model mesh.",
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("dataset", help="dataset folder written by lipgen generate")
+    p.add_argument("dataset", help="dataset folder (lipgen generate, or lipgen recording init: no truth)")
     p.add_argument("--out", required=True, help="output file (.npz); an existing file is kept unless --force")
     p.add_argument("--mesh", default="lip_mesh(0)",
                    help="model mesh: 'lip_mesh(R)' (default lip_mesh(0)) or a LipMesh file (.npz)")

@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
     q.add_argument("--calib", required=True, help="folder of chessboard photos (png, jpg, tif, bmp)")
     q.add_argument("--out", required=True, help="dataset folder to create")
     q.add_argument("--mirror-side", default="auto", choices=("auto", "left", "right"),
-                   help="which half of the frame is the mirror (default: detected by calibration)")
+                   help="which half of the frame is the mirror (default: detected, the darker half)")
     q.add_argument("--split", type=_split, default="auto",
                    help="first column of the right half (default: detected, the mirror's edge)")
     q.add_argument("--board", type=_board, default=(9, 6, 8.0),
