@@ -12,6 +12,14 @@ both spots dark, each within ``gate`` of where the layout predicts it.
 
 Where both views see the pair merged (320x240: the midline pairs in both views), nothing
 constrains the split, and the markers stay lost and are reported (:mod:`lipgen.recon.account`).
+
+Measured (validation datasets, seed 7, 60 frames, default subject; px RMS vs the truth over
+accepted sightings, virtual view): at 480x360 ``upper_mid`` 0.13 px and ``bow_dip`` 0.18 px in
+59 of 60 frames (before: never tracked); at 320x240 ``lower_mid`` / ``lower_border_mid`` 0.14 /
+0.15 px in 52 of 60 frames (before: never), ``upper_mid`` / ``bow_dip`` merged in both views,
+still lost. The residual test (patch RMS at most 0.4 of the shallower spot's depth) was 0.25 at
+first; it refused 44 of 60 clean-looking fits at 320x240 (residual 0.25-0.36: a disc on lip
+texture is not a Gaussian on a plane), so it was relaxed, judged on the rejection reasons.
 """
 
 from __future__ import annotations
@@ -86,7 +94,7 @@ def fit_pair(gray: np.ndarray, lines, init, sigma0: float, gate: float):
     fit = least_squares(lambda q: model(q) - patch.ravel(), q0, bounds=(lo_b, hi_b), x_scale="jac")
     t, amp = fit.x[:2], fit.x[2:4]
     rms = float(np.sqrt(np.mean(fit.fun ** 2)))
-    if not fit.success or amp.min() < 0.25 * depth0 or rms > 0.25 * amp.min() \
+    if not fit.success or amp.min() < 0.25 * depth0 or rms > 0.4 * amp.min() \
             or np.any(np.isclose(t, lo_b[:2]) | np.isclose(t, hi_b[:2])):
         return None
     return pts + t[:, None] * dirs
