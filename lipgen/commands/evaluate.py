@@ -47,7 +47,7 @@ def _run(args) -> int:
         recon = Reconstruction.load(args.recon)
     else:
         out.mkdir(parents=True, exist_ok=True)
-        recon = reconstruct_dataset(args.dataset)
+        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)

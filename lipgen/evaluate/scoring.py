@@ -235,7 +235,11 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                      "reach_from_true_markers_rms_mm": float(
                          _rms(np.linalg.norm(floor - true_fields, axis=-1))),
                      "frames_without_field": int((~ok).sum())}
-    out["split"] = {"train": len(train), "test": test.tolist()}
+    out["split"] = {"train": len(train), "test": test.tolist(),
+                    "reference_frame_in_test": bool(ref_used in set(test.tolist()))}
+    if out["split"]["reference_frame_in_test"]:
+        log.warning("the normalisation's reference frame %d is a test frame: the held-out frames shaped "
+                    "the training data; reconstruct with --test-frames %d", ref_used, T)
     from lipgen.modes.combined import CombinedModel
 
     # The combined model chooses its physical prior and the marker noise from the training fields.
