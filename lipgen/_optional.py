@@ -16,6 +16,7 @@ _HINTS = {
     "cv2": "pip install 'lipgen[vision]'  (opencv-python-headless)",
     "bpy": "pip install 'lipgen[blender]'  (bpy==5.0.1 needs Python 3.11)",
     "skfem": "pip install scikit-fem",
+    "imageio_ffmpeg": "pip install 'lipgen[vision]'  (imageio-ffmpeg, which brings its own ffmpeg)",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
 }
 

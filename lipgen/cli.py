@@ -36,6 +36,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                           "build the Blender extension zip(s): the add-on plus lipgen and its wheels"),
     "generate": ("lipgen.commands.generate", "render a synthetic camera-mirror dataset with ground truth"),
     "show": ("lipgen.commands.show", "save an annotated picture of a dataset frame"),
+    "recording": ("lipgen.commands.recording",
+                  "bring your own camera-mirror recording into the dataset layout"),
     "reconstruct": ("lipgen.commands.reconstruct",
                     "reconstruct displacement fields from a dataset's raw frames"),
     "train": ("lipgen.commands.train", "learn displacement modes (ModeModel) from a reconstruction"),

@@ -45,11 +45,12 @@ def _run(args) -> int:
     out = check_folder_output(args.out, args.force, products)
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
+    ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
     if args.recon:
         recon = Reconstruction.load(args.recon)
     else:
         out.mkdir(parents=True, exist_ok=True)
-        recon = reconstruct_dataset(args.dataset)
+        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)

@@ -13,7 +13,9 @@ Reconstruct non-rigid 3D shape from 2D tracks under orthography.
 
 TRACKS.npz holds W (2F x P, rows u1, v1, u2, v2, ...) and optionally visible (F x P bool,
 False where a point is not observed; W may hold NaN there). If it also holds S (3F x P
-ground truth, as the benchmark files do), the e3D error is printed.
+ground truth, as the benchmark files do), the e3D error is printed. TRACKS.npz may also be a
+reconstruction from lipgen reconstruct (of a synthetic dataset or of a recording, no truth
+needed): one view's tracks (--view) are used, made weak-perspective with the calibrated camera.
 
 SHAPES.npz gets S (3F x P camera-frame shapes, rows x1, y1, z1, x2, ...), R (F x 3 x 3),
 weights (F x K), basis (K x 3 x P) (K + 1 for em-ppca), translation (F x 2), method, k,
@@ -59,6 +61,8 @@ def add_parser(sub) -> None:
                    "data allow, at most 15)")
     p.add_argument("--rtol", type=float, default=0.01,
                    help="--k auto: relative RMS reprojection error that counts as explained (default 0.01)")
+    p.add_argument("--view", default="real", choices=("real", "virtual"),
+                   help="with a reconstruction file: which view's tracks (default real)")
     p.add_argument("--seed", type=int, default=0, help="seed of the rotation search's random starts")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.set_defaults(func=_run)
@@ -72,6 +76,28 @@ def _parse_k(text: str):
     except ValueError:
         raise ValueError(f"--k must be an integer (at least 1; at least 0 for em-ppca) or 'auto', "
                          f"got {text!r}") from None
+
+
+def _recon_tracks(path, view, write) -> dict | None:
+    """The tracks of one view if ``path`` is a reconstruction (lipgen reconstruct), else None."""
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            kind = str(f["__kind__"]) if "__kind__" in f.files else ""
+    except (OSError, ValueError):
+        return None
+    if kind != "lipgen.Reconstruction":
+        return None
+    from lipgen.nrsfm.from_recon import reconstruction_tracks
+    from lipgen.recon.pipeline import Reconstruction
+
+    t = reconstruction_tracks(Reconstruction.load(path), view)
+    write(f"reconstruction {path}: the {view} view's tracks, weak perspective at {t['depth']:.0f} mm\n")
+    if t["dropped_marks"] or t["dropped_frames"]:
+        write(f"left out: marks {t['dropped_marks']} (tracked in fewer than 3 frames), frames "
+              f"{t['dropped_frames']} (fewer than 3 marks)\n")
+    return t
 
 
 def _run(args) -> int:
@@ -95,6 +121,8 @@ def _run(args) -> int:
     data = load_tracks(args.tracks)
     W, visible = data["W"], data.get("visible")
     write = sys.stdout.write
+    data = _recon_tracks(args.tracks, args.view, write) or load_tracks(args.tracks)
+    W, visible = data["W"], data.get("visible")
     write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)

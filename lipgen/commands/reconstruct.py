@@ -16,8 +16,16 @@ thesis's section 3 lip planes with --normalisation thesis); and per frame the fi
 model reaching the markers with the least-norm force (Physics.reach, thesis eq 4.3). The ground
 truth is not read.
 
+Every marker sighting is accounted for: accepted (both views agree), rejected (the views disagree,
+or a pose outlier), unpaired (one view only) or lost. The summary per marker goes to stderr, and
+each marker never tracked in a view is named there with the reason. Exit status: 0 on success;
+3 when a whole marker has no accepted sighting (the reconstruction is written, but misses it),
+unless --allow-missing (then 0, with the same warnings); 1 on an error (nothing written).
+The dataset needs no truth/ folder: a recording of real footage (lipgen recording init) works.
+
 examples:
   lipgen reconstruct data/s0 --out recon.npz
+  lipgen reconstruct data/lowres --out recon.npz --allow-missing
   lipgen reconstruct data/s0 --mesh my_lips.npz --out recon.npz
 """
 
@@ -27,26 +35,59 @@ def add_parser(sub) -> None:
                        description="Calibrate, track, triangulate, normalise and reach: turn a dataset's raw "
                        "camera-mirror frames into per-frame displacement fields of the model mesh.",
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("dataset", help="dataset folder written by lipgen generate")
+    p.add_argument("dataset", help="dataset folder (lipgen generate, or lipgen recording init: no truth)")
     p.add_argument("--out", required=True, help="output file (.npz); an existing file is kept unless --force")
     p.add_argument("--mesh", default="lip_mesh(0)",
                    help="model mesh: 'lip_mesh(R)' (default lip_mesh(0)) or a LipMesh file (.npz)")
     p.add_argument("--normalisation", default="least-force",
                    choices=("thesis", "least-force", "least-strain", "procrustes"),
                    help="how the head pose is removed (default least-force; see lipgen.recon.normalize)")
+    p.add_argument("--test-frames", type=int, default=None,
+                   help="held-out tail that lipgen train will use (default: 10, a fifth of short sequences); "
+                   "the normalisation's reference frame is chosen before it")
+    p.add_argument("--reference-frames", type=_frames, default=None, metavar="LIST",
+                   help="frames the normalisation may take its reference (most neutral) frame from, e.g. "
+                   "'0-20' or '3,7,12' (default: all training frames)")
+    p.add_argument("--allow-missing", action="store_true",
+                   help="exit 0 even when a whole marker was never accepted (default: exit status 3)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
 
+def _frames(text: str) -> list[int]:
+    out: list[int] = []
+    try:
+        for part in text.split(","):
+            a, _, b = part.strip().partition("-")
+            out += list(range(int(a), int(b) + 1)) if b else [int(a)]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', got {text!r}") from None
+    return out
+
+
+MISSING_STATUS = 3
+"""Exit status of ``lipgen reconstruct`` when a whole marker was never accepted."""
+
+
 def _run(args) -> int:
+    from lipgen.recon.account import account_lines, missing_marks
     from lipgen.recon.pipeline import reconstruct_dataset
 
     out = check_file_output(args.out, args.force)
     recon = reconstruct_dataset(args.dataset, args.mesh, progress=not args.no_progress,
-                                normalisation=args.normalisation)
+                                normalisation=args.normalisation, test_frames=args.test_frames,
+                                reference_frames=args.reference_frames)
     recon.save(out)
-    seen = 100 * recon.visible.mean()
-    sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({seen:.1f}% of marker sightings in both "
-                     f"views, calibration {recon.calibration.rms['all']:.3f} px RMS) -> {out}\n")
+    account = recon.info["sightings"]
+    sys.stderr.write("\n".join(account_lines(account)) + "\n")
+    sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({100 * account['accepted_share']:.1f}% of "
+                     f"marker sightings accepted: seen in both views, rays agreeing; calibration "
+                     f"{recon.calibration.rms['all']:.3f} px RMS) -> {out}\n")
+    missing = missing_marks(account)
+    if missing:
+        sys.stderr.write(f"lipgen reconstruct: warning: {len(missing)} marker(s) never accepted in any "
+                         f"frame: {', '.join(missing)}" + ("" if args.allow_missing else
+                                                   " (exit status 3; pass --allow-missing to accept)") + "\n")
+        return 0 if args.allow_missing else MISSING_STATUS
     return 0

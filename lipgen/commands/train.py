@@ -10,7 +10,8 @@ from lipgen.commands._output import check_file_output
 _EPILOG = """\
 The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
 140 + 10) are held out for lipgen evaluate; frames without a field (too few markers seen) are
-skipped.
+skipped. The reconstruction's normalisation reference frame must be a training frame (lipgen
+reconstruct chooses it outside the same default tail; give both the same --test-frames).
 
 example:
   lipgen train recon.npz --out model.npz --modes 10
@@ -40,6 +41,11 @@ def _run(args) -> int:
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames
     train, test = split_frames(recon.fields, T)
+    ref = recon.info.get("normalisation", {}).get("reference_frame")
+    if ref is not None and ref >= len(recon.fields) - T:
+        raise ValueError(f"the reconstruction's normalisation took its reference frame {ref} from the "
+                         f"last {T} frames, which --test-frames {T} holds out as test frames; reconstruct "
+                         f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
     mesh = model_mesh(recon.info["mesh_source"])
     model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
     model.save(out)

@@ -216,8 +216,14 @@ def _validate_manifest(m, where) -> None:
                            "Regenerate the dataset with this lipgen")
     if m["units"] != "mm" or m["convention"] != "opencv" or list(m["views"]) != list(VIEWS):
         raise DatasetError(f"{where}: expected units 'mm', convention 'opencv', views {list(VIEWS)}")
+    recording = m.get("source") == "recording"
     try:
-        GenerateSettings.from_dict(m["settings"])
+        if recording:
+            from lipgen.dataset.footage import RecordingSettings
+
+            RecordingSettings.from_dict(m["settings"])
+        else:
+            GenerateSettings.from_dict(m["settings"])
         MirrorRig.from_dict(m["rig"])
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise DatasetError(f"{where}: bad settings or rig: {exc}") from exc
@@ -227,9 +233,9 @@ def _validate_manifest(m, where) -> None:
         got = f"a list of {len(frames)}" if isinstance(frames, list) else type(frames).__name__
         raise DatasetError(f"{where}: the frame list must have {n} entries (settings.frames), got {got}")
     for i, f in enumerate(frames):
-        if not isinstance(f, dict) or f.get("index") != i or not {"raw", "truth"} <= set(f):
-            raise DatasetError(f"{where}: frames[{i}] must be an object with index {i}, raw and truth; got "
-                               f"{str(f)[:80]!r}")
+        if not isinstance(f, dict) or f.get("index") != i or "raw" not in f:
+            raise DatasetError(f"{where}: frames[{i}] must be an object with index {i}, raw and (optional) "
+                               f"truth; got {str(f)[:80]!r}")
         _check_number(f.get("time", 0.0), f"{where}: frames[{i}].time")
         for key in ("raw", "truth", "depth", "mask"):
             if key in f:
@@ -262,7 +268,8 @@ def _validate_manifest(m, where) -> None:
 
 @dataclass(frozen=True, eq=False)
 class DatasetFrame:
-    """One frame: the raw image and its truth (``truth`` keys: :data:`TRUTH_FIELDS`)."""
+    """One frame: the raw image and its truth (``truth`` keys: :data:`TRUTH_FIELDS`; empty when the
+    dataset has no truth)."""
 
     index: int
     time: float
@@ -333,22 +340,50 @@ class Dataset:
         return mesh
 
     @property
-    def settings(self) -> GenerateSettings:
+    def settings(self):
+        """:class:`GenerateSettings`, or :class:`~lipgen.dataset.footage.RecordingSettings` for a
+        user's recording (``manifest["source"] == "recording"``)."""
+        if self.manifest.get("source") == "recording":
+            from lipgen.dataset.footage import RecordingSettings
+
+            return RecordingSettings.from_dict(self.manifest["settings"])
         return GenerateSettings.from_dict(self.manifest["settings"])
 
     def __len__(self) -> int:
         return len(self.manifest["frames"])
 
-    def missing(self, verify: bool = True) -> list[int]:
+    def missing(self, verify: bool = True, truth: bool = True) -> list[int]:
         """Frames whose files are not (yet) written, or (``verify``) do not decode (empty or
-        truncated); ``lipgen generate --resume`` completes them."""
+        truncated); ``lipgen generate --resume`` completes them.
+
+        With ``truth=False`` only the raw frames count: what a reconstruction needs (a recording
+        of real footage has no truth, depth or masks).
+        """
         kinds = {"raw": None, "truth": FRAME_KIND, "depth": DEPTH_KIND, "mask": None}
+        if not truth:
+            kinds = {"raw": None}
         out = []
         for i, f in enumerate(self.manifest["frames"]):
             paths = [(self.file(f[k]), kind) for k, kind in kinds.items() if k in f]
             if not all(intact(p, kind) if verify else p.is_file() for p, kind in paths):
                 out.append(i)
         return out
+    @cached_property
+    def has_truth(self) -> bool:
+        """Whether every frame and calibration frame has its ground-truth file (a synthetic dataset
+        does; a user's recording, or a dataset whose ``truth/`` was removed, does not)."""
+        entries = [*self.manifest["frames"], *self.manifest["calibration"]["frames"]]
+        return all("truth" in f and self.file(f["truth"]).is_file() for f in entries)
+
+    def require_truth(self, what: str) -> None:
+        """Raise :class:`DatasetError` naming ``what`` (e.g. ``"lipgen evaluate"``) unless
+        :attr:`has_truth`."""
+        if not self.has_truth:
+            n = sum("truth" in f and self.file(f["truth"]).is_file() for f in self.manifest["frames"])
+            raise DatasetError(
+                f"{self.path} has no ground truth ({n} of {len(self)} frames have a truth file): {what} "
+                "compares with the truth, so it needs a synthetic dataset from lipgen generate. "
+                "lipgen reconstruct, train, show and nrsfm work without truth")
 
     def depth(self, i: int) -> np.ndarray:
         """(H, W) float32 depth of raw frame ``i``: each half's view-camera z, mm (the mirror half
@@ -379,11 +414,13 @@ class Dataset:
                                "--resume (same settings)")
         return f[key]
 
-    def _load(self, rel_png: str, rel_npz: str, kind: str) -> tuple[np.ndarray, dict]:
+    def _load(self, rel_png: str, rel_npz: str | None, kind: str) -> tuple[np.ndarray, dict]:
+        """The image and its truth; the truth is ``{}`` when the dataset has none (:attr:`has_truth`)."""
         from PIL import Image
 
-        png, npz = self.file(rel_png), self.file(rel_npz)
-        if not png.is_file() or not npz.is_file():
+        png = self.file(rel_png)
+        npz = None if rel_npz is None or not self.has_truth else self.file(rel_npz)
+        if not png.is_file() or (npz is not None and not npz.is_file()):
             raise DatasetError(f"{self.path}: {rel_png} or {rel_npz} is missing; the dataset is incomplete. "
                                "Finish it with lipgen generate --resume (same settings)")
         try:
@@ -392,6 +429,8 @@ class Dataset:
         except (OSError, SyntaxError, ValueError) as exc:  # PIL: truncated or not a PNG
             raise DatasetError(f"{png} is not a readable image ({exc}); redo it with lipgen generate "
                                "--resume (same settings)") from exc
+        if npz is None:
+            return image, {}
         try:
             truth = load_npz(npz, kind, SCHEMA)
         except ModelFileError as exc:
@@ -403,7 +442,7 @@ class Dataset:
         if isinstance(i, bool) or not isinstance(i, int | np.integer) or not -n <= i < n:
             raise IndexError(f"frame {i!r} is out of range for a dataset of {n} frames")
         f = self.manifest["frames"][int(i) % n]
-        image, truth = self._load(f["raw"], f["truth"], FRAME_KIND)
+        image, truth = self._load(f["raw"], f.get("truth"), FRAME_KIND)
         return DatasetFrame(int(f["index"]), float(f["time"]), image, truth)
 
     def __iter__(self):
@@ -413,7 +452,7 @@ class Dataset:
         """The calibration frames (chessboard described by ``manifest['calibration']['board']``)."""
         out = []
         for f in self.manifest["calibration"]["frames"]:
-            image, truth = self._load(f["raw"], f["truth"], CALIB_KIND)
+            image, truth = self._load(f["raw"], f.get("truth"), CALIB_KIND)
             out.append(CalibrationFrame(int(f["index"]), image, truth))
         return out
 
@@ -425,11 +464,13 @@ class Dataset:
         return Chessboard(b["inner_cols"], b["inner_rows"], b["square"])
 
 
-def save_annotated(ds: Dataset, index: int, out) -> Path:
+def save_annotated(ds: Dataset, index: int, out, tracked=None) -> Path:
     """Save a picture of raw frame ``index`` with the truth projections of the marks in both halves.
 
     Circles mark visible marks, crosses hidden ones (occluded, facing away or out of the view);
-    each is labelled with its name. Written atomically (PNG, or any format matplotlib knows).
+    each is labelled with its name. A dataset without truth (a recording) shows the frame alone.
+    ``tracked (2, k, 2)``, optional: raw-frame pixels of tracked marks per view (NaN where lost),
+    drawn as cyan plus signs. Written atomically (PNG, or any format matplotlib knows).
     """
     import matplotlib
 
@@ -444,14 +485,25 @@ def save_annotated(ds: Dataset, index: int, out) -> Path:
     ax = fig.add_axes((0, 0, 1, 0.94))
     ax.imshow(frame.image, interpolation="nearest")
     ax.axvline(ds.rig.split - 0.5, color="white", lw=0.8, ls="--")
-    names = [str(n) for n in frame.truth["mark_names"]]
-    for v in range(len(VIEWS)):
+    names = [str(n) for n in ds.marks]
+    for v in range(len(VIEWS)) if frame.truth else ():
         uv, vis = frame.truth["uv_raw"][v], frame.truth["visible"][v]
         ax.scatter(uv[vis, 0], uv[vis, 1], s=60, facecolors="none", edgecolors="lime", linewidths=1.2)
         ax.scatter(uv[~vis, 0], uv[~vis, 1], s=50, marker="x", color="red", linewidths=1.2)
         for j, name in enumerate(names):
             ax.annotate(name, uv[j], xytext=(4, -4), textcoords="offset points", fontsize=5,
                         color="lime" if vis[j] else "red")
+    if tracked is not None:
+        t = np.asarray(tracked, dtype=float)
+        if t.shape != (len(VIEWS), len(names), 2):
+            raise ValueError(f"tracked must have shape ({len(VIEWS)}, {len(names)}, 2), got {t.shape}")
+        for v in range(len(VIEWS)):
+            ax.scatter(t[v, :, 0], t[v, :, 1], s=40, marker="+", color="cyan", linewidths=1.0)
+            if not frame.truth:
+                for j, name in enumerate(names):
+                    if np.isfinite(t[v, j]).all():
+                        ax.annotate(name, t[v, j], xytext=(4, -4), textcoords="offset points", fontsize=5,
+                                    color="cyan")
     for label, cols in (("mirror (virtual view, flipped)", ds.rig.halves()[0]),
                         ("direct (real view)", ds.rig.halves()[1])):
         x0 = cols.start or 0
@@ -459,8 +511,11 @@ def save_annotated(ds: Dataset, index: int, out) -> Path:
     ax.set_xlim(-0.5, w - 0.5)
     ax.set_ylim(h - 0.5, -0.5)
     ax.axis("off")
+    legend = "circles visible, crosses hidden" if frame.truth else "no ground truth"
+    if tracked is not None:
+        legend += "; plus signs tracked"
     fig.suptitle(f"{ds.path.name}  frame {frame.index}  t = {frame.time:.3f} s   (mirror half: "
-                 f"{ds.rig.mirror_side}; circles visible, crosses hidden)", fontsize=9)
+                 f"{ds.rig.mirror_side}; {legend})", fontsize=9)
     out = Path(out)
     with atomic_path(out) as tmp:
         fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))

@@ -150,18 +150,43 @@ def _table51_md(t: dict, unit_mm: float) -> list[str]:
     return lines
 
 
-def nrsfm_section(ds, recon=None, view: str = "real") -> str:
+def nrsfm_section(ds, recon=None, view: str = "real", min_frames: int = 3) -> str:
     """Monocular non-rigid SfM (:func:`lipgen.nrsfm.evaluate_on_dataset`) on one view of the
-    dataset, from the truth's projections and, given ``recon``, from the tracker's output."""
+    dataset, from the truth's projections and, given ``recon``, from the tracker's output.
+
+    Marks the tracker saw in fewer than ``min_frames`` frames are left out of the second run (and
+    named); a run that cannot be computed says why, and the rest is still written.
+    """
     from lipgen import nrsfm
+    from lipgen.errors import LipgenError
     from lipgen.recon.track import LOST
 
     path = ds.path if hasattr(ds, "path") else ds
-    parts = [nrsfm.evaluate_on_dataset(path, view=view)["markdown"]]
+
+    def attempt(what, **kw):
+        try:
+            return nrsfm.evaluate_on_dataset(path, view=view, **kw)["markdown"]
+        except (ValueError, LipgenError, np.linalg.LinAlgError) as exc:
+            log.warning("NRSfM on %s not computed: %s", what, exc)
+            return f"**Monocular NRSfM on {what}: not computed** ({exc})."
+
+    parts = [attempt("the truth's projections")]
     if recon is not None:
         v = list(VIEWS).index(view)
         seen = np.isfinite(recon.uv[v]).all(axis=-1) & (recon.status[v] != LOST)
-        parts.append(nrsfm.evaluate_on_dataset(path, view=view, uv=recon.uv[v], seen=seen)["markdown"])
+        count = seen.sum(0)
+        keep = np.flatnonzero(count >= min_frames)
+        if len(keep) < len(count):
+            names = list(recon.info.get("marker_names", [])) + ["nose"]
+            dropped = ", ".join(f"{names[j] if j < len(names) else j} ({int(count[j])} frames)"
+                                for j in np.flatnonzero(count < min_frames))
+            parts.append(f"Left out of the tracked run: marks tracked in fewer than {min_frames} frames of "
+                         f"the {view} view: {dropped}.")
+        if len(keep) < 3:
+            parts.append(f"**Monocular NRSfM on the tracks: not computed** (only {len(keep)} marks tracked "
+                         f"in {min_frames} or more frames of the {view} view).")
+        else:
+            parts.append(attempt("the tracks", uv=recon.uv[v], seen=seen, marks=keep))
     parts.append("The head turns by only a few degrees in these sequences, so depth is weakly "
                  "observable from one view; the flat score is the baseline to beat.")
     return "\n\n".join(parts)
@@ -196,12 +221,22 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
     L += ["", f"Real-to-virtual pose: rotation error {_fmt(rel['rotation_deg'])} deg, baseline error "
           f"{_fmt(rel['baseline_mm'])} mm.", "",
           "## Tracking (vs the true projections, where the dot is visible)", "",
-          "| view | RMS (px) | 95th pct (px) | tracked share | > 3 px | false sightings |",
-          "|---|---|---|---|---|---|"]
+          "Of the sightings the truth says are visible: *accepted* (seen in both views with agreeing "
+          "rays, not a pose outlier), *rejected* (seen, but the views disagree or a pose outlier) and "
+          "*lost* (not found in this view). RMS, 95th percentile and > 3 px are over accepted sightings.",
+          "",
+          "| view | RMS (px) | 95th pct (px) | accepted share | accepted | rejected | lost | > 3 px | "
+          "false sightings |",
+          "|---|---|---|---|---|---|---|---|---|"]
     for v in VIEWS:
         t = s["tracking"][v]
         L.append(f"| {v} | {_fmt(t['rms_px'])} | {_fmt(t['p95_px'])} | {_fmt(t['tracked_share'])} | "
+                 f"{t.get('accepted', 'n/a')} | {t.get('rejected', 'n/a')} | {t.get('lost', 'n/a')} | "
                  f"{t['wrong_over_3px']} | {t['false_sightings']} |")
+    never = recon.info.get("sightings", {}).get("never_tracked", [])
+    if never:
+        L += ["", "**Never tracked** (whole sequence):", ""]
+        L += [f"- {n['mark']} in the {n['view']} view: {n['reason']}" for n in never]
     names = list(recon.info["marker_names"]) + ["nose"]
     L += ["", "Per mark (px RMS virtual / real; triangulation mm RMS):", "",
           "| mark | virtual | real | 3-D |", "|---|---|---|---|"]

@@ -18,9 +18,11 @@ import numpy as np
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.recon.calibrate import compare_to_truth
 from lipgen.recon.normalize import lip_subsets, normalize_markers
+from lipgen.recon.split import default_test_frames
 from lipgen.rig.camera import VIEWS
 
-__all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "ROWS", "AXES"]
+__all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "accepted_sightings",
+           "ROWS", "AXES"]
 
 log = logging.getLogger(__name__)
 
@@ -28,11 +30,6 @@ ROWS = ("xyz (8 points)", "yz (all points)", "xy (all points)")
 """The rows of the Table 5.1 analogue: which DOFs are observed (thesis Table 5.1)."""
 AXES = {"xyz (8 points)": (8, "xyz"), "yz (all points)": (None, "yz"), "xy (all points)": (None, "xy")}
 """Per row: (number of marker points observed or None for all, the observed axes)."""
-
-
-def default_test_frames(n_frames: int) -> int:
-    """The held-out tail: 10 frames as in the thesis (140 + 10), a fifth of short sequences."""
-    return 10 if n_frames >= 50 else max(2, n_frames // 5)
 
 
 def split_frames(fields: np.ndarray, test_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -59,6 +56,20 @@ def load_truth(ds) -> dict:
 def _rms(err, axis=None):
     with np.errstate(invalid="ignore"):
         return np.sqrt(np.nanmean(np.asarray(err) ** 2, axis=axis))
+
+
+def accepted_sightings(recon) -> np.ndarray:
+    """(F, P + 1) bool: marks seen in both views with agreeing rays and not left out by the
+    normalisation as outliers (the nose: its rays agree)."""
+    P = recon.visible.shape[1]
+    out = np.zeros(recon.ray_gap.shape, dtype=bool)
+    out[:, :P] = recon.visible
+    for f, j in recon.info.get("normalisation", {}).get("outliers", []):
+        out[f, j] = False
+    max_gap = recon.info.get("settings", {}).get("max_ray_gap", np.inf)
+    with np.errstate(invalid="ignore"):
+        out[:, P:] = recon.ray_gap[:, P:] <= max_gap
+    return out
 
 
 def _true_fields(truth: dict, mesh) -> np.ndarray:
@@ -128,6 +139,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     from lipgen.fem import Physics
     from lipgen.recon.pipeline import model_mesh
 
+    ds.require_truth("scoring a reconstruction (lipgen evaluate)")
     F = len(ds)
     if len(recon.fields) != F:
         raise DatasetError(f"the reconstruction has {len(recon.fields)} frames but the dataset {F}; it was "
@@ -146,19 +158,26 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     ref = ds.calibration()[cal.reference].truth
     A0, b0 = np.asarray(ref["A"]), np.asarray(ref["b"])
     out["calibration"] = {"rms_px": cal.rms, "vs_truth": compare_to_truth(cal.in_frame(A0, b0), ds.rig.views)}
-    # Tracking against the true projections, where the truth says the dot is visible.
+    # Tracking against the true projections, where the truth says the dot is visible. Only
+    # accepted sightings (both views agree, not a pose outlier) count as tracked.
+    accepted = accepted_sightings(recon)
     track = {}
     for v, view in enumerate(VIEWS):
         truly = truth["visible"][:, v]
         err = np.linalg.norm(recon.uv[v] - truth["uv"][:, v], axis=-1)
         got = recon.status[v] != 3
-        ok = truly & got
+        ok = truly & accepted
+        n_ok = int(ok.sum())
         track[view] = {"rms_px": float(_rms(err[ok])),
                        "per_mark_rms_px": _rms(np.where(ok, err, np.nan), 0).tolist(),
                        "p95_px": float(np.percentile(err[ok], 95)) if ok.any() else float("nan"),
-                       "tracked_share": float(ok.sum() / max(truly.sum(), 1)),
+                       "tracked_share": float(n_ok / max(truly.sum(), 1)),
+                       "accepted": n_ok, "rejected": int((truly & got & ~accepted).sum()),
+                       "lost": int((truly & ~got).sum()),
+                       "rms_all_sightings_px": float(_rms(err[truly & got])),
                        "false_sightings": int((got & ~truly).sum()),
-                       "wrong_over_3px": int((err[ok] > 3).sum())}
+                       "wrong_over_3px": int((err[ok] > 3).sum()),
+                       "wrong_over_3px_rate": float((err[ok] > 3).sum() / max(n_ok, 1))}
     out["tracking"] = track
     # Triangulation: lab -> board -> world.
     lab = recon.lab_points.reshape(-1, 3)
@@ -218,7 +237,11 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                      "reach_from_true_markers_rms_mm": float(
                          _rms(np.linalg.norm(floor - true_fields, axis=-1))),
                      "frames_without_field": int((~ok).sum())}
-    out["split"] = {"train": len(train), "test": test.tolist()}
+    out["split"] = {"train": len(train), "test": test.tolist(),
+                    "reference_frame_in_test": bool(ref_used in set(test.tolist()))}
+    if out["split"]["reference_frame_in_test"]:
+        log.warning("the normalisation's reference frame %d is a test frame: the held-out frames shaped "
+                    "the training data; reconstruct with --test-frames %d", ref_used, T)
     from lipgen.modes.combined import CombinedModel
 
     # The combined model chooses its physical prior and the marker noise from the training fields.

@@ -54,12 +54,19 @@ class RigCalibration:
         Calibration images with the whole board found, per view, and ``"both"``.
     reference : int
         The calibration image whose board frame is the world frame.
+    per_image : tuple of dict
+        Per calibration image: ``{"image": k, "virtual": rms px or None, "real": ...}`` (None: the
+        board was not found whole in that view, or the view was dropped as an outlier).
+    dropped : tuple of dict
+        Views of images left out as outliers: ``{"image": k, "view": name, "rms_px": ...}``.
     """
 
     rig: MirrorRig
     rms: dict
     n_images: dict
     reference: int
+    per_image: tuple = ()
+    dropped: tuple = ()
 
     @property
     def views(self) -> tuple[PinholeCamera, PinholeCamera]:
@@ -78,17 +85,20 @@ class RigCalibration:
         cam = PinholeCamera(c.K, c.R @ A.T, c.t - c.R @ A.T @ b, c.width, c.height, c.dist, c.name)
         n = A @ r.mirror_normal
         moved = MirrorRig(cam, n, r.mirror_offset + n @ b, r.mirror_side, r.split)
-        return RigCalibration(moved, dict(self.rms), dict(self.n_images), self.reference)
+        return RigCalibration(moved, dict(self.rms), dict(self.n_images), self.reference, self.per_image,
+                              self.dropped)
 
     def to_dict(self) -> dict:
         """A JSON-ready dict of the calibration (cameras, errors, settings)."""
         return {"rig": self.rig.to_dict(), "rms_px": self.rms, "n_images": self.n_images,
-                "reference": self.reference}
+                "reference": self.reference, "per_image_rms_px": list(self.per_image),
+                "dropped": list(self.dropped)}
 
     @classmethod
     def from_dict(cls, d: dict) -> RigCalibration:
         """The calibration written by :meth:`to_dict`."""
-        return cls(MirrorRig.from_dict(d["rig"]), dict(d["rms_px"]), dict(d["n_images"]), int(d["reference"]))
+        return cls(MirrorRig.from_dict(d["rig"]), dict(d["rms_px"]), dict(d["n_images"]), int(d["reference"]),
+                   tuple(d.get("per_image_rms_px", ())), tuple(d.get("dropped", ())))
 
 
 def find_corners(image, board: Chessboard) -> np.ndarray | None:
@@ -188,7 +198,8 @@ def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
 
 
 def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = Chessboard(),
-                  reference: int = 0, distortion: bool = True, min_images: int = 4) -> RigCalibration:
+                  reference: int = 0, distortion: bool = True, min_images: int = 4,
+                  outlier_factor: float = 4.0, outlier_floor_px: float = 1.0) -> RigCalibration:
     """Calibrate the camera and the mirror from raw frames of a chessboard.
 
     Parameters
@@ -205,6 +216,11 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         Fit radial k1, k2 (else none).
     min_images : int
         Fewest frames with the whole board in the direct view, and in the mirror.
+    outlier_factor, outlier_floor_px : float
+        After the joint fit, an image's view whose reprojection RMS exceeds both
+        ``outlier_factor`` times the median over all image views and ``outlier_floor_px`` is
+        dropped (a blurred or mis-detected board), with a warning, and the rig is fitted again
+        without it (once). Per-image errors are in :attr:`RigCalibration.per_image`.
 
     Returns
     -------
@@ -215,9 +231,6 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
     DatasetError
         Too few usable frames, or no board in the reference frame's direct view.
     """
-    cv2 = require("cv2", "chessboard calibration")
-    W, H = layout.camera.width, layout.camera.height
-    obj = board.object_points()
     obs: list[dict[str, np.ndarray]] = []
     for raw in raw_frames:
         virt, real = layout.split_views(np.asarray(raw))
@@ -227,6 +240,32 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
             if uv is not None:
                 per[view] = layout.to_raw(view, uv)
         obs.append(per)
+    cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
+    keys = [(k, view) for k, per in enumerate(obs) for view in per]
+    per_view = np.sqrt(sq.mean(1))
+    limit = max(outlier_factor * float(np.median(per_view)), outlier_floor_px)
+    bad = [(k, view, float(r)) for (k, view), r in zip(keys, per_view, strict=True) if r > limit]
+    if bad:
+        for k, view, r in bad:
+            log.warning("calibration image %d: the %s view's board reprojects %.2f px RMS (> %.2f px, %g x "
+                        "the median): left out", k, view, r, limit, outlier_factor)
+            del obs[k][view]
+        cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
+        keys = [(k, view) for k, per in enumerate(obs) for view in per]
+        per_view = np.sqrt(sq.mean(1))
+    table = {k: {"image": k, "virtual": None, "real": None} for k in range(len(obs))}
+    for (k, view), r in zip(keys, per_view, strict=True):
+        table[k][view] = float(r)
+    return RigCalibration(cal.rig, cal.rms, cal.n_images, reference, tuple(table.values()),
+                          tuple({"image": k, "view": v, "rms_px": r} for k, v, r in bad))
+
+
+def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[RigCalibration, np.ndarray]:
+    """The joint fit of :func:`calibrate_rig` on the found corners ``obs`` (per image: view -> (n, 2));
+    returns the calibration and the squared residuals (image views in ``obs`` order, n corners)."""
+    cv2 = require("cv2", "chessboard calibration")
+    W, H = layout.camera.width, layout.camera.height
+    obj = board.object_points()
     counts = {v: sum(v in per for per in obs) for v in VIEWS} | {"both": sum(len(p) == 2 for p in obs)}
     log.info("calibration: board found in %s of %d frames", counts, len(obs))
     if min(counts.values()) < min_images:
@@ -271,7 +310,7 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
     sq = (res ** 2).sum(-1)
     rms = {v: float(np.sqrt(sq[which == v].mean())) for v in VIEWS} | {
         "all": float(np.sqrt(sq.mean())), "real_alone": float(rms_alone)}
-    return RigCalibration(rig, rms, counts, reference)
+    return RigCalibration(rig, rms, counts, reference), sq
 
 
 def _orthonormal(R: np.ndarray) -> np.ndarray:

@@ -229,7 +229,8 @@ def marker_cost_shares(points, targets, metric: MarkerMetric, visible, rotations
 
 
 def pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, reference_frame,
-                    method: str, physics, outlier_ratio: float, max_outliers: int) -> Normalization:
+                    method: str, physics, outlier_ratio: float, max_outliers: int,
+                    candidates=None) -> Normalization:
     """The pose methods of :func:`lipgen.recon.normalize.normalize_markers` (which checks the input):
     one scale from the reference frame's similarity, then per frame the rotation about the nose
     of least cost (:func:`least_cost_rotations`), leaving mis-measured markers out.
@@ -254,8 +255,8 @@ def pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, 
                              f"model_markers ({P}, 3); build it from the same model mesh")
         metric = MarkerMetric.from_physics(physics, "force" if method == "least-force" else "energy")
     zero = np.zeros((F, P, 3))
-    ref = most_neutral_frame(np.where(vis[..., None], rel, 0.0), vis, M, n0) if reference_frame == "auto" \
-        else int(reference_frame)
+    ref = most_neutral_frame(np.where(vis[..., None], rel, 0.0), vis, M, n0, candidates) \
+        if reference_frame == "auto" else int(reference_frame)
     seen = vis[ref]
     if seen.sum() < 3:
         raise ValueError(f"reference frame {ref} has only {int(seen.sum())} visible markers; the "

@@ -186,7 +186,7 @@ def lip_subsets(marker_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
 def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=None, visible=None,
                       up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0), reference_frame: int | str = 0,
                       method: str = "thesis", physics=None, outlier_ratio: float = 0.25,
-                      max_outliers: int = 2) -> Normalization:
+                      max_outliers: int = 2, reference_candidates=None) -> Normalization:
     """Bring triangulated markers into the model frame (thesis §3, or a least-deformation pose).
 
     Parameters
@@ -211,6 +211,9 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
         the subject starts at rest. ``"auto"`` takes the frame whose lip-frame markers a
         similarity brings closest to the model's rest markers (the most neutral-looking frame,
         among those that see the most markers).
+    reference_candidates : (k,) int, optional
+        The frames ``"auto"`` may choose from (default all): the training frames, so that no
+        held-out test frame shapes the normalisation.
     method : str
         One of :data:`METHODS`. ``"thesis"`` (the default here) is steps 1-4 of the module
         docstring; the others rotate each frame about the nose (see :mod:`lipgen.recon.headpose`) and
@@ -248,7 +251,7 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
             raise ValueError(f"outlier_ratio must be in [0, 1) and max_outliers >= 0, got {outlier_ratio} "
                              f"and {max_outliers}")
         return pose_normalize(rel, vis, M, model_nose, reference_frame, method, physics,
-                              float(outlier_ratio), int(max_outliers))
+                              float(outlier_ratio), int(max_outliers), reference_candidates)
     rotations = np.full((F, 3, 3), np.nan)
     angle = np.full(F, np.nan)
     for f in range(F):
@@ -269,7 +272,7 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
                     int(borrowed.sum()))
     local = np.einsum("fij,fpj->fpi", rotations, rel)
     if reference_frame == "auto":
-        reference_frame = most_neutral_frame(local, vis, M, model_nose)
+        reference_frame = most_neutral_frame(local, vis, M, model_nose, reference_candidates)
         log.info("normalisation: frame %d looks the most neutral; the similarity is fitted there",
                  reference_frame)
     seen = vis[reference_frame]

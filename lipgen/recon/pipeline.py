@@ -29,8 +29,10 @@ from lipgen._io import load_npz, save_npz
 from lipgen._threads import blas_threads
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
+from lipgen.recon.account import sighting_account
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
+from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
     ReconstructSettings,
     expected_projections,
@@ -205,10 +207,14 @@ def _check_marks(ds, mesh: LipMesh) -> None:
 
 
 def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: ReconstructSettings | None = None,
-                        progress: bool = False, normalisation: str = "least-force") -> Reconstruction:
+                        progress: bool = False, normalisation: str = "least-force",
+                        test_frames: int | None = None, reference_frames=None) -> Reconstruction:
     """Run the whole reconstruction on a dataset folder (see the module docstring).
 
-    ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`.
+    ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`. The normalisation's
+    reference frame is the most neutral-looking of the training frames: all but the last
+    ``test_frames`` (default :func:`lipgen.recon.split.default_test_frames`, as ``lipgen train``
+    holds out), or only the ``reference_frames`` named.
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
@@ -217,11 +223,18 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
     t0 = time.perf_counter()
     ds = Dataset(path)
-    missing = ds.missing()
+    candidates = training_candidates(len(ds), test_frames, reference_frames)
+    missing = ds.missing(truth=False)     # the truth is never read here: a recording has none
     if missing:
         raise DatasetError(f"{path}: {len(missing)} of {len(ds)} frames are missing (e.g. frame "
                            f"{missing[0]}); finish the dataset with lipgen generate --resume before "
                            "reconstructing")
+    calib = ds.manifest["calibration"]["frames"]
+    absent = [f["raw"] for f in calib if not (ds.path / f["raw"]).is_file()]
+    if len(calib) == 0 or absent:
+        what = "the manifest lists none" if not calib else ", ".join(absent) + " missing"
+        raise DatasetError(f"{path}: no calibration images ({what}); the rig is calibrated from chessboard "
+                           "photos: build the folder with lipgen recording init VIDEO --calib DIR")
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
     with blas_threads(1):  # a small bundle adjustment
@@ -243,9 +256,10 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
+    names = [*mesh.marker_names, "nose"]
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks = track_raw_frames(frames, ds.rig, expected, settings,
-                                  (lambda _: bar.update()) if bar else None, cameras=lab.views)
+                                  (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()
@@ -265,12 +279,20 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     with blas_threads(1):  # per-frame poses and reaches: many small products and solves
         norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
                                  model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
-                                 method=normalisation, physics=physics)
+                                 method=normalisation, physics=physics, reference_candidates=candidates)
         # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
         # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
         outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
         fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
                               mesh.markers, settings.min_visible)
+    account = sighting_account(tracks, vis, gap, settings.max_ray_gap, outliers, names, expected,
+                               [(c.width, c.height) for c in lab.views], settings.tracker.twins)
+    if account["never_tracked"]:
+        log.warning("never tracked in a view (why: info['sightings']['never_tracked']): %s",
+                    "; ".join(f"{n['mark']} ({n['view']})" for n in account["never_tracked"]))
+    if account["missing"]:
+        log.warning("no accepted sighting at all of %s: the fields reach the other markers only",
+                    ", ".join(account["missing"]))
     t_end = time.perf_counter()
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
@@ -283,10 +305,13 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
+                          "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"
+                                             if reference_frames is None else candidates.tolist()),
                           "borrowed_frames": int(norm.borrowed.sum()),
                           "outliers": np.argwhere(outliers).tolist(),
                           **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
                              if norm.method == "thesis" else {})},
+        "sightings": account,
         "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},
     }
     return Reconstruction(

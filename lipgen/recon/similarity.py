@@ -113,10 +113,16 @@ class Normalization:
     outliers: np.ndarray | None = None
 
 
-def most_neutral_frame(local: np.ndarray, vis: np.ndarray, model_markers: np.ndarray, model_nose) -> int:
+def most_neutral_frame(local: np.ndarray, vis: np.ndarray, model_markers: np.ndarray, model_nose,
+                       candidates=None) -> int:
     """The frame (among those seeing the most markers) whose similarity fit to the rest markers
-    leaves the smallest RMS residual."""
-    counts = vis.sum(1)
+    leaves the smallest RMS residual; only ``candidates`` (frame indices, default all) compete, so
+    held-out test frames can be kept out of the choice."""
+    allowed = np.zeros(len(vis), dtype=bool)
+    allowed[np.arange(len(vis)) if candidates is None else np.asarray(candidates, dtype=np.int64)] = True
+    if not allowed.any():
+        raise ValueError("no candidate frame for the reference frame")
+    counts = np.where(allowed, vis.sum(1), -1)
     best, best_rms = -1, np.inf
     for f in np.flatnonzero(counts == counts.max()):
         src, dst = local[f, vis[f]], model_markers[vis[f]]

@@ -32,6 +32,7 @@ from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
+from lipgen.recon.twins import resolve_twins
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
@@ -57,12 +58,16 @@ class ReconstructSettings:
         and the marker is treated as not seen in that frame.
     min_visible : int
         Fewest visible markers for a frame's field to be reconstructed (else its field is NaN).
+    twin_model : bool
+        Find markers whose dots merge in one view (twins) with a model of both dots on their
+        epipolar lines from the other view (:mod:`lipgen.recon.twins`).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
     init_gate: float = 6.0
     max_ray_gap: float = 2.0
     min_visible: int = 4
+    twin_model: bool = True
 
 
 def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
@@ -74,7 +79,8 @@ def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> 
 def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                      settings: ReconstructSettings = ReconstructSettings(),
                      progress: Callable[[int], None] | None = None,
-                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None) -> tuple[Tracks, Tracks]:
+                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None,
+                     names=None) -> tuple[Tracks, Tracks]:
     """Detect and track the markers in both views of a raw sequence.
 
     Parameters
@@ -93,6 +99,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         The calibrated views. With them, a first-frame match whose two rays pass farther apart
         than ``settings.max_ray_gap`` is dropped in both views (one of the two is another
         marker's dot or no marker's); the tracker acquires the marker later from the layout.
+    names : sequence of str, optional
+        Marker names, for the log.
 
     Returns
     -------
@@ -103,7 +111,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
-            inits = []
+            inits, n_dots = [], []
             for v, img in enumerate(views):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 dots, _ = detect_dots(img, settings.tracker.dots)
@@ -111,9 +119,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 match = np.full(len(ok), -1)
                 match[ok] = match_to_expected(dots, exp[v][ok], settings.init_gate)
                 init[match >= 0] = dots[match[match >= 0]]
-                log.info("%s view: %d dots in the first frame, %d of %d markers matched", VIEWS[v],
-                         len(dots), int((match >= 0).sum()), len(ok))
                 inits.append(init)
+                n_dots.append(len(dots))
+            bad = np.zeros(len(exp[0]), dtype=bool)
             if cameras is not None:
                 both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
                 gap = np.full(len(both), np.nan)
@@ -127,10 +135,21 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
+                # What the tracker really starts with: twins and matches the views contradict are out.
+                started = np.all(np.isfinite(trackers[v].init), axis=1)
+                log.info("%s view: %d dots in the first frame, %d of %d markers matched%s", VIEWS[v],
+                         n_dots[v], int(started.sum()), len(ok),
+                         "" if started.all() else " (not: " + ", ".join(
+                             str(i) if names is None else names[i] for i in np.flatnonzero(~started)) + ")")
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
+        if t == 0:
+            for tracker in trackers:
+                tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
             _check_views(trackers, cameras, settings.max_ray_gap)
+        if cameras is not None and settings.twin_model:
+            resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if progress is not None:
             progress(t)
     if not trackers:

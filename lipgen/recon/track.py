@@ -50,7 +50,7 @@ from lipgen.recon.pointreg import assign
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
-    "normalized_correlation", "MarkerTracker", "track_markers",
+    "normalized_correlation", "MarkerTracker", "track_markers", "twin_partners",
 ]
 
 # Per-frame status of a marker (lipgen.recon.association): TRACKED, correlation agreed with a detected
@@ -121,12 +121,16 @@ class Tracks:
         ``TRACKED``, ``RECOVERED``, ``CORRELATION_ONLY`` or ``LOST``.
     score : (F, P) float
         Correlation peak (NaN in the first frame and where no search was made).
+    rejected : (F, P) bool, optional
+        Sightings taken back by an outside check (:meth:`MarkerTracker.reject`, e.g. the other
+        view disagreed); they are ``LOST`` in ``status``. None: no such record.
     """
 
     uv: np.ndarray
     visible: np.ndarray
     status: np.ndarray
     score: np.ndarray
+    rejected: np.ndarray | None = None
 
     @property
     def n_frames(self) -> int:
@@ -162,6 +166,33 @@ def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarr
     var = box(search * search) - mean * mean * t.size
     den = np.sqrt(np.maximum(var, 0.0)) * tn
     return np.where(den > 1e-9 * max(tn, 1e-300), num / np.maximum(den, 1e-300), 0.0)
+
+
+def twin_partners(reference, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Markers too close to a neighbour in the layout to be told apart (their dots merge).
+
+    Parameters
+    ----------
+    reference : (P, 2) float
+        The expected layout, pixels.
+    threshold : float
+        Markers nearer than this to another are twins (``TrackerSettings.twins``).
+
+    Returns
+    -------
+    partner : (P,) int
+        The nearest other marker of each twin, -1 for markers that are not twins.
+    distance : (P,) float
+        Distance to it, pixels (NaN for non-twins).
+    """
+    ref = as_float_array(reference, "reference", (None, 2))
+    partner, dist = np.full(len(ref), -1), np.full(len(ref), np.nan)
+    if len(ref) > 1:
+        d = np.linalg.norm(ref[:, None] - ref[None], axis=2)
+        np.fill_diagonal(d, np.inf)
+        twin = d.min(1) < threshold
+        partner[twin], dist[twin] = d.argmin(1)[twin], d.min(1)[twin]
+    return partner, dist
 
 
 def _parabola_offset(left: float, mid: float, right: float) -> float:
@@ -227,10 +258,8 @@ class MarkerTracker:
         self.roi_margin = float(roi_margin)
         self.strength = np.full(P, np.nan)           # typical darkness of each marker's dot
         self.twins = np.zeros(P, dtype=bool)
-        if self.reference is not None and P > 1:
-            d = np.linalg.norm(self.reference[:, None] - self.reference[None], axis=2)
-            np.fill_diagonal(d, np.inf)
-            self.twins = d.min(1) < settings.twins
+        if self.reference is not None:
+            self.twins = twin_partners(self.reference, settings.twins)[0] >= 0
             self.init[self.twins] = np.nan
         self.last = self.init.copy()                  # last seen position (NaN if never seen)
         self.vel = np.zeros((P, 2))
@@ -238,6 +267,7 @@ class MarkerTracker:
         # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._rejected: list[np.ndarray] = []        # per image: sightings taken back by reject()
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -376,6 +406,7 @@ class MarkerTracker:
             seen_before = np.isfinite(self.strength[got])
             self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
         self._out.append((uv, status, score))
+        self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score
 
     @property
@@ -399,6 +430,7 @@ class MarkerTracker:
             if status[i] == LOST:
                 continue
             uv[i], status[i] = np.nan, LOST
+            self._rejected[-1][i] = True
             self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
             self.templates[i] = templates[i]
             self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
@@ -408,7 +440,7 @@ class MarkerTracker:
         if not self._out:
             raise ValueError("the tracker has seen no frames")
         uv, status, score = (np.stack(a) for a in zip(*self._out, strict=True))
-        return Tracks(uv, status != LOST, status, score)
+        return Tracks(uv, status != LOST, status, score, np.stack(self._rejected))
 
 
 def track_markers(frames: Iterable, initial_uv: np.ndarray,
