@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._rotation import corrective_triple, orient_frames, rotations_from_triple
+from ._threads import single_blas_thread
 from ._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
 from .bmm import min_trace_norm_shapes, rank_k_shapes
 from .bregler import bregler_factorization
@@ -124,7 +125,8 @@ class Reconstruction:
     @property
     def shapes(self) -> np.ndarray:
         """(F, 3, P) shapes in the camera frame (x right, y down as the tracks, z depth), centred."""
-        return self.rotations @ self.object_shapes
+        # einsum, not BLAS: the same bytes whatever the caller's BLAS thread count
+        return np.einsum("fij,fjp->fip", self.rotations, self.object_shapes)
 
     @property
     def S(self) -> np.ndarray:
@@ -153,6 +155,7 @@ def _tidy(R, C, B, t):
     return R, C, B - centre[:, :, None], t
 
 
+@single_blas_thread
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
                 n_starts: int = 4, shape_starts: int = 8, refine_iter: int = 100,
                 em_iter: int = 500) -> Reconstruction:
