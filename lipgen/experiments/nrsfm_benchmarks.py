@@ -74,7 +74,7 @@ def _run_one(W, S, k, method, **options) -> dict:
     seconds = time.perf_counter() - t0
     label = method + "".join(f" ({key}={value})" for key, value in options.items())
     return {"method": method, "label": label, "k": int(k), "n_basis": n_basis_shapes(int(k), method),
-            "e3d": e3d(rec.S, S), "seconds": seconds,
+            "e3d": e3d(S_est=rec.S, S_true=S), "seconds": seconds,
             "reprojection_rms": rec.reprojection_rms,
             "relative_reprojection": rec.reprojection_rms / float(np.sqrt(np.mean(
                 (W - W.mean(1, keepdims=True)) ** 2)))}

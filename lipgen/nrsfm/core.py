@@ -165,8 +165,10 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     ----------
     W : (2F, P) array_like
         Tracks under (scaled) orthography, rows u1, v1, u2, v2, ...
-    k : int
-        Number of basis shapes K (see :func:`lipgen.nrsfm.reprojection_curve` to choose it). For
+    k : int or "auto"
+        Number of basis shapes K, or ``"auto"``: K chosen from the reprojection curve of
+        ``method`` (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; the curve is kept
+        in ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
         shapes): em-ppca with K modes spans the same rank-3(K + 1) model as ``"dai"`` with K + 1.
     method : str
@@ -190,6 +192,8 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     Returns
     -------
     Reconstruction
+        The tracks are first divided by the power of two nearest their largest magnitude (exact,
+        so any scale from about 1e-301 to 1e300 is solved alike) and the shapes scaled back.
 
     Raises
     ------
@@ -199,6 +203,58 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     """
     if method not in METHODS:
         raise ValueError(f"unknown NRSfM method {method!r}; choose one of {sorted(METHODS)}")
+    options = {"seed": seed, "n_starts": n_starts, "shape_starts": shape_starts, "refine_iter": refine_iter,
+               "em_iter": em_iter}
+    if isinstance(k, str):
+        if k.strip().lower() != "auto":
+            raise ValueError(f"k must be an integer (number of basis shapes) or 'auto', got {k!r}")
+        from .metrics import reprojection_curve  # metrics builds on reconstruct
+
+        curve = reprojection_curve(W, method=method, visible=visible, **options)
+        rec = reconstruct(W, curve.chosen, method, visible, **options)
+        rec.info["k_curve"] = {"ks": curve.ks.tolist(), "relative": curve.relative.tolist(),
+                               "chosen": curve.chosen, "rule": curve.rule}
+        return rec
+    W, unit = _normalise_scale(W, visible)
+    rec = _reconstruct(W, k, method, visible, **options)
+    if unit == 1.0:
+        return rec
+    return Reconstruction(rotations=rec.rotations, weights=rec.weights, basis=rec.basis * unit,
+                          translation=rec.translation * unit, method=rec.method, k=rec.k,
+                          reprojection_rms=rec.reprojection_rms * unit, info=rec.info | {"scale": unit})
+
+
+_TINY = float(np.finfo(np.float64).tiny) * 2.0**20
+"""Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""
+
+
+def _normalise_scale(W, visible):
+    """W divided by a power of two near its largest observed magnitude (an exact rescale: the
+    result scales back without rounding), and that power. Nothing is checked here beyond what
+    the scale needs; :func:`check_tracks` does the rest."""
+    from .._validate import as_float_array
+
+    W = as_float_array(W, "W", finite=False)
+    if W.ndim != 2:
+        return W, 1.0
+    seen = np.isfinite(W)
+    if visible is not None and np.shape(visible) == (W.shape[0] // 2, W.shape[1]) and W.shape[0] % 2 == 0:
+        seen &= np.repeat(np.asarray(visible, dtype=bool), 2, axis=0)
+    if not seen.any():
+        return W, 1.0
+    top = float(np.abs(W[seen]).max())
+    if top == 0.0:
+        return W, 1.0
+    if top < _TINY:
+        raise ValueError(f"W of shape {W.shape} has coordinates no larger than {top:.3g}: at this scale "
+                         f"(below {_TINY:.3g}) doubles turn subnormal and lose digits; multiply W by a "
+                         "large power of ten (the shapes scale with it)")
+    unit = float(2.0 ** np.round(np.log2(top)))
+    return W / unit, unit
+
+
+def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_starts: int,
+                 refine_iter: int, em_iter: int) -> Reconstruction:
     tracks = check_tracks(W, visible)
     F, P = tracks.mask.shape
     k = check_method_k(k, method, F, P, tracks.n_observed)
