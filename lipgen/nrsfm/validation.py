@@ -119,7 +119,8 @@ def human_sequence(seed: int, n_frames: int = 300, motion: str | None = None) ->
     n_markers = int(rng.integers(40, 76))
     owner = np.concatenate([np.arange(1, nb), rng.integers(1, nb, n_markers - (nb - 1))])
     along = rng.uniform(0.2, 1.0, n_markers)
-    radius = np.array([_RADIUS.get(_NAMES[b], 0.04) for b in owner]) * 1700.0 * rng.uniform(0.5, 1.0, n_markers)
+    radius = np.array([_RADIUS.get(_NAMES[b], 0.04) for b in owner]) * 1700.0
+    radius = radius * rng.uniform(0.5, 1.0, n_markers)
     off = rng.standard_normal((n_markers, 3))
     off /= np.linalg.norm(off, axis=1, keepdims=True)
     pts = []
