@@ -32,7 +32,7 @@ def test_recovers_its_own_model_exactly(k):
     rng = np.random.default_rng(20 + k)
     W, S = _ppca_sequence(80, 18, k, rng)
     rec = reconstruct(W, k, method="em-ppca")
-    assert e3d(rec.S, S) < 1e-6
+    assert e3d(S_est=rec.S, S_true=S) < 1e-6
     _check_rotations(rec.rotations)
     assert rec.k == k and rec.weights.shape == (80, k + 1) and rec.basis.shape == (k + 1, 3, 18)
     assert np.allclose(rec.reproject(), W, atol=1e-6 * np.abs(W).max())
@@ -42,7 +42,7 @@ def test_recovers_its_own_model_exactly(k):
 def test_recovers_rank_k_shape_sequences_of_the_other_methods():
     # the other methods' generator: K basis shapes = em-ppca with K - 1 modes
     W, S, _ = low_rank_sequence(90, 20, 3, np.random.default_rng(5))
-    assert e3d(reconstruct(W, 2, method="em-ppca").S, S) < 1e-6
+    assert e3d(S_est=reconstruct(W, 2, method="em-ppca").S, S_true=S) < 1e-6
 
 
 def test_missing_data_recovery():
@@ -51,7 +51,7 @@ def test_missing_data_recovery():
     visible = rng.random((100, 20)) > 0.2
     W_missing = np.where(np.repeat(visible, 2, axis=0), W, np.nan)
     rec = reconstruct(W_missing, 2, method="em-ppca", visible=visible)
-    assert e3d(rec.S, S) < 1e-6
+    assert e3d(S_est=rec.S, S_true=S) < 1e-6
     assert np.allclose(rec.reproject(), W, atol=1e-6 * np.abs(W).max())  # hidden points predicted
 
 
@@ -98,7 +98,7 @@ def test_cli_em_ppca(tmp_path, capsys):
     assert "chosen K = 1" in text and "\n0   " in text  # the curve starts at 0 modes
     saved = load_shapes(out)
     assert saved["weights"].shape == (40, 2) and saved["basis"].shape == (2, 3, 12)
-    assert e3d(saved["S"], S) < 1e-6
+    assert e3d(S_est=saved["S"], S_true=S) < 1e-6
 
 
 def test_over_relaxation_keeps_the_answer_and_saves_iterations():
@@ -111,6 +111,6 @@ def test_over_relaxation_keeps_the_answer_and_saves_iterations():
     iterations = {}
     for growth in (1.0, 1.2):  # 1.0: plain EM
         R, C, B, t, info = em_ppca(tracks, 1, relax_growth=growth)
-        assert e3d(Reconstruction(R, C, B, t, "em-ppca", 1, 0.0).S, S) < 1e-6
+        assert e3d(S_est=Reconstruction(R, C, B, t, "em-ppca", 1, 0.0).S, S_true=S) < 1e-6
         iterations[growth] = info["iterations"]
     assert iterations[1.2] < 0.6 * iterations[1.0]

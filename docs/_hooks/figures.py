@@ -80,7 +80,7 @@ def nrsfm_figure(path: Path) -> None:
     A = np.concatenate(list(est), axis=1).T
     B = np.concatenate(list(true), axis=1).T
     Q, _ = orthogonal_procrustes(A, B)
-    err = nrsfm.e3d(rec.S, S)
+    err = nrsfm.e3d(S_est=rec.S, S_true=S)
     fig, axes = plt.subplots(2, 3, figsize=(9, 5.6))
     for col, f in enumerate((0, F // 2, F - 1)):
         e, t = (est[f].T @ Q).T, true[f]

@@ -42,10 +42,11 @@ def add_parser(sub) -> None:
         "nrsfm",
         help="non-rigid SfM on the standard sequences (drink, jaws) beside the published e3D",
         description="Run every NRSfM method on drink and jaws (drink.npz and jaws.npz from --data, "
-        "else $LIPGEN_NRSFM_DATA, else benchmarks/nrsfm of the source tree) at the published Ks "
+        "else $LIPGEN_NRSFM_DATA, else benchmarks/nrsfm in or beside the source tree) at the published Ks "
         "and at the K chosen from the "
         "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
-        "and on synthetic articulated sequences; write benchmarks.md, benchmarks.json and the "
+        "and on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation), beside "
+        "the flat zero-depth baseline; write benchmarks.md, benchmarks.json and the "
         "curves to --out. Takes minutes ('dai-ba' at K = 12-13 on drink).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
@@ -55,7 +56,8 @@ def add_parser(sub) -> None:
     n.add_argument("--data", default=None, metavar="DIR",
                    help="folder holding drink.npz and jaws.npz (default: $LIPGEN_NRSFM_DATA, else "
                    "benchmarks/nrsfm of the source tree)")
-    n.add_argument("--no-synthetic", action="store_true", help="skip the synthetic articulated sequences")
+    n.add_argument("--no-synthetic", action="store_true",
+                   help="skip the held-out validation set of synthetic human bodies")
     add_force(n, "the report files in --out")
     n.set_defaults(func=_nrsfm)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -92,7 +94,7 @@ def _nrsfm(args) -> int:
             raise FileNotFoundError(f"--data {args.data} is not a folder (it holds drink.npz, jaws.npz)")
         os.environ["LIPGEN_NRSFM_DATA"] = args.data  # read by data_dir(), in this process only
     settings = NrsfmBenchSettings(methods=tuple(args.methods),
-                                  synthetic_seeds=() if args.no_synthetic else (0, 1, 2, 3))
+                                  **({"validation_seeds": ()} if args.no_synthetic else {}))
     run_nrsfm_benchmarks(args.out, settings)
     sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")
     return 0

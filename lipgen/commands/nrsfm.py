@@ -151,6 +151,6 @@ def _run(args) -> int:
     write(f"method {rec.method}, K = {rec.k}: RMS reprojection {rec.reprojection_rms:.4g} "
           f"({seconds:.2f} s)\n")
     if "S" in data:
-        write(f"e3D against the S in {args.tracks}: {e3d(rec.S, data['S']):.4f}\n")
+        write(f"e3D against the S in {args.tracks}: {e3d(S_est=rec.S, S_true=data['S']):.4f}\n")
     write(f"wrote {out}\n")
     return 0

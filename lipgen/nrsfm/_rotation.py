@@ -14,7 +14,8 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-import scipy.optimize
+
+from ._lm import levenberg_marquardt
 
 __all__ = ["complete_rotations", "nearest_orthonormal_rows", "expm_so3", "skew",
            "corrective_triple", "rotations_from_triple", "orient_frames"]
@@ -83,7 +84,8 @@ def _metric_jacobian(x, M1, M2):
     return np.vstack([J1, J2])
 
 
-def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0) -> tuple[np.ndarray, float]:
+def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0,
+                      max_iter: int = 300) -> tuple[np.ndarray, float]:
     """One column triple g of the corrective transform, from the orthonormality of ``M_f g``.
 
     Minimises, over g (r x 3), the scale-free residuals ``|m1 g|^2 - |m2 g|^2`` and
@@ -100,6 +102,8 @@ def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0) -> tuple[
         Number of starting points.
     seed : int
         Seed of the random starts.
+    max_iter : int
+        Levenberg-Marquardt iterations per start (:func:`._lm.levenberg_marquardt`).
 
     Returns
     -------
@@ -113,17 +117,17 @@ def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0) -> tuple[
     starts = [np.eye(r, 3)] + [rng.standard_normal((r, 3)) for _ in range(max(n_starts, 1) - 1)]
     best, confirmed = None, False
     for g0 in starts:
-        res = scipy.optimize.least_squares(
-            _metric_residual, g0.ravel(), jac=_metric_jacobian, args=(M1, M2), method="lm",
-            xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200 * (3 * r + 1))
-        if best is not None and abs(res.cost - best.cost) <= 1e-6 * max(best.cost, 1e-300):
+        x, cost, _ = levenberg_marquardt(lambda x: _metric_residual(x, M1, M2),
+                                         lambda x: _metric_jacobian(x, M1, M2), g0.ravel(),
+                                         max_iter=max_iter)
+        if best is not None and abs(cost - best[1]) <= 1e-6 * max(best[1], 1e-300):
             confirmed = True
-        elif best is None or res.cost < best.cost:
-            best, confirmed = res, False
-        if confirmed or best.cost < 1e-24:
+        elif best is None or cost < best[1]:
+            best, confirmed = (x, cost), False
+        if confirmed or best[1] < 1e-24:
             break
-    log.debug("corrective triple: cost %.3e (%s)", best.cost, "confirmed" if confirmed else "unconfirmed")
-    return best.x.reshape(r, 3), float(best.cost)
+    log.debug("corrective triple: cost %.3e (%s)", best[1], "confirmed" if confirmed else "unconfirmed")
+    return best[0].reshape(r, 3), float(best[1])
 
 
 def rotations_from_triple(M: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -8,11 +8,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_from_triple
+from lipgen.nrsfm._threads import single_blas_thread
 from lipgen.nrsfm._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
 from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.lowrank import fit_rank_k
+from lipgen.nrsfm.plausibility import plausible, shape_figures
 from lipgen.nrsfm.refine import bundle_adjust
 
 __all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
@@ -24,11 +26,12 @@ METHODS: dict[str, str] = {
     "bregler": "Bregler, Hertzmann & Biermann 1999 as written: rank-3K SVD, per-frame rank-1 "
                "pose/weights, one 3x3 metric upgrade",
     "dai": "Dai, Li & He 2012 (prior-free): rotations from the orthonormality of one corrective "
-           "triple, shapes of least trace norm reprojecting exactly (block matrix method), cut to rank K; "
-           "then exactly K basis shapes fitted to the tracks with the rotations fixed (variable "
-           "projection, restarted when noise-free tracks are not fitted exactly)",
-    "dai-ba": "'dai' followed by low-rank bundle adjustment of rotations, weights, basis and "
-              "translation (Levenberg-Marquardt on the reprojection error)",
+           "triple (deterministic Levenberg-Marquardt), then the shapes of least trace norm that "
+           "reproject exactly (block matrix method, as published); when the tracks are exactly of rank "
+           "<= 3K (noise-free K shapes) exactly K basis shapes fitted with the rotations fixed instead",
+    "dai-ba": "'dai', then K basis shapes fitted with the rotations fixed and low-rank bundle adjustment "
+              "(Levenberg-Marquardt on the reprojection error), kept only if its depth neither inflates "
+              "nor roughens against the trace-norm shapes (lipgen.nrsfm.plausibility); else 'dai'",
     "em-ppca": "Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): mean shape plus K Gaussian "
                "deformation modes, fitted by EM from a rigid start; here K counts the modes, so the "
                "model has K + 1 basis shapes (rank 3(K + 1))",
@@ -80,7 +83,9 @@ class Reconstruction:
         Object-to-camera rotations; the third row is the cross product of the first two.
     weights : (F, N) float
         Configuration weights (they carry each frame's projection scale). N = K basis shapes,
-        except for ``method="em-ppca"`` where N = K + 1 (mean shape first, then the K modes).
+        except for ``method="em-ppca"`` where N = K + 1 (mean shape first, then the K modes), and
+        for ``"dai"`` (or a rejected ``"dai-ba"``) on tracks not exactly of rank <= 3K, where the
+        trace-norm shapes are returned whole: N is their numerical rank (``info["shapes"]``).
     basis : (N, 3, P) float
         Basis shapes in the object frame.
     translation : (F, 2) float
@@ -125,7 +130,8 @@ class Reconstruction:
     @property
     def shapes(self) -> np.ndarray:
         """(F, 3, P) shapes in the camera frame (x right, y down as the tracks, z depth), centred."""
-        return self.rotations @ self.object_shapes
+        # einsum, not BLAS: the same bytes whatever the caller's BLAS thread count
+        return np.einsum("fij,fjp->fip", self.rotations, self.object_shapes)
 
     @property
     def S(self) -> np.ndarray:
@@ -144,6 +150,14 @@ def _reprojection_rms(tracks, R, C, B, t) -> float:
     return float(np.sqrt((res**2).sum() / (2 * tracks.n_observed)))
 
 
+def _as_basis(shapes: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Shapes (F, 3, P) as weights (F, r) and basis (r, 3, P), r their numerical rank (exact)."""
+    F, _, P = shapes.shape
+    U, s, Vt = np.linalg.svd(shapes.reshape(F, -1), full_matrices=False)
+    r = max(int((s > rtol * s[0]).sum()), 1)
+    return U[:, :r] * s[:r], Vt[:r].reshape(r, 3, P)
+
+
 def _tidy(R, C, B, t):
     """Orient the frames (per-frame sign, see :func:`orient_frames`) and centre the basis shapes,
     moving their mean into the image translations."""
@@ -154,6 +168,7 @@ def _tidy(R, C, B, t):
     return R, C, B - centre[:, :, None], t
 
 
+@single_blas_thread
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
                 n_starts: int = 4, shape_starts: int = 8, refine_iter: int = 100,
                 em_iter: int = 500) -> Reconstruction:
@@ -163,8 +178,10 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     ----------
     W : (2F, P) array_like
         Tracks under (scaled) orthography, rows u1, v1, u2, v2, ...
-    k : int
-        Number of basis shapes K (see :func:`lipgen.nrsfm.reprojection_curve` to choose it). For
+    k : int or "auto"
+        Number of basis shapes K, or ``"auto"``: K chosen from the reprojection curve of
+        ``method`` (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; the curve is kept
+        in ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
         shapes): em-ppca with K modes spans the same rank-3(K + 1) model as ``"dai"`` with K + 1.
     method : str
@@ -188,6 +205,8 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     Returns
     -------
     Reconstruction
+        The tracks are first divided by the power of two nearest their largest magnitude (exact,
+        so any scale from about 1e-301 to 1e300 is solved alike) and the shapes scaled back.
 
     Raises
     ------
@@ -197,6 +216,58 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     """
     if method not in METHODS:
         raise ValueError(f"unknown NRSfM method {method!r}; choose one of {sorted(METHODS)}")
+    options = {"seed": seed, "n_starts": n_starts, "shape_starts": shape_starts, "refine_iter": refine_iter,
+               "em_iter": em_iter}
+    if isinstance(k, str):
+        if k.strip().lower() != "auto":
+            raise ValueError(f"k must be an integer (number of basis shapes) or 'auto', got {k!r}")
+        from .metrics import reprojection_curve  # metrics builds on reconstruct
+
+        curve = reprojection_curve(W, method=method, visible=visible, **options)
+        rec = reconstruct(W, curve.chosen, method, visible, **options)
+        rec.info["k_curve"] = {"ks": curve.ks.tolist(), "relative": curve.relative.tolist(),
+                               "chosen": curve.chosen, "rule": curve.rule}
+        return rec
+    W, unit = _normalise_scale(W, visible)
+    rec = _reconstruct(W, k, method, visible, **options)
+    if unit == 1.0:
+        return rec
+    return Reconstruction(rotations=rec.rotations, weights=rec.weights, basis=rec.basis * unit,
+                          translation=rec.translation * unit, method=rec.method, k=rec.k,
+                          reprojection_rms=rec.reprojection_rms * unit, info=rec.info | {"scale": unit})
+
+
+_TINY = float(np.finfo(np.float64).tiny) * 2.0**20
+"""Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""
+
+
+def _normalise_scale(W, visible):
+    """W divided by a power of two near its largest observed magnitude (an exact rescale: the
+    result scales back without rounding), and that power. Nothing is checked here beyond what
+    the scale needs; :func:`check_tracks` does the rest."""
+    from .._validate import as_float_array
+
+    W = as_float_array(W, "W", finite=False)
+    if W.ndim != 2:
+        return W, 1.0
+    seen = np.isfinite(W)
+    if visible is not None and np.shape(visible) == (W.shape[0] // 2, W.shape[1]) and W.shape[0] % 2 == 0:
+        seen &= np.repeat(np.asarray(visible, dtype=bool), 2, axis=0)
+    if not seen.any():
+        return W, 1.0
+    top = float(np.abs(W[seen]).max())
+    if top == 0.0:
+        return W, 1.0
+    if top < _TINY:
+        raise ValueError(f"W of shape {W.shape} has coordinates no larger than {top:.3g}: at this scale "
+                         f"(below {_TINY:.3g}) doubles turn subnormal and lose digits; multiply W by a "
+                         "large power of ten (the shapes scale with it)")
+    unit = float(2.0 ** np.round(np.log2(top)))
+    return W / unit, unit
+
+
+def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_starts: int,
+                 refine_iter: int, em_iter: int) -> Reconstruction:
     tracks = check_tracks(W, visible)
     F, P = tracks.mask.shape
     k = check_method_k(k, method, F, P, tracks.n_observed)
@@ -225,18 +296,37 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         R, _ = rotations_from_triple(M, g)
         shapes = min_trace_norm_shapes(Wc, R, None if tracks.complete else tracks.mask)
         R, shapes, _ = orient_frames(R, shapes)
+        mask = None if tracks.complete else tracks.mask
+        ref = shape_figures(R, shapes)
+        info.update(rotation_cost=cost, trace_norm_shapes=ref)
+        # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
+        # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start
         C, B = rank_k_shapes(shapes, k)
-        # the trace-norm cut is only a start: with R fixed, fit exactly K basis shapes
-        C, B, shift, fit = fit_rank_k(Wc, R, B, None if tracks.complete else tracks.mask,
-                                      exact_model=rank <= 3 * k, n_starts=shape_starts, seed=seed)
-        R, C, B, t = _tidy(R, C, B, t + shift)
-        info["rotation_cost"] = cost
+        C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
+                                      seed=seed)
         info.update(fit)
+        fitted = (R, C, B, t + shift)
+        info["rank_k_reprojection_rms"] = _reprojection_rms(tracks, *_tidy(*fitted))
+        if fit["shape_exact"]:
+            info["shapes"] = "rank-K fit"
+            R, C, B, t = _tidy(*fitted)
+        else:  # Dai's trace-norm shapes (the block matrix method as published): on held-out bodies the
+            # rank-K fit inflated depth (e3D up to 19 where these gave 0.16; see lipgen.nrsfm.plausibility)
+            info["shapes"] = "trace norm"
+            C, B = _as_basis(shapes)
+            R, C, B, t = _tidy(R, C, B, t)
         if method == "dai-ba":
-            R, C, B, t, history = bundle_adjust(tracks.W, R, C, B, t, None if tracks.complete else
-                                                tracks.mask, max_iter=refine_iter)
-            info["ba_cost"] = [history[0], history[-1]]
-            info["ba_steps"] = len(history) - 1
+            Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *_tidy(*fitted), mask, max_iter=refine_iter)
+            ba = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
+            keep = plausible(ba, ref)
+            info.update(ba_cost=[history[0], history[-1]], ba_steps=len(history) - 1, ba_shapes=ba,
+                        ba_kept=bool(keep))
+            if keep:
+                R, C, B, t = Rb, Cb, Bb, tb
+            else:
+                log.info("bundle adjustment rejected (depth ratio %.3g, depth roughness %.3g against the "
+                         "trace-norm shapes' %.3g, %.3g): returning its start", ba["depth_ratio"],
+                         ba["depth_roughness"], ref["depth_ratio"], ref["depth_roughness"])
     rms = _reprojection_rms(tracks, R, C, B, t)
     return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                           reprojection_rms=rms, info=info)

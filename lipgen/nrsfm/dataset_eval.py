@@ -148,12 +148,12 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
     if not use_visibility and uv is None:
         W, visible = data["W_all"], np.ones_like(visible)
     rec = reconstruct(W, k, method=method, visible=None if visible.all() else visible)
-    err = e3d(rec.S, S)
+    err = e3d(S_est=rec.S, S_true=S)
     # Baseline: no depth at all (the weak-perspective tracks with z = 0), where fully observed.
     F, P = visible.shape
     flat = np.zeros((F, 3, P))
     flat[:, :2] = np.nan_to_num(data["W_all"]).reshape(F, 2, P)
-    flat_err = e3d(flat, S)
+    flat_err = e3d(S_est=flat, S_true=S)
     s = float(np.mean(np.std(S, axis=1)))
     result = {"e3d": err, "flat_e3d": flat_err, "mean_error_mm": err * s, "frames": F, "points": P,
               "observed_fraction": float(visible.mean()), "k": rec.k, "method": method, "view": view,
