@@ -107,6 +107,14 @@ class _Context:
 _WORKER: dict = {}
 
 
+def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
+    """A pool process: it ends when the generating process is killed, then prepares to render."""
+    from ._lifeline import die_with_parent
+
+    die_with_parent(parent_pid)
+    _init_worker(ctx)
+
+
 def _init_worker(ctx: _Context) -> None:
     from .calibrate import Chessboard
     from .mesh import LipMesh
@@ -330,7 +338,8 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
                 _WORKER.clear()
         else:
             spawn = multiprocessing.get_context("spawn")  # a fresh process per GL context
-            pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_worker, initargs=(ctx,))
+            pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_pool_worker,
+                                       initargs=(ctx, os.getpid()))
             with pool as ex:
                 futures = [ex.submit(_run_job, job) for job in jobs]
                 pending = set(futures)
