@@ -1,0 +1,140 @@
+"""The tasks of a campaign, as plain functions of paths and settings.
+
+Each runs in a worker (a Ray task, or a local process) and writes its outputs atomically into
+the item's folder (layout: :mod:`lipgen.campaign.store`); it returns a small JSON-able summary.
+They are the same code paths as the commands ``lipgen generate / reconstruct / train /
+evaluate`` and the NRSfM section of the report.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+__all__ = ["limit_threads", "prepare", "render_chunk", "reconstruct", "train", "evaluate", "nrsfm",
+           "chunks", "STAGE_FUNCTIONS"]
+
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def limit_threads() -> None:
+    """One BLAS thread per task: a worker is given one core; more threads would oversubscribe it."""
+    for var in THREAD_VARS:
+        os.environ[var] = "1"
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # BLAS started in this process before now keeps its threads
+        return
+    threadpool_limits(1)
+
+
+def chunks(jobs: list, size: int) -> list[list]:
+    """``jobs`` cut into runs of at most ``size``."""
+    return [jobs[i:i + size] for i in range(0, len(jobs), size)]
+
+
+def prepare(dataset: str, settings: dict):
+    """Simulate the subject and lay out the dataset folder; returns (context, jobs still to do)."""
+    from ..dataset import GenerateSettings
+    from ..generate import prepare_dataset
+
+    limit_threads()
+    return prepare_dataset(dataset, GenerateSettings.from_dict(settings), resume=True)
+
+
+def render_chunk(ctx, jobs: list) -> dict:
+    """Render and write some frames of one dataset."""
+    from ..generate import render_jobs
+
+    limit_threads()
+    t0 = time.perf_counter()
+    n = render_jobs(ctx, [tuple(j) for j in jobs])
+    return {"frames": n, "seconds": time.perf_counter() - t0, "pid": os.getpid(), "peak_rss_mib": _peak_mib()}
+
+
+def _peak_mib() -> float | None:
+    try:
+        import resource
+
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    except (ImportError, OSError):
+        return None
+
+
+def reconstruct(item: str, options: dict) -> dict:
+    """``lipgen reconstruct`` of the item's dataset -> ``recon.npz``."""
+    from ..pipeline import reconstruct_dataset
+
+    limit_threads()
+    d = Path(item)
+    recon = reconstruct_dataset(d / "dataset", options.get("mesh", "lip_mesh(0)"), progress=False,
+                                normalisation=options.get("normalisation", "least-force"))
+    recon.save(d / "recon.npz")
+    return {"visible_share": float(recon.visible.mean())}
+
+
+def train(item: str, options: dict) -> dict:
+    """``lipgen train`` on the item's reconstruction -> ``model.npz``."""
+    from ..evaluate import default_test_frames, split_frames
+    from ..modes import ModeModel
+    from ..pipeline import Reconstruction, model_mesh
+
+    limit_threads()
+    d = Path(item)
+    recon = Reconstruction.load(d / "recon.npz")
+    T = options.get("test_frames") or default_test_frames(len(recon.fields))
+    tr, _ = split_frames(recon.fields, T)
+    mesh = model_mesh(recon.info["mesh_source"])
+    model = ModeModel(options.get("modes", 10)).fit(recon.fields[tr], mesh=mesh)
+    model.save(d / "model.npz")
+    return {"train_frames": int(len(tr)), "modes": int(len(model.components_))}
+
+
+def evaluate(item: str, options: dict) -> dict:
+    """``lipgen evaluate`` of the item -> ``report/report.md`` and ``report/report.json``."""
+    from ..dataset import Dataset
+    from ..evaluate import score
+    from ..modes import ModeModel
+    from ..pipeline import Reconstruction, model_mesh
+    from ..report import write_report
+
+    limit_threads()
+    d = Path(item)
+    recon = Reconstruction.load(d / "recon.npz")
+    mesh = model_mesh(recon.info["mesh_source"])
+    ds, model = Dataset(d / "dataset"), ModeModel.load(d / "model.npz")
+    s = score(ds, model, recon, options.get("test_frames"), mesh)
+    write_report(d / "report", s, ds, model, recon, mesh)
+    return {"triangulation_rms_mm": s["triangulation"]["rms_mm"]}
+
+
+def nrsfm(item: str, options: dict) -> dict:
+    """Monocular NRSfM on one view of the item's dataset (truth projections, and the tracker's
+    tracks when the item was reconstructed) -> ``nrsfm.json``."""
+    import numpy as np
+
+    from .._io import atomic_write_json
+    from ..camera import VIEWS
+    from ..nrsfm import evaluate_on_dataset
+
+    limit_threads()
+    d = Path(item)
+    view, k, method = options.get("view", "real"), options.get("k", 2), options.get("method", "dai")
+    out = {"truth_tracks": evaluate_on_dataset(d / "dataset", view=view, k=k, method=method)}
+    if (d / "recon.npz").is_file():
+        from ..pipeline import Reconstruction
+        from ..track import LOST
+
+        recon = Reconstruction.load(d / "recon.npz")
+        v = list(VIEWS).index(view)
+        seen = np.isfinite(recon.uv[v]).all(axis=-1) & (recon.status[v] != LOST)
+        out["tracked"] = evaluate_on_dataset(d / "dataset", view=view, k=k, method=method, uv=recon.uv[v],
+                                             seen=seen)
+    for r in out.values():
+        r.pop("markdown", None)
+    atomic_write_json(d / "nrsfm.json", out)
+    return {"e3d": out["truth_tracks"]["e3d"]}
+
+
+STAGE_FUNCTIONS = {"reconstruct": reconstruct, "train": train, "evaluate": evaluate, "nrsfm": nrsfm}
