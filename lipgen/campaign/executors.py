@@ -26,7 +26,7 @@ log = logging.getLogger(__name__)
 _THREADS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-class ClusterError(LipgenError, RuntimeError):
+class ClusterError(LipgenError, ConnectionError):
     """The Ray cluster cannot be reached or started."""
 
 

@@ -38,7 +38,7 @@ SCHEMA = 1
 _PACKAGES = ("lipgen", "numpy", "scipy", "pyrender", "ray")
 
 
-class CampaignError(LipgenError, RuntimeError):
+class CampaignError(LipgenError, ValueError):
     """A campaign folder that is another's, locked, or does not match the plan."""
 
 
