@@ -191,6 +191,8 @@ def parse_plan(raw: dict) -> CampaignPlan:
         if missing:
             raise PlanError(f"plan: [campaign] stages: {s!r} needs {missing} in the stages too")
     stages = tuple(s for s in STAGES if s in stages)
+    chunk_frames = _whole(camp, "chunk_frames", 16, 1, 100_000)
+    retries = _whole(camp, "retries", 2, 0, 20)
     name = camp.get("name", "campaign")
     if not isinstance(name, str) or not name.strip():
         raise PlanError(f"plan: [campaign] name must be a non-empty string, got {name!r}")
@@ -231,8 +233,7 @@ def parse_plan(raw: dict) -> CampaignPlan:
     if "train" in stages:
         _check_training(items, train)
     return CampaignPlan(items=tuple(items), stages=stages,
-                        chunk_frames=_whole(camp, "chunk_frames", 16, 1, 100_000),
-                        retries=_whole(camp, "retries", 2, 0, 20), name=name,
+                        chunk_frames=chunk_frames, retries=retries, name=name,
                         reconstruct=_stage_table(raw, "reconstruct"), train=train,
                         nrsfm=_stage_table(raw, "nrsfm"), swept_keys=swept_keys)
 

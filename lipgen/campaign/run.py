@@ -81,8 +81,9 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
         From :func:`lipgen.campaign.load_plan`.
     out : path
         A new or empty folder, or (``resume``) this plan's earlier campaign.
-    executor : {"ray", "local"}
-        Ray tasks (embedded local Ray, or the cluster at ``address``), or local processes.
+    executor : {"ray", "local"} or executor
+        Ray tasks (embedded local Ray, or the cluster at ``address``), or local processes; or an
+        executor already made (:func:`lipgen.campaign.make_executor`), which is left running.
     address : str, optional
         A running Ray cluster (``HOST:PORT``, ``ray://HOST:PORT`` or ``auto``).
     workers : int, optional
@@ -110,10 +111,12 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
         for entry in index["items"]:
             if entry["status"] != "done":
                 entry["status"] = "pending"
+                gen = entry["stages"].get("generate", {})
+                redo = gen.get("status") == "done" and _incomplete(item_dir(out, entry["name"]) / "dataset")
                 for st in entry["stages"].values():
-                    if st["status"] != "done":
+                    if st["status"] != "done" or redo:  # a dataset that lost files: its stages again
                         st.update(status="pending", error=None)
-        run = {"started": _now(), "executor": executor, "address": address}
+        run = {"started": _now(), "executor": getattr(executor, "kind", executor), "address": address}
         index["runs"].append(run)
         write_index(out, index)
         items = [_Item(e, plan, out) for e in index["items"] if e["status"] != "done"]
@@ -121,7 +124,8 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
         done_frames = total - sum(it.settings.frames + it.settings.calib_frames for it in plan.items
                                   if index["items"][it.index]["stages"].get("generate", {}).get("status")
                                   != "done")
-        ex = make_executor(executor, address, workers, plan.retries, dashboard)
+        own = isinstance(executor, str)
+        ex = make_executor(executor, address, workers, plan.retries, dashboard) if own else executor
         run["workers"] = ex.workers
         if ex.dashboard_url:
             log.warning("Ray dashboard: http://%s", ex.dashboard_url)
@@ -137,8 +141,22 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
                         st["status"] = "interrupted"
             run["finished"] = _now()
             write_index(out, index)
-            ex.shutdown()
+            if own:
+                ex.shutdown()
     return index
+
+
+def _incomplete(dataset: Path) -> bool:
+    """Whether a dataset folder lacks any frame or calibration file (cheap: no image is read)."""
+    from ..dataset import Dataset
+    from ..errors import DatasetError
+
+    try:
+        ds = Dataset(dataset)
+    except DatasetError:
+        return True
+    calib = ds.manifest["calibration"]["frames"]
+    return bool(ds.missing()) or not all((dataset / f[k]).is_file() for f in calib for k in ("raw", "truth"))
 
 
 def _fail(item: _Item, stage: str, exc: BaseException) -> None:
