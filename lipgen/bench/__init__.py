@@ -19,7 +19,7 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from .._io import atomic_write_json
+from lipgen._io import atomic_write_json
 
 __all__ = ["SUITE_MODULES", "available_suites", "machine_info", "run_benchmarks"]
 
@@ -34,6 +34,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.render",
     "lipgen.bench.blender",
 )
+"""The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
              "opencv-python-headless")

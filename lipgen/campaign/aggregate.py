@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_path, atomic_write_bytes, atomic_write_json
-from .store import item_dir, read_index
+from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
+from lipgen.campaign.store import item_dir, read_index
 
 __all__ = ["collect", "interval", "write_campaign_report", "SUBJECT_KEYS"]
 
@@ -99,7 +99,7 @@ def _table51_md(items: list[dict]) -> list[str]:
     tabs = [e["figures"]["table51"] for e in items if "table51" in e["figures"]]
     if not tabs:
         return ["No item was evaluated."]
-    from ..evaluate import ROWS
+    from lipgen.evaluate.scoring import ROWS
 
     rows = [r for r in ROWS if r in tabs[0]] + [r for r in tabs[0] if r not in ROWS]
     cols = list(tabs[0][rows[0]])

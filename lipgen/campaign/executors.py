@@ -17,7 +17,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from concurrent.futures.process import BrokenProcessPool
 
-from ..errors import LipgenError
+from lipgen.errors import LipgenError
 
 __all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "make_executor"]
 
@@ -57,7 +57,7 @@ class RayExecutor:
 
     def __init__(self, address: str | None = None, num_cpus: int | None = None, retries: int = 2,
                  dashboard: bool = False) -> None:
-        from .._optional import require
+        from lipgen._optional import require
 
         ray = require("ray", "lipgen campaign")
         self.ray, self.retries = ray, retries
@@ -119,8 +119,8 @@ def _broke(h: _Handle) -> bool:
 
 
 def _init_local(parent_pid: int) -> None:
-    from .._lifeline import die_with_parent
-    from .stages import limit_threads
+    from lipgen._lifeline import die_with_parent
+    from lipgen.campaign.stages import limit_threads
 
     die_with_parent(parent_pid)
     limit_threads()

@@ -38,8 +38,8 @@ import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
-from ..dataset import GenerateSettings
-from ..errors import LipgenError
+from lipgen.dataset.layout import GenerateSettings
+from lipgen.errors import LipgenError
 
 __all__ = ["PlanError", "CampaignPlan", "CampaignItem", "STAGES", "load_plan", "parse_plan"]
 
@@ -144,12 +144,12 @@ def _stage_table(raw: dict, name: str) -> dict:
     if name == "nrsfm":
         if table.get("view", "real") not in ("real", "virtual"):
             raise PlanError(f"plan: [nrsfm] view must be 'real' or 'virtual', got {table['view']!r}")
-        from ..nrsfm import METHODS
+        from lipgen.nrsfm import METHODS
 
         if table.get("method", "dai") not in METHODS:
             raise PlanError(f"plan: [nrsfm] method must be one of {sorted(METHODS)}, got {table['method']!r}")
     if name == "reconstruct":
-        from ..normalize import METHODS
+        from lipgen.recon.normalize import METHODS
 
         if table.get("normalisation", "least-force") not in METHODS:
             raise PlanError(f"plan: [reconstruct] normalisation must be one of {sorted(METHODS)}, "
@@ -240,7 +240,7 @@ def parse_plan(raw: dict) -> CampaignPlan:
 
 def _check_training(items: list[CampaignItem], train: dict) -> None:
     """Each item must leave enough training frames for the modes (the last frames are held out)."""
-    from ..evaluate import default_test_frames
+    from lipgen.evaluate.scoring import default_test_frames
 
     modes = train.get("modes", 10)
     for it in items:

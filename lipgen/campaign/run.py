@@ -17,11 +17,11 @@ import time
 import traceback
 from pathlib import Path
 
-from .. import __version__
-from .executors import check_address, make_executor
-from .plan import CampaignPlan
-from .stages import STAGE_FUNCTIONS, chunks, prepare, render_chunk
-from .store import (
+from lipgen import __version__
+from lipgen.campaign.executors import check_address, make_executor
+from lipgen.campaign.plan import CampaignPlan
+from lipgen.campaign.stages import STAGE_FUNCTIONS, chunks, prepare, render_chunk
+from lipgen.campaign.store import (
     FORMAT,
     SCHEMA,
     campaign_lock,
@@ -148,8 +148,8 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
 
 def _incomplete(dataset: Path) -> bool:
     """Whether a dataset folder lacks any frame or calibration file (cheap: no image is read)."""
-    from ..dataset import Dataset
-    from ..errors import DatasetError
+    from lipgen.dataset.layout import Dataset
+    from lipgen.errors import DatasetError
 
     try:
         ds = Dataset(dataset)

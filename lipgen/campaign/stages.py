@@ -36,8 +36,8 @@ def chunks(jobs: list, size: int) -> list[list]:
 
 def prepare(dataset: str, settings: dict):
     """Simulate the subject and lay out the dataset folder; returns (context, jobs still to do)."""
-    from ..dataset import GenerateSettings
-    from ..generate import prepare_dataset
+    from lipgen.dataset.generate import prepare_dataset
+    from lipgen.dataset.layout import GenerateSettings
 
     limit_threads()
     return prepare_dataset(dataset, GenerateSettings.from_dict(settings), resume=True)
@@ -45,7 +45,7 @@ def prepare(dataset: str, settings: dict):
 
 def render_chunk(ctx, jobs: list) -> dict:
     """Render and write some frames of one dataset."""
-    from ..generate import render_jobs
+    from lipgen.dataset.generate import render_jobs
 
     limit_threads()
     t0 = time.perf_counter()
@@ -64,7 +64,7 @@ def _peak_mib() -> float | None:
 
 def reconstruct(item: str, options: dict) -> dict:
     """``lipgen reconstruct`` of the item's dataset -> ``recon.npz``."""
-    from ..pipeline import reconstruct_dataset
+    from lipgen.recon.pipeline import reconstruct_dataset
 
     limit_threads()
     d = Path(item)
@@ -76,9 +76,9 @@ def reconstruct(item: str, options: dict) -> dict:
 
 def train(item: str, options: dict) -> dict:
     """``lipgen train`` on the item's reconstruction -> ``model.npz``."""
-    from ..evaluate import default_test_frames, split_frames
-    from ..modes import ModeModel
-    from ..pipeline import Reconstruction, model_mesh
+    from lipgen.evaluate.scoring import default_test_frames, split_frames
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import Reconstruction, model_mesh
 
     limit_threads()
     d = Path(item)
@@ -93,11 +93,11 @@ def train(item: str, options: dict) -> dict:
 
 def evaluate(item: str, options: dict) -> dict:
     """``lipgen evaluate`` of the item -> ``report/report.md`` and ``report/report.json``."""
-    from ..dataset import Dataset
-    from ..evaluate import score
-    from ..modes import ModeModel
-    from ..pipeline import Reconstruction, model_mesh
-    from ..report import write_report
+    from lipgen.dataset.layout import Dataset
+    from lipgen.evaluate.report import write_report
+    from lipgen.evaluate.scoring import score
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import Reconstruction, model_mesh
 
     limit_threads()
     d = Path(item)
@@ -114,17 +114,17 @@ def nrsfm(item: str, options: dict) -> dict:
     tracks when the item was reconstructed) -> ``nrsfm.json``."""
     import numpy as np
 
-    from .._io import atomic_write_json
-    from ..camera import VIEWS
-    from ..nrsfm import evaluate_on_dataset
+    from lipgen._io import atomic_write_json
+    from lipgen.nrsfm import evaluate_on_dataset
+    from lipgen.rig.camera import VIEWS
 
     limit_threads()
     d = Path(item)
     view, k, method = options.get("view", "real"), options.get("k", 2), options.get("method", "dai")
     out = {"truth_tracks": evaluate_on_dataset(d / "dataset", view=view, k=k, method=method)}
     if (d / "recon.npz").is_file():
-        from ..pipeline import Reconstruction
-        from ..track import LOST
+        from lipgen.recon.pipeline import Reconstruction
+        from lipgen.recon.track import LOST
 
         recon = Reconstruction.load(d / "recon.npz")
         v = list(VIEWS).index(view)

@@ -26,8 +26,8 @@ import platform
 from importlib import metadata
 from pathlib import Path
 
-from .._io import atomic_write_json
-from ..errors import LipgenError
+from lipgen._io import atomic_write_json
+from lipgen.errors import LipgenError
 
 __all__ = ["CampaignError", "INDEX", "LOCK", "campaign_lock", "prepare_folder", "read_index", "write_index",
            "versions", "item_dir"]

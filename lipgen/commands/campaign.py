@@ -62,14 +62,14 @@ def add_parser(sub) -> None:
 
 def _run(args) -> int:
     if args.plan == "report":
-        from ..campaign.aggregate import write_campaign_report
+        from lipgen.campaign.aggregate import write_campaign_report
 
         if not args.dir:
             raise ValueError("lipgen campaign report needs the campaign folder: lipgen campaign report DIR")
         path = write_campaign_report(args.dir, args.report_out)
         sys.stdout.write(f"report: {path}\n")
         return 0
-    from ..campaign import load_plan, run_campaign
+    from lipgen.campaign import load_plan, run_campaign
 
     if args.dir:
         raise ValueError(f"unexpected argument {args.dir!r}; the campaign folder is given with --out")
