@@ -23,7 +23,8 @@ __all__ = ["die_with_parent", "PR_SET_PDEATHSIG"]
 
 log = logging.getLogger(__name__)
 
-PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+PR_SET_PDEATHSIG = 1
+"""The prctl option that arms the parent-death signal (``<linux/prctl.h>``)."""
 
 
 def _set_pdeathsig(sig: int) -> bool:

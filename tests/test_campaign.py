@@ -222,6 +222,7 @@ def ray_executor():
     ex.shutdown()
 
 
+@pytest.mark.slow  # Ray's own start-up (~20 s here, more under load)
 def test_ray_workers_rerun_a_killed_task_and_use_one_blas_thread(ray_executor, tmp_path):
     def crash_once(marker: str) -> int:  # nested, so Ray ships it by value
         if not os.path.exists(marker):
@@ -234,6 +235,7 @@ def test_ray_workers_rerun_a_killed_task_and_use_one_blas_thread(ray_executor, t
     assert ray_executor.result(ray_executor.submit(os.getenv, "OPENBLAS_NUM_THREADS")) == "1"
 
 
+@pytest.mark.slow
 @pytest.mark.render
 def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
     pytest.importorskip("lipgen.render")

@@ -64,14 +64,21 @@ class RayExecutor:
         env = {"env_vars": dict(_THREADS_ENV)}
         if address is not None:
             check_address(address)
-        try:
-            if address is None:
-                ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard, runtime_env=env,
-                         log_to_driver=False, configure_logging=False)
-            else:
-                ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
-        except (ConnectionError, RuntimeError, ValueError) as exc:
-            raise ClusterError(f"could not start or join Ray (address {address or 'local'}): {exc}") from exc
+        for attempt in range(3):  # Ray gives its raylet 30 s to start, which a loaded machine can miss
+            try:
+                if address is None:
+                    ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard,
+                             runtime_env=env, log_to_driver=False, configure_logging=False)
+                else:
+                    ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
+                break
+            except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a slow start)
+                ray.shutdown()
+                if address is None and "timed out during startup" in str(exc) and attempt < 2:
+                    log.warning("Ray did not start in time (%s); trying again", exc)
+                    continue
+                where = address or "local"
+                raise ClusterError(f"could not start or join Ray (address {where}): {exc}") from exc
         self._remote: dict = {}
         ctx = ray.get_runtime_context()
         self.dashboard_url = getattr(ctx, "dashboard_url", None) or None
@@ -82,21 +89,25 @@ class RayExecutor:
         return int(self.ray.cluster_resources().get("CPU", 1))
 
     def put(self, obj):
+        """Store ``obj`` once in the object store; tasks given the reference read it there."""
         return self.ray.put(obj)
 
     def submit(self, fn, *args):
+        """Run ``fn(*args)`` as a Ray task (one CPU, re-run if its worker dies); returns its reference."""
         key = fn.__module__ + "." + fn.__qualname__
         if key not in self._remote:
             self._remote[key] = self.ray.remote(num_cpus=1, max_retries=self.retries)(fn)
         return self._remote[key].remote(*args)
 
     def wait(self, handles, timeout: float = 0.5) -> list:
+        """The ``handles`` that finished, waiting at most ``timeout`` seconds."""
         if not handles:
             return []
         done, _ = self.ray.wait(list(handles), num_returns=len(handles), timeout=timeout)
         return done
 
     def result(self, handle):
+        """The task's value, or its own exception raised here."""
         try:
             return self.ray.get(handle)
         except self.ray.exceptions.RayTaskError as exc:  # the task's own exception, as raised there
@@ -104,6 +115,7 @@ class RayExecutor:
             raise cause from None
 
     def shutdown(self) -> None:
+        """Disconnect (and stop the embedded Ray)."""
         self.ray.shutdown()
 
 
@@ -147,6 +159,7 @@ class LocalExecutor:
                                    initializer=_init_local, initargs=(os.getpid(),))
 
     def put(self, obj):
+        """``obj`` itself: it is pickled with each task."""
         return obj
 
     def _start(self, h: _Handle) -> None:
@@ -154,12 +167,15 @@ class LocalExecutor:
         h.future = self._pool.submit(h.fn, *h.args)
 
     def submit(self, fn, *args) -> _Handle:
+        """Run ``fn(*args)`` on a local process; returns its handle."""
         h = _Handle(fn, args)
         self._start(h)
         self._live.append(h)
         return h
 
     def wait(self, handles, timeout: float = 0.5) -> list:
+        """The ``handles`` that finished within ``timeout`` seconds; tasks lost with a dead worker
+        are submitted again (up to ``retries`` times) and are not finished."""
         handles = list(handles)
         if not handles:
             return []
@@ -177,9 +193,11 @@ class LocalExecutor:
         return done
 
     def result(self, handle: _Handle):
+        """The task's value, or its exception raised here."""
         return handle.future.result()
 
     def shutdown(self) -> None:
+        """Stop the processes (pending tasks are cancelled)."""
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 

@@ -44,6 +44,7 @@ from lipgen.errors import LipgenError
 __all__ = ["PlanError", "CampaignPlan", "CampaignItem", "STAGES", "load_plan", "parse_plan"]
 
 STAGES = ("generate", "reconstruct", "train", "evaluate", "nrsfm")
+"""The stages a plan may name, in pipeline order."""
 _NEEDS = {"reconstruct": ("generate",), "train": ("reconstruct",), "evaluate": ("train",),
           "nrsfm": ("generate",)}
 _TOP = {"campaign", "base", "grid", "items", "reconstruct", "train", "nrsfm"}

@@ -138,3 +138,4 @@ def nrsfm(item: str, options: dict) -> dict:
 
 
 STAGE_FUNCTIONS = {"reconstruct": reconstruct, "train": train, "evaluate": evaluate, "nrsfm": nrsfm}
+"""The task of each stage after generate, by name; each takes (item folder, options)."""

@@ -54,6 +54,7 @@ def versions() -> dict:
 
 
 def item_dir(root, name: str) -> Path:
+    """The folder of item ``name`` in campaign ``root``."""
     return Path(root) / "items" / name
 
 
@@ -73,6 +74,7 @@ def read_index(root) -> dict:
 
 
 def write_index(root, index: dict) -> None:
+    """Write the index of campaign ``root`` atomically, stamped with the time."""
     index["updated"] = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
     atomic_write_json(Path(root) / INDEX, index)
 
