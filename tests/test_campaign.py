@@ -250,3 +250,32 @@ def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
         ref = generate(tmp_path / f"ref{k}", item.settings, progress=False)
         a, b = _files(ref), _files(tmp_path / "c" / "items" / item.name / "dataset")
         assert a.keys() == b.keys() and all(a[n] == b[n] for n in a), f"item {k} differs from generate"
+
+
+# --- documentation that runs ------------------------------------------------------------------
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "campaign"
+
+
+def test_the_example_plan_and_cluster_file_are_valid():
+    plan = load_plan(EXAMPLES / "plan.toml")
+    assert len(plan.items) == 30 and plan.swept_keys == ("seed", "noise", "head_rotation_deg")
+    yaml = pytest.importorskip("yaml")
+    cluster = yaml.safe_load((EXAMPLES / "cluster.yaml").read_text())
+    keys = {"cluster_name", "provider", "available_node_types", "head_node_type", "setup_commands"}
+    assert keys <= set(cluster)
+    assert cluster["head_node_type"] in cluster["available_node_types"]
+    assert any("libegl1" in c for c in cluster["setup_commands"])
+
+
+def test_campaign_help_and_bad_command_lines(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["campaign", "--help"])
+    text = capsys.readouterr().out
+    assert "lipgen campaign report" in text and "--address" in text and "[grid]" in text
+    assert main(["campaign", "report"]) == 1
+    assert "needs the campaign folder" in capsys.readouterr().err
+    assert main(["campaign", str(EXAMPLES / "plan.toml")]) == 1
+    assert "--out DIR is required" in capsys.readouterr().err
+    assert main(["campaign", "report", str(tmp_path)]) == 1
+    assert "not a campaign folder" in capsys.readouterr().err

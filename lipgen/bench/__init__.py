@@ -33,6 +33,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.mesh",
     "lipgen.bench.render",
     "lipgen.bench.blender",
+    "lipgen.bench.campaign",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 
