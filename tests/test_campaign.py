@@ -7,6 +7,7 @@ The datasets are tiny (160x120, a few frames); a campaign's dataset must be byte
 
 import json
 import os
+import threading
 import time
 from pathlib import Path
 
@@ -212,6 +213,36 @@ def test_a_local_campaign_matches_generate_fails_one_item_and_resumes(tmp_path):
 # --- running: Ray ----------------------------------------------------------------------------
 
 
+def _ours(pid: int) -> bool:
+    """Whether ``pid`` descends from this test process (only those are ever killed)."""
+    me = os.getpid()
+    while pid > 1:
+        if pid == me:
+            return True
+        try:
+            pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            return False
+    return False
+
+
+def _kill_one_render_worker(runner) -> int | None:
+    """SIGKILL the first of our Ray workers seen rendering a chunk (its title is set by Ray)."""
+    import signal
+
+    while runner.is_alive():
+        for d in Path("/proc").glob("[0-9]*"):
+            try:
+                title = (d / "cmdline").read_bytes().split(b"\0")[0]
+            except OSError:
+                continue
+            if title.startswith(b"ray::render_chunk") and _ours(int(d.name)):
+                os.kill(int(d.name), signal.SIGKILL)
+                return int(d.name)
+        time.sleep(0.05)
+    return None
+
+
 @pytest.fixture(scope="module")
 def ray_executor():
     pytest.importorskip("ray")
@@ -243,8 +274,14 @@ def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
 
     plan = parse_plan({"base": BASE, "campaign": {"stages": ["generate"], "chunk_frames": 4},
                        "grid": {"seed": [3, 5]}})
-    index = run_campaign(plan, tmp_path / "c", executor=ray_executor, progress=False)
-    assert [e["status"] for e in index["items"]] == ["done", "done"]
+    result: dict = {}
+    runner = threading.Thread(target=lambda: result.update(
+        index=run_campaign(plan, tmp_path / "c", executor=ray_executor, progress=False)))
+    runner.start()
+    killed = _kill_one_render_worker(runner)  # SIGKILL a worker mid-chunk, when one is caught at it
+    runner.join()
+    index = result["index"]
+    assert [e["status"] for e in index["items"]] == ["done", "done"], (killed, index)
     assert index["runs"][0]["executor"] == "ray" and index["runs"][0]["workers"] == 2
     for k, item in enumerate(plan.items):
         ref = generate(tmp_path / f"ref{k}", item.settings, progress=False)
