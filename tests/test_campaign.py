@@ -248,7 +248,14 @@ def ray_executor():
     pytest.importorskip("ray")
     from lipgen.campaign import RayExecutor
 
-    ex = RayExecutor(num_cpus=2, retries=1)
+    try:
+        ex = RayExecutor(num_cpus=2, retries=1)
+    except ClusterError as exc:
+        if "timed out during startup" not in str(exc):
+            raise
+        # Ray gives its raylet a fixed 30 s to register, three times over: only an overloaded
+        # machine misses that, and it says nothing about lipgen
+        pytest.skip(f"the machine is too loaded for Ray to start: {exc}")
     yield ex
     ex.shutdown()
 
@@ -279,6 +286,7 @@ def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
         index=run_campaign(plan, tmp_path / "c", executor=ray_executor, progress=False)))
     runner.start()
     killed = _kill_one_render_worker(runner)  # SIGKILL a worker mid-chunk, when one is caught at it
+    print("killed render worker:", killed)
     runner.join()
     index = result["index"]
     assert [e["status"] for e in index["items"]] == ["done", "done"], (killed, index)
@@ -316,3 +324,55 @@ def test_campaign_help_and_bad_command_lines(tmp_path, capsys):
     assert "--out DIR is required" in capsys.readouterr().err
     assert main(["campaign", "report", str(tmp_path)]) == 1
     assert "not a campaign folder" in capsys.readouterr().err
+
+
+def _fake_campaign(root: Path) -> dict:
+    """A campaign folder written by hand: 2 noise levels x 3 seeds, one item failed."""
+    from lipgen.campaign.store import FORMAT, SCHEMA, write_index
+
+    rng = np.random.default_rng(0)
+    items, truth = [], {}
+    for k, (noise, seed) in enumerate((n, s) for n in (0.5, 2.0) for s in (0, 1, 2)):
+        name = f"{k:04d}"
+        failed = k == 5
+        items.append({"name": name, "swept": {"seed": seed, "noise": noise}, "settings": {},
+                      "status": "failed" if failed else "done",
+                      "stages": {"generate": {"status": "done", "seconds": 3.0 + k, "task_seconds": 2.0 + k},
+                                 "evaluate": {"status": "failed" if failed else "done", "task_seconds": 1.0,
+                                              "error": "ValueError: boom" if failed else None}}})
+        if failed:
+            continue
+        tri = float(noise * 0.1 + rng.random() * 0.01)
+        truth.setdefault(noise, []).append(tri)
+        cell = {"vs_reach": tri, "vs_truth": 2 * tri}
+        rep = {"tracking": {"virtual": {"rms_px": noise}, "real": {"rms_px": noise}},
+               "triangulation": {"rms_mm": tri}, "normalisation": {"rms_mm": 0.5},
+               "fields": {"rms_mm_vs_truth": 1.0},
+               "table51": {row: {"10 modes": cell, "physics (reach)": cell}
+                           for row in ("xyz (8 points)", "yz (all points)", "xy (all points)")}}
+        (root / "items" / name / "report").mkdir(parents=True)
+        (root / "items" / name / "report" / "report.json").write_text(json.dumps(rep))
+        (root / "items" / name / "nrsfm.json").write_text(json.dumps({"truth_tracks": {"e3d": 0.3}}))
+    write_index(root, {"format": FORMAT, "schema_version": SCHEMA, "name": "fake",
+                       "swept_keys": ["seed", "noise"], "items": items})
+    return truth
+
+
+def test_the_report_aggregates_over_subjects_per_condition(tmp_path):
+    from scipy import stats
+
+    truth = _fake_campaign(tmp_path)
+    md = write_campaign_report(tmp_path).read_text()
+    rep = json.loads((tmp_path / "report" / "report.json").read_text())
+    conds = {c["condition"]["noise"]: c for c in rep["conditions"]}
+    assert set(conds) == {0.5, 2.0} and conds[0.5]["items"] == 3
+    for noise, values in truth.items():
+        got = conds[noise]["metrics"]["triangulation_mm"]
+        lo, hi = stats.t.interval(0.95, len(values) - 1, loc=np.mean(values), scale=stats.sem(values))
+        assert got["n"] == len(values) and got["mean"] == pytest.approx(np.mean(values))
+        assert (got["lo95"], got["hi95"]) == pytest.approx((lo, hi))
+    assert conds[2.0]["metrics"]["triangulation_mm"]["n"] == 2  # the failed item has no figures
+    assert "### noise=0.5" in md and "| 0005 |" in md and "ValueError: boom" in md
+    assert "![vs_noise.png](vs_noise.png)" in md and (tmp_path / "report" / "vs_noise.png").stat().st_size > 0
+    slow = md.split("## Slowest items")[1]
+    assert slow.index("| 0005 |") < slow.index("| 0004 |")  # most work first

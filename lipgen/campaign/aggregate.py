@@ -29,6 +29,7 @@ METRICS = {
     "normalisation_mm": "normalisation RMS (mm)",
     "fields_vs_truth_mm": "reach fields vs true surface, RMS (mm)",
     "nrsfm_e3d": "monocular NRSfM e3D (truth tracks)",
+    "nrsfm_tracked_e3d": "monocular NRSfM e3D (tracked)",
 }
 
 
@@ -60,7 +61,10 @@ def _item_figures(root: Path, name: str) -> dict:
                    fields_vs_truth_mm=s["fields"]["rms_mm_vs_truth"], table51=s["table51"])
     nr = d / "nrsfm.json"
     if nr.is_file():
-        out["nrsfm_e3d"] = json.loads(nr.read_text())["truth_tracks"]["e3d"]
+        nrsfm = json.loads(nr.read_text())
+        out["nrsfm_e3d"] = nrsfm["truth_tracks"]["e3d"]
+        if "tracked" in nrsfm:
+            out["nrsfm_tracked_e3d"] = nrsfm["tracked"]["e3d"]
     return out
 
 
@@ -70,7 +74,8 @@ def collect(root) -> dict:
     index = read_index(root)
     for entry in index["items"]:
         entry["figures"] = _item_figures(root, entry["name"])
-        entry["seconds"] = sum(st.get("seconds") or 0.0 for st in entry["stages"].values())
+        entry["seconds"] = sum(st.get("task_seconds") or 0.0 for st in entry["stages"].values())
+        entry["wall_seconds"] = sum(st.get("seconds") or 0.0 for st in entry["stages"].values())
     return index
 
 
@@ -120,14 +125,20 @@ def _plots(index: dict, out: Path) -> list[str]:
     import matplotlib.pyplot as plt
 
     keys = [k for k in index.get("swept_keys", []) if k not in SUBJECT_KEYS]
+    metrics = {m: label for m, label in METRICS.items() if any(e["figures"].get(m) is not None
+                                                               for e in index["items"])}
     pics = []
-    for key in keys:
+    for key in keys if metrics else ():
         vals = sorted({json.dumps(e["swept"].get(key)) for e in index["items"]})
         numeric = all(isinstance(json.loads(v), int | float) and not isinstance(json.loads(v), bool)
                       for v in vals)
         xs = [json.loads(v) for v in vals] if numeric else list(range(len(vals)))
-        fig, axes = plt.subplots(1, len(METRICS), figsize=(3.2 * len(METRICS), 3), squeeze=False)
-        for ax, (metric, label) in zip(axes[0], METRICS.items(), strict=True):
+        cols = min(len(metrics), 3)
+        rows = -(-len(metrics) // cols)
+        fig, axes = plt.subplots(rows, cols, figsize=(max(3.4 * cols, 6.5), 2.8 * rows), squeeze=False)
+        for ax in axes.ravel()[len(metrics):]:
+            ax.set_visible(False)
+        for ax, (metric, label) in zip(axes.ravel(), metrics.items(), strict=False):
             stats = [interval(e["figures"].get(metric) for e in index["items"]
                               if json.dumps(e["swept"].get(key)) == v) for v in vals]
             m = np.array([s[0] for s in stats])
@@ -202,12 +213,15 @@ def write_campaign_report(root, out=None, slowest: int = 5) -> Path:
     else:
         L.append("None.")
     order = [s for s in ("generate", "reconstruct", "nrsfm", "train", "evaluate") if s in items[0]["stages"]]
-    L += ["", f"## Slowest items (top {slowest}), seconds", "",
-          "| item | total | " + " | ".join(order) + " |", "|---" * (len(order) + 2) + "|"]
+    L += ["", f"## Slowest items (top {slowest})", "",
+          "Seconds of work per stage (generate: the simulation and every chunk's rendering, summed over "
+          "workers); *wall* is from the first submission to the last result, queueing included.", "",
+          "| item | work | wall | " + " | ".join(order) + " |", "|---" * (len(order) + 3) + "|"]
     for e in sorted(items, key=lambda e: -e["seconds"])[:slowest]:
-        L.append(f"| {e['name']} | {e['seconds']:.1f} | " + " | ".join(
-            f"{e['stages'][s].get('seconds') or 0:.1f}" for s in order) + " |")
+        L.append(f"| {e['name']} | {e['seconds']:.1f} | {e['wall_seconds']:.1f} | " + " | ".join(
+            f"{e['stages'][s].get('task_seconds') or 0:.1f}" for s in order) + " |")
     atomic_write_bytes(out / "report.md", ("\n".join(L) + "\n").encode())
-    summary["items"] = [{k: e[k] for k in ("name", "swept", "status", "seconds", "figures")} for e in items]
+    summary["items"] = [{k: e[k] for k in ("name", "swept", "status", "seconds", "wall_seconds", "figures")}
+                        for e in items]
     atomic_write_json(out / "report.json", _finite(summary))
     return out / "report.md"

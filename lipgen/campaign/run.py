@@ -64,7 +64,7 @@ class _Item:
         self.entry, self.dir = entry, item_dir(root, entry["name"])
         self.todo = [s for s in item_stages(plan) if entry["stages"][s]["status"] != "done"]
         self.chunks_left = 0
-        self.t0 = 0.0
+        self.t0 = self.prepare_s = 0.0
 
     def stage(self) -> str | None:
         return self.todo[0] if self.todo else None
@@ -214,12 +214,13 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, b
                 write_index(out, index)
                 continue
             if kind == "prepare":
-                ctx, jobs = value
+                ctx, jobs, item.prepare_s = value
                 s = item.entry["settings"]
                 bar.update(s["frames"] + s["calib_frames"] - len(jobs))
                 gen[item.entry["name"]] = []
                 if not jobs:
-                    _finish_stage(ex, plan, item, "generate", {"chunks": 0}, index, out, pending)
+                    _finish_stage(ex, plan, item, "generate", {"chunks": 0, "task_seconds": item.prepare_s},
+                                  index, out, pending)
                     continue
                 ref = ex.put(ctx)
                 parts = chunks([list(j) for j in jobs], plan.chunk_frames)
@@ -235,6 +236,7 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, b
                     peaks = [r["peak_rss_mib"] for r in res if r["peak_rss_mib"] is not None]
                     _finish_stage(ex, plan, item, "generate", {
                         "chunks": len(res), "render_seconds": sum(r["seconds"] for r in res),
+                        "task_seconds": item.prepare_s + sum(r["seconds"] for r in res),
                         "workers": len({r["pid"] for r in res}),
                         "peak_rss_mib": max(peaks) if peaks else None}, index, out, pending)
             else:

@@ -35,12 +35,15 @@ def chunks(jobs: list, size: int) -> list[list]:
 
 
 def prepare(dataset: str, settings: dict):
-    """Simulate the subject and lay out the dataset folder; returns (context, jobs still to do)."""
+    """Simulate the subject and lay out the dataset folder; returns (context, jobs still to do,
+    seconds)."""
     from lipgen.dataset.generate import prepare_dataset
     from lipgen.dataset.layout import GenerateSettings
 
     limit_threads()
-    return prepare_dataset(dataset, GenerateSettings.from_dict(settings), resume=True)
+    t0 = time.perf_counter()
+    ctx, jobs = prepare_dataset(dataset, GenerateSettings.from_dict(settings), resume=True)
+    return ctx, jobs, time.perf_counter() - t0
 
 
 def render_chunk(ctx, jobs: list) -> dict:
@@ -137,5 +140,19 @@ def nrsfm(item: str, options: dict) -> dict:
     return {"e3d": out["truth_tracks"]["e3d"]}
 
 
-STAGE_FUNCTIONS = {"reconstruct": reconstruct, "train": train, "evaluate": evaluate, "nrsfm": nrsfm}
+def _timed(fn):
+    """``fn`` with its own run time added to its summary (``task_seconds``: work, not queueing)."""
+    import functools
+
+    @functools.wraps(fn)
+    def run(item: str, options: dict) -> dict:
+        t0 = time.perf_counter()
+        out = fn(item, options)
+        return {**out, "task_seconds": time.perf_counter() - t0}
+
+    return run
+
+
+STAGE_FUNCTIONS = {name: _timed(fn) for name, fn in
+                   (("reconstruct", reconstruct), ("train", train), ("evaluate", evaluate), ("nrsfm", nrsfm))}
 """The task of each stage after generate, by name; each takes (item folder, options)."""
