@@ -376,3 +376,13 @@ def test_the_report_aggregates_over_subjects_per_condition(tmp_path):
     assert "![vs_noise.png](vs_noise.png)" in md and (tmp_path / "report" / "vs_noise.png").stat().st_size > 0
     slow = md.split("## Slowest items")[1]
     assert slow.index("| 0005 |") < slow.index("| 0004 |")  # most work first
+
+
+def test_the_cluster_model_is_waves_of_slots_plus_serial_scheduling():
+    from lipgen.bench import available_suites
+    from lipgen.bench.campaign import predict
+
+    assert "campaign" in available_suites()
+    # 1000 items on 100 x 2 slots: 5 waves of 10 s at efficiency 0.5, plus start and 1000 x 3 submits
+    assert predict(1000, 100, 2, 10.0, 0.5, 20.0, 0.001, 3) == pytest.approx(20 + 5 * 20 + 3.0)
+    assert predict(1, 100, 2, 10.0, 1.0, 0.0, 0.0, 1) == pytest.approx(10.0)  # one item: one wave
