@@ -26,7 +26,7 @@ bench: $(STAMP)
 	$(BIN)/lipgen bench --out renders/bench.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check lipgen tests blender_addon
+	$(BIN)/ruff check lipgen tests blender_addon docs/_hooks
 	$(BIN)/lint-imports
 
 # The documentation site (site/index.html). Strict: any warning (a broken link, a docstring

@@ -47,7 +47,8 @@ def _package_page(stage: str) -> str:
     mods = _modules(f"lipgen.{stage}")
     lines = [f"# lipgen.{stage}", "", "Generated from the docstrings.", ""]
     for i, mod in enumerate(mods):
-        opts = "    options:\n      show_submodules: false\n      members: " + ("[]" if i == 0 else "true")
+        # the package itself: its docstring only (its names are documented where they are defined)
+        opts = "    options:\n      show_submodules: false" + ("\n      members: []" if i == 0 else "")
         lines += [f"::: {mod}", opts, ""]
     return "\n".join(lines)
 
@@ -57,7 +58,7 @@ def _root_page() -> str:
 
     top = sorted(m.name for m in pkgutil.iter_modules(lipgen.__path__)
                  if not m.ispkg and not m.name.startswith("_") and m.name not in ("cli",))
-    lines = ["# lipgen", "", "The package and its shared pieces (errors, tolerances). Generated from the docstrings.", "",
+    lines = ["# lipgen", "", "The package and its shared pieces (errors, tolerances).", "",
              "::: lipgen", "    options:\n      show_submodules: false", ""]
     for name in top:
         lines += [f"::: lipgen.{name}", ""]
