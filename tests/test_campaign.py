@@ -174,14 +174,15 @@ _GEN_NRSFM = {"base": BASE, "campaign": {"stages": ["generate", "nrsfm"], "chunk
 
 @pytest.mark.render
 def test_a_local_campaign_matches_generate_fails_one_item_and_resumes(tmp_path):
-    pytest.importorskip("lipgen.render")
-    from lipgen.generate import generate
+    pytest.importorskip("lipgen.rig.render")
+    from lipgen.dataset.generate import generate
 
     plan = parse_plan(_GEN_NRSFM)
     out = tmp_path / "c"
     index = run_campaign(plan, out, executor="local", workers=2, progress=False)
     ok, bad = index["items"]
-    assert ok["status"] == "done" and bad["status"] == "failed"
+    errors = {e["name"]: {n: st.get("error") for n, st in e["stages"].items()} for e in index["items"]}
+    assert ok["status"] == "done" and bad["status"] == "failed", errors
     assert bad["stages"]["generate"]["status"] == "done" and bad["stages"]["nrsfm"]["status"] == "failed"
     assert "too large" in bad["stages"]["nrsfm"]["error"]
     assert ok["stages"]["generate"]["chunks"] == 4  # 11 files in chunks of 3
@@ -276,8 +277,8 @@ def test_ray_workers_rerun_a_killed_task_and_use_one_blas_thread(ray_executor, t
 @pytest.mark.slow
 @pytest.mark.render
 def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
-    pytest.importorskip("lipgen.render")
-    from lipgen.generate import generate
+    pytest.importorskip("lipgen.rig.render")
+    from lipgen.dataset.generate import generate
 
     plan = parse_plan({"base": BASE, "campaign": {"stages": ["generate"], "chunk_frames": 4},
                        "grid": {"seed": [3, 5]}})

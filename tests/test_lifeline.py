@@ -95,7 +95,7 @@ def test_a_worker_ends_when_its_parent_is_killed(tmp_path, poll_s):
 @pytest.mark.render
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM, signal.SIGINT], ids=lambda s: s.name)
 def test_killing_generate_ends_its_workers_and_resource_tracker(tmp_path, sig):
-    pytest.importorskip("lipgen.render")
+    pytest.importorskip("lipgen.rig.render")
     out = tmp_path / "ds"
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]), OMP_NUM_THREADS="1",
                OPENBLAS_NUM_THREADS="1")

@@ -20,7 +20,7 @@ from pathlib import Path
 from lipgen import __version__
 from lipgen.campaign.executors import check_address, make_executor
 from lipgen.campaign.plan import CampaignPlan
-from lipgen.campaign.stages import STAGE_FUNCTIONS, chunks, prepare, render_chunk
+from lipgen.campaign.stages import chunks, prepare, render_chunk, run_stage
 from lipgen.campaign.store import (
     FORMAT,
     SCHEMA,
@@ -186,7 +186,7 @@ def _submit_stage(ex, plan: CampaignPlan, item: _Item, pending: dict) -> None:
     else:
         options = {"reconstruct": plan.reconstruct, "train": plan.train, "evaluate": plan.train,
                    "nrsfm": plan.nrsfm}[stage]
-        pending[ex.submit(STAGE_FUNCTIONS[stage], str(item.dir), options)] = (item, stage, 0)
+        pending[ex.submit(run_stage, stage, str(item.dir), options)] = (item, stage, 0)
 
 
 def _finish_stage(ex, plan, item: _Item, stage: str, summary: dict, index, out, pending) -> None:

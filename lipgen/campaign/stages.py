@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 __all__ = ["limit_threads", "prepare", "render_chunk", "reconstruct", "train", "evaluate", "nrsfm",
-           "chunks", "STAGE_FUNCTIONS"]
+           "chunks", "run_stage", "STAGE_FUNCTIONS"]
 
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
@@ -140,19 +140,12 @@ def nrsfm(item: str, options: dict) -> dict:
     return {"e3d": out["truth_tracks"]["e3d"]}
 
 
-def _timed(fn):
-    """``fn`` with its own run time added to its summary (``task_seconds``: work, not queueing)."""
-    import functools
-
-    @functools.wraps(fn)
-    def run(item: str, options: dict) -> dict:
-        t0 = time.perf_counter()
-        out = fn(item, options)
-        return {**out, "task_seconds": time.perf_counter() - t0}
-
-    return run
-
-
-STAGE_FUNCTIONS = {name: _timed(fn) for name, fn in
-                   (("reconstruct", reconstruct), ("train", train), ("evaluate", evaluate), ("nrsfm", nrsfm))}
+STAGE_FUNCTIONS = {"reconstruct": reconstruct, "train": train, "evaluate": evaluate, "nrsfm": nrsfm}
 """The task of each stage after generate, by name; each takes (item folder, options)."""
+
+
+def run_stage(stage: str, item: str, options: dict) -> dict:
+    """Run stage ``stage`` on an item; its summary gets ``task_seconds`` (work, not queueing)."""
+    t0 = time.perf_counter()
+    out = STAGE_FUNCTIONS[stage](item, options)
+    return {**out, "task_seconds": time.perf_counter() - t0}
