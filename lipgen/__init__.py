@@ -8,6 +8,7 @@ The package reads like the data flow; each stage uses only the stages above it i
 * :mod:`lipgen.subject` - the synthetic subject; :mod:`lipgen.dataset` - datasets on disk
 * :mod:`lipgen.recon` - reconstruction from frames; :mod:`lipgen.nrsfm` - non-rigid SfM
 * :mod:`lipgen.evaluate` - scores against the truth; :mod:`lipgen.blender` - the add-on's data side
+* :mod:`lipgen.campaign` - many datasets through the stages on Ray, one aggregated report
 * :mod:`lipgen.experiments`, :mod:`lipgen.bench`, :mod:`lipgen.commands` - the thesis's experiments,
   benchmarks and the command line
 """
@@ -35,7 +36,7 @@ __version__ = "0.1.0"
 _compat.install()
 
 _SUBPACKAGES = ("mesh", "fem", "modes", "usd", "rig", "subject", "dataset", "recon", "nrsfm", "evaluate",
-                "blender", "experiments", "bench", "commands")
+                "campaign", "blender", "experiments", "bench", "commands")
 
 
 _LAZY = {"DEFAULT_STIFFNESS": "lipgen.fem", "Physics": "lipgen.fem", "dofs": "lipgen.fem",

@@ -43,6 +43,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("lipgen.commands.train", "learn displacement modes (ModeModel) from a reconstruction"),
     "evaluate": ("lipgen.commands.evaluate",
                  "score reconstruction and model against the dataset's ground truth"),
+    "campaign": ("lipgen.commands.campaign",
+                 "run many datasets through the stages on Ray; one aggregated report"),
 }
 """Command name -> (module defining ``add_parser``, one-line help shown by ``lipgen --help``)."""
 

@@ -35,6 +35,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.blender",
     "lipgen.bench.startup",
     "lipgen.bench.load",
+    "lipgen.bench.campaign",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 

@@ -46,7 +46,7 @@ from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.visibility import occluded
 from lipgen.subject.face import FaceLook, FaceModel
 
-__all__ = ["generate", "frame_truth"]
+__all__ = ["generate", "frame_truth", "prepare_dataset", "render_jobs"]
 
 log = logging.getLogger(__name__)
 
@@ -114,10 +114,13 @@ class _Context:
 _WORKER: dict = {}
 
 
-def _init_pool_worker(ctx: _Context) -> None:
-    """A spawned worker: one BLAS thread (its siblings use the other cores), then the renderer."""
+def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
+    """A pool process: it ends when the generating process is killed; one BLAS thread (its
+    siblings use the other cores); then it prepares to render."""
+    from lipgen._lifeline import die_with_parent
     from lipgen._threads import limit_worker_threads
 
+    die_with_parent(parent_pid)
     limit_worker_threads(1)
     _init_worker(ctx)
 
@@ -296,6 +299,73 @@ def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     return False
 
 
+def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
+    """Simulate the subject, check the rig sees it, and lay out the dataset folder ``out``
+    (manifest, mesh, sub-folders); nothing is rendered yet.
+
+    Returns the context every renderer needs and the jobs still to do: ``("calib", i)`` and
+    ``("frame", i)`` whose files are not all written. Rendering the jobs in any order, split in any
+    way between processes or machines (:func:`render_jobs`), writes the same bytes.
+    """
+    from lipgen.dataset.layout import build_manifest
+    from lipgen.mesh.lipmesh import LipMesh
+
+    out = Path(out)
+    rig = default_rig(*s.size)
+    motion = _simulate(s)
+    marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
+    rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
+    mesh: LipMesh = motion.mesh
+    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
+    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
+        from lipgen.rig.target import Chessboard, board_poses
+
+        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
+        board_poses(rig, Chessboard(*s.board), s.calib_frames, seed=rng)
+    if not _prepare_folder(out, manifest, resume):
+        atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
+    for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
+        (out / sub).mkdir(exist_ok=True)
+    mesh_path = out / "mesh.npz"
+    if not intact(mesh_path, "lipgen.LipMesh"):
+        mesh.save(mesh_path)
+    # a resume checks every file it keeps (a cheap decode): empty or truncated ones are redone
+    jobs = [("calib", i) for i in range(s.calib_frames)
+            if not all(intact(p, k) for p, k in zip(calib_paths(out, i), (None, CALIB_KIND), strict=True))]
+    jobs += [("frame", i) for i in range(s.frames) if not _frame_intact(out, i, s)]
+    done = s.calib_frames + s.frames - len(jobs)
+    if done:
+        log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
+    ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
+                   np.asarray(motion.activations), str(mesh_path))
+    return ctx, jobs
+
+
+def render_jobs(ctx: _Context, jobs) -> int:
+    """Render and write ``jobs`` (from :func:`prepare_dataset`) in this process; returns how many.
+
+    The renderer is kept for the next call with the same context (a worker that renders many
+    chunks of one dataset opens one GL context), and replaced for another dataset.
+    """
+    if _WORKER.get("key") != (ctx.out, ctx.mesh_path):
+        _close_worker()
+        _init_worker(ctx)
+        _WORKER["key"] = (ctx.out, ctx.mesh_path)
+    _WORKER["ctx"] = ctx
+    n = 0
+    for job in jobs:
+        _write(*_render_job(tuple(job)))
+        n += 1
+    return n
+
+
+def _close_worker() -> None:
+    renderer = _WORKER.pop("renderer", None)
+    if renderer is not None:
+        renderer.close()
+    _WORKER.clear()
+
+
 def generate(out, settings: GenerateSettings | None = None, workers: int = 1, resume: bool = False,
              progress: bool = True) -> Path:
     """Write a dataset to folder ``out`` (layout: :mod:`lipgen.dataset`).
@@ -322,41 +392,12 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     """
     from tqdm import tqdm
 
-    from lipgen.mesh.lipmesh import LipMesh
-
     if isinstance(workers, bool) or int(workers) != workers or not 1 <= workers <= 64:
         raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
     s = GenerateSettings() if settings is None else settings
     out = Path(out)
-    rig = default_rig(*s.size)
-    motion = _simulate(s)
-    marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
-    rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
-    mesh: LipMesh = motion.mesh
-    from lipgen.dataset.layout import build_manifest
-
-    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
-    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
-        from lipgen.rig.target import Chessboard, board_poses
-
-        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        board_poses(rig, Chessboard(*s.board), s.calib_frames, seed=rng)
-    if not _prepare_folder(out, manifest, resume):
-        atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
-    for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
-        (out / sub).mkdir(exist_ok=True)
-    mesh_path = out / "mesh.npz"
-    if not intact(mesh_path, "lipgen.LipMesh"):
-        mesh.save(mesh_path)
-    # a resume checks every file it keeps (a cheap decode): empty or truncated ones are redone
-    jobs = [("calib", i) for i in range(s.calib_frames)
-            if not all(intact(p, k) for p, k in zip(calib_paths(out, i), (None, CALIB_KIND), strict=True))]
-    jobs += [("frame", i) for i in range(s.frames) if not _frame_intact(out, i, s)]
+    ctx, jobs = prepare_dataset(out, s, resume)
     done = s.calib_frames + s.frames - len(jobs)
-    if done:
-        log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
-    ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
-                   np.asarray(motion.activations), str(mesh_path))
     bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",
                disable=not progress)
     try:
@@ -382,7 +423,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
         else:
             spawn = multiprocessing.get_context("spawn")  # a fresh process per GL context
             pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_pool_worker,
-                                       initargs=(ctx,))
+                                       initargs=(ctx, os.getpid()))
             with pool as ex:
                 futures = [ex.submit(_run_job, job) for job in jobs]
                 pending = set(futures)

@@ -1,0 +1,213 @@
+"""Where a campaign's tasks run: Ray (embedded, or a cluster), or local processes.
+
+Both give the driver the same three calls: ``submit(fn, *args) -> handle``, ``wait(handles)``
+(the handles that finished, within a short timeout) and ``result(handle)`` (the value, or the
+task's exception). A task whose worker dies is run again (``retries`` times): Ray re-runs just
+that task; the local pool, which breaks as a whole when one of its processes dies, is rebuilt
+and every task it lost is submitted again.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import socket
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
+from concurrent.futures.process import BrokenProcessPool
+
+from lipgen.errors import LipgenError
+
+__all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "make_executor"]
+
+log = logging.getLogger(__name__)
+
+_THREADS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+class ClusterError(LipgenError, ConnectionError):
+    """The Ray cluster cannot be reached or started."""
+
+
+def check_address(address: str, timeout: float = 5.0) -> None:
+    """Fail fast (``ClusterError``) when ``host:port`` (or ``ray://host:port``) does not answer.
+
+    ``ray.init`` would otherwise retry for minutes. ``"auto"`` is left to Ray, which fails at
+    once when no local cluster runs.
+    """
+    if address == "auto":
+        return
+    hostport = address.split("://", 1)[-1]
+    host, sep, port = hostport.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ClusterError(f"--address must look like HOST:PORT, ray://HOST:PORT or auto, got {address!r}")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Ray cluster at {address} ({exc.strerror or exc}); is it up "
+                           "(ray status on the head node), and is the port open from here?") from None
+
+
+class RayExecutor:
+    """Tasks as Ray remote functions; ``address=None`` starts an embedded local Ray."""
+
+    kind = "ray"
+
+    def __init__(self, address: str | None = None, num_cpus: int | None = None, retries: int = 2,
+                 dashboard: bool = False) -> None:
+        from lipgen._optional import require
+
+        ray = require("ray", "lipgen campaign")
+        self.ray, self.retries = ray, retries
+        env = {"env_vars": dict(_THREADS_ENV)}
+        if address is not None:
+            check_address(address)
+        for attempt in range(3):  # Ray gives its raylet 30 s to start, which a loaded machine can miss
+            try:
+                if address is None:
+                    ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard,
+                             runtime_env=env, log_to_driver=False, configure_logging=False)
+                else:
+                    ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
+                break
+            except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a slow start)
+                ray.shutdown()
+                if address is None and "timed out during startup" in str(exc) and attempt < 2:
+                    log.warning("Ray did not start in time (%s); trying again", exc)
+                    continue
+                where = address or "local"
+                raise ClusterError(f"could not start or join Ray (address {where}): {exc}") from exc
+        self._remote: dict = {}
+        ctx = ray.get_runtime_context()
+        self.dashboard_url = getattr(ctx, "dashboard_url", None) or None
+        log.info("Ray: %s, resources %s", address or "embedded local", ray.cluster_resources())
+
+    @property
+    def workers(self) -> int:
+        return int(self.ray.cluster_resources().get("CPU", 1))
+
+    def put(self, obj):
+        """Store ``obj`` once in the object store; tasks given the reference read it there."""
+        return self.ray.put(obj)
+
+    def submit(self, fn, *args):
+        """Run ``fn(*args)`` as a Ray task (one CPU, re-run if its worker dies); returns its reference."""
+        key = fn.__module__ + "." + fn.__qualname__
+        if key not in self._remote:
+            self._remote[key] = self.ray.remote(num_cpus=1, max_retries=self.retries)(fn)
+        return self._remote[key].remote(*args)
+
+    def wait(self, handles, timeout: float = 0.5) -> list:
+        """The ``handles`` that finished, waiting at most ``timeout`` seconds."""
+        if not handles:
+            return []
+        done, _ = self.ray.wait(list(handles), num_returns=len(handles), timeout=timeout)
+        return done
+
+    def result(self, handle):
+        """The task's value, or its own exception raised here."""
+        try:
+            return self.ray.get(handle)
+        except self.ray.exceptions.RayTaskError as exc:  # the task's own exception, as raised there
+            cause = exc.as_instanceof_cause()
+            raise cause from None
+
+    def shutdown(self) -> None:
+        """Disconnect (and stop the embedded Ray)."""
+        self.ray.shutdown()
+
+
+class _Handle:
+    __slots__ = ("fn", "args", "future", "attempts")
+
+    def __init__(self, fn, args) -> None:
+        self.fn, self.args, self.future, self.attempts = fn, args, None, 0
+
+
+def _broke(h: _Handle) -> bool:
+    return h.future.done() and isinstance(h.future.exception(), BrokenProcessPool)
+
+
+def _init_local(parent_pid: int) -> None:
+    from lipgen._lifeline import die_with_parent
+    from lipgen.campaign.stages import limit_threads
+
+    die_with_parent(parent_pid)
+    limit_threads()
+
+
+class LocalExecutor:
+    """Tasks on ``workers`` local processes (spawned, one core and one BLAS thread each)."""
+
+    kind = "local"
+
+    def __init__(self, workers: int = 2, retries: int = 2) -> None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
+            raise ValueError(f"workers must be a whole number in [1, 256], got {workers!r}")
+        self._n, self.retries, self.dashboard_url = workers, retries, None
+        self._pool = self._new_pool()
+        self._live: list[_Handle] = []
+
+    @property
+    def workers(self) -> int:
+        return self._n
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(self._n, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_local, initargs=(os.getpid(),))
+
+    def put(self, obj):
+        """``obj`` itself: it is pickled with each task."""
+        return obj
+
+    def _start(self, h: _Handle) -> None:
+        h.attempts += 1
+        h.future = self._pool.submit(h.fn, *h.args)
+
+    def submit(self, fn, *args) -> _Handle:
+        """Run ``fn(*args)`` on a local process; returns its handle."""
+        h = _Handle(fn, args)
+        self._start(h)
+        self._live.append(h)
+        return h
+
+    def wait(self, handles, timeout: float = 0.5) -> list:
+        """The ``handles`` that finished within ``timeout`` seconds; tasks lost with a dead worker
+        are submitted again (up to ``retries`` times) and are not finished."""
+        handles = list(handles)
+        if not handles:
+            return []
+        futures_wait([h.future for h in handles], timeout=timeout, return_when=FIRST_COMPLETED)
+        broken = [h for h in self._live if _broke(h)]
+        if broken:  # a worker died: every task the pool still held is lost with it
+            log.warning("a local worker died; %d task(s) are run again", len(broken))
+            self._pool.shutdown(wait=False, cancel_futures=True)
+            self._pool = self._new_pool()
+            for h in self._live:
+                if _broke(h) and h.attempts <= self.retries:
+                    self._start(h)
+        done = [h for h in handles if h.future.done()]
+        self._live = [h for h in self._live if not h.future.done()]
+        return done
+
+    def result(self, handle: _Handle):
+        """The task's value, or its exception raised here."""
+        return handle.future.result()
+
+    def shutdown(self) -> None:
+        """Stop the processes (pending tasks are cancelled)."""
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def make_executor(kind: str = "ray", address: str | None = None, workers: int | None = None, retries: int = 2,
+                  dashboard: bool = False):
+    """A :class:`RayExecutor` (``kind="ray"``) or a :class:`LocalExecutor` (``kind="local"``)."""
+    if kind == "ray":
+        return RayExecutor(address, workers, retries, dashboard)
+    if kind == "local":
+        if address is not None:
+            raise ValueError("--address needs the ray executor, not --executor local")
+        return LocalExecutor(workers or os.cpu_count() or 1, retries)
+    raise ValueError(f"executor must be 'ray' or 'local', got {kind!r}")
