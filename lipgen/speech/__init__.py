@@ -1,0 +1,1 @@
+"""Lip sync from speech: audio and text -> phones -> visemes -> activations -> mode coefficients."""
