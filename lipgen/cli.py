@@ -29,6 +29,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "lipgen.commands.reconstruct",
     "lipgen.commands.train",
     "lipgen.commands.evaluate",
+    "lipgen.commands.lipsync",
 )
 
 _DESCRIPTION = """\
