@@ -33,10 +33,11 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.mesh",
     "lipgen.bench.render",
     "lipgen.bench.blender",
+    "lipgen.bench.speech",
 )
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
-             "opencv-python-headless")
+             "opencv-python-headless", "pocketsphinx")
 
 
 def available_suites() -> dict[str, str]:

@@ -1,15 +1,15 @@
 """Reading speech audio: WAV files of any common rate and sample format, as 16 kHz mono.
 
 PocketSphinx's en-US acoustic model is trained on 16 kHz speech, so every recording is mixed to
-mono and resampled to :data:`RATE` (polyphase filtering, :func:`scipy.signal.resample_poly`),
-and the log says so. Formats read: RIFF/WAVE with integer PCM of 8, 16, 24 or 32 bits, or IEEE
-float of 32 or 64 bits, plain or ``WAVE_FORMAT_EXTENSIBLE``.
+mono and resampled to :data:`RATE` (band-limited, by Fourier interpolation of the whole clip:
+numpy's FFT, which spares the command scipy.signal's second-long import), and the log says so.
+Formats read: RIFF/WAVE with integer PCM of 8, 16, 24 or 32 bits, or IEEE float of 32 or 64
+bits, plain or ``WAVE_FORMAT_EXTENSIBLE``.
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import os
 import struct
 from dataclasses import dataclass
@@ -20,7 +20,7 @@ import numpy as np
 from ..errors import LipgenError
 
 __all__ = ["RATE", "Audio", "AudioError", "NoSpeechError", "read_wav", "write_wav", "as_audio",
-           "check_speech"]
+           "check_speech", "resample"]
 
 log = logging.getLogger(__name__)
 
@@ -119,8 +119,6 @@ def as_audio(samples, rate: int, source: str = "array") -> Audio:
 
     Channels are averaged; another rate is resampled to :data:`RATE` (logged).
     """
-    from scipy.signal import resample_poly
-
     x = np.asarray(samples, dtype=np.float64)
     if x.ndim not in (1, 2) or x.shape[0] == 0:
         raise AudioError(f"{source}: audio samples must have shape (s,) or (s, channels) with s > 0, "
@@ -135,10 +133,22 @@ def as_audio(samples, rate: int, source: str = "array") -> Audio:
             log.info("%s: mixing %d channels to mono", source, x.shape[1])
         x = x.mean(axis=1)
     if rate != RATE:
-        g = math.gcd(RATE, rate)
         log.info("%s: resampling %d Hz to %d Hz", source, rate, RATE)
-        x = resample_poly(x, RATE // g, rate // g)
+        x = resample(x, rate, RATE)
     return Audio(x, RATE, source, rate)
+
+
+def resample(x: np.ndarray, rate: int, new_rate: int) -> np.ndarray:
+    """``x`` (s,) at ``rate`` Hz band-limited to and sampled at ``new_rate`` Hz (Fourier method:
+    the spectrum is cut, or zero-padded, at the lower Nyquist frequency)."""
+    n_out = max(1, int(round(len(x) * new_rate / rate)))
+    X = np.fft.rfft(x)
+    Y = np.zeros(n_out // 2 + 1, dtype=complex)
+    k = min(len(X), len(Y))
+    Y[:k] = X[:k]
+    if k == len(Y) and n_out % 2 == 0 and n_out < len(x):
+        Y[-1] = Y[-1].real  # the new Nyquist bin of a real signal
+    return np.fft.irfft(Y, n_out) * (n_out / len(x))
 
 
 def read_wav(path: str | os.PathLike) -> Audio:

@@ -140,10 +140,11 @@ def _recognize(audio: Audio) -> tuple[PhoneTrack, float]:
     return _track([s[:3] for s in segs], _n_frames(audio), "recognition"), score
 
 
-def align(audio: Audio, text: str) -> PhoneTrack:
+def align(audio: Audio, text: str, confidence: bool = True) -> PhoneTrack:
     """Phones with timings by forced alignment of ``text`` to ``audio``.
 
-    The track's ``confidence`` says how well the transcript fits (module doc). Raises
+    The track's ``confidence`` says how well the transcript fits (module doc; it costs a phone
+    recognition pass: with ``confidence=False`` it is skipped and reported as NaN). Raises
     :class:`~lipgen.speech.phones.TextError` for words missing from the dictionary or
     non-English text, :class:`AlignmentError` when no alignment exists at all.
     """
@@ -164,12 +165,14 @@ def align(audio: Audio, text: str) -> PhoneTrack:
             items.append((phone.name, phone.start, phone.start + phone.duration - 1))
             score += phone.score
     n = _n_frames(audio)
+    if not confidence:
+        return _track(items, n, "alignment", float("nan"))
     _, loop = _recognize(audio)
     gap = min(0.0, (score * _LOG_BASE - loop) / (len(pcm) // 320))
-    confidence = math.exp(gap / CONFIDENCE_SCALE)
+    fit = math.exp(gap / CONFIDENCE_SCALE)
     log.info("aligned %d words to %s: confidence %.2f (%.5f per frame below the phone loop)",
-             len(words), audio.source, confidence, -gap)
-    return _track(items, n, "alignment", confidence)
+             len(words), audio.source, fit, -gap)
+    return _track(items, n, "alignment", fit)
 
 
 def phones_from_audio(audio: Audio, text: str | None = None,
