@@ -1,7 +1,7 @@
 """LipGen for Blender: physically based lips driven by mode sliders, forces and reach goals.
 
 A Blender 4.2+ extension (see ``blender_manifest.toml``). The computing is done by the
-``lipgen`` package (bundled as a wheel), mostly through :mod:`lipgen.addon`; this package is the
+``lipgen`` package (bundled as a wheel), mostly through :mod:`lipgen.blender`; this package is the
 thin bpy layer: properties on the Object, operators ``object.lipgen_*``, and the "LipGen"
 sidebar tab. :mod:`.bridge` alone moves data between Blender and numpy.
 """
@@ -36,7 +36,7 @@ def register() -> None:
 
 
 def unregister() -> None:
-    from lipgen.addon import clear_physics_cache
+    from lipgen.blender import clear_physics_cache
 
     bpy.types.VIEW3D_MT_mesh_add.remove(_menu_add)
     properties.unregister_properties()

@@ -15,7 +15,7 @@ import time
 import bpy
 import numpy as np
 
-from lipgen.addon import clear_physics_cache
+from lipgen.blender import clear_physics_cache
 
 from . import bridge, register
 

@@ -1,6 +1,6 @@
 """A LipGen object: its physics, its modes, and the shape keys that carry them.
 
-This is the glue between an Object's settings (``obj.lipgen``) and :mod:`lipgen.addon`. Data
+This is the glue between an Object's settings (``obj.lipgen``) and :mod:`lipgen.blender`. Data
 crosses between Blender and numpy only through :mod:`.bridge`. Lengths: the mesh stores its
 own units; ``settings.unit_mm`` converts them to the millimetres of the physics.
 """
@@ -11,10 +11,10 @@ import re
 
 import numpy as np
 
-from lipgen.addon import ModeBasis, PhysicsSpec, physics_for
-from lipgen.addon.modebasis import SLIDER_LIMIT
+from lipgen.blender import ModeBasis, PhysicsSpec, physics_for
+from lipgen.blender.modebasis import SLIDER_LIMIT
 from lipgen.errors import MeshError
-from lipgen.mesh import REGIONS, LipMesh
+from lipgen.mesh.lipmesh import REGIONS, LipMesh
 
 from . import bridge
 
@@ -120,12 +120,12 @@ def physics_spec(obj) -> PhysicsSpec:
 
 
 def physics(obj):
-    """The factorised physics of ``obj`` (cached; see :mod:`lipgen.addon.physics_cache`)."""
+    """The factorised physics of ``obj`` (cached; see :mod:`lipgen.blender.physics_cache`)."""
     return physics_for_object(obj, physics_spec(obj))
 
 
 def physics_for_object(obj, spec: PhysicsSpec):
-    """:func:`lipgen.addon.physics_for`, with a broken face shown to the artist.
+    """:func:`lipgen.blender.physics_for`, with a broken face shown to the artist.
 
     The core numbers faces as Blender's triangulation does; a :class:`lipgen.MeshError` naming
     one is re-raised naming its Blender polygon, which is also selected (Edit Mode shows it).
@@ -177,7 +177,7 @@ def topology_id(obj) -> str:
 
 def lips_resolution_of(obj) -> int:
     """The procedural resolution of a LipGen-lips object, or :class:`UserError`."""
-    from lipgen.addon.speech import lips_resolution
+    from lipgen.blender.speech import lips_resolution
 
     r = lips_resolution(len(obj.data.vertices), topology_id(obj))
     if r is None:

@@ -9,8 +9,8 @@ import numpy as np
 from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from lipgen.addon import load_curves
-from lipgen.addon.modebasis import SLIDER_LIMIT
+from lipgen.blender import load_curves
+from lipgen.blender.modebasis import SLIDER_LIMIT
 
 from . import bridge, lipobject
 from .lipobject import UserError
@@ -93,7 +93,7 @@ class OBJECT_OT_lipgen_animate_visemes(LipgenOperator, bpy.types.Operator):
         return context.window_manager.invoke_props_dialog(self, width=420)
 
     def run(self, context):
-        from lipgen.addon.speech import speech_displacements
+        from lipgen.blender.speech import speech_displacements
 
         obj = lipgen_object(context)
         if not len(obj.lipgen.modes):

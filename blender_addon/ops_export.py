@@ -77,7 +77,7 @@ class OBJECT_OT_lipgen_export_usd(LipgenOperator, bpy.types.Operator, ExportHelp
         return False
 
     def run(self, context):
-        from lipgen.usd import BAKED_POINTS, BLEND_SHAPES, export_usd
+        from lipgen.usd.export import BAKED_POINTS, BLEND_SHAPES, export_usd
 
         obj = lipgen_object(context)
         ensure_pxr()

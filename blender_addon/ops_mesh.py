@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 from bpy.props import FloatProperty, IntProperty, StringProperty
 
-from lipgen.mesh import REGIONS
+from lipgen.mesh.lipmesh import REGIONS
 
 from . import bridge, lipobject, preview
 from .lipobject import GROUPS, REGION_ATTR, UserError

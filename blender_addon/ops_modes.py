@@ -9,7 +9,7 @@ import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from lipgen.addon import ModeBasis
+from lipgen.blender import ModeBasis
 
 from . import bridge, lipobject
 from .lipobject import UserError
@@ -26,7 +26,7 @@ class OBJECT_OT_lipgen_load_modes(LipgenOperator, bpy.types.Operator, ImportHelp
     filter_glob: StringProperty(default="*.npz", options={"HIDDEN"})
 
     def run(self, context):
-        from lipgen.modes import ModeModel
+        from lipgen.modes.model import ModeModel
 
         obj = lipgen_object(context)
         path = Path(bpy.path.abspath(self.filepath))
@@ -98,14 +98,14 @@ class OBJECT_OT_lipgen_train_modes(LipgenOperator, bpy.types.Operator):
         if self.source == "FILE":
             return _frames_from_file(Path(bpy.path.abspath(self.filepath)), rest * unit)
         if self.source == "DATASET":
-            from lipgen.addon.training import dataset_displacements
+            from lipgen.blender.training import dataset_displacements
 
             if not self.filepath:
                 raise UserError("choose the dataset folder (or its manifest.json) in File")
             return dataset_displacements(bpy.path.abspath(self.filepath), len(rest),
                                          lipobject.topology_id(obj))
         if self.source == "SPEECH":
-            from lipgen.addon.speech import gesture_displacements
+            from lipgen.blender.speech import gesture_displacements
 
             return gesture_displacements(lipobject.lips_resolution_of(obj))
         if self.source == "SHAPE_KEYS":

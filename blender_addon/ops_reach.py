@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty, StringProperty
 
-from lipgen.addon import moved_nodes, reach_goals
+from lipgen.blender import moved_nodes, reach_goals
 
 from . import bridge, lipobject
 from .lipobject import REACH_KEY, UserError

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from mathutils import Vector
 
-from lipgen.addon import ForceResponses
+from lipgen.blender import ForceResponses
 from lipgen.errors import LipgenError
 
 from . import bridge, lipobject

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ModelFileError
+from lipgen.errors import ModelFileError
 
 __all__ = ["atomic_path", "atomic_write_bytes", "atomic_write_json", "save_npz", "load_npz"]
 

@@ -12,7 +12,7 @@ import importlib
 import logging
 import sys
 
-from . import __version__
+from lipgen import __version__
 
 __all__ = ["main", "build_parser"]
 
@@ -42,6 +42,7 @@ reconstruction against ground truth. Run `lipgen COMMAND --help` for each comman
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``lipgen`` argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
         prog="lipgen", description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -54,6 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``lipgen`` with ``argv`` (default: the command line); returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.WARNING - 10 * min(args.verbose, 2)

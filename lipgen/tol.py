@@ -12,6 +12,8 @@ __all__ = ["Tolerance", "tol"]
 
 @dataclass(frozen=True)
 class Tolerance:
+    """Numerical tolerances, one place for all of lipgen (use :data:`tol`)."""
+
     zero: float = 1e-12
     """Values below this are treated as exactly zero."""
     area: float = 1e-10
@@ -25,3 +27,4 @@ class Tolerance:
 
 
 tol = Tolerance()
+"""The one tolerance object of lipgen (see :class:`Tolerance`)."""

@@ -3,7 +3,7 @@
 import numpy as np
 
 from lipgen.fem import cholmod_available
-from lipgen.mesh import LipMesh
+from lipgen.mesh.lipmesh import LipMesh
 
 SOLVERS = ["superlu"] + (["cholmod"] if cholmod_available() else [])
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from lipgen import lip_mesh
 from lipgen.fem import Physics
-from lipgen.modes import ModeModel
+from lipgen.modes.model import ModeModel
 
 ADDON = "blender_addon"
 
@@ -262,7 +262,7 @@ def check_topology_refusal(tmp: str) -> dict:
     lm = lip_mesh(0)
     faces = lm.faces.copy()
     faces[[0, 1]] = faces[[1, 0]]
-    from lipgen.mesh import LipMesh
+    from lipgen.mesh.lipmesh import LipMesh
 
     other = LipMesh(lm.vertices, faces, lm.regions[[1, 0, *range(2, lm.n_faces)]], lm.anchors, name="rewired")
     ModeModel(3).fit(training_frames(lm, Physics(lm), 10, 3), mesh=other).save(f"{tmp}/model_other.npz")

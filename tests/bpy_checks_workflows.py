@@ -9,7 +9,7 @@ from bpy_checks_addon import _addon, _sheet, add_lips, call_error, evaluated, fi
 
 from lipgen import lip_mesh
 from lipgen.fem import Physics
-from lipgen.modes import ModeModel
+from lipgen.modes.model import ModeModel
 
 
 # ---- the artist's own mesh ---------------------------------------------------------------------
@@ -211,8 +211,8 @@ def check_usd_export(tmp: str) -> dict:
 def check_visemes() -> dict:
     """Train modes on the performer's gestures, animate a viseme script; every frame equals the
     core's ModeModel.synthesize(project(performer's displacement))."""
-    from lipgen.activation import random_activations, viseme_activations
-    from lipgen.motion import default_subject
+    from lipgen.subject.activation import random_activations, viseme_activations
+    from lipgen.subject.motion import default_subject
 
     fresh()
     obj = add_lips(0)
@@ -250,8 +250,8 @@ def check_save_reload(tmp: str) -> dict:
     """Everything LipGen keeps lives in the .blend (sliders, drivers, groups, settings); the
     physics is rebuilt on first use after opening the file."""
     from blender_addon import bridge
-    from lipgen.addon import clear_physics_cache
-    from lipgen.addon.physics_cache import cached_count
+    from lipgen.blender import clear_physics_cache
+    from lipgen.blender.physics_cache import cached_count
 
     fresh()
     obj = add_lips(0)
@@ -345,7 +345,7 @@ def check_panels_draw() -> dict:
 def check_train_from_dataset(folder: str) -> dict:
     """Modes trained on a lipgen dataset's true vertices (its finer subject mesh, nested) equal
     the core's ModeModel fitted on the same frames' first nodes."""
-    from lipgen.dataset import Dataset
+    from lipgen.dataset.layout import Dataset
 
     fresh()
     obj = add_lips(0)

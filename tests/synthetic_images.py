@@ -63,7 +63,7 @@ def marker_paths(n_frames: int, n_markers: int, rng: np.random.Generator, shape=
 
 def render_board(camera, object_size, square, pose, supersample: int = 3, rng=None,
                  noise: float = 0.0) -> np.ndarray:
-    """Ray-cast a planar chessboard seen by a :class:`~lipgen.pinhole.PinholeCamera`.
+    """Ray-cast a planar chessboard seen by a :class:`~lipgen.rig.pinhole.PinholeCamera`.
 
     ``object_size`` is (inner_cols, inner_rows); inner corner (i, j) is at (i, j, 0) * square in
     the board frame, and ``pose = (A, b)`` places it in the world (X = A p + b). A white border

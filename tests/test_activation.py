@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lipgen.activation import (
+from lipgen.subject.activation import (
     ACTIONS,
     ONE_SIDED,
     VISEMES,

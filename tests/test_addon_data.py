@@ -1,10 +1,10 @@
-"""lipgen.addon, the add-on's data side, without Blender: modes, physics cache, forces, curves."""
+"""lipgen.blender, the add-on's data side, without Blender: modes, physics cache, forces, curves."""
 
 import numpy as np
 import pytest
 
 from lipgen import SingularStiffnessError, TopologyMismatchError, lip_mesh
-from lipgen.addon import (
+from lipgen.blender import (
     CoefficientCurves,
     ForceResponses,
     ModeBasis,
@@ -16,9 +16,9 @@ from lipgen.addon import (
     physics_for,
     reach_goals,
 )
-from lipgen.addon.physics_cache import MAX_CACHED, cached_count
+from lipgen.blender.physics_cache import MAX_CACHED, cached_count
 from lipgen.fem import DEFAULT_STIFFNESS, Physics, dofs
-from lipgen.modes import ModeModel
+from lipgen.modes.model import ModeModel
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +62,7 @@ def test_mode_basis_from_model_reproduces_synthesize(model):
 
 
 def test_mode_basis_as_model_feeds_usd_export_arrays(model, mesh):
-    from lipgen.usd import _mode_arrays
+    from lipgen.usd.export import _mode_arrays
 
     basis = ModeBasis.from_model(model)
     mean, comps, std = _mode_arrays(mesh, basis.as_model())
@@ -229,8 +229,8 @@ def test_project_inverts_displacement(model):
 
 
 def test_speech_on_the_procedural_lips(mesh):
-    from lipgen.activation import viseme_activations
-    from lipgen.addon.speech import lips_resolution, performer, speech_displacements
+    from lipgen.blender.speech import lips_resolution, performer, speech_displacements
+    from lipgen.subject.activation import viseme_activations
 
     assert lips_resolution(mesh.n_nodes, mesh.topology_id) == 0
     r1 = lip_mesh(1)

@@ -184,7 +184,7 @@ def test_train_modes_from_a_dataset(blender, checks, tmp_path):
     import os
 
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from lipgen.generate import GenerateSettings, generate
+    from lipgen.dataset.generate import GenerateSettings, generate
 
     # A tiny dataset (rendered here, outside the Blender worker): 8 frames of the subject.
     folder = generate(tmp_path / "ds", GenerateSettings(frames=8, size=(160, 120), calib_frames=0),

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from blender_session import bpy_available
 
-from lipgen.addon import packaging
+from lipgen.blender import packaging
 
 ROOT = Path(__file__).resolve().parents[1]
 needs_bpy = pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module (Blender's validator)")
@@ -89,14 +89,14 @@ def test_pure_wheel_record_is_complete_and_correct(tmp_path):
             want = base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
             assert digest == "sha256=" + want and int(size) == len(data)
         assert "Requires-Dist: scipy==1" in zf.read("lipgen-9.9.dist-info/METADATA").decode()
-    assert "lipgen/addon/modebasis.py" in names and "lipgen/__init__.py" in names
+    assert "lipgen/blender/modebasis.py" in names and "lipgen/__init__.py" in names
     assert not any("__pycache__" in n for n in names)
     # pip accepts it.
     run = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
                           "--no-index", "--target", str(tmp_path / "t"), str(whl)],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
-    assert (tmp_path / "t" / "lipgen" / "addon" / "forces.py").is_file()
+    assert (tmp_path / "t" / "lipgen" / "blender" / "forces.py").is_file()
 
 
 @needs_bpy
@@ -145,7 +145,7 @@ def test_built_zip_validates_installs_and_works_in_a_bare_blender(tmp_path):
     assert got["addon_modules"] == ["bl_ext.user_default.lipgen"]
     assert got["force_max_dev_mm"] < 1e-5, got
     assert "bpy" in got["pxr"], got  # Blender's own USD module
-    from lipgen.usd import read_animation, validate
+    from lipgen.usd.export import read_animation, validate
 
     assert [str(i) for i in validate(got["usd"]) if i.is_error] == []
     assert read_animation(got["usd"]).points.shape == (3, 201, 3)

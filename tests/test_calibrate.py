@@ -6,8 +6,9 @@ from scipy.spatial.transform import Rotation
 from synthetic_images import render_board
 
 from lipgen import DatasetError
-from lipgen.calibrate import Chessboard, RigCalibration, calibrate_rig, compare_to_truth, find_corners
-from lipgen.camera import default_rig
+from lipgen.recon.calibrate import RigCalibration, calibrate_rig, compare_to_truth, find_corners
+from lipgen.rig.camera import default_rig
+from lipgen.rig.target import Chessboard
 
 pytest.importorskip("cv2")
 

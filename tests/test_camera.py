@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lipgen.camera import (
+from lipgen.rig.camera import (
     VIEWS,
     MirrorRig,
     PinholeCamera,

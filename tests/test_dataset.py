@@ -17,14 +17,14 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from lipgen.camera import VIEWS
 from lipgen.cli import main
-from lipgen.dataset import Dataset, GenerateSettings, validate_manifest
+from lipgen.dataset.layout import Dataset, GenerateSettings, validate_manifest
 from lipgen.errors import DatasetError
+from lipgen.rig.camera import VIEWS
 
 pytestmark = pytest.mark.render
-pytest.importorskip("lipgen.render")
-pytest.importorskip("lipgen.motion")
+pytest.importorskip("lipgen.rig.render")
+pytest.importorskip("lipgen.subject.motion")
 
 TINY = GenerateSettings(frames=14, seed=3, size=(160, 120), calib_frames=1, script="AA:0.2 OO:0.2 M F")
 
@@ -35,7 +35,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     return generate(tmp_path_factory.mktemp("ref") / "ds", TINY, progress=False)
 
@@ -73,7 +73,7 @@ def test_layout_manifest_and_reader(reference):
 
 
 def test_same_settings_same_bytes_with_two_workers(reference, tmp_path):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     other = generate(tmp_path / "ds", TINY, workers=2, progress=False)
     a, b = _files(reference), _files(other)
@@ -83,7 +83,7 @@ def test_same_settings_same_bytes_with_two_workers(reference, tmp_path):
 
 
 def test_resume_after_a_kill_completes_identically(reference, tmp_path):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     out = tmp_path / "ds"
     args = [sys.executable, "-m", "lipgen", "generate", "--out", str(out), "--frames", "14", "--seed", "3",
@@ -135,7 +135,7 @@ def _threshold_centroids(img):
 
 
 def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     s = GenerateSettings(frames=4, seed=1, size=(480, 360), calib_frames=0, dot_diameter=3.0, noise=1.0)
     ds = Dataset(generate(tmp_path / "ds", s, progress=False))
@@ -166,7 +166,7 @@ def test_show_writes_a_picture(reference, tmp_path, capsys):
 
 
 def test_bad_inputs_are_refused_and_nothing_is_overwritten(reference, tmp_path, capsys):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     stranger = tmp_path / "stranger"
     stranger.mkdir()
@@ -194,8 +194,8 @@ def test_bad_inputs_are_refused_and_nothing_is_overwritten(reference, tmp_path, 
 
 
 def test_a_rig_that_misses_the_subject_is_refused(tmp_path, monkeypatch):
-    import lipgen.generate as gen
-    from lipgen.camera import MirrorRig, default_rig
+    import lipgen.dataset.generate as gen
+    from lipgen.rig.camera import MirrorRig, default_rig
 
     def far_mirror(w, h):
         rig = default_rig(w, h)
@@ -232,7 +232,7 @@ def test_generate_help_explains(capsys):
 
 
 def test_depth_and_masks_agree_with_the_truth(reference, tmp_path):
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
 
     s = GenerateSettings(frames=3, seed=2, size=(320, 240), calib_frames=0, dot_diameter=3.0,
                          depth=True, masks=True)

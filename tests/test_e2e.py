@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from lipgen import DatasetError, TopologyMismatchError
-from lipgen.evaluate import score, split_frames
-from lipgen.modes import ModeModel
-from lipgen.pipeline import Reconstruction, model_mesh, reconstruct_dataset
-from lipgen.report import write_report
+from lipgen.evaluate.report import write_report
+from lipgen.evaluate.scoring import score, split_frames
+from lipgen.modes.model import ModeModel
+from lipgen.recon.pipeline import Reconstruction, model_mesh, reconstruct_dataset
 
 pytest.importorskip("cv2")
 pytestmark = pytest.mark.render
@@ -24,14 +24,14 @@ FRAMES = 12
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    from lipgen.render import import_pyrender
+    from lipgen.rig.render import import_pyrender
 
     try:
         import_pyrender()
     except Exception as exc:  # no GL here: the rendering tests cannot run
         pytest.skip(f"no offscreen rendering: {exc}")
-    from lipgen.dataset import GenerateSettings
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
 
     path = tmp_path_factory.mktemp("e2e") / "ds"
     generate(path, GenerateSettings(frames=FRAMES, seed=3, calib_frames=6), workers=1, progress=False)
@@ -45,7 +45,7 @@ def recon(dataset):
 
 @pytest.fixture(scope="module")
 def scored(dataset, recon):
-    from lipgen.dataset import Dataset
+    from lipgen.dataset.layout import Dataset
 
     train, _ = split_frames(recon.fields, 3)
     mesh = model_mesh(recon.info["mesh_source"])
@@ -86,7 +86,7 @@ def test_full_surface_error_is_bounded(scored):
 
 
 def test_report_and_files(tmp_path, dataset, recon, scored):
-    from lipgen.dataset import Dataset
+    from lipgen.dataset.layout import Dataset
 
     s, model, mesh = scored
     recon.save(tmp_path / "recon.npz")
@@ -135,7 +135,7 @@ def test_lost_markers_degrade_gracefully(tmp_path, dataset, recon):
     its neighbours and the other frames are unaffected, and every frame still gets a field."""
     from PIL import Image
 
-    from lipgen.dataset import Dataset
+    from lipgen.dataset.layout import Dataset
 
     ds = _copy(dataset, tmp_path)
     data = Dataset(ds)
@@ -160,8 +160,8 @@ def test_lost_markers_degrade_gracefully(tmp_path, dataset, recon):
 
 
 def test_a_dataset_from_another_mesh_is_refused(tmp_path, dataset, recon):
-    from lipgen.dataset import Dataset
-    from lipgen.procedural import lip_mesh
+    from lipgen.dataset.layout import Dataset
+    from lipgen.mesh.procedural import lip_mesh
 
     base = lip_mesh(0)
     other = base.__class__(base.vertices, base.faces, base.regions, base.anchors, base.markers,

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lipgen.camera import PinholeCamera, default_rig
-from lipgen.decal import make_decal, place_decal
-from lipgen.face import FaceLook, FaceModel, boundary_loops
-from lipgen.procedural import lip_mesh
-from lipgen.scene import vertex_normals
-from lipgen.visibility import occluded, segment_hits
+from lipgen.mesh.procedural import lip_mesh
+from lipgen.rig.camera import PinholeCamera, default_rig
+from lipgen.rig.scene import vertex_normals
+from lipgen.rig.visibility import occluded, segment_hits
+from lipgen.subject.decal import make_decal, place_decal
+from lipgen.subject.face import FaceLook, FaceModel, boundary_loops
 
 
 @pytest.fixture(scope="module")

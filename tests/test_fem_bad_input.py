@@ -9,7 +9,7 @@ from lipgen import SingularStiffnessError
 from lipgen.errors import MeshError
 from lipgen.fem import Physics, dofs, element_stiffness
 from lipgen.fem.solver import factorize
-from lipgen.mesh import LipMesh
+from lipgen.mesh.lipmesh import LipMesh
 
 
 @pytest.fixture(scope="module")

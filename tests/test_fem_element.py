@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from lipgen.fem import assemble_stiffness, element_stiffness
-from lipgen.mesh import LipMesh
+from lipgen.mesh.lipmesh import LipMesh
 
 NU = 0.01
 

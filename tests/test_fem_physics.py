@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 import lipgen
 from lipgen.fem import Physics, assemble_stiffness, dofs
 from lipgen.fem.planar import PLANAR_REGIONS, fig_2_2
-from lipgen.mesh import LipMesh
+from lipgen.mesh.lipmesh import LipMesh
 
 
 @pytest.fixture(scope="module", params=SOLVERS)

@@ -1,4 +1,4 @@
-"""The least-deformation head pose (lipgen.headpose, normalize_markers(method=...)) against closed
+"""The least-deformation head pose (lipgen.recon.headpose, normalize_markers(method=...)) against closed
 forms: exact recovery of rigid motion, the first-order bias of an expression computed
 independently from a dense inverse of K, equivariance under head rotation, missing markers."""
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from lipgen.fem import Physics
-from lipgen.headpose import MarkerMetric, least_cost_rotations, rotation_matrix, rotation_vector
-from lipgen.motion import ACTIONS, default_subject
-from lipgen.normalize import lip_subsets, normalize_markers
-from lipgen.procedural import lip_mesh
+from lipgen.mesh.procedural import lip_mesh
+from lipgen.recon.headpose import MarkerMetric, least_cost_rotations, rotation_matrix, rotation_vector
+from lipgen.recon.normalize import lip_subsets, normalize_markers
+from lipgen.subject.motion import ACTIONS, default_subject
 
 POSE_METHODS = ("least-force", "least-strain", "procrustes")
 
@@ -89,7 +89,7 @@ def test_one_sided_expressions_bias_the_pose_by_the_first_order_prediction(model
     explains d in the metric, -(JᵀWJ)⁻¹JᵀW d to first order (J: rotation about the nose of the
     rest markers), whatever Q is. Its size is what the method can confuse with head motion; the
     bound 4 deg holds for every one-sided action at full strength (the largest, a corner puller
-    under the force metric, reads as 3.6 deg, see lipgen.normalize)."""
+    under the force metric, reads as 3.6 deg, see lipgen.recon.normalize)."""
     mesh, physics = model
     M, nose = mesh.vertices[mesh.markers], mesh.nose
     subject = default_subject(0)

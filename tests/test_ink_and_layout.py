@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from lipgen.dots import DotSettings, as_gray, detect_dots, ink_gray
-from lipgen.pointreg import assign, register_points
+from lipgen.recon.dots import DotSettings, as_gray, detect_dots, ink_gray
+from lipgen.recon.pointreg import assign, register_points
 
 # Colours measured in our renders (uint8 RGB): skin, lip, ink dot.
 SKIN, LIP, INK = np.array([208, 155, 126.0]), np.array([182, 84, 84.0]), np.array([41, 42, 39.0])

@@ -8,9 +8,9 @@ import trimesh
 
 from lipgen import MeshError
 from lipgen.cli import main
-from lipgen.mesh import LipMesh, merge_coincident_vertices
-from lipgen.mesh_io import read_mesh, sidecar_path, write_mesh
-from lipgen.procedural import lip_mesh
+from lipgen.mesh.io import read_mesh, sidecar_path, write_mesh
+from lipgen.mesh.lipmesh import LipMesh, merge_coincident_vertices
+from lipgen.mesh.procedural import lip_mesh
 
 
 @pytest.fixture(scope="module")

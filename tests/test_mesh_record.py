@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from lipgen import MeshError, ModelFileError
-from lipgen.mesh import LipMesh
+from lipgen.mesh.lipmesh import LipMesh
 
 
 def square():

@@ -1,13 +1,13 @@
-"""The scale-mixture estimate (lipgen.mixture): Bayes over a grid of residual variances."""
+"""The scale-mixture estimate (lipgen.modes.mixture): Bayes over a grid of residual variances."""
 
 import numpy as np
 import pytest
 
 from lipgen import Physics, dofs, lip_mesh
-from lipgen.combined import CombinedModel
-from lipgen.llse import LLSE, LowRankCovariance, PhysicsCovariance, SumCovariance
-from lipgen.mixture import ScaleMixtureLLSE
-from lipgen.modes import ModeModel
+from lipgen.modes.combined import CombinedModel
+from lipgen.modes.llse import LLSE, LowRankCovariance, PhysicsCovariance, SumCovariance
+from lipgen.modes.mixture import ScaleMixtureLLSE
+from lipgen.modes.model import ModeModel
 
 
 @pytest.fixture(scope="module")

@@ -5,9 +5,9 @@ import pytest
 
 from lipgen import ModelFileError, TopologyMismatchError
 from lipgen._io import save_npz
-from lipgen.llse import LLSE, LowRankCovariance, SumCovariance, llse
-from lipgen.mesh import LipMesh
-from lipgen.modes import ModeModel
+from lipgen.mesh.lipmesh import LipMesh
+from lipgen.modes.llse import LLSE, LowRankCovariance, SumCovariance, llse
+from lipgen.modes.model import ModeModel
 
 
 def _frames(F=40, n=30, rank=12, seed=0):

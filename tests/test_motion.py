@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from lipgen import lip_mesh
-from lipgen.motion import (
+from lipgen.mesh.procedural import mirror_permutation
+from lipgen.subject.motion import (
     ACTION_TARGETS_MM,
     ACTIONS,
     default_subject,
@@ -15,7 +16,6 @@ from lipgen.motion import (
     simulate,
     viseme_activations,
 )
-from lipgen.procedural import mirror_permutation
 
 
 @pytest.fixture(scope="module")

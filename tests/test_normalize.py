@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from lipgen.normalize import fit_plane, lip_frame, lip_subsets, normalize_markers, umeyama
+from lipgen.recon.normalize import fit_plane, lip_frame, lip_subsets, normalize_markers, umeyama
 
 
 def _rot(axis, angle):

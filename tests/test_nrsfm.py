@@ -235,8 +235,8 @@ def test_jaws_runs_and_bregler_is_far_worse_than_dai_on_drink_excerpt():
 
 
 def test_evaluate_on_dataset(tmp_path):
-    from lipgen.dataset import GenerateSettings
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
     from lipgen.nrsfm.dataset_eval import dataset_tracks, evaluate_on_dataset
 
     path = generate(tmp_path / "ds", GenerateSettings(frames=12, seed=5, size=(160, 120), calib_frames=0),
@@ -256,7 +256,7 @@ def test_evaluate_on_dataset(tmp_path):
 
     # Measured tracks: the truth's pixels plus 0.5 px noise, one mark lost for a few frames.
     from lipgen._io import load_npz
-    from lipgen.dataset import FRAME_KIND, SCHEMA, Dataset
+    from lipgen.dataset.layout import FRAME_KIND, SCHEMA, Dataset
     from lipgen.errors import DatasetError
 
     ds = Dataset(path)

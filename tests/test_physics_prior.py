@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from lipgen import Physics, dofs, lip_mesh
-from lipgen.combined import CombinedModel, default_residual_variance
-from lipgen.llse import LLSE, LowRankCovariance, PhysicsCovariance, SumCovariance
-from lipgen.modes import ModeModel
-from lipgen.motion import ACTIONS, default_subject, random_activations, simulate
+from lipgen.modes.combined import CombinedModel, default_residual_variance
+from lipgen.modes.llse import LLSE, LowRankCovariance, PhysicsCovariance, SumCovariance
+from lipgen.modes.model import ModeModel
+from lipgen.subject.motion import ACTIONS, default_subject, random_activations, simulate
 
 
 @pytest.fixture(scope="module")
@@ -131,7 +131,7 @@ def test_combined_model_beats_both_on_motion_outside_the_training_span(physics, 
     best learned-only (10 modes or full covariance, the better one in each realisation) and the
     best physics-only (K_s⁻² or K_s⁻¹) error on geometric average over the realisations, in this
     small configuration (no head motion). Per realisation it is not (x-y: 3 wins of 8 against the
-    learned modes); see lipgen.combined for the full experiment."""
+    learned modes); see lipgen.modes.combined for the full experiment."""
     mesh = physics.mesh
     rows = {"xyz (8 points)": dofs(mesh.markers[:8]), "yz": dofs(mesh.markers, "yz"),
             "xy": dofs(mesh.markers, "xy")}

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from lipgen.plot_mesh import plot_mesh, render_default_lips
-from lipgen.procedural import lip_mesh
+from lipgen.mesh.plot import plot_mesh, render_default_lips
+from lipgen.mesh.procedural import lip_mesh
 
 
 def test_default_picture(tmp_path):

@@ -11,7 +11,7 @@ import pytest
 import trimesh
 
 import lipgen
-from lipgen.procedural import MARKER_NAMES, lip_mesh, mirror_permutation, thesis_unit_mm
+from lipgen.mesh.procedural import MARKER_NAMES, lip_mesh, mirror_permutation, thesis_unit_mm
 
 FLIP = np.array([-1.0, 1.0, 1.0])
 

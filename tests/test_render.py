@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lipgen.camera import MirrorRig, PinholeCamera, default_rig
-from lipgen.face import FaceModel
-from lipgen.procedural import lip_mesh
-from lipgen.scene import Scene
-from lipgen.visibility import occluded
+from lipgen.mesh.procedural import lip_mesh
+from lipgen.rig.camera import MirrorRig, PinholeCamera, default_rig
+from lipgen.rig.scene import Scene
+from lipgen.rig.visibility import occluded
+from lipgen.subject.face import FaceModel
 
 pytestmark = pytest.mark.render
-render = pytest.importorskip("lipgen.render")
+render = pytest.importorskip("lipgen.rig.render")
 
 
 @pytest.fixture(scope="module")
@@ -139,13 +139,14 @@ def test_raw_frame_depth_and_labels(face):
 
 
 def test_pyrender_is_imported_only_when_rendering():
-    code = "import lipgen, lipgen.render, lipgen.face, lipgen.camera, sys; print('pyrender' in sys.modules)"
+    code = ("import lipgen, lipgen.rig.render, lipgen.subject.face, lipgen.rig.camera, sys; "
+            "print('pyrender' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
 
 def test_missing_opengl_gives_a_clear_error():
-    code = ("from lipgen.render import RigRenderer\nfrom lipgen.camera import default_rig\n"
+    code = ("from lipgen.rig.render import RigRenderer\nfrom lipgen.rig.camera import default_rig\n"
             "try:\n    RigRenderer(default_rig(64, 48))\nexcept Exception as e:\n"
             "    print(type(e).__name__, e)\n")
     env = {**os.environ, "PYOPENGL_PLATFORM": "osmesa", "LD_LIBRARY_PATH": "/nonexistent"}
@@ -158,8 +159,8 @@ def test_missing_opengl_gives_a_clear_error():
 
 def test_calibration_board_corners_match_truth():
     """The chessboard frames agree with their true poses: corners found by OpenCV vs projections."""
-    from lipgen.calibrate import Chessboard, find_corners
-    from lipgen.target import board_poses, board_scene
+    from lipgen.recon.calibrate import find_corners
+    from lipgen.rig.target import Chessboard, board_poses, board_scene
 
     rig = default_rig()
     board = Chessboard(9, 6, 8.0)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from lipgen import Physics, dofs, lip_mesh
-from lipgen.residual_prior import select_residual_prior
+from lipgen.modes.residual_prior import select_residual_prior
 
 
 @pytest.fixture(scope="module")

@@ -67,7 +67,7 @@ def test_combined_beats_both_outside_the_span_with_marker_noise():
     physics-only estimate on geometric average in every row."""
     from lipgen import Physics, lip_mesh
     from lipgen.experiments.table51 import _realisation, _score, _versus
-    from lipgen.motion import default_subject
+    from lipgen.subject.motion import default_subject
 
     s = Table51Settings(marker_noise_mm=0.3)
     physics = Physics(lip_mesh(0))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from synthetic_images import background, draw_dots, frame, marker_paths
 
-from lipgen.dots import DotSettings, as_gray, detect_dots, dot_peaks
-from lipgen.pointreg import match_to_expected
-from lipgen.track import (
+from lipgen.recon.dots import DotSettings, as_gray, detect_dots, dot_peaks
+from lipgen.recon.pointreg import match_to_expected
+from lipgen.recon.track import (
     CORRELATION_ONLY,
     LOST,
     RECOVERED,
@@ -228,7 +228,7 @@ def test_foreshortened_dot_beside_a_round_blob_is_not_swapped_for_it(seed):
 
 
 def test_reject_takes_a_sighting_back_and_the_marker_is_reacquired():
-    from lipgen.track import MarkerTracker
+    from lipgen.recon.track import MarkerTracker
     rng, base, paths = _sequence(n_frames=12, n_markers=6, seed=12)
     tracker = MarkerTracker(paths[0])
     for t, p in enumerate(paths):
@@ -246,9 +246,9 @@ def test_a_sighting_the_other_view_contradicts_is_taken_back():
     # Two calibrated views of six 3-D marks. From frame 6 mark 0's dot is hidden in view 1 and a
     # round blob 6 px above it (off the epipolar line) takes its place; alone, that view's
     # tracker follows the blob. Checked against view 0, the sighting is refused instead.
-    from lipgen.pinhole import PinholeCamera
-    from lipgen.reconstruct import _check_views
-    from lipgen.track import MarkerTracker
+    from lipgen.recon.steps import _check_views
+    from lipgen.recon.track import MarkerTracker
+    from lipgen.rig.pinhole import PinholeCamera
     K = np.array([[400.0, 0, 80], [0, 400.0, 60], [0, 0, 1]])
     a = np.deg2rad(20)
     Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
@@ -300,7 +300,7 @@ def test_lost_markers_follow_their_group_after_a_sudden_jump(seed):
     # unambiguous recovery (and the correlation found the bare skin where their dots had been),
     # and stayed lost. Carried with the row's markers seen dropping, they are re-acquired in the
     # next frame, all on their dots.
-    from lipgen.track import MarkerTracker
+    from lipgen.recon.track import MarkerTracker
     rng, base, paths = _row_drop(seed, 11.0)
     tracker = MarkerTracker(paths[0], reference_uv=paths[0])
     for t, p in enumerate(paths):
@@ -333,7 +333,7 @@ def test_a_group_that_did_not_move_as_one_is_not_shifted_onto_look_alike_dots():
 
 
 def test_shift_group_moves_only_a_group_that_moved_as_one():
-    from lipgen.association import shift_group
+    from lipgen.recon.association import shift_group
     grid = np.array([(16.0 * c, 16.0 * r) for r in range(3) for c in range(5)]) + 20.0
     dots = grid.copy()
     dots[10:, 1] += 20.0                                   # the bottom row dropped together

@@ -13,9 +13,10 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from lipgen import Physics, TopologyMismatchError, dofs, lip_mesh, usd  # noqa: E402
-from lipgen.mesh import LipMesh  # noqa: E402
-from lipgen.modes import ModeModel  # noqa: E402
+from lipgen import Physics, TopologyMismatchError, dofs, lip_mesh
+from lipgen.mesh.lipmesh import LipMesh  # noqa: E402
+from lipgen.modes.model import ModeModel  # noqa: E402
+from lipgen.usd import export as usd  # noqa: E402
 
 pytestmark = pytest.mark.usd
 U32 = 2.0**-24
@@ -390,8 +391,8 @@ def test_command_line_dataset_ground_truth(tmp_path, mesh, fitted, capsys):
     """--dataset: the ground-truth vertices of a (tiny) generated dataset, baked, at its fps;
     a model of another mesh is refused with the reason."""
     from lipgen.cli import main
-    from lipgen.dataset import Dataset, GenerateSettings
-    from lipgen.generate import generate
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import Dataset, GenerateSettings
 
     root = generate(tmp_path / "ds", GenerateSettings(frames=3, seed=2, size=(160, 120), calib_frames=0,
                                                       fps=25), progress=False)

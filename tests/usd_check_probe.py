@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lipgen.usd import read_animation, validate
+from lipgen.usd.export import read_animation, validate
 
 
 def main(out: str, paths: list[str]) -> None:

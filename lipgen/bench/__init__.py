@@ -19,7 +19,7 @@ import time
 from importlib import metadata
 from pathlib import Path
 
-from .._io import atomic_write_json
+from lipgen._io import atomic_write_json
 
 __all__ = ["SUITE_MODULES", "available_suites", "machine_info", "run_benchmarks"]
 
@@ -35,6 +35,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.blender",
     "lipgen.bench.speech",
 )
+"""The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
              "opencv-python-headless", "pocketsphinx")

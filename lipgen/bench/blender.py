@@ -22,13 +22,13 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .._optional import require
+from lipgen._optional import require
 
 NAME = "blender"
 
 
 def run(quick: bool = False) -> dict:
-    from ..addon.packaging import addon_source
+    from lipgen.blender.packaging import addon_source
 
     source = addon_source()
     if importlib.util.find_spec("bpy") is None:

@@ -7,9 +7,9 @@ and its nested grid cost on top of what any mesh of that size costs to accept.
 
 from __future__ import annotations
 
-from ..mesh import LipMesh
-from ..procedural import lip_mesh
-from .measure import growth_exponent, peak_memory, time_call
+from lipgen.bench.measure import growth_exponent, peak_memory, time_call
+from lipgen.mesh.lipmesh import LipMesh
+from lipgen.mesh.procedural import lip_mesh
 
 NAME = "mesh"
 

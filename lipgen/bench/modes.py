@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .measure import time_call
+from lipgen.bench.measure import time_call
 
 NAME = "modes"
 
@@ -23,9 +23,9 @@ def _fields(rng, F: int, D: int, rank: int = 30) -> np.ndarray:
 
 
 def _throughput(resolution: int, quick: bool, rng) -> dict:
-    from .. import lip_mesh
-    from ..fem import dofs
-    from ..modes import ModeModel
+    from lipgen import lip_mesh
+    from lipgen.fem import dofs
+    from lipgen.modes.model import ModeModel
 
     mesh = lip_mesh(resolution)
     D = mesh.n_dofs
@@ -45,10 +45,10 @@ def _throughput(resolution: int, quick: bool, rng) -> dict:
 
 def _combined(quick: bool, rng) -> dict:
     """Frames/s of the combined model at resolution 0: one-σ² LLSE and the scale mixture."""
-    from .. import Physics, lip_mesh
-    from ..combined import CombinedModel
-    from ..fem import dofs
-    from ..modes import ModeModel
+    from lipgen import Physics, lip_mesh
+    from lipgen.fem import dofs
+    from lipgen.modes.combined import CombinedModel
+    from lipgen.modes.model import ModeModel
 
     mesh = lip_mesh(0)
     cm = CombinedModel(ModeModel(10).fit(_fields(rng, 150, mesh.n_dofs)), Physics(mesh),
@@ -69,8 +69,8 @@ def _combined(quick: bool, rng) -> dict:
 
 
 def _fit_time(quick: bool, rng) -> dict:
-    from .. import lip_mesh
-    from ..modes import ModeModel
+    from lipgen import lip_mesh
+    from lipgen.modes.model import ModeModel
 
     D = lip_mesh(0).n_dofs
     F = 2000 if quick else 10000

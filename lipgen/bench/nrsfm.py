@@ -12,7 +12,7 @@ import os
 
 import numpy as np
 
-from .measure import time_call
+from lipgen.bench.measure import time_call
 
 NAME = "nrsfm"
 
@@ -22,21 +22,21 @@ _KS_QUICK = {"bregler": (4, 12), "dai": (4, 12), "dai-ba": (4,), "em-ppca": (5,)
 
 
 def _sequence():
-    from ..experiments.nrsfm_benchmarks import data_dir
+    from lipgen.experiments.nrsfm_benchmarks import data_dir
 
     path = data_dir() / "drink.npz"
     if path.is_file():
         with np.load(path, allow_pickle=False) as d:
             return "drink", d["W"], d["S"]
-    from ..nrsfm.synthetic import articulated_sequence
+    from lipgen.nrsfm.synthetic import articulated_sequence
 
     W, S, _ = articulated_sequence(1102, np.random.default_rng(0), n_bones=14, markers_per_bone=3)
     return "synthetic articulated (drink's data not found)", W[:, :41], S[:, :41]
 
 
 def run(quick: bool = False) -> dict:
-    from ..experiments.nrsfm_benchmarks import PUBLISHED
-    from ..nrsfm import e3d, n_basis_shapes, reconstruct
+    from lipgen.experiments.nrsfm_benchmarks import PUBLISHED
+    from lipgen.nrsfm import e3d, n_basis_shapes, reconstruct
 
     name, W, S = _sequence()
     load_before = os.getloadavg()

@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from .measure import growth_exponent, peak_memory, time_call
+from lipgen.bench.measure import growth_exponent, peak_memory, time_call
 
 NAME = "physics"
 

@@ -31,13 +31,13 @@ def _frames(mesh, n: int) -> list[np.ndarray]:
 def run(quick: bool = False) -> dict:
     from PIL import Image
 
-    from .._io import atomic_write_bytes, save_npz
-    from ..camera import default_rig
-    from ..dataset import GenerateSettings
-    from ..face import FaceModel
-    from ..generate import generate
-    from ..procedural import lip_mesh
-    from ..render import RigRenderer, _View
+    from lipgen._io import atomic_write_bytes, save_npz
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.rig.camera import default_rig
+    from lipgen.rig.render import RigRenderer, _View
+    from lipgen.subject.face import FaceModel
 
     width, height = 640, 480
     reps = 6 if quick else 30

@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .measure import time_call
+from lipgen.bench.measure import time_call
 
 NAME = "usd"
 
 
 def _setup(n_frames: int, n_modes: int = 10, seed: int = 0):
-    from .. import lip_mesh
-    from ..modes import ModeModel
+    from lipgen import lip_mesh
+    from lipgen.modes.model import ModeModel
 
     mesh = lip_mesh(0)
     rng = np.random.default_rng(seed)
@@ -45,7 +45,7 @@ def _setup(n_frames: int, n_modes: int = 10, seed: int = 0):
 
 
 def run(quick: bool = False) -> dict:
-    from ..usd import export_usd, read_animation
+    from lipgen.usd.export import export_usd, read_animation
 
     n_frames = 1_000 if quick else 10_000
     mesh, model, weights = _setup(n_frames)

@@ -25,7 +25,7 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..bench import available_suites, run_benchmarks
+    from lipgen.bench import available_suites, run_benchmarks
 
     if args.list:
         for name, module in sorted(available_suites().items()):

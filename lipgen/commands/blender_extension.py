@@ -6,7 +6,7 @@ import sys
 
 
 def add_parser(sub) -> None:
-    from ..addon.packaging import BUNDLED, PLATFORMS
+    from lipgen.blender.packaging import BUNDLED, PLATFORMS
 
     p = sub.add_parser(
         "blender-extension",
@@ -33,7 +33,7 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..addon.packaging import build_extension
+    from lipgen.blender.packaging import build_extension
 
     build = build_extension(args.out, platforms=args.platforms, cache=args.wheel_cache,
                             offline=args.offline, source=args.source, blender=args.blender)

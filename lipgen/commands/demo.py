@@ -61,8 +61,8 @@ def step_named_forces(mesh, physics, out: Path, peak_mm: float = 4.0) -> Path:
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
 
-    from .._io import atomic_path
-    from ..plot_mesh import draw_mesh
+    from lipgen._io import atomic_path
+    from lipgen.mesh.plot import draw_mesh
 
     names = list(NAMED_FORCES)
     forces = np.stack([named_force(mesh, n, peak_mm, physics) for n in names])
@@ -92,9 +92,9 @@ def step_rest_state(mesh, physics, out: Path, close_mm: float = 1.5):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .. import dofs
-    from .._io import atomic_path
-    from ..plot_mesh import draw_mesh
+    from lipgen import dofs
+    from lipgen._io import atomic_path
+    from lipgen.mesh.plot import draw_mesh
 
     goals = np.zeros((len(mesh.markers), 3))
     for name, sign in (("upper_mid", -1.0), ("lower_mid", 1.0)):
@@ -120,16 +120,16 @@ def step_rest_state(mesh, physics, out: Path, close_mm: float = 1.5):
 
 def step_fig_2_2(out: Path) -> Path:
     """The planar demonstration of the thesis's Fig 2-2."""
-    from ..fem.planar import fig_2_2, plot_fig_2_2
+    from lipgen.fem.planar import fig_2_2, plot_fig_2_2
 
     return plot_fig_2_2(fig_2_2(), out / "fig_2_2.png")
 
 
 def step_dataset(out: Path, frames: int, seed: int, workers: int, progress: bool) -> Path:
     """Generate the demo dataset, or reuse it if a complete one with the same settings is there."""
-    from ..dataset import Dataset, GenerateSettings
-    from ..errors import DatasetError
-    from ..generate import generate
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import Dataset, GenerateSettings
+    from lipgen.errors import DatasetError
 
     folder = out / "dataset"
     settings = GenerateSettings(frames=frames, seed=seed)
@@ -150,7 +150,7 @@ def step_dataset(out: Path, frames: int, seed: int, workers: int, progress: bool
 
 
 def step_reconstruct(dataset: Path, out: Path, progress: bool):
-    from ..pipeline import reconstruct_dataset
+    from lipgen.recon.pipeline import reconstruct_dataset
 
     recon = reconstruct_dataset(dataset, progress=progress)
     recon.save(out / "recon.npz")
@@ -158,9 +158,9 @@ def step_reconstruct(dataset: Path, out: Path, progress: bool):
 
 
 def step_train(recon, out: Path):
-    from ..evaluate import default_test_frames, split_frames
-    from ..modes import ModeModel
-    from ..pipeline import model_mesh
+    from lipgen.evaluate.scoring import default_test_frames, split_frames
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import model_mesh
 
     train, _ = split_frames(recon.fields, default_test_frames(len(recon.fields)))
     mesh = model_mesh(recon.info["mesh_source"])
@@ -171,10 +171,10 @@ def step_train(recon, out: Path):
 
 def step_usd(model, mesh, recon, out: Path) -> Path | None:
     """The trained modes as UsdSkel blend shapes, animated by the reconstructed motion."""
-    from ..errors import MissingDependencyError
+    from lipgen.errors import MissingDependencyError
 
     try:
-        from ..usd import export_usd, validate
+        from lipgen.usd.export import export_usd, validate
     except (ImportError, MissingDependencyError) as exc:
         log.warning("no USD export: %s", exc)
         return None
@@ -192,9 +192,9 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
     """Run every demo step; returns the files written (the report last)."""
     import os
 
-    from ..dataset import Dataset
-    from ..evaluate import score
-    from ..report import nrsfm_section, write_report
+    from lipgen.dataset.layout import Dataset
+    from lipgen.evaluate.report import nrsfm_section, write_report
+    from lipgen.evaluate.scoring import score
 
     t0 = time.perf_counter()
     out = Path(out_dir) / "demo"

@@ -33,11 +33,11 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..dataset import Dataset
-    from ..evaluate import score
-    from ..modes import ModeModel
-    from ..pipeline import Reconstruction, model_mesh, reconstruct_dataset
-    from ..report import nrsfm_section, write_report
+    from lipgen.dataset.layout import Dataset
+    from lipgen.evaluate.report import nrsfm_section, write_report
+    from lipgen.evaluate.scoring import score
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import Reconstruction, model_mesh, reconstruct_dataset
 
     out = Path(args.out)
     model = ModeModel.load(args.model)

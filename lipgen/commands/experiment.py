@@ -79,8 +79,8 @@ def _lipsync(args) -> int:
 
 
 def _table51(args) -> int:
-    from ..experiments.table51 import Table51Settings, run_table51
-    from ..experiments.table51_report import write_report
+    from lipgen.experiments.table51 import Table51Settings, run_table51
+    from lipgen.experiments.table51_report import write_report
 
     runs = []
     for noise in args.noise_mm:
@@ -94,8 +94,8 @@ def _table51(args) -> int:
 
 
 def _nrsfm(args) -> int:
-    from ..experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
-    from ..nrsfm import METHODS
+    from lipgen.experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
+    from lipgen.nrsfm import METHODS
 
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:

@@ -21,7 +21,7 @@ The mesh is the default procedural lips (--resolution) unless --mesh gives a Lip
 (LipMesh.save). --weights takes an .npy array (F, k) of mode coefficients, as
 ModeModel.project returns them, or an .npz holding one array (or one named "weights").
 
---script runs a viseme script on the synthetic subject (lipgen.motion: visemes -> muscle-like
+--script runs a viseme script on the synthetic subject (lipgen.subject.motion: visemes -> muscle-like
 activations -> simulated vertices) and projects its displacements onto the model's modes;
 --bake adds the simulated vertices themselves as baked points.
 
@@ -91,7 +91,7 @@ def _load_array(path: str, what: str, key: str) -> np.ndarray:
 
 
 def _mesh(args):
-    from ..mesh import LipMesh
+    from lipgen.mesh.lipmesh import LipMesh
 
     if args.mesh:
         return LipMesh.load(args.mesh)
@@ -105,9 +105,9 @@ def _script_motion(args, mesh, model, fps):
     """Weights (F, k) and vertices (F, n, 3) of a viseme script on the synthetic subject.
 
     The subject lives on a finer procedural mesh whose first nodes are the nodes of the coarser
-    ones (lipgen.motion), so its motion is read off the model's nodes directly.
+    ones (lipgen.subject.motion), so its motion is read off the model's nodes directly.
     """
-    from .. import motion
+    from lipgen.subject import motion
 
     if args.mesh:
         raise ValueError("--script needs the procedural lips (--resolution), not --mesh: the synthetic "
@@ -123,7 +123,7 @@ def _script_motion(args, mesh, model, fps):
 
 def _dataset_truth(args):
     """The subject mesh, ground-truth vertices (F, n, 3) and fps of a dataset folder."""
-    from ..dataset import Dataset
+    from lipgen.dataset.layout import Dataset
 
     for flag, value in (("--mesh", args.mesh), ("--points", args.points)):
         if value:
@@ -136,8 +136,8 @@ def _dataset_truth(args):
 
 
 def _run(args) -> int:
-    from ..modes import ModeModel
-    from ..usd import export_usd, validate
+    from lipgen.modes.model import ModeModel
+    from lipgen.usd.export import export_usd, validate
 
     if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "

@@ -60,8 +60,8 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..dataset import GenerateSettings
-    from ..generate import generate
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
 
     settings = GenerateSettings(
         frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,

@@ -47,8 +47,8 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from pathlib import Path
 
-    from ..mesh_io import read_mesh, sidecar_path, write_mesh
-    from ..procedural import lip_mesh
+    from lipgen.mesh.io import read_mesh, sidecar_path, write_mesh
+    from lipgen.mesh.procedural import lip_mesh
 
     targets = [Path(args.plot)] if args.plot else []
     if args.out:
@@ -72,7 +72,7 @@ def _run(args) -> int:
         for path in write_mesh(mesh, args.out, overwrite=args.force):
             out.write(f"wrote {path}\n")
     if args.plot:
-        from ..plot_mesh import VIEWS, plot_mesh
+        from lipgen.mesh.plot import VIEWS, plot_mesh
 
         views = tuple(v.strip() for v in args.views.split(",") if v.strip())
         bad = [v for v in views if v not in VIEWS]

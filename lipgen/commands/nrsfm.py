@@ -37,7 +37,7 @@ plotted (Bregler et al. Fig 2).
 
 
 def add_parser(sub) -> None:
-    from ..nrsfm import DEFAULT_METHOD, METHODS
+    from lipgen.nrsfm import DEFAULT_METHOD, METHODS
 
     p = sub.add_parser("nrsfm", help="non-rigid structure from motion: 2D tracks -> 3D shapes",
                        description=_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -70,7 +70,7 @@ def _parse_k(text: str):
 
 
 def _run(args) -> int:
-    from ..nrsfm import (
+    from lipgen.nrsfm import (
         MEAN_PLUS_MODES,
         e3d,
         load_tracks,

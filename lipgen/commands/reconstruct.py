@@ -31,14 +31,14 @@ def add_parser(sub) -> None:
                    help="model mesh: 'lip_mesh(R)' (default lip_mesh(0)) or a LipMesh file (.npz)")
     p.add_argument("--normalisation", default="least-force",
                    choices=("thesis", "least-force", "least-strain", "procrustes"),
-                   help="how the head pose is removed (default least-force; see lipgen.normalize)")
+                   help="how the head pose is removed (default least-force; see lipgen.recon.normalize)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
-    from ..pipeline import reconstruct_dataset
+    from lipgen.recon.pipeline import reconstruct_dataset
 
     out = Path(args.out)
     if out.exists() and not args.force:

@@ -20,7 +20,7 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..dataset import Dataset, save_annotated
+    from lipgen.dataset.layout import Dataset, save_annotated
 
     ds = Dataset(args.dataset)
     if not 0 <= args.frame < len(ds):

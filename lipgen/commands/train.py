@@ -30,9 +30,9 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from ..evaluate import default_test_frames, split_frames
-    from ..modes import ModeModel
-    from ..pipeline import Reconstruction, model_mesh
+    from lipgen.evaluate.scoring import default_test_frames, split_frames
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import Reconstruction, model_mesh
 
     out = Path(args.out)
     if out.exists() and not args.force:

@@ -1,8 +1,8 @@
 """The normalisation methods compared on exact world marks of generated subjects.
 
 For each seed, the subject and head motion that ``lipgen generate --seed S`` would render
-(:func:`lipgen.generate` without the images) give the exact world marks and nose; each method of
-:data:`lipgen.normalize.METHODS` normalises them (reference frame ``"auto"``, as the pipeline),
+(:func:`lipgen.dataset.generate` without the images) give the exact world marks and nose; each method of
+:data:`lipgen.recon.normalize.METHODS` normalises them (reference frame ``"auto"``, as the pipeline),
 and is scored against the true model-frame marks (mm RMS), by the least-strain fields
 ``Physics.reach`` builds from its markers against the true surface (mm RMS per node), and for
 the pose methods by the head-rotation error (deg) against the true pose.
@@ -26,13 +26,13 @@ def _rms(x) -> float:
 def compare_normalisations(seeds=(0, 1, 2, 3, 4), frames: int = 150, methods=None) -> dict:
     """``{method: {"norm_mm": [...], "fields_mm": [...], "pose_deg_rms": [...], "pose_deg_max": [...]}}``
     with one entry per seed; ``"floor"`` holds the reach from the true markers."""
-    from ..dataset import GenerateSettings
-    from ..fem import Physics
-    from ..generate import _simulate
-    from ..headpose import rotation_vector
-    from ..normalize import METHODS, lip_subsets, normalize_markers
-    from ..procedural import lip_mesh
-    from ..reconstruct import reach_fields
+    from lipgen.dataset.generate import _simulate
+    from lipgen.dataset.layout import GenerateSettings
+    from lipgen.fem import Physics
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.recon.headpose import rotation_vector
+    from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
+    from lipgen.recon.steps import reach_fields
 
     mesh = lip_mesh(0)
     physics = Physics(mesh)
@@ -74,10 +74,10 @@ def compare_normalisations(seeds=(0, 1, 2, 3, 4), frames: int = 150, methods=Non
 def action_bias_deg(kind: str = "force", seed: int = 0) -> dict:
     """Head rotation (deg, rotation vector x nod, y turn, z roll) that the pose method reads into
     each single action at activation 1 with the head still: its bias."""
-    from ..fem import Physics
-    from ..headpose import MarkerMetric, least_cost_rotations, rotation_vector
-    from ..motion import ACTIONS, default_subject
-    from ..procedural import lip_mesh
+    from lipgen.fem import Physics
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.recon.headpose import MarkerMetric, least_cost_rotations, rotation_vector
+    from lipgen.subject.motion import ACTIONS, default_subject
 
     mesh = lip_mesh(0)
     M, n0 = mesh.vertices[mesh.markers], mesh.nose

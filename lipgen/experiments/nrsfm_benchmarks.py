@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_write_bytes, atomic_write_json
+from lipgen._io import atomic_write_bytes, atomic_write_json
 
 __all__ = ["DEFAULT_DATA", "PUBLISHED", "NrsfmBenchSettings", "run_nrsfm_benchmarks", "data_dir"]
 
@@ -43,11 +43,13 @@ K = 2 on jaws is how Torresani et al.'s own shark demo runs it; on drink (41 poi
 
 
 def data_dir() -> Path:
+    """The folder of the benchmark sequences (``LIPGEN_NRSFM_DATA``, else the default)."""
     return Path(os.environ.get("LIPGEN_NRSFM_DATA", DEFAULT_DATA))
 
 
 @dataclass(frozen=True)
 class NrsfmBenchSettings:
+    """What ``lipgen experiment nrsfm`` runs: methods, sequences and basis sizes."""
     methods: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
     sequences: tuple[str, ...] = ("drink", "jaws")
     synthetic_seeds: tuple[int, ...] = (0, 1, 2, 3)
@@ -67,7 +69,7 @@ def _load(name: str):
 
 
 def _run_one(W, S, k, method, **options) -> dict:
-    from ..nrsfm import e3d, n_basis_shapes, reconstruct
+    from lipgen.nrsfm import e3d, n_basis_shapes, reconstruct
 
     t0 = time.perf_counter()
     rec = reconstruct(W, k, method=method, **options)
@@ -82,8 +84,8 @@ def _run_one(W, S, k, method, **options) -> dict:
 
 def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings()) -> dict:
     """Run everything, write the report into folder ``out``, return the figures."""
-    from ..nrsfm import MEAN_PLUS_MODES, plot_curve, reprojection_curve
-    from ..nrsfm.synthetic import articulated_sequence
+    from lipgen.nrsfm import MEAN_PLUS_MODES, plot_curve, reprojection_curve
+    from lipgen.nrsfm.synthetic import articulated_sequence
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

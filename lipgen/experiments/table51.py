@@ -2,7 +2,7 @@
 
 The thesis (ch. 5) trained modes on 140 frames of 16 tracked markers and reported the LLSE error
 per DOF on the last 10 frames from three kinds of partial observation. Its only "truth" was the
-least-strain field reaching the markers. Here the truth subject (:mod:`lipgen.motion`: a finer
+least-strain field reaching the markers. Here the truth subject (:mod:`lipgen.subject.motion`: a finer
 mesh, its own stiffness, jaw hinge, lip contact) is known everywhere, so the same estimates are
 also scored against the **true surface** (the truth mesh at the model's nodes: the meshes are
 nested, node i of ``lip_mesh(0)`` is node i of the truth mesh), and the combined learned +
@@ -21,8 +21,8 @@ Protocol (:func:`run_table51`)
 
 The combined model's prior kind and noise variance τ² are chosen from the training fields only,
 by cross-validated marginal likelihood of their markers
-(:meth:`lipgen.combined.CombinedModel.fit`); it uses its own τ², and weighs the residual variance
-σ² per frame by the frame's own observations (:meth:`~lipgen.combined.CombinedModel.mixture`).
+(:meth:`lipgen.modes.combined.CombinedModel.fit`); it uses its own τ², and weighs the residual variance
+σ² per frame by the frame's own observations (:meth:`~lipgen.modes.combined.CombinedModel.mixture`).
 The column "combined_fixed" is the linear LLSE at the cross-validated σ². The other estimators of
 the marker rows are given the true marker-noise variance.
 """
@@ -34,12 +34,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..combined import CombinedModel, default_residual_variance
-from ..fem import Physics, dofs
-from ..llse import LLSE, PhysicsCovariance
-from ..modes import ModeModel
-from ..motion import ACTIONS, default_subject, head_motion, random_activations, simulate
-from ..procedural import lip_mesh, thesis_unit_mm
+from lipgen.fem import Physics, dofs
+from lipgen.mesh.procedural import lip_mesh, thesis_unit_mm
+from lipgen.modes.combined import CombinedModel, default_residual_variance
+from lipgen.modes.llse import LLSE, PhysicsCovariance
+from lipgen.modes.model import ModeModel
+from lipgen.subject.motion import ACTIONS, default_subject, head_motion, random_activations, simulate
 
 __all__ = ["Table51Settings", "Observed", "observe", "observation_rows", "estimators", "fit_combined",
            "row_errors", "run_table51", "COLUMNS", "SHARES"]
@@ -149,7 +149,7 @@ def fit_combined(model: ModeModel, physics: Physics, train_fields, n_modes: int 
 def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_modes: int | None = None,
                combined: dict | None = None, combined_noise=None) -> dict:
     """The estimator of each column of :data:`COLUMNS` for observed DOFs ``d`` (an
-    :class:`~lipgen.llse.LLSE`, or a :class:`~lipgen.mixture.ScaleMixtureLLSE` for "combined").
+    :class:`~lipgen.modes.llse.LLSE`, or a :class:`~lipgen.modes.mixture.ScaleMixtureLLSE` for "combined").
 
     ``noise`` (mm²) is given to the learned and physics-only columns; ``combined`` is
     :func:`fit_combined`'s result (without it the combined columns use the default share and no

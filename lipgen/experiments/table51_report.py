@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_path, atomic_write_bytes, atomic_write_json
-from .table51 import COLUMNS, SHARES
+from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
+from lipgen.experiments.table51 import COLUMNS, SHARES
 
 __all__ = ["write_report", "THESIS_TABLE"]
 
@@ -113,7 +113,7 @@ def _markdown(result: dict, suffix: str = "") -> str:
         "",
         "Error = mean squared error per hidden DOF (the DOFs neither observed nor anchored). "
         f"Units: mm², and the thesis's normalised units² with 1 unit = {u:.2f} mm (the default lips are "
-        f"72 mm wide, the thesis's model 2.83 units wide, `lipgen.procedural.thesis_unit_mm`), so "
+        f"72 mm wide, the thesis's model 2.83 units wide, `lipgen.mesh.procedural.thesis_unit_mm`), so "
         f"units² = mm² / {u2:.1f}.",
         "",
         "## In the thesis's terms (reference: least-strain field of the 16 test markers), units²",
@@ -190,7 +190,7 @@ def _plot_modes(result: dict, path: Path, n_show: int = 4) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..plot_mesh import draw_mesh
+    from lipgen.mesh.plot import draw_mesh
 
     model, mesh = result["_model"], result["_mesh"]
     rest = mesh.vertices

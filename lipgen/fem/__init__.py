@@ -7,10 +7,10 @@
 * :mod:`~lipgen.fem.planar`: the planar-mesh demonstration of the thesis's Fig 2-2.
 """
 
-from .assembly import DEFAULT_STIFFNESS, assemble_stiffness, check_grounding, face_stiffness
-from .element import OUT_OF_PLANE, element_stiffness
-from .physics import Physics, dofs
-from .solver import SOLVERS, cholmod_available
+from lipgen.fem.assembly import DEFAULT_STIFFNESS, assemble_stiffness, check_grounding, face_stiffness
+from lipgen.fem.element import OUT_OF_PLANE, element_stiffness
+from lipgen.fem.physics import Physics, dofs
+from lipgen.fem.solver import SOLVERS, cholmod_available
 
 __all__ = [
     "DEFAULT_STIFFNESS",

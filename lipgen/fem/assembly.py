@@ -21,10 +21,10 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .._validate import as_float_array
-from ..errors import SingularStiffnessError
-from ..mesh import LipMesh
-from .element import element_stiffness
+from lipgen._validate import as_float_array
+from lipgen.errors import SingularStiffnessError
+from lipgen.fem.element import element_stiffness
+from lipgen.mesh.lipmesh import LipMesh
 
 __all__ = ["DEFAULT_STIFFNESS", "face_stiffness", "assemble_stiffness", "check_grounding",
            "element_dofs"]

@@ -43,9 +43,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validate import as_float_array
-from ..errors import MeshError
-from ..tol import tol
+from lipgen._validate import as_float_array
+from lipgen.errors import MeshError
+from lipgen.tol import tol
 
 __all__ = ["OUT_OF_PLANE", "element_frames", "element_stiffness", "material_factor"]
 

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from .._validate import as_float_array, as_index_array
-from ..errors import SingularStiffnessError
-from ..mesh import LipMesh
-from .assembly import assemble_stiffness, check_grounding, face_stiffness
-from .element import OUT_OF_PLANE
-from .solver import factorize
+from lipgen._validate import as_float_array, as_index_array
+from lipgen.errors import SingularStiffnessError
+from lipgen.fem.assembly import assemble_stiffness, check_grounding, face_stiffness
+from lipgen.fem.element import OUT_OF_PLANE
+from lipgen.fem.solver import factorize
+from lipgen.mesh.lipmesh import LipMesh
 
 __all__ = ["Physics", "dofs"]
 

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_path
-from ..mesh import LipMesh
-from .assembly import log as assembly_log
-from .physics import Physics
+from lipgen._io import atomic_path
+from lipgen.fem.assembly import log as assembly_log
+from lipgen.fem.physics import Physics
+from lipgen.mesh.lipmesh import LipMesh
 
 __all__ = ["PlanarDemo", "planar_sheet", "fig_2_2", "edge_stretch", "plot_fig_2_2"]
 

@@ -30,14 +30,15 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..errors import SingularStiffnessError
-from ..tol import tol
+from lipgen.errors import SingularStiffnessError
+from lipgen.tol import tol
 
 __all__ = ["SOLVERS", "Factor", "factorize", "cholmod_available"]
 
 log = logging.getLogger(__name__)
 
 SOLVERS: tuple[str, ...] = ("auto", "cholmod", "superlu")
+"""Sparse factorisations: ``auto`` (CHOLMOD when cvxopt is installed, else SuperLU), or one by name."""
 
 _PIVOT_RATIO = 1e-13
 """Smallest/largest pivot (of the LDLᵀ form) below which K_s counts as numerically singular;
@@ -184,7 +185,7 @@ def factorize(A: sp.spmatrix, method: str = "auto") -> Factor:
     if method == "auto":
         method = "cholmod" if cholmod_available() else "superlu"
     elif method == "cholmod" and not cholmod_available():
-        from .._optional import require
+        from lipgen._optional import require
 
         require("cvxopt.cholmod", "solver='cholmod'")
     A = sp.csc_matrix(A)

@@ -10,10 +10,17 @@
 
 from __future__ import annotations
 
-from .core import DEFAULT_METHOD, MEAN_PLUS_MODES, METHODS, Reconstruction, n_basis_shapes, reconstruct
-from .dataset_eval import dataset_tracks, evaluate_on_dataset
-from .io import load_shapes, load_tracks, save_shapes
-from .metrics import KCurve, choose_k, e3d, plot_curve, reprojection_curve
+from lipgen.nrsfm.core import (
+    DEFAULT_METHOD,
+    MEAN_PLUS_MODES,
+    METHODS,
+    Reconstruction,
+    n_basis_shapes,
+    reconstruct,
+)
+from lipgen.nrsfm.dataset_eval import dataset_tracks, evaluate_on_dataset
+from lipgen.nrsfm.io import load_shapes, load_tracks, save_shapes
+from lipgen.nrsfm.metrics import KCurve, choose_k, e3d, plot_curve, reprojection_curve
 
 __all__ = [
     "DEFAULT_METHOD",

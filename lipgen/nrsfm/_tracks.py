@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import as_float_array
+from lipgen._validate import as_float_array
 
 __all__ = ["Tracks", "check_tracks", "check_k", "complete_tracks", "factor", "numerical_rank"]
 

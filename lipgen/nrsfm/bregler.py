@@ -32,8 +32,8 @@ import logging
 
 import numpy as np
 
-from ._rotation import complete_rotations, nearest_orthonormal_rows
-from ._tracks import factor
+from lipgen.nrsfm._rotation import complete_rotations, nearest_orthonormal_rows
+from lipgen.nrsfm._tracks import factor
 
 __all__ = ["bregler_factorization"]
 

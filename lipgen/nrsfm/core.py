@@ -7,13 +7,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._rotation import corrective_triple, orient_frames, rotations_from_triple
-from ._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
-from .bmm import min_trace_norm_shapes, rank_k_shapes
-from .bregler import bregler_factorization
-from .emppca import em_ppca
-from .lowrank import fit_rank_k
-from .refine import bundle_adjust
+from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_from_triple
+from lipgen.nrsfm._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
+from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
+from lipgen.nrsfm.bregler import bregler_factorization
+from lipgen.nrsfm.emppca import em_ppca
+from lipgen.nrsfm.lowrank import fit_rank_k
+from lipgen.nrsfm.refine import bundle_adjust
 
 __all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
            "check_method_k"]
@@ -36,6 +36,7 @@ METHODS: dict[str, str] = {
 """Method names accepted by :func:`reconstruct`, with what each does."""
 
 DEFAULT_METHOD = "dai"
+"""The method :func:`reconstruct` uses unless told."""
 
 MEAN_PLUS_MODES = frozenset({"em-ppca"})
 """Methods whose ``k`` counts deformation modes beyond a mean shape (``k + 1`` basis shapes)."""

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import load_npz
-from ..errors import DatasetError
-from .core import DEFAULT_METHOD, reconstruct
-from .metrics import e3d
+from lipgen._io import load_npz
+from lipgen.errors import DatasetError
+from lipgen.nrsfm.core import DEFAULT_METHOD, reconstruct
+from lipgen.nrsfm.metrics import e3d
 
 __all__ = ["dataset_tracks", "evaluate_on_dataset"]
 
@@ -54,7 +54,7 @@ def dataset_tracks(path, view: str = "real", marks=None, uv=None, seen=None):
         ``pixels_rms`` (RMS distance, px, between the tracks and the truth's projections: ~0 for
         the truth's own pixels, the tracking error for measured ones).
     """
-    from ..dataset import FRAME_KIND, SCHEMA, Dataset
+    from lipgen.dataset.layout import FRAME_KIND, SCHEMA, Dataset
 
     ds = Dataset(path)
     views = list(ds.manifest["views"])

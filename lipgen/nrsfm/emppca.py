@@ -35,8 +35,14 @@ import logging
 
 import numpy as np
 
-from ._rotation import complete_rotations, corrective_triple, expm_so3, rotations_from_triple, skew
-from ._tracks import Tracks, complete_tracks, factor
+from lipgen.nrsfm._rotation import (
+    complete_rotations,
+    corrective_triple,
+    expm_so3,
+    rotations_from_triple,
+    skew,
+)
+from lipgen.nrsfm._tracks import Tracks, complete_tracks, factor
 
 __all__ = ["em_ppca"]
 

@@ -8,14 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import load_npz, save_npz
-from ..errors import ModelFileError
-from .core import Reconstruction
+from lipgen._io import load_npz, save_npz
+from lipgen.errors import ModelFileError
+from lipgen.nrsfm.core import Reconstruction
 
 __all__ = ["load_tracks", "save_shapes", "load_shapes", "SHAPES_KIND", "SHAPES_SCHEMA"]
 
 SHAPES_KIND = "nrsfm_shapes"
+"""Kind tag of the shapes file ``lipgen nrsfm`` writes."""
 SHAPES_SCHEMA = 1
+"""Schema version of that file."""
 
 
 def load_tracks(path: str | os.PathLike) -> dict[str, np.ndarray]:

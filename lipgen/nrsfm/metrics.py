@@ -7,9 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validate import as_float_array
-from ._tracks import check_tracks
-from .core import DEFAULT_METHOD, MEAN_PLUS_MODES, check_method_k, reconstruct
+from lipgen._validate import as_float_array
+from lipgen.nrsfm._tracks import check_tracks
+from lipgen.nrsfm.core import DEFAULT_METHOD, MEAN_PLUS_MODES, check_method_k, reconstruct
 
 __all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve"]
 
@@ -176,7 +176,7 @@ def plot_curve(curve: KCurve, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import atomic_path
+    from lipgen._io import atomic_path
 
     fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
     ax.semilogy(curve.ks, 100 * curve.relative, "o-", color="tab:blue", label=curve.method)

@@ -18,7 +18,7 @@ import logging
 import numpy as np
 import scipy.linalg
 
-from ._rotation import expm_so3
+from lipgen.nrsfm._rotation import expm_so3
 
 __all__ = ["bundle_adjust"]
 

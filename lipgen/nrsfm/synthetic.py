@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._rotation import expm_so3
+from lipgen.nrsfm._rotation import expm_so3
 
 __all__ = ["random_rotations", "low_rank_sequence", "articulated_sequence"]
 

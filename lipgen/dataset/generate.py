@@ -1,0 +1,350 @@
+"""Writing a synthetic camera-mirror dataset (``lipgen generate``).
+
+The subject (:mod:`lipgen.subject.motion`) is simulated once in the parent process; the frames are
+then rendered and written by ``workers`` processes, each with its own OpenGL (EGL) context.
+Every file is written atomically and depends only on the settings and its frame number (each
+random choice is seeded from the dataset seed and the frame), so a run killed at any point
+continues with ``resume=True`` where it stopped, and two runs with the same settings write
+the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import multiprocessing
+import os
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from lipgen import __version__
+from lipgen._io import atomic_write_bytes, atomic_write_json, save_npz
+from lipgen.dataset.layout import (
+    CALIB_KIND,
+    DEPTH_KIND,
+    FRAME_KIND,
+    SCHEMA,
+    GenerateSettings,
+    calib_paths,
+    extra_paths,
+    frame_paths,
+    validate_manifest,
+)
+from lipgen.errors import DatasetError
+from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
+from lipgen.rig.visibility import occluded
+from lipgen.subject.face import FaceLook, FaceModel
+
+__all__ = ["generate", "frame_truth"]
+
+log = logging.getLogger(__name__)
+
+_NOISE_STREAM, _ACT_STREAM, _HEAD_STREAM, _CALIB_STREAM = 3, 1, 2, 4
+
+
+def _simulate(s: GenerateSettings):
+    """The subject's motion for ``s`` (a :class:`lipgen.subject.motion.Motion`)."""
+    from lipgen.subject import motion
+
+    if s.script:
+        A = motion.viseme_activations(s.script, fps=s.fps)
+        A = A[np.arange(s.frames) % len(A)]  # the phrase is repeated to fill the frames
+    else:
+        A = motion.random_activations(s.frames, seed=np.random.default_rng([s.seed, _ACT_STREAM]), fps=s.fps)
+    head = motion.head_motion(s.frames, seed=np.random.default_rng([s.seed, _HEAD_STREAM]), fps=s.fps,
+                              max_rotation_deg=s.head_rotation_deg, max_translation_mm=s.head_translation_mm)
+    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution)
+    return motion.simulate(subject, A, head, fps=s.fps)
+
+
+def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray) -> dict:
+    """Per-frame truth of the marks (16 markers then the nose) in both views.
+
+    Returns a dict of arrays named as :data:`lipgen.dataset.TRUTH_FIELDS` (views first).
+    """
+    X, N = face.marks(vertices, pose)
+    surf = face.surfaces(vertices, pose)
+    tris = face.occluders(surf)
+    rims = face.dot_rims(surf)
+    uv, depth, inside = rig.project(X)
+    k = len(X)
+    occ, facing, frac = np.zeros((2, k), bool), np.zeros((2, k), bool), np.zeros((2, k))
+    rim_pts = np.vstack([r[::2] for r in rims])  # every other rim point is plenty
+    owner = np.repeat(np.arange(len(rims)), [len(r[::2]) for r in rims])
+    queries = np.vstack([X, rim_pts])
+    for v, cam in enumerate(rig.views):
+        hidden = occluded(cam, queries, tris)  # one culling grid for the marks and their rims
+        occ[v] = hidden[:k]
+        facing[v] = np.sum((cam.center - X) * N, axis=1) > 0
+        seen = cam.in_view(rim_pts) & ~hidden[k:]
+        if v == 0:
+            seen &= rig.mirror_distance(rim_pts) > 0
+        frac[v, : len(rims)] = np.bincount(owner, seen, len(rims)) / np.bincount(owner, minlength=len(rims))
+        frac[v] *= facing[v]
+    visible = inside & ~occ & facing
+    uv_raw = np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])
+    return {"marks_world": X, "normals_world": N, "uv": uv, "uv_raw": uv_raw, "depth": depth,
+            "in_image": inside, "occluded": occ, "facing": facing, "visible": visible,
+            "dot_visible_fraction": frac}
+
+
+@dataclass
+class _Context:
+    """What a worker needs to render and write any frame."""
+
+    out: str
+    settings: dict
+    vertices: np.ndarray
+    poses: np.ndarray
+    activations: np.ndarray
+    mesh_path: str
+
+
+_WORKER: dict = {}
+
+
+def _init_worker(ctx: _Context) -> None:
+    from lipgen.mesh.lipmesh import LipMesh
+    from lipgen.rig.render import RigRenderer
+    from lipgen.rig.target import Chessboard
+
+    s = GenerateSettings.from_dict(ctx.settings)
+    rig = default_rig(*s.size)
+    mesh = LipMesh.load(ctx.mesh_path)
+    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter))
+    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, renderer=RigRenderer(rig),
+                   board=Chessboard(*s.board))
+
+
+def _png_bytes(image: np.ndarray, level: int) -> bytes:
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(image).save(buf, format="PNG", compress_level=level)
+    return buf.getvalue()
+
+
+def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
+    if sigma <= 0:
+        return image
+    noise = rng.standard_normal(image.shape, dtype=np.float32) * np.float32(sigma)
+    return np.clip(np.round(image + noise), 0, 255).astype(np.uint8)
+
+
+def _run_job(job: tuple[str, int]) -> tuple[str, int]:
+    """Render and write one frame (or calibration frame)."""
+    _write(*_render_job(job))
+    return job
+
+
+def _render_job(job: tuple[str, int]):
+    """The image, truth and destination of one job (nothing written yet)."""
+    w = _WORKER
+    ctx, s, rig = w["ctx"], w["s"], w["rig"]
+    kind, i = job
+    out = Path(ctx.out)
+    rng = np.random.default_rng([s.seed, _NOISE_STREAM, 0 if kind == "frame" else 1, i])
+    if kind == "frame":
+        V, P = ctx.vertices[i], ctx.poses[i]
+        rendered = w["renderer"].render(w["face"].scene(V, P), depth=s.depth, labels=s.masks)
+        image = _noisy(rendered.image, s.noise, rng)
+        extras = _extras(rendered, *extra_paths(out, i), s.png_compress_level)
+        truth = frame_truth(rig, w["face"], V, P)
+        names = np.array(list(w["mesh"].marker_names) + ["nose"])
+        truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
+                     activations=ctx.activations[i], mark_names=names, views=np.array(VIEWS),
+                     marks_model=np.vstack([V[w["mesh"].markers], w["mesh"].nose]))
+        png, npz, kind_tag = *frame_paths(out, i), FRAME_KIND
+    else:
+        from lipgen.rig.target import board_scene
+
+        P = _calib_poses(rig, w["board"], s)[i]
+        image = _noisy(w["renderer"].render(board_scene(w["board"], P)).image, s.noise, rng)
+        obj = w["board"].object_points()
+        Xw = obj @ P[:3, :3].T + P[:3, 3]
+        uv, _, inside = rig.project(Xw)
+        truth = {"index": np.int64(i), "A": P[:3, :3], "b": P[:3, 3], "pose": P, "corners_board": obj,
+                 "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
+                 "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
+        png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
+        extras = []
+    return image, truth, png, npz, kind_tag, s.png_compress_level, extras
+
+
+def _extras(rendered, depth_path: Path, mask_path: Path, level: int) -> list:
+    """The optional depth and mask files of a frame, as ``(path, writer)`` pairs."""
+    out = []
+    if rendered.depth is not None:
+        z = np.where(rendered.depth > 0, rendered.depth, np.nan).astype(np.float32)  # 0: nothing drawn
+        out.append((depth_path, lambda p: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z})))
+    if rendered.labels is not None:
+        mask = _png_bytes(rendered.labels.astype(np.uint8), level)
+        out.append((mask_path, lambda p: atomic_write_bytes(p, mask)))
+    return out
+
+
+def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
+    """Write a frame's depth and mask (if asked), its PNG, then its truth, each atomically; the frame
+    counts as written once the truth exists, so the truth goes last."""
+    for path, write in extras:
+        write(path)
+    atomic_write_bytes(png, _png_bytes(image, level))
+    save_npz(npz, kind_tag, SCHEMA, truth)
+
+
+def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
+    from lipgen.rig.target import board_poses
+
+    key = ("calib_poses", s.calib_frames)
+    if key not in _WORKER:
+        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
+        _WORKER[key] = board_poses(rig, board, s.calib_frames, seed=rng)
+    return _WORKER[key]
+
+
+def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
+    """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
+
+    Returns whether ``out`` already held this dataset.
+    """
+    if out.exists() and not out.is_dir():
+        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
+    leftovers = list(out.glob(".manifest.json.tmp-*")) if out.is_dir() else []
+    for tmp in leftovers:  # a first run killed while writing its manifest
+        tmp.unlink()
+    if out.is_dir() and any(out.iterdir()):
+        mf = out / "manifest.json"
+        if not mf.is_file():
+            raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
+                               "nothing was written. Choose a new or empty folder")
+        if not resume:
+            raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
+                               "another folder (nothing was overwritten)")
+        try:
+            old = json.loads(mf.read_text())
+        except (OSError, ValueError) as exc:
+            raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
+        validate_manifest(old, mf)
+        diffs = [k for k in ("seed", "settings", "rig", "mesh", "frames", "calibration", "schema_version")
+                 if old.get(k) != manifest.get(k)]
+        if diffs:
+            was, now = old.get("settings", {}), manifest["settings"]
+            detail = "; ".join(f"{k} was {was.get(k)!r}, now {now.get(k)!r}"
+                               for k in now if was.get(k) != now.get(k))
+            raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
+                               f"{': ' + detail if detail else ''}); resume only with the same settings, or "
+                               "choose a new folder (nothing was overwritten)")
+        for sub in ("raw", "truth", "calib"):  # temporary files of writes cut short by a kill
+            for tmp in (out / sub).glob(".*.tmp-*") if (out / sub).is_dir() else ():
+                tmp.unlink()
+        return True
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the dataset folder {out}: {exc.strerror or exc}; choose a "
+                           "writable location for --out") from exc
+    if not os.access(out, os.W_OK):
+        raise DatasetError(f"the dataset folder {out} is not writable; choose another --out")
+    return False
+
+
+def generate(out, settings: GenerateSettings | None = None, workers: int = 1, resume: bool = False,
+             progress: bool = True) -> Path:
+    """Write a dataset to folder ``out`` (layout: :mod:`lipgen.dataset`).
+
+    Parameters
+    ----------
+    out : path
+        New or empty folder; or, with ``resume``, a dataset made with the same settings.
+    settings : GenerateSettings, optional
+        Defaults to ``GenerateSettings()``.
+    workers : int
+        Local processes rendering frames (each opens its own EGL context).
+    resume : bool
+        Continue an interrupted dataset: frames already written are kept, not redone.
+    progress : bool
+        Show a tqdm progress bar.
+
+    Raises
+    ------
+    DatasetError
+        ``out`` is another dataset, not a dataset, differs in settings, or is not writable.
+    ValueError
+        Bad settings (unknown viseme in the script, a rig that does not see the face, ...).
+    """
+    from tqdm import tqdm
+
+    from lipgen.mesh.lipmesh import LipMesh
+
+    if isinstance(workers, bool) or int(workers) != workers or not 1 <= workers <= 64:
+        raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
+    s = GenerateSettings() if settings is None else settings
+    out = Path(out)
+    rig = default_rig(*s.size)
+    motion = _simulate(s)
+    marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
+    rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
+    mesh: LipMesh = motion.mesh
+    from lipgen.dataset.layout import build_manifest
+
+    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
+    if not _prepare_folder(out, manifest, resume):
+        atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
+    for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
+        (out / sub).mkdir(exist_ok=True)
+    mesh_path = out / "mesh.npz"
+    if not mesh_path.is_file():
+        mesh.save(mesh_path)
+    jobs = [("calib", i) for i in range(s.calib_frames) if not all(p.is_file() for p in calib_paths(out, i))]
+    jobs += [("frame", i) for i in range(s.frames) if not all(p.is_file() for p in frame_paths(out, i))]
+    done = s.calib_frames + s.frames - len(jobs)
+    if done:
+        log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
+    ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
+                   np.asarray(motion.activations), str(mesh_path))
+    bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",
+               disable=not progress)
+    try:
+        if workers == 1 or len(jobs) <= 1:
+            _init_worker(ctx)
+            # encode and write frame k in a thread while frame k + 1 renders (PNG/zlib release the GIL)
+            writer = ThreadPoolExecutor(1)
+            try:
+                pending = None
+                for job in jobs:
+                    result = _render_job(job)
+                    if pending is not None:
+                        pending.result()
+                        bar.update()
+                    pending = writer.submit(_write, *result)
+                if pending is not None:
+                    pending.result()
+                    bar.update()
+            finally:
+                writer.shutdown(wait=True)
+                _WORKER.pop("renderer").close()
+                _WORKER.clear()
+        else:
+            spawn = multiprocessing.get_context("spawn")  # a fresh process per GL context
+            pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_worker, initargs=(ctx,))
+            with pool as ex:
+                futures = [ex.submit(_run_job, job) for job in jobs]
+                pending = set(futures)
+                try:
+                    while pending:
+                        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                        for fut in finished:
+                            fut.result()  # re-raise a worker's error here
+                            bar.update()
+                except BaseException:
+                    for fut in pending:
+                        fut.cancel()
+                    raise
+    finally:
+        bar.close()
+    return out
+

@@ -1,0 +1,239 @@
+"""Scoring a reconstruction against the dataset's ground truth (thesis ch. 5 on synthetic data).
+
+:func:`score` compares every stage with the truth files: the calibration with the true rig,
+the tracks with the true projections, the triangulated markers with the true world marks, the
+normalised markers with the true model-frame marks, and the LLSE reconstructions of the
+held-out frames (the Table 5.1 analogue) both with the reach fields the thesis compared with and
+with the true full surface. :mod:`lipgen.evaluate.report` turns the result into ``report.md`` and pictures.
+
+The truth is read here only; nothing computed from it flows back into the reconstruction.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from lipgen.errors import DatasetError, TopologyMismatchError
+from lipgen.recon.calibrate import compare_to_truth
+from lipgen.recon.normalize import lip_subsets, normalize_markers
+from lipgen.rig.camera import VIEWS
+
+__all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "ROWS", "AXES"]
+
+log = logging.getLogger(__name__)
+
+ROWS = ("xyz (8 points)", "yz (all points)", "xy (all points)")
+"""The rows of the Table 5.1 analogue: which DOFs are observed (thesis Table 5.1)."""
+AXES = {"xyz (8 points)": (8, "xyz"), "yz (all points)": (None, "yz"), "xy (all points)": (None, "xy")}
+"""Per row: (number of marker points observed or None for all, the observed axes)."""
+
+
+def default_test_frames(n_frames: int) -> int:
+    """The held-out tail: 10 frames as in the thesis (140 + 10), a fifth of short sequences."""
+    return 10 if n_frames >= 50 else max(2, n_frames // 5)
+
+
+def split_frames(fields: np.ndarray, test_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """(train, test) frame indices: the last ``test_frames`` are the test set; frames without a
+    field (too few markers seen) are in neither."""
+    F = len(fields)
+    if not 1 <= test_frames < F:
+        raise ValueError(f"test_frames must be in [1, {F - 1}] for {F} frames, got {test_frames}")
+    ok = np.all(np.isfinite(fields.reshape(F, -1)), axis=1)
+    idx = np.arange(F)
+    return idx[ok & (idx < F - test_frames)], idx[ok & (idx >= F - test_frames)]
+
+
+def load_truth(ds) -> dict:
+    """Stack the per-frame truth of a :class:`lipgen.dataset.Dataset` (images are not kept)."""
+    keys = ("marks_world", "marks_model", "uv", "visible", "vertices", "pose")
+    out = {k: [] for k in keys}
+    for frame in ds:
+        for k in keys:
+            out[k].append(np.asarray(frame.truth[k]))
+    return {k: np.stack(v) for k, v in out.items()}
+
+
+def _rms(err, axis=None):
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(np.nanmean(np.asarray(err) ** 2, axis=axis))
+
+
+def _true_fields(truth: dict, mesh) -> np.ndarray:
+    """True displacement of the model's nodes (F, n, 3): the subject mesh nests the model's."""
+    V = truth["vertices"]
+    n = mesh.n_nodes
+    if V.shape[1] < n:
+        raise TopologyMismatchError(f"the dataset's subject mesh has {V.shape[1]} nodes, fewer than the "
+                                    f"model's {n}; it is not a refinement of the model mesh")
+    return V[:, :n] - mesh.vertices
+
+
+def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_modes: int = 10,
+            combined: bool = True) -> dict:
+    """Reconstruction error per DOF of the held-out frames (thesis Table 5.1), mm².
+
+    For each row (which observed DOFs) and column (prior), the LLSE (eq 4.7) estimates every
+    DOF of each test frame from that frame's visible markers; the error is the mean squared
+    error per DOF against the frame's reach field (the thesis's reference) and against the true
+    surface. Columns: the first ``n_modes`` modes, the full sample covariance, the combined
+    learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
+
+    ``combined`` is True (the combined model with the default prior and no noise), False (no
+    such column) or a :class:`lipgen.modes.combined.CombinedModel`, e.g. one whose prior was chosen
+    from the training fields by :meth:`~lipgen.modes.combined.CombinedModel.fit` (it then uses its
+    estimated marker-noise variance). Its estimate is the scale mixture
+    (:meth:`~lipgen.modes.combined.CombinedModel.mixture`: the residual variance weighed per frame).
+    """
+    from lipgen.fem import dofs as node_dofs
+
+    columns = {f"{n_modes} modes": lambda d: model.llse(d, n_modes=n_modes),
+               "full covariance": lambda d: model.llse(d, n_modes="full")}
+    if combined is not False and combined is not None:
+        try:
+            from lipgen.modes.combined import CombinedModel
+
+            comb = combined if isinstance(combined, CombinedModel) else CombinedModel(model, physics)
+            columns["combined"] = comb.mixture
+        except ImportError:
+            log.warning("lipgen.modes.combined is not available: no combined-model column")
+    markers = np.asarray(physics.mesh.markers)
+    rest = physics.mesh.vertices[markers]
+    out = {}
+    for row in ROWS:
+        count, axes = AXES[row]
+        use = np.arange(len(markers) if count is None else count)
+        ax = np.array(["xyz".index(a) for a in axes])
+        cells = {name: {"vs_reach": [], "vs_truth": []} for name in (*columns, "physics (reach)")}
+        for f in test:
+            seen = use[recon.visible[f, use]]
+            if len(seen) == 0:
+                continue
+            d = node_dofs(markers[seen], axes)
+            y = (recon.markers[f, seen] - rest[seen])[:, ax].ravel()
+            ests = {name: build(d).estimate(y) for name, build in columns.items()}
+            ests["physics (reach)"] = physics.reach(d, y)[0]
+            for name, est in ests.items():
+                cells[name]["vs_reach"].append(np.mean((est - recon.fields[f]) ** 2))
+                cells[name]["vs_truth"].append(np.mean((est - true_fields[f]) ** 2))
+        out[row] = {name: {k: float(np.mean(v)) if v else float("nan") for k, v in c.items()}
+                    for name, c in cells.items()}
+    return out
+
+
+def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
+    """Every figure of the report, from a dataset, a trained model and its reconstruction."""
+    from lipgen.fem import Physics
+    from lipgen.recon.pipeline import model_mesh
+
+    F = len(ds)
+    if len(recon.fields) != F:
+        raise DatasetError(f"the reconstruction has {len(recon.fields)} frames but the dataset {F}; it was "
+                           "made from another dataset. Run lipgen reconstruct on this one")
+    mesh = model_mesh(recon.info["mesh_source"]) if mesh is None else mesh
+    if mesh.topology_id != recon.info["topology_id"]:
+        raise TopologyMismatchError(
+            f"the reconstruction was made on mesh topology {recon.info['topology_id']}, "
+            f"not {mesh.topology_id}")
+    model.check_mesh(mesh)
+    truth = load_truth(ds)
+    P = len(mesh.markers)
+    out: dict = {"frames": F, "markers": P}
+    # Calibration: the board in the reference calibration frame defines the calibrated world.
+    cal = recon.calibration
+    ref = ds.calibration()[cal.reference].truth
+    A0, b0 = np.asarray(ref["A"]), np.asarray(ref["b"])
+    out["calibration"] = {"rms_px": cal.rms, "vs_truth": compare_to_truth(cal.in_frame(A0, b0), ds.rig.views)}
+    # Tracking against the true projections, where the truth says the dot is visible.
+    track = {}
+    for v, view in enumerate(VIEWS):
+        truly = truth["visible"][:, v]
+        err = np.linalg.norm(recon.uv[v] - truth["uv"][:, v], axis=-1)
+        got = recon.status[v] != 3
+        ok = truly & got
+        track[view] = {"rms_px": float(_rms(err[ok])),
+                       "per_mark_rms_px": _rms(np.where(ok, err, np.nan), 0).tolist(),
+                       "p95_px": float(np.percentile(err[ok], 95)) if ok.any() else float("nan"),
+                       "tracked_share": float(ok.sum() / max(truly.sum(), 1)),
+                       "false_sightings": int((got & ~truly).sum()),
+                       "wrong_over_3px": int((err[ok] > 3).sum())}
+    out["tracking"] = track
+    # Triangulation: lab -> board -> world.
+    lab = recon.lab_points.reshape(-1, 3)
+    board = lab @ recon.lab_to_board[:3, :3].T + recon.lab_to_board[:3, 3]
+    world = (board @ A0.T + b0).reshape(recon.lab_points.shape)
+    err3 = np.linalg.norm(world - truth["marks_world"], axis=-1)
+    seen = np.concatenate([recon.visible, np.isfinite(recon.lab_points[:, P:, 0])], axis=1)
+    out["triangulation"] = {"rms_mm": float(_rms(err3[seen])), "max_mm": float(np.nanmax(err3[seen])),
+                            "per_mark_rms_mm": _rms(np.where(seen, err3, np.nan), 0).tolist(),
+                            "visible_share": float(recon.visible.mean()),
+                            "ray_gap_median_mm": float(np.nanmedian(recon.ray_gap))}
+    # Normalisation: the pipeline's, the same method on the exact world marks, and the thesis's
+    # method on them for comparison.
+    marks_model = truth["marks_model"][:, :P]
+    upper, lower = lip_subsets(mesh.marker_names)
+    info = recon.info["normalisation"]
+    method = info.get("method", "thesis")
+    ref_used = info.get("reference_frame", 0)
+    physics = Physics(mesh)
+
+    def exact(meth, ref):
+        n = normalize_markers(truth["marks_world"][:, :P], truth["marks_world"][:, P], upper, lower,
+                              mesh.vertices[mesh.markers], model_nose=mesh.nose, reference_frame=ref,
+                              method=meth, physics=physics)
+        return float(_rms(np.linalg.norm(n.markers - marks_model, axis=-1)))
+
+    thesis_exact = {("first frame" if ref == 0 else f"frame {ref}"): exact("thesis", ref)
+                    for ref in (ref_used, 0)}
+    out["normalisation"] = {
+        "method": method,
+        "rms_mm": float(_rms(np.linalg.norm(recon.markers - marks_model, axis=-1))),
+        "exact_input_rms_mm": exact(method, ref_used) if method != "thesis" else thesis_exact[
+            "first frame" if ref_used == 0 else f"frame {ref_used}"],
+        "thesis_exact_input_rms_mm": thesis_exact,
+        "reference_frame": ref_used, "fit_rms_mm": info["fit_rms_mm"],
+        "outliers": len(info.get("outliers", [])),
+        "scale": info["scale"],
+        "head_rotation_deg_max": float(np.degrees(max(np.arccos(np.clip((np.trace(p[:3, :3]) - 1) / 2, -1, 1))
+                                                      for p in truth["pose"])))}
+    # Training data quality and the Table 5.1 analogue.
+    true_fields = _true_fields(truth, mesh)
+    T = default_test_frames(F) if test_frames is None else int(test_frames)
+    train, test = split_frames(recon.fields, T)
+    if model.n_frames_ > len(train):
+        raise ValueError(f"the model was trained on {model.n_frames_} frames but this reconstruction has "
+                         f"only {len(train)} training frames before its last {T}; use the same "
+                         "--test-frames as lipgen train")
+    ok = np.all(np.isfinite(recon.fields.reshape(F, -1)), axis=1)
+    from lipgen.recon.steps import reach_fields
+
+    # The model's own floor: reach from the TRUE model-frame markers (no tracking, no normalisation).
+    floor = reach_fields(physics, marks_model - mesh.vertices[mesh.markers], np.ones((F, P), bool),
+                         mesh.markers)
+    node_err = np.linalg.norm(recon.fields[ok] - true_fields[ok], axis=-1)
+    out["fields"] = {"rms_mm_vs_truth": float(_rms(node_err)),
+                     "true_rms_displacement_mm": float(_rms(np.linalg.norm(true_fields, axis=-1))),
+                     "reach_from_true_markers_rms_mm": float(
+                         _rms(np.linalg.norm(floor - true_fields, axis=-1))),
+                     "frames_without_field": int((~ok).sum())}
+    out["split"] = {"train": len(train), "test": test.tolist()}
+    from lipgen.modes.combined import CombinedModel
+
+    # The combined model chooses its physical prior and the marker noise from the training fields.
+    comb = CombinedModel(model, physics).fit(recon.fields[train])
+    out["combined_choice"] = {"kind": comb.kind, "residual_share": comb.selection_.residual_share,
+                              "noise_variance_mm2": comb.noise_variance_,
+                              "log_likelihood": comb.selection_.log_likelihood}
+    out["table51"] = table51(model, physics, recon, test, true_fields, min(10, len(model.components_)),
+                             combined=comb)
+    var = np.asarray(model.full_variance_)
+    out["variance"] = {"cumulative_share": (np.cumsum(var) / model.total_variance_).tolist(),
+                       "ten_modes": float(var[:10].sum() / model.total_variance_)}
+    from lipgen.mesh.procedural import thesis_unit_mm
+
+    out["thesis_unit_mm"] = thesis_unit_mm(mesh)
+    out["_truth"] = truth
+    out["_true_fields"] = true_fields
+    return out

@@ -1,0 +1,316 @@
+"""Calibrating the camera-mirror rig from images of a known target (thesis §3).
+
+The thesis calibrated its real and virtual cameras with Azarbayejani and Pentland's method.
+Here a planar chessboard is filmed in several poses. Each raw frame is split into its (virtual,
+real) views and the board's inner corners are found to sub-pixel (OpenCV). The rig is then
+fitted as what it physically is, ONE camera and ONE mirror: the virtual view is the real
+camera looking at the reflected board, so both views share the intrinsics (focal lengths,
+principal point, radial k1 k2), and the mirror plane adds 3 parameters. OpenCV's single-camera
+calibration of the direct view and a PnP of the mirrored board give the starting point; a
+bundle adjustment over all corners of both views (scipy least squares) refines intrinsics,
+mirror and board poses together. That is better conditioned than calibrating each view alone:
+a small board near the face constrains the principal point poorly, and the second view pins it.
+
+The world frame of the result is the board's frame in the ``reference`` image (origin at
+inner corner 0, x along the corner rows, y along the columns, z = x × y), so a board placed at
+a known pose there gives cameras in that known frame.
+
+OpenCV (``opencv-python-headless``) is imported when a calibration runs.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from lipgen._optional import require
+from lipgen._validate import as_float_array
+from lipgen.errors import DatasetError
+from lipgen.recon.dots import as_gray
+from lipgen.rig.camera import VIEWS, MirrorRig
+from lipgen.rig.pinhole import PinholeCamera
+from lipgen.rig.target import Chessboard
+
+__all__ = ["Chessboard", "RigCalibration", "find_corners", "calibrate_rig", "compare_to_truth"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class RigCalibration:
+    """A calibrated camera-mirror rig and how well it fits its images.
+
+    Attributes
+    ----------
+    rig : MirrorRig
+        The fitted camera and mirror, in the frame of the board in the reference image.
+    rms : dict
+        Reprojection RMS in pixels after the joint fit: ``"real"``, ``"virtual"`` and ``"all"``;
+        ``"real_alone"`` is OpenCV's single-camera fit of the direct view, for comparison.
+    n_images : dict
+        Calibration images with the whole board found, per view, and ``"both"``.
+    reference : int
+        The calibration image whose board frame is the world frame.
+    """
+
+    rig: MirrorRig
+    rms: dict
+    n_images: dict
+    reference: int
+
+    @property
+    def views(self) -> tuple[PinholeCamera, PinholeCamera]:
+        """(virtual_view, real_view), in :data:`lipgen.rig.camera.VIEWS` order."""
+        return self.rig.views
+
+    def triangulate(self, uv_real, uv_virtual) -> tuple[np.ndarray, np.ndarray]:
+        """Ray-midpoint triangulation of split-view pixels: ``(points (..., 3), gap (...,))``."""
+        return self.rig.triangulate(uv_real, uv_virtual)
+
+    def in_frame(self, rotation, translation) -> RigCalibration:
+        """The same rig with the world redefined: old world point p is ``rotation @ p + translation``."""
+        A = as_float_array(rotation, "rotation", (3, 3))
+        b = as_float_array(translation, "translation", (3,))
+        c, r = self.rig.camera, self.rig
+        cam = PinholeCamera(c.K, c.R @ A.T, c.t - c.R @ A.T @ b, c.width, c.height, c.dist, c.name)
+        n = A @ r.mirror_normal
+        moved = MirrorRig(cam, n, r.mirror_offset + n @ b, r.mirror_side, r.split)
+        return RigCalibration(moved, dict(self.rms), dict(self.n_images), self.reference)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready dict of the calibration (cameras, errors, settings)."""
+        return {"rig": self.rig.to_dict(), "rms_px": self.rms, "n_images": self.n_images,
+                "reference": self.reference}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> RigCalibration:
+        """The calibration written by :meth:`to_dict`."""
+        return cls(MirrorRig.from_dict(d["rig"]), dict(d["rms_px"]), dict(d["n_images"]), int(d["reference"]))
+
+
+def find_corners(image, board: Chessboard) -> np.ndarray | None:
+    """Sub-pixel inner corners of ``board`` in ``image``, or ``None`` if it is not found whole.
+
+    OpenCV's detector (the classic one, then the sector-based one) finds the grid; the corners
+    are refined with ``cornerSubPix`` in a window of about half a square; and the numbering is
+    made unambiguous by the board's colours: corner 0 is the one whose outer diagonal square
+    is black (see :class:`Chessboard`).
+
+    Returns
+    -------
+    (inner_cols * inner_rows, 2) float or None
+        Pixel positions (column, row), in :meth:`Chessboard.object_points` order.
+    """
+    cv2 = require("cv2", "chessboard calibration")
+    gray = np.clip(np.round(as_gray(image) * 255), 0, 255).astype(np.uint8)
+    size = (board.inner_cols, board.inner_rows)
+    found, corners = cv2.findChessboardCorners(
+        gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    if not found:
+        found, corners = cv2.findChessboardCornersSB(
+            gray, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE)
+    if not found:
+        return None
+    pts = corners.reshape(-1, 2).astype(np.float64)
+    grid = pts.reshape(board.inner_rows, board.inner_cols, 2)
+    spacing = min(np.linalg.norm(np.diff(grid, axis=0), axis=2).min(),
+                  np.linalg.norm(np.diff(grid, axis=1), axis=2).min())
+    half = int(np.clip(spacing / 2 - 1, 2, 10))
+    refined = cv2.cornerSubPix(gray, pts.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
+                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
+    pts = refined.reshape(-1, 2).astype(np.float64)
+    return pts if _origin_is_black(gray, pts, board) else pts[::-1].copy()
+
+
+def _origin_is_black(gray: np.ndarray, pts: np.ndarray, board: Chessboard) -> bool:
+    """Whether the square diagonally outside corner 0 is darker than the one outside the last.
+
+    The board has no half-turn symmetry, so exactly one of the two outer-corner squares is
+    black; their centres are found through the homography of the detected grid.
+    """
+    cv2 = require("cv2", "chessboard calibration")
+    obj = board.object_points()[:, :2] / board.square
+    H, _ = cv2.findHomography(obj.astype(np.float32), pts.astype(np.float32))
+    probes = np.array([[-0.5, -0.5], [board.inner_cols - 0.5, board.inner_rows - 0.5]])
+    uvw = np.column_stack([probes, np.ones(2)]) @ H.T
+    uv = uvw[:, :2] / uvw[:, 2:]
+    h, w = gray.shape
+    ij = np.clip(np.round(uv).astype(int), 0, [w - 1, h - 1])
+    first, last = gray[ij[:, 1], ij[:, 0]].astype(float)
+    return first <= last
+
+
+def _project(X: np.ndarray, f: np.ndarray, c: np.ndarray, k: np.ndarray) -> np.ndarray:
+    xy = X[..., :2] / X[..., 2:]
+    r2 = (xy * xy).sum(-1, keepdims=True)
+    return xy * (1 + r2 * (k[0] + r2 * k[1])) * f + c
+
+
+def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
+    """Refine intrinsics, mirror (n, d) and board poses on all corners; returns the fit."""
+    from scipy.optimize import least_squares
+    from scipy.spatial.transform import Rotation
+
+    u = np.cross(n0, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n0, u)
+    views = [(k, view, uv) for k, per in enumerate(obs) for view, uv in per.items()]
+    index = {k: i for i, k in enumerate(sorted(poses))}
+    x0 = np.concatenate([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]], dist[:2], [0.0, 0.0, d0],
+                         np.concatenate([np.r_[Rotation.from_matrix(poses[k][0]).as_rotvec(), poses[k][1]]
+                                         for k in sorted(poses)])])
+
+    def unpack(x):
+        n = n0 + x[6] * u + x[7] * v
+        n = n / np.linalg.norm(n)
+        b = x[9:].reshape(-1, 6)
+        kk = x[4:6] if distortion else np.zeros(2)
+        return x[0:2], x[2:4], kk, n, x[8], Rotation.from_rotvec(b[:, :3]).as_matrix(), b[:, 3:]
+
+    def residuals(x):
+        f, c, kk, n, d, Rb, tb = unpack(x)
+        out = []
+        for k, view, uv in views:
+            X = obj @ Rb[index[k]].T + tb[index[k]]
+            if view == "virtual":
+                X = X - 2.0 * (X @ n - d)[:, None] * n
+            out.append((_project(X, f, c, kk) - uv).ravel())
+        return np.concatenate(out)
+
+    fit = least_squares(residuals, x0, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=4000)
+    f, c, kk, n, d, Rb, tb = unpack(fit.x)
+    res = fit.fun.reshape(-1, len(obj), 2)
+    which = np.array([view for _, view, _ in views])
+    return f, c, kk, n, d, {k: (Rb[i], tb[i]) for k, i in index.items()}, res, which
+
+
+def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = Chessboard(),
+                  reference: int = 0, distortion: bool = True, min_images: int = 4) -> RigCalibration:
+    """Calibrate the camera and the mirror from raw frames of a chessboard.
+
+    Parameters
+    ----------
+    raw_frames : sequence of (H, W[, 3]) arrays
+        Raw camera-mirror frames of the board in different poses.
+    layout : MirrorRig
+        Used only for the image layout (size, split column, mirror side), never for its cameras.
+    board : Chessboard
+    reference : int
+        The frame whose board pose defines the world frame; the board must be whole in its
+        direct view.
+    distortion : bool
+        Fit radial k1, k2 (else none).
+    min_images : int
+        Fewest frames with the whole board in the direct view, and in the mirror.
+
+    Returns
+    -------
+    RigCalibration
+
+    Raises
+    ------
+    DatasetError
+        Too few usable frames, or no board in the reference frame's direct view.
+    """
+    cv2 = require("cv2", "chessboard calibration")
+    W, H = layout.camera.width, layout.camera.height
+    obj = board.object_points()
+    obs: list[dict[str, np.ndarray]] = []
+    for raw in raw_frames:
+        virt, real = layout.split_views(np.asarray(raw))
+        per = {}
+        for view, img in (("virtual", virt), ("real", real)):
+            uv = find_corners(img, board)
+            if uv is not None:
+                per[view] = layout.to_raw(view, uv)
+        obs.append(per)
+    counts = {v: sum(v in per for per in obs) for v in VIEWS} | {"both": sum(len(p) == 2 for p in obs)}
+    log.info("calibration: board found in %s of %d frames", counts, len(obs))
+    if min(counts.values()) < min_images:
+        raise DatasetError(
+            f"the calibration board ({board.inner_cols}x{board.inner_rows} inner corners, {board.square} mm "
+            f"squares) was found whole in {counts} of {len(obs)} frames (virtual, real, both); need "
+            f"{min_images} each. Check the calibration frames and the board described in the manifest")
+    if not 0 <= reference < len(obs) or "real" not in obs[reference]:
+        raise DatasetError(f"calibration frame {reference} does not show the whole board in the direct view; "
+                           "choose another reference frame")
+    flags = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3
+    if not distortion:
+        flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2
+    real_k = [k for k, per in enumerate(obs) if "real" in per]
+    rms_alone, K, dist, rvecs, tvecs = cv2.calibrateCamera(
+        [obj.astype(np.float32)] * len(real_k), [obs[k]["real"].astype(np.float32) for k in real_k],
+        (W, H), None, None, flags=flags)
+    dist = dist.ravel()
+    poses = {k: (cv2.Rodrigues(r)[0], t.ravel()) for k, r, t in zip(real_k, rvecs, tvecs, strict=True)}
+    # The mirrored board is a proper object with its y axis flipped: its PnP pose gives the
+    # reflection S = R_m D R_b^T, hence the mirror plane (S = I - 2 n n^T; t_m = S t_b + 2 d n).
+    D = np.diag([1.0, -1.0, 1.0])
+    S_sum, d_terms = np.zeros((3, 3)), []
+    for k in (k for k in real_k if "virtual" in obs[k]):
+        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+        S_k = cv2.Rodrigues(rv)[0] @ D @ poses[k][0].T
+        S_sum += S_k
+        d_terms.append((tv.ravel() - S_k @ poses[k][1], S_k))
+    w, vecs = np.linalg.eigh(0.5 * (S_sum + S_sum.T) / max(len(d_terms), 1))
+    n0 = vecs[:, 0]
+    d0 = float(np.mean([n0 @ dt / 2.0 for dt, _ in d_terms]))
+    for k in (k for k in range(len(obs)) if k not in poses):         # seen only in the mirror
+        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+        S0 = np.eye(3) - 2 * np.outer(n0, n0)
+        poses[k] = (S0 @ cv2.Rodrigues(rv)[0] @ D, S0 @ (tv.ravel() - 2 * d0 * n0))
+    f, c, kk, n, d, poses, res, which = _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion)
+    K_fit = np.array([[f[0], 0.0, c[0]], [0.0, f[1], c[1]], [0.0, 0.0, 1.0]])
+    R_ref, t_ref = poses[reference]
+    kk = np.r_[kk, 0.0] if distortion else None
+    cam = PinholeCamera(K_fit, _orthonormal(R_ref), t_ref, W, H, kk, "real")
+    rig = MirrorRig(cam, R_ref.T @ n, d - n @ t_ref, layout.mirror_side, layout.split)
+    sq = (res ** 2).sum(-1)
+    rms = {v: float(np.sqrt(sq[which == v].mean())) for v in VIEWS} | {
+        "all": float(np.sqrt(sq.mean())), "real_alone": float(rms_alone)}
+    return RigCalibration(rig, rms, counts, reference)
+
+
+def _orthonormal(R: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(np.asarray(R, float))
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+
+
+def _angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+
+
+def compare_to_truth(cal: RigCalibration, true_views: Sequence[PinholeCamera]) -> dict:
+    """How far the calibration is from the true view cameras (both in the same world frame).
+
+    Parameters
+    ----------
+    cal : RigCalibration
+        Already expressed in the true world frame (see :meth:`RigCalibration.in_frame`).
+    true_views : (virtual, real) PinholeCamera
+
+    Returns
+    -------
+    dict
+        Per view: focal error (px, fx and fy), principal-point error (px), rotation error
+        (degrees), centre error (mm); and the error of the real-to-virtual relative pose, which
+        does not depend on the world frame (rotation degrees, baseline mm).
+    """
+    out = {}
+    for name, est, true in zip(VIEWS, cal.views, true_views, strict=True):
+        out[name] = {
+            "focal_px": (np.diag(est.K)[:2] - np.diag(true.K)[:2]).tolist(),
+            "principal_point_px": float(np.linalg.norm(est.K[:2, 2] - true.K[:2, 2])),
+            "rotation_deg": _angle(est.R, true.R),
+            "center_mm": float(np.linalg.norm(est.center - true.center)),
+        }
+    (ev, er), (tv, tr) = cal.views, tuple(true_views)
+    out["relative"] = {
+        "rotation_deg": _angle(ev.R @ er.R.T, tv.R @ tr.R.T),
+        "baseline_mm": float(np.linalg.norm(ev.center - er.center) - np.linalg.norm(tv.center - tr.center)),
+    }
+    return out

@@ -1,0 +1,259 @@
+"""The reconstruction of a dataset folder: ``lipgen reconstruct DATASET --out recon.npz``.
+
+calibrate (chessboard frames) -> lab frame -> track both views -> triangulate -> normalise
+(by default the least-force head pose about the nose, :mod:`lipgen.recon.headpose`; the thesis's §3
+lip-plane frame with ``normalisation="thesis"``) -> ``Physics.reach`` per frame on the model mesh
+(§4.1). Nothing here reads the
+ground truth: the truth files are used only by :mod:`lipgen.evaluate` to score the result.
+
+The lab frame. The calibration gives cameras in the frame of the chessboard in the first
+calibration image, which may be tilted anyhow. The lab frame is set up from the rig itself, as a
+person would place the subject: its origin is where the two views' central rays pass closest
+(the rig aims there), y is the camera's up, and z points from the face toward the cameras (the
+bisector of the directions to the real and the virtual camera). The model's rest markers,
+placed there, are projected to get the layout that initialises tracking; the 2-D alignment of
+:func:`lipgen.recon.pointreg.register_points` absorbs where the subject really sits.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from lipgen._io import load_npz, save_npz
+from lipgen.errors import DatasetError, TopologyMismatchError
+from lipgen.mesh.lipmesh import LipMesh
+from lipgen.recon.calibrate import RigCalibration, calibrate_rig
+from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
+from lipgen.recon.steps import (
+    ReconstructSettings,
+    expected_projections,
+    reach_fields,
+    track_raw_frames,
+    triangulate_tracks,
+)
+from lipgen.rig.camera import VIEWS
+
+__all__ = ["Reconstruction", "reconstruct_dataset", "lab_frame", "model_mesh", "dot_sigma_px"]
+
+log = logging.getLogger(__name__)
+
+_KIND, _SCHEMA = "lipgen.Reconstruction", 1
+
+
+@dataclass(frozen=True, eq=False)
+class Reconstruction:
+    """What ``lipgen reconstruct`` produces (all lengths mm, model frame unless stated).
+
+    Attributes
+    ----------
+    fields : (F, n, 3) float
+        Least-strain displacement field of each frame on the model mesh (NaN rows: too few
+        markers seen). Markers the normalisation left out as outliers
+        (``info["normalisation"]["outliers"]``, [frame, marker] pairs) are not its goals.
+    markers : (F, P, 3) float
+        Normalised markers (NaN where not visible).
+    visible : (F, P) bool
+        Marker seen in both views with consistent rays.
+    lab_points : (F, P + 1, 3) float
+        Triangulated markers then the nose, lab frame.
+    ray_gap : (F, P + 1) float
+        Distance between the two rays of each triangulation.
+    uv, status, score : (2, F, P + 1, 2), (2, F, P + 1), (2, F, P + 1)
+        Tracks per view (:data:`lipgen.rig.camera.VIEWS` order).
+    frame_index : (F,) int
+    lab_to_board : (4, 4) float
+        Lab point p -> calibration-board point ``R p + t`` (for scoring against the world).
+    similarity : (4, 4) float
+        The one similarity (reference frame -> model), as ``[[s R, t], [0, 1]]``.
+    rotations : (F, 3, 3) float
+        Per-frame rotations applied before it (the lip frames for the thesis method).
+    info : dict
+        Mesh source and topology, marker names, calibration, settings, timings, dataset path.
+    """
+
+    fields: np.ndarray
+    markers: np.ndarray
+    visible: np.ndarray
+    lab_points: np.ndarray
+    ray_gap: np.ndarray
+    uv: np.ndarray
+    status: np.ndarray
+    score: np.ndarray
+    frame_index: np.ndarray
+    lab_to_board: np.ndarray
+    similarity: np.ndarray
+    rotations: np.ndarray
+    info: dict
+
+    @property
+    def calibration(self) -> RigCalibration:
+        return RigCalibration.from_dict(self.info["calibration"])
+
+    @property
+    def lab_calibration(self) -> RigCalibration:
+        """The calibrated rig in the lab frame (what the triangulation used)."""
+        T = np.linalg.inv(self.lab_to_board)
+        return self.calibration.in_frame(T[:3, :3], T[:3, 3])
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the reconstruction to an ``.npz`` file (atomic; schema-versioned)."""
+        arrays = {k: getattr(self, k) for k in ("fields", "markers", "visible", "lab_points", "ray_gap", "uv",
+                                                 "status", "score", "frame_index", "lab_to_board",
+                                                 "similarity", "rotations")}
+        arrays["info"] = np.array(json.dumps(self.info, sort_keys=True))
+        save_npz(path, _KIND, _SCHEMA, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Reconstruction:
+        """Read a reconstruction written by :meth:`save`, checking its kind and schema."""
+        names = ("fields", "markers", "visible", "lab_points", "ray_gap", "uv", "status", "score",
+                 "frame_index", "lab_to_board", "similarity", "rotations", "info")
+        d = load_npz(path, _KIND, _SCHEMA, required=names)
+        info = json.loads(str(d.pop("info")))
+        return cls(**{k: d[k] for k in names if k != "info"}, info=info)
+
+
+def model_mesh(source: str = "lip_mesh(0)") -> LipMesh:
+    """The reconstruction model's mesh: ``"lip_mesh(R)"`` or a path to a saved :class:`LipMesh`."""
+    if source.startswith("lip_mesh(") and source.endswith(")"):
+        from lipgen.mesh.procedural import lip_mesh
+
+        return lip_mesh(int(source[len("lip_mesh("):-1]))
+    return LipMesh.load(source)
+
+
+def lab_frame(cal: RigCalibration) -> np.ndarray:
+    """(4, 4) lab -> board transform set up from the calibrated rig (see the module docstring)."""
+    rig = cal.rig
+    origins, dirs = [], []
+    for cam in rig.views:
+        o, d = cam.rays(np.array([(cam.width - 1) / 2, (cam.height - 1) / 2]))
+        origins.append(o)
+        dirs.append(d)
+    from lipgen.rig.pinhole import triangulate_rays
+
+    aim, _ = triangulate_rays(origins[1], dirs[1], origins[0], dirs[0])
+    up = -rig.camera.R[1]
+    toward = sum((c.center - aim) / np.linalg.norm(c.center - aim) for c in rig.views)
+    z = toward - (toward @ up) * up
+    z /= np.linalg.norm(z)
+    y = up - (up @ z) * z
+    y /= np.linalg.norm(y)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
+    T[:3, 3] = aim
+    return T
+
+
+def dot_sigma_px(cal: RigCalibration, lab_to_board: np.ndarray, dot_diameter: float) -> float:
+    """Detector scale for ink dots of ``dot_diameter`` mm at the lab origin, pixels.
+
+    A disc of radius r pixels looks like a Gaussian of sigma ~ r / 2, but on rendered frames the
+    detector works best a good deal wider (fewer false dots on shading and the mouth corners,
+    no loss of accuracy): 0.85 r in the view that sees the dots smallest, and never below 1.2 px.
+    """
+    origin = lab_to_board[:3, 3]
+    px_per_mm = min(c.K[0, 0] / (c.R @ origin + c.t)[2] for c in cal.views)
+    return float(np.clip(0.85 * dot_diameter / 2 * px_per_mm, 1.2, 6.0))
+
+
+def _check_marks(ds, mesh: LipMesh) -> None:
+    names = [str(n) for n in ds.manifest["marks"][:-1]]
+    if list(mesh.marker_names) != names:
+        raise TopologyMismatchError(
+            f"the dataset's markers {names} are not the model mesh's {list(mesh.marker_names)}: the dataset "
+            f"was made from a different mesh (topology {ds.manifest['mesh'].get('topology_id')}) than the "
+            f"model {mesh.name!r}; reconstruct it with a model mesh that has the same markers (--mesh)")
+
+
+def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: ReconstructSettings | None = None,
+                        progress: bool = False, normalisation: str = "least-force") -> Reconstruction:
+    """Run the whole reconstruction on a dataset folder (see the module docstring).
+
+    ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`.
+    """
+    from lipgen.dataset.layout import Dataset
+    from lipgen.fem import Physics
+
+    if normalisation not in METHODS:
+        raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
+    t0 = time.perf_counter()
+    ds = Dataset(path)
+    missing = ds.missing()
+    if missing:
+        raise DatasetError(f"{path}: {len(missing)} of {len(ds)} frames are missing (e.g. frame "
+                           f"{missing[0]}); finish the dataset with lipgen generate --resume before "
+                           "reconstructing")
+    mesh = model_mesh(mesh_source)
+    _check_marks(ds, mesh)
+    cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.board())
+    t_cal = time.perf_counter()
+    T = lab_frame(cal)
+    lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])
+    if settings is None:
+        from lipgen.recon.dots import DotSettings
+        from lipgen.recon.track import TrackerSettings
+
+        sigma = dot_sigma_px(cal, T, float(ds.settings.dot_diameter))
+        settings = ReconstructSettings(tracker=TrackerSettings(dots=DotSettings(sigma=sigma)))
+    marks_rest = np.vstack([mesh.vertices[mesh.markers], mesh.nose])
+    expected = expected_projections(lab.views, marks_rest)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(ds), desc="tracking", unit="frame")
+    frames = (f.image for f in ds)
+    tracks = track_raw_frames(frames, ds.rig, expected, settings, (lambda _: bar.update()) if bar else None,
+                              cameras=lab.views)
+    if bar is not None:
+        bar.close()
+    t_track = time.perf_counter()
+    points, gap, vis = triangulate_tracks(lab.views, tracks, settings.max_ray_gap)
+    P = len(mesh.markers)
+    upper, lower = lip_subsets(mesh.marker_names)
+    nose_seen = vis[:, P]
+    if not nose_seen.all():
+        # The nose is the translation reference; where it is lost, carry it with the upper lip.
+        good = np.flatnonzero(nose_seen)
+        if len(good) == 0:
+            raise DatasetError(f"{path}: the nose mark was never seen in both views; cannot normalise")
+        log.warning("nose lost in %d frame(s): interpolated", int((~nose_seen).sum()))
+        for a in range(3):
+            points[~nose_seen, P, a] = np.interp(np.flatnonzero(~nose_seen), good, points[good, P, a])
+    physics = Physics(mesh)
+    norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
+                             model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",
+                             method=normalisation, physics=physics)
+    # Markers the normalisation found mis-measured (one marker carrying most of a frame's cost)
+    # are not goals of the frame's field; they stay in `markers` and `visible` (the tracker's word).
+    outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
+    fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
+                          mesh.markers, settings.min_visible)
+    t_end = time.perf_counter()
+    S = np.eye(4)
+    S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
+    S[:3, 3] = norm.similarity.translation
+    info = {
+        "dataset": str(os.path.abspath(path)), "mesh_source": mesh_source, "topology_id": mesh.topology_id,
+        "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
+        "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
+        "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
+                          "reference_frame": norm.reference_frame,
+                          "borrowed_frames": int(norm.borrowed.sum()),
+                          "outliers": np.argwhere(outliers).tolist(),
+                          **({"plane_angle_deg_median": float(np.degrees(np.nanmedian(norm.plane_angle)))}
+                             if norm.method == "thesis" else {})},
+        "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},
+    }
+    return Reconstruction(
+        fields=fields, markers=norm.markers, visible=vis[:, :P], lab_points=points, ray_gap=gap,
+        uv=np.stack([t.uv for t in tracks]), status=np.stack([t.status for t in tracks]),
+        score=np.stack([t.score for t in tracks]), frame_index=np.arange(len(ds)), lab_to_board=T,
+        similarity=S, rotations=norm.rotations, info=info)

@@ -1,0 +1,239 @@
+"""From raw camera-mirror frames to displacement fields of the model (thesis ch. 3 and §4.1).
+
+The steps, each a small function so that tests and the evaluation can score them one by one:
+
+1. :func:`track_raw_frames`: split every raw frame into its (virtual, real) views, match the
+   first frame's dots to the markers' expected positions (replacing the thesis's GUI), and
+   track them with normalised correlation (:class:`lipgen.recon.track.MarkerTracker`), both views in
+   lock-step so each raw frame is read once. With the calibrated cameras, a sighting the other
+   view contradicts (rays more than ``max_ray_gap`` apart) is taken back in the tracker, so a
+   wrong dot is not followed.
+2. :func:`triangulate_tracks`: the closest point between the two rays of each marker (thesis
+   Fig 3-5); a marker seen in one view only, or whose rays pass far apart (a mis-track), is
+   marked not visible.
+3. :func:`lipgen.recon.normalize.normalize_markers`: nose, lip planes, one similarity to the model.
+4. :func:`reach_fields`: per frame, the least-strain field of the model that reaches the
+   visible markers' goals (eq 4.3); frames are grouped by which markers they see, so each
+   group costs one precomputation and one matrix product.
+
+The whole run is :func:`lipgen.recon.pipeline.reconstruct_dataset`; this module does not know about
+datasets on disk.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from lipgen._validate import as_float_array
+from lipgen.recon.dots import detect_dots
+from lipgen.recon.pointreg import match_to_expected
+from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
+from lipgen.rig.camera import VIEWS, MirrorRig
+from lipgen.rig.pinhole import PinholeCamera, triangulate
+
+__all__ = ["ReconstructSettings", "track_raw_frames", "triangulate_tracks", "reach_fields",
+           "expected_projections"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ReconstructSettings:
+    """Settings of the reconstruction.
+
+    Attributes
+    ----------
+    tracker : TrackerSettings
+        Dot look and tracking parameters.
+    init_gate : float
+        Largest distance (px) between a first-frame dot and its marker's expected position
+        after the 2-D alignment.
+    max_ray_gap : float
+        Largest distance (mm) between a marker's two rays; beyond it the pair is a mis-track
+        and the marker is treated as not seen in that frame.
+    min_visible : int
+        Fewest visible markers for a frame's field to be reconstructed (else its field is NaN).
+    """
+
+    tracker: TrackerSettings = field(default_factory=TrackerSettings)
+    init_gate: float = 6.0
+    max_ray_gap: float = 2.0
+    min_visible: int = 4
+
+
+def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
+    """(2, P, 2) pixels of world ``points (P, 3)`` in the (virtual, real) views."""
+    X = as_float_array(points, "points", (None, 3))
+    return np.stack([cam.project(X) for cam in views])
+
+
+def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
+                     settings: ReconstructSettings = ReconstructSettings(),
+                     progress: Callable[[int], None] | None = None,
+                     cameras: tuple[PinholeCamera, PinholeCamera] | None = None) -> tuple[Tracks, Tracks]:
+    """Detect and track the markers in both views of a raw sequence.
+
+    Parameters
+    ----------
+    raw_frames : iterable of (H, W[, 3]) arrays
+        Raw camera-mirror frames in order (read one at a time).
+    layout : MirrorRig
+        Used only to split the raw frames into views.
+    expected : (2, P, 2) float
+        Rough marker positions in the (virtual, real) views, e.g. the projections of the
+        model's markers at rest through the calibrated cameras; only their layout matters.
+    settings : ReconstructSettings
+    progress : callable, optional
+        Called with the frame index after each frame.
+    cameras : (virtual, real) PinholeCamera, optional
+        The calibrated views. With them, a first-frame match whose two rays pass farther apart
+        than ``settings.max_ray_gap`` is dropped in both views (one of the two is another
+        marker's dot or no marker's); the tracker acquires the marker later from the layout.
+
+    Returns
+    -------
+    (virtual, real) : Tracks
+    """
+    exp = as_float_array(expected, "expected", (2, None, 2), finite=False)
+    trackers: list[MarkerTracker] = []
+    for t, raw in enumerate(raw_frames):
+        views = layout.split_views(np.asarray(raw))
+        if t == 0:
+            inits = []
+            for v, img in enumerate(views):
+                ok = np.all(np.isfinite(exp[v]), axis=1)
+                dots, _ = detect_dots(img, settings.tracker.dots)
+                init = np.full(exp[v].shape, np.nan)
+                match = np.full(len(ok), -1)
+                match[ok] = match_to_expected(dots, exp[v][ok], settings.init_gate)
+                init[match >= 0] = dots[match[match >= 0]]
+                log.info("%s view: %d dots in the first frame, %d of %d markers matched", VIEWS[v],
+                         len(dots), int((match >= 0).sum()), len(ok))
+                inits.append(init)
+            if cameras is not None:
+                both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
+                gap = np.full(len(both), np.nan)
+                if both.any():
+                    gap[both] = triangulate(cameras[1], inits[1][both], cameras[0], inits[0][both])[1]
+                bad = both & (gap > settings.max_ray_gap)
+                if bad.any():
+                    log.info("first frame: %d marker match(es) inconsistent between the views dropped",
+                             int(bad.sum()))
+                    inits[0][bad] = inits[1][bad] = np.nan
+            for v in range(2):
+                ok = np.all(np.isfinite(exp[v]), axis=1)
+                trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
+        for tracker, img in zip(trackers, views, strict=True):
+            tracker.step(img)
+        if cameras is not None and t > 0:
+            _check_views(trackers, cameras, settings.max_ray_gap)
+        if progress is not None:
+            progress(t)
+    if not trackers:
+        raise ValueError("track_raw_frames got no frames")
+    return trackers[0].tracks(), trackers[1].tracks()
+
+
+def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None:
+    """Take back sightings whose two rays pass more than ``max_gap`` apart (a wrong dot in a view).
+
+    A sighting that continues a track (seen in the previous image) beats one just re-acquired:
+    only the latter is taken back. Otherwise both are, since a lost marker is far better than a
+    wrong one; each tracker then re-acquires it on its own.
+    """
+    (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
+    both = (st0 != LOST) & (st1 != LOST)
+    if not both.any():
+        return
+    gap = np.full(len(both), np.nan)
+    gap[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[1]
+    bad = np.flatnonzero(both & (gap > max_gap))
+    if len(bad) == 0:
+        return
+    fresh = [tr.reacquired[bad] for tr in trackers]
+    only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
+    trackers[0].reject(bad[~only1])
+    trackers[1].reject(bad[~only0])
+
+
+def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],
+                       max_ray_gap: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray-midpoint triangulation of tracked markers (thesis §3).
+
+    Parameters
+    ----------
+    views : (virtual, real) PinholeCamera
+    tracks : (virtual, real) Tracks
+    max_ray_gap : float
+        Pairs whose rays pass farther apart than this (mm) are rejected.
+
+    Returns
+    -------
+    points : (F, P, 3) float
+        World points, NaN where not visible.
+    gap : (F, P) float
+        Closest distance between the rays, mm (NaN where a view lost the marker).
+    visible : (F, P) bool
+        Seen in both views with rays closer than ``max_ray_gap``.
+    """
+    tv, tr = tracks
+    if tv.uv.shape != tr.uv.shape:
+        raise ValueError(f"the views' tracks differ in shape: virtual {tv.uv.shape}, real {tr.uv.shape}")
+    both = tv.visible & tr.visible
+    points = np.full(tv.uv.shape[:2] + (3,), np.nan)
+    gap = np.full(tv.uv.shape[:2], np.nan)
+    if both.any():
+        p, g = triangulate(views[1], tr.uv[both], views[0], tv.uv[both])
+        points[both], gap[both] = p, g
+    visible = both & (gap <= max_ray_gap)
+    rejected = int((both & ~visible).sum())
+    if rejected:
+        log.warning("%d marker sighting(s) rejected: their rays pass more than %.2f mm apart", rejected,
+                    max_ray_gap)
+    points[~visible] = np.nan
+    return points, gap, visible
+
+
+def reach_fields(physics, goals, visible, marker_nodes, min_visible: int = 4) -> np.ndarray:
+    """The least-strain displacement field reaching each frame's visible marker goals (eq 4.3).
+
+    Parameters
+    ----------
+    physics : lipgen.Physics
+        The reconstruction model.
+    goals : (F, P, 3) float
+        Marker displacement goals in the model frame, mm (NaN where not visible).
+    visible : (F, P) bool
+    marker_nodes : (P,) int
+        The model node of each marker.
+    min_visible : int
+        Frames with fewer visible markers get a NaN field.
+
+    Returns
+    -------
+    (F, n, 3) float
+        Displacement fields, mm.
+    """
+    from lipgen.fem import dofs
+
+    G = as_float_array(goals, "goals", (None, len(marker_nodes), 3), finite=False)
+    vis = np.asarray(visible, dtype=bool)
+    if vis.shape != G.shape[:2]:
+        raise ValueError(f"visible must have shape {G.shape[:2]}, got {vis.shape}")
+    vis = vis & np.all(np.isfinite(G), axis=2)
+    nodes = np.asarray(marker_nodes, dtype=np.int64)
+    U = np.full((len(G), physics.mesh.n_nodes, 3), np.nan)
+    patterns, which = np.unique(vis, axis=0, return_inverse=True)
+    for k, pattern in enumerate(patterns):
+        frames = np.flatnonzero(which.ravel() == k)
+        if pattern.sum() < min_visible:
+            log.warning("%d frame(s) see only %d markers (< %d): no field reconstructed", len(frames),
+                        int(pattern.sum()), min_visible)
+            continue
+        values = G[frames][:, pattern].reshape(len(frames), -1)
+        U[frames], _ = physics.reach(dofs(nodes[pattern]), values)
+    return U

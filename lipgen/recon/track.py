@@ -1,0 +1,438 @@
+"""Marker tracking over frames by normalised correlation, with detection as the safety net.
+
+The thesis tracked its ink dots with normalised correlation and fixed the failures by hand in a
+GUI (§3). Here the GUI is replaced by two things:
+
+* **Initialisation** (:func:`match_to_expected`): the first frame's detected dots are matched to
+  where the model's markers are expected to be (e.g. their projections through the calibrated
+  camera) by a robust 2-D similarity ICP with one-to-one (Hungarian) assignment.
+* **Recovery**: every frame, each marker is predicted by constant velocity and searched for by
+  normalised correlation of its template; the correlation peak (or the prediction, when the peak
+  is weak or jumps too far) is then snapped to a detected dot by a one-to-one assignment. The
+  position reported is the dot's sub-pixel centroid, so template drift does not accumulate. A
+  marker with no dot in reach is marked not visible (``status = LOST``) and re-acquired, with a
+  widening gate, when a dot reappears near its prediction. A lost marker is carried with its
+  neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
+  that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
+  shift (:func:`lipgen.recon.association.shift_group`).
+* **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
+  in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
+  blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
+  round dot at its correlation peak, elongated blobs near it (:func:`lipgen.recon.dots.dot_peaks`)
+  become candidates: it may snap to one only where its correlation found it, and they count as
+  rivals when a dot is taken by the motion prediction, so the round blob beside a foreshortened
+  dot is never taken in its place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import fftconvolve
+
+from lipgen._validate import as_float_array
+from lipgen.recon.association import (
+    CORRELATION_ONLY,
+    LOST,
+    RECOVERED,
+    TRACKED,
+    assign_two_routes,
+    carry_lost_markers,
+    drop_merged,
+    fix_order,
+    predict,
+    shift_group,
+)
+from lipgen.recon.dots import DotSettings, _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
+from lipgen.recon.pointreg import assign
+
+__all__ = [
+    "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
+    "normalized_correlation", "MarkerTracker", "track_markers",
+]
+
+# Per-frame status of a marker (lipgen.recon.association): TRACKED, correlation agreed with a detected
+# dot; RECOVERED, correlation failed and the dot was found from the motion prediction;
+# CORRELATION_ONLY, no dot detected but a confident correlation peak; LOST, not found.
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """Tracking parameters (pixels unless stated).
+
+    Attributes
+    ----------
+    dots : DotSettings
+        How the ink dots look.
+    template_radius : int
+        Half-size of the correlation template.
+    search_radius : int
+        Half-size of the correlation search window around the prediction.
+    min_correlation : float
+        A correlation peak below this counts as a failure.
+    confident_correlation : float
+        A peak at least this high is accepted even without a detected dot there.
+    gate : float
+        Largest distance from the correlation peak to the dot it is snapped to.
+    recovery_gate : float
+        Largest distance from the prediction to a dot when correlation failed; it grows by
+        ``gate`` for each of the first three frames the marker has been lost.
+    max_jump : float
+        A correlation peak farther than this from the prediction is a failure.
+    motion_penalty : float
+        Correlation given up for a match at the edge of the search window (quadratic in the
+        distance from the prediction); breaks ties between look-alike dots.
+    min_strength_ratio : float
+        A dot must be at least this fraction as dark as the marker's dot has been.
+    twin_distance : float, optional
+        Markers closer than this in the reference layout cannot be told apart in this view (their
+        dots merge); they are never tracked there. Defaults to ``2.5 * dots.sigma``.
+    """
+
+    dots: DotSettings = DotSettings()
+    template_radius: int = 7
+    search_radius: int = 14
+    min_correlation: float = 0.5
+    confident_correlation: float = 0.95
+    gate: float = 3.0
+    recovery_gate: float = 8.0
+    max_jump: float = 12.0
+    motion_penalty: float = 0.3
+    twin_distance: float | None = None
+    min_strength_ratio: float = 0.5
+
+    @property
+    def twins(self) -> float:
+        return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
+
+
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """Tracked 2-D marker positions in one view.
+
+    Attributes
+    ----------
+    uv : (F, P, 2) float
+        Positions (column, row) in pixels; NaN where the marker is not visible.
+    visible : (F, P) bool
+    status : (F, P) int8
+        ``TRACKED``, ``RECOVERED``, ``CORRELATION_ONLY`` or ``LOST``.
+    score : (F, P) float
+        Correlation peak (NaN in the first frame and where no search was made).
+    """
+
+    uv: np.ndarray
+    visible: np.ndarray
+    status: np.ndarray
+    score: np.ndarray
+
+    @property
+    def n_frames(self) -> int:
+        return self.uv.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        return self.uv.shape[1]
+
+
+def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarray:
+    """Zero-mean normalised cross-correlation of ``template`` at every placement in ``search``.
+
+    Parameters
+    ----------
+    search : (H, W) float
+    template : (h, w) float, h <= H, w <= W
+
+    Returns
+    -------
+    (H - h + 1, W - w + 1) float in [-1, 1]
+        Entry (i, j) compares ``template`` with ``search[i:i+h, j:j+w]``; 0 where either is flat.
+    """
+    t = template - template.mean()
+    tn = np.sqrt((t * t).sum())
+    h, w = template.shape
+    num = fftconvolve(search, t[::-1, ::-1], mode="valid")   # sum((win - mean) t) = sum(win t)
+    # Window sums of the search and its square from integral images.
+    def box(a):
+        c = np.pad(a, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
+        return c[h:, w:] - c[:-h, w:] - c[h:, :-w] + c[:-h, :-w]
+    mean = box(search) / t.size
+    var = box(search * search) - mean * mean * t.size
+    den = np.sqrt(np.maximum(var, 0.0)) * tn
+    return np.where(den > 1e-9 * max(tn, 1e-300), num / np.maximum(den, 1e-300), 0.0)
+
+
+def _parabola_offset(left: float, mid: float, right: float) -> float:
+    den = left - 2.0 * mid + right
+    return 0.0 if den >= 0 else float(np.clip(0.5 * (left - right) / den, -0.5, 0.5))
+
+
+def _patch(gray: np.ndarray, center: np.ndarray, radius: int) -> np.ndarray:
+    """Square patch of side 2*radius+1 around the rounded centre, edge-padded."""
+    c, r = np.round(center).astype(np.int64)
+    h, w = gray.shape
+    rows = np.clip(np.arange(r - radius, r + radius + 1), 0, h - 1)
+    cols = np.clip(np.arange(c - radius, c + radius + 1), 0, w - 1)
+    return gray[np.ix_(rows, cols)]
+
+
+def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radius: int,
+               penalty: float) -> tuple[np.ndarray, float]:
+    """Best placement of ``template`` within ``radius`` of ``center``: (uv, peak score).
+
+    Every ink dot looks like every other, so the peak is chosen on the correlation minus
+    ``penalty * (distance / radius)^2``: of two equally good matches, the one nearer the
+    prediction wins. The score returned is the plain correlation there.
+    """
+    t_rad = template.shape[0] // 2
+    search = _patch(gray, center, radius + t_rad)
+    ncc = normalized_correlation(search, template)
+    off = (np.arange(ncc.shape[0]) - radius) / max(radius, 1)
+    prior = penalty * (off[:, None] ** 2 + off[None, :] ** 2)
+    i, j = np.unravel_index(int(np.argmax(ncc - prior)), ncc.shape)
+    di = _parabola_offset(ncc[i - 1, j], ncc[i, j], ncc[i + 1, j]) if 0 < i < ncc.shape[0] - 1 else 0.0
+    dj = _parabola_offset(ncc[i, j - 1], ncc[i, j], ncc[i, j + 1]) if 0 < j < ncc.shape[1] - 1 else 0.0
+    base = np.round(center)
+    uv = np.array([base[0] - radius + j + dj, base[1] - radius + i + di])
+    return uv, float(ncc[i, j])
+
+
+class MarkerTracker:
+    """Tracks markers in one view, one image at a time (so several views can run in lock-step).
+
+    Parameters
+    ----------
+    initial_uv : (P, 2) float
+        Marker positions in the first image, NaN for markers not found there (for example from
+        :func:`~lipgen.recon.pointreg.match_to_expected` on the first image's dots).
+    settings : TrackerSettings
+    reference_uv : (P, 2) float, optional
+        The expected layout of all markers (e.g. their projections at rest). With it, a marker
+        not seen yet is searched for where the layout, aligned to the seen markers, puts it, and
+        markers too close together in it to be told apart (``settings.twins``) are not tracked.
+    roi_margin : float
+        After the first image, dots are detected only within this many pixels of the markers'
+        last known positions (the rest of the image is not searched).
+    """
+
+    def __init__(self, initial_uv, settings: TrackerSettings = TrackerSettings(), reference_uv=None,
+                 roi_margin: float = 60.0):
+        self.init = as_float_array(initial_uv, "initial_uv", (None, 2), finite=False)
+        P = len(self.init)
+        self.reference = (None if reference_uv is None
+                          else as_float_array(reference_uv, "reference_uv", (P, 2)))
+        self.cfg = settings
+        self.roi_margin = float(roi_margin)
+        self.strength = np.full(P, np.nan)           # typical darkness of each marker's dot
+        self.twins = np.zeros(P, dtype=bool)
+        if self.reference is not None and P > 1:
+            d = np.linalg.norm(self.reference[:, None] - self.reference[None], axis=2)
+            np.fill_diagonal(d, np.inf)
+            self.twins = d.min(1) < settings.twins
+            self.init[self.twins] = np.nan
+        self.last = self.init.copy()                  # last seen position (NaN if never seen)
+        self.vel = np.zeros((P, 2))
+        self.gap = np.zeros(P, dtype=np.int64)        # frames since last seen
+        # Each template is a patch around the rounded centroid plus the centroid's sub-pixel offset.
+        self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
+        self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
+
+    def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """This frame's round dots (uv, strength) and elongated peaks (whole pixels, strength).
+
+        After the first image only a region around the markers is searched.
+        """
+        known = np.all(np.isfinite(self.last), axis=1)
+        lo = np.zeros(2, dtype=int)
+        sub = gray
+        if self._out and known.any():
+            h, w = gray.shape
+            a = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
+            b = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
+            if np.all(b - a >= 8):
+                lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
+        peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
+        round_ = roundness >= self.cfg.dots.min_roundness
+        uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
+        return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
+
+    def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-pixel centres of the elongated ``peaks`` within ``radii`` of ``centres``.
+
+        Refined together with the round ``dots`` near them (deblending), and dropped where they
+        end on a round dot. Only markers whose own dot was not found need them, so this is
+        usually empty and costs nothing. Returns (uv (m, 2), index (m,) into ``peaks``).
+        """
+        idx = np.zeros(0, dtype=np.int64)
+        if len(peaks) and len(centres):
+            near = np.linalg.norm(peaks[:, None] - centres[None], axis=2) <= radii[None, :] + 1.0
+            idx = np.flatnonzero(near.any(1))
+        if len(idx) == 0:
+            return np.zeros((0, 2)), idx
+        reach = 2 * (np.ceil(3.0 * self.cfg.dots.sigma) + 1)
+        nb = (np.linalg.norm(dots[:, None] - peaks[idx][None], axis=2) < reach).any(1)
+        uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), self.cfg.dots.sigma)[:len(idx)]
+        sep = self.cfg.dots.separation / 2
+        ok = _dedupe(uv, sep)
+        if len(dots):
+            ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
+        return uv[ok], idx[ok]
+
+    def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
+        cfg, P = self.cfg, len(self.init)
+        if self._out:
+            # Carried only now, after any outside check took back sightings of the last image:
+            # a wrong dot's jump must not drag its lost neighbours along.
+            prev_uv, prev_status, _ = self._out[-1]
+            carry_lost_markers(self.last, self._before[0], prev_uv, prev_status != LOST)
+        self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
+        gray = ink_gray(image)
+        dots, strength, e_peaks, e_strength = self._dots(gray)
+        uv = np.full((P, 2), np.nan)
+        status = np.full(P, LOST, dtype=np.int8)
+        score = np.full(P, np.nan)
+        first = not self._out
+        shifted = np.zeros(P, dtype=bool)
+        if first:
+            seen = np.all(np.isfinite(self.init), axis=1)
+            # Snap the given positions to this frame's dots so every position is a centroid.
+            snap = assign(self.init, dots, np.where(seen, cfg.gate, 0.0))
+            uv[seen] = self.init[seen]
+            uv[snap >= 0] = dots[snap[snap >= 0]]
+            status[seen] = TRACKED
+        else:
+            gap = self.gap
+            pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
+            pred, shifted = shift_group(pred, dots, cfg.recovery_gate, cfg.gate, 3 * cfg.recovery_gate)
+            cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
+            for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
+                gates[i] = cfg.recovery_gate + cfg.gate * min(gap[i], 3)
+                if self.templates[i] is None:
+                    continue
+                patch, offset = self.templates[i]
+                radius = cfg.search_radius + int(np.ceil(cfg.gate * min(gap[i], 3)))
+                peak, score[i] = _correlate(gray, patch, pred[i], radius, cfg.motion_penalty)
+                peak = peak + offset
+                if score[i] >= cfg.min_correlation and np.linalg.norm(peak - pred[i]) <= cfg.max_jump:
+                    cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
+            # A marker coming back after a loss must pass the unambiguity test even when the
+            # correlation found a peak: its template may be stale and its neighbours look alike.
+            # A peak with no dot at it is the skin where the dot was; the prediction, carried
+            # with the neighbours, is the better guess then.
+            back = (gap > 0) | shifted
+            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
+                  else np.full(P, np.inf))
+            guess = np.where((back & corr_ok & (d0 <= cfg.gate))[:, None], cand, pred)
+            reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
+            # A dot seen obliquely (the lip corner turning away) is elongated and fails the
+            # detector's roundness test, and the nearest round blob may then be something else
+            # (the dark end of the mouth opening). For markers with no round dot at their
+            # correlation peak, elongated blobs near them become candidates: takeable only where
+            # the correlation found them, and rivals in the unambiguity test of the prediction.
+            need = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate)
+            e_uv, e_idx = self._foreshortened(gray, dots, e_peaks, np.vstack([cand[need], guess[need]]),
+                                              np.concatenate([gates[need], reach[need]]))
+            round_ = np.r_[np.ones(len(dots), dtype=bool), np.zeros(len(e_uv), dtype=bool)]
+            dots = np.vstack([dots, e_uv])
+            strength = np.concatenate([strength, e_strength[e_idx]])
+            # Only a dot about as dark as the marker's own will do: texture blobs are fainter
+            # than ink, and the correlation may follow the skin around a hidden dot.
+            dark_enough = (np.isnan(self.strength)[:, None]
+                           | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
+            snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
+                                                dark_enough, round_dots=round_)
+            got = snap >= 0
+            uv[got] = dots[snap[got]]
+            status[got & via_corr] = TRACKED
+            status[got & ~via_corr] = RECOVERED
+            trust = ~got & corr_ok & (score >= cfg.confident_correlation)
+            uv[trust] = cand[trust]
+            status[trust] = CORRELATION_ONLY
+            drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
+                         max(cfg.gate, cfg.dots.separation))
+        status[self.twins] = LOST
+        uv[self.twins] = np.nan
+        if self.reference is not None:
+            fix_order(uv, status, self.reference, 4.0 * cfg.twins)
+        visible = status != LOST
+        for i in np.flatnonzero(visible):
+            if self.gap[i] == 0 and not first and not shifted[i] and np.all(np.isfinite(self.last[i])):
+                self.vel[i] = 0.5 * self.vel[i] + 0.5 * (uv[i] - self.last[i])   # damped constant velocity
+            else:
+                self.vel[i] = 0.0
+            if status[i] != CORRELATION_ONLY:
+                self.templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
+        self.last[visible] = uv[visible]
+        self.gap[visible] = 0
+        self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
+        got = visible & (status != CORRELATION_ONLY)
+        if got.any():
+            near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
+            mine = strength[near.argmin(1)]
+            seen_before = np.isfinite(self.strength[got])
+            self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
+        self._out.append((uv, status, score))
+        return uv, status, score
+
+    @property
+    def reacquired(self) -> np.ndarray:
+        """(P,) bool: markers that were not seen in the image before the last one."""
+        return self._before[1] > 0 if self._out else np.zeros(len(self.init), dtype=bool)
+
+    def reject(self, markers) -> None:
+        """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
+
+        For a check from outside, such as the other view of a calibrated rig: the markers' state
+        (last position, template, darkness) is restored to what it was before that image, so a
+        wrong dot taken there is not followed.
+        """
+        idx = np.asarray(markers, dtype=np.int64).ravel()
+        if not self._out or len(idx) == 0:
+            return
+        last, gap, templates, strength = self._before
+        uv, status, _ = self._out[-1]
+        for i in idx:
+            if status[i] == LOST:
+                continue
+            uv[i], status[i] = np.nan, LOST
+            self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
+            self.templates[i] = templates[i]
+            self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
+
+    def tracks(self) -> Tracks:
+        """Everything tracked so far."""
+        if not self._out:
+            raise ValueError("the tracker has seen no frames")
+        uv, status, score = (np.stack(a) for a in zip(*self._out, strict=True))
+        return Tracks(uv, status != LOST, status, score)
+
+
+def track_markers(frames: Iterable, initial_uv: np.ndarray,
+                  settings: TrackerSettings = TrackerSettings(),
+                  reference_uv: np.ndarray | None = None) -> Tracks:
+    """Track markers through a sequence of images of one view (see :class:`MarkerTracker`).
+
+    Parameters
+    ----------
+    frames : iterable of (h, w) or (h, w, 3) arrays
+        The images, in order (read lazily, one at a time).
+    initial_uv : (P, 2) float
+        Marker positions in the first frame, NaN for markers not found there.
+    settings : TrackerSettings
+    reference_uv : (P, 2) float, optional
+        The expected layout of all markers, to place markers not seen yet.
+
+    Returns
+    -------
+    Tracks
+    """
+    tracker = MarkerTracker(initial_uv, settings, reference_uv)
+    for image in frames:
+        tracker.step(image)
+    if not tracker._out:
+        raise ValueError("track_markers got no frames")
+    return tracker.tracks()

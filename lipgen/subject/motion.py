@@ -1,0 +1,498 @@
+"""The synthetic subject: muscle-like actions on a finer, differently built lip model.
+
+The ground truth must not come from the model being fitted ("avoid the inverse crime",
+DESIGN.md). The truth subject therefore differs from the reconstruction model (``lip_mesh(0)``
+with default stiffness, grounded at the strip only) in four ways:
+
+- **a finer mesh**: ``lip_mesh(1)`` by default (the first nodes of a resolution are the nodes
+  of every coarser one, at the same points, so the truth can be compared node for node);
+- **its own stiffness**: :data:`TRUTH_STIFFNESS`, softer lower lip than upper lip, varied per
+  subject by the seed;
+- **its own boundary conditions**: the outer skin border is held by the face around it, fixed to
+  the skull at the top and carried by the jaw at the bottom, blended in between (the model holds
+  the whole border still);
+- **nonlinear motion**: the jaw rotates about a hinge axis near the ear, with a forward glide
+  growing with the square of the opening; the border follows that rigid motion and the lower lip
+  is carried along by its attachment to the gum, so points move on arcs; every displacement is
+  finally wrapped onto the cylinder of the dental arch, so that the corners slide round the face
+  on arcs rather than on straight lines.
+
+Each action is a force pattern (muscle-like pulls, see :data:`ACTIONS`) whose elastic response
+is scaled so that activation 1 gives a plausible displacement in mm (:data:`ACTION_TARGETS_MM`).
+The upper-lip raiser, corner puller and corner depressor also come one-sided (``_left`` /
+``_right``, the same muscle on one side, calibrated on that side's marker), and the jaw can shift
+sideways (``jaw_shift_left`` / ``_right``, a rigid shift of :data:`JAW_SHIFT_MM` that the border
+and the gum pass on to the lips), so that asymmetric expressions occur as on real faces. The
+displacement of a frame is linear in the activations except for the jaw, the contact and the wrap.
+
+Frames
+------
+The model frame is the head's frame (mm; +x subject's left, +y up, +z out of the face, origin at
+the mouth centre at rest). A head pose ``P`` (4x4) maps it to the world: ``X_world = R X + t``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from lipgen._validate import as_float_array
+from lipgen.mesh.lipmesh import LipMesh
+from lipgen.subject.activation import (
+    ACTIONS,
+    DEFAULT_FPS,
+    VISEMES,
+    action_index,
+    head_motion,
+    parse_script,
+    random_activations,
+    viseme_activations,
+)
+
+__all__ = ["ACTIONS", "VISEMES", "ACTION_TARGETS_MM", "TRUTH_STIFFNESS", "Subject", "Motion",
+           "default_subject", "simulate", "random_activations", "viseme_activations",
+           "head_motion", "parse_script", "action_index", "JAW_SHIFT_MM"]
+
+TRUTH_STIFFNESS: dict[str, float] = {"lip": 1.4, "ridge": 3.0, "skin": 2.5, "strip": 0.05}
+"""The truth subject's relative E per region (the reconstruction default differs: see
+:data:`lipgen.fem.DEFAULT_STIFFNESS`). The lower lip is further softened by 25 %."""
+
+ACTION_TARGETS_MM: dict[str, tuple[str, float]] = {
+    "jaw_open": ("lower_mid", 14.0),
+    "upper_lip_raiser": ("upper_left", 4.0),
+    "lip_corner_puller": ("corner_left", 8.0),
+    "lip_corner_depressor": ("corner_left", 5.0),
+    "pucker": ("corner_left", 6.0),
+    "lip_press": ("upper_mid", 3.0),
+    "funneler": ("upper_mid", 4.0),
+    "lower_lip_protrusion": ("lower_mid", 4.0),
+    "upper_lip_raiser_left": ("upper_left", 4.0),
+    "upper_lip_raiser_right": ("upper_right", 4.0),
+    "lip_corner_puller_left": ("corner_left", 8.0),
+    "lip_corner_puller_right": ("corner_right", 8.0),
+    "lip_corner_depressor_left": ("corner_left", 5.0),
+    "lip_corner_depressor_right": ("corner_right", 5.0),
+}
+"""Action -> (marker, displacement in mm at activation 1 of the default subject). The jaw shifts
+are rigid motions of the jaw instead (:data:`JAW_SHIFT_MM`)."""
+
+JAW_SHIFT_MM = 3.0
+"""Sideways shift of the jaw (mm, along x) at ``jaw_shift_left`` = 1 (``_right``: the other way)."""
+
+_HINGE = np.array([0.0, 25.0, -85.0])  # jaw hinge (temporomandibular joints), mm, on the x axis
+_GLIDE = np.array([0.0, -1.0, 2.5])  # condyle glide at full opening, mm (grows as angle^2)
+_ARCH_RADIUS = 35.0  # mm, the dental arch the corners slide round (as lipgen.mesh.procedural)
+_CARRY = 0.85  # share of the jaw's motion the gum imposes on the lower lip
+
+
+def _gauss(X: np.ndarray, c: np.ndarray, sigma: float) -> np.ndarray:
+    return np.exp(-np.sum((X - c) ** 2, axis=-1) / (2 * sigma**2))
+
+
+def _region_nodes(mesh: LipMesh, names: tuple[str, ...]) -> np.ndarray:
+    mask = np.zeros(mesh.n_nodes, bool)
+    for name in names:
+        if name in mesh.region_names:
+            mask[mesh.region_nodes(name)] = True
+    return mask
+
+
+def _border_nodes(mesh: LipMesh) -> np.ndarray:
+    """Boundary nodes whose faces are all skin: the outer border, held by the surrounding face."""
+    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    uniq, count = np.unique(edges, axis=0, return_counts=True)
+    boundary = np.zeros(mesh.n_nodes, bool)
+    boundary[uniq[count == 1].ravel()] = True
+    return boundary & _region_nodes(mesh, ("skin",)) & ~_region_nodes(mesh, ("lip", "ridge", "strip"))
+
+
+def _smoothstep(x: np.ndarray) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3 - 2 * x)
+
+
+def _force_patterns(mesh: LipMesh) -> dict[str, np.ndarray]:
+    """Unscaled muscle-like force patterns (n, 3) per action (the jaw's depressor part for jaw_open)."""
+    X = mesh.vertices
+    x, y = X[:, 0], X[:, 1]
+    sx = np.sign(x)
+    lips = _region_nodes(mesh, ("lip", "ridge")).astype(float)
+    up, lo = 0.5 + 0.5 * np.tanh(y / 1.5), 0.5 - 0.5 * np.tanh(y / 1.5)
+    M = {n: X[mesh.marker_index(n)] for n in mesh.marker_names}
+    outside = ~_region_nodes(mesh, ("strip",)) | lips.astype(bool)  # muscles act outside the mouth
+    corner = {s: outside * _gauss(X, M[f"corner_{s}"], 6.0) for s in ("left", "right")}
+    raiser = {s: lips * up * _gauss(X, M[f"upper_{s}"], 8.0) for s in ("left", "right")}
+    corners = corner["left"] + corner["right"]
+    mid = np.exp(-x**2 / (2 * 12.0**2))
+
+    def field(w, fx, fy, fz):
+        return w[:, None] * np.stack(np.broadcast_arrays(fx, fy, fz, w)[:3], axis=1)
+
+    one_sided = {}
+    for s in ("left", "right"):  # the same muscles on one side only
+        one_sided[f"upper_lip_raiser_{s}"] = field(raiser[s], 0.0, 1.0, 0.35)
+        one_sided[f"lip_corner_puller_{s}"] = field(corner[s], 0.75 * sx, 0.5, -0.45)
+        one_sided[f"lip_corner_depressor_{s}"] = field(corner[s], 0.2 * sx, -1.0, 0.1)
+    return {
+        **one_sided,
+        "jaw_open": field(lips * lo * _gauss(X, M["lower_mid"], 12.0), 0.0, -1.0, 0.3),
+        "upper_lip_raiser": field(raiser["left"] + raiser["right"], 0.0, 1.0, 0.35),
+        "lip_corner_puller": field(corners, 0.75 * sx, 0.5, -0.45),
+        "lip_corner_depressor": field(corners, 0.2 * sx, -1.0, 0.1),
+        "pucker": field(lips, -0.9 * x / 25.0, -0.3 * y / 10.0, 0.45),
+        "lip_press": field(lips * mid, 0.0, -np.tanh(y / 2.0), -0.4),
+        "funneler": field(lips * mid, -0.2 * x / 25.0, 0.7 * np.tanh(y / 2.0), 1.0),
+        "lower_lip_protrusion": field((lips + 0.5) * lo * (_gauss(X, M["lower_mid"], 10.0)
+                                                           + _gauss(X, M["lower_border_mid"], 10.0)),
+                                      0.0, 0.45, 1.0),
+    }
+
+
+def _rot_x(angle: np.ndarray) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.zeros((*np.shape(angle), 3, 3))
+    R[..., 0, 0] = 1.0
+    R[..., 1, 1], R[..., 1, 2], R[..., 2, 1], R[..., 2, 2] = c, -s, s, c
+    return R
+
+
+def _jaw_rigid(X: np.ndarray, angle: np.ndarray, max_angle: float, shift=None) -> np.ndarray:
+    """(b, n, 3) displacement of points ``X`` rigidly attached to the jaw, opened by ``angle`` rad
+    and then shifted sideways by ``shift`` (b,) mm along x."""
+    R = _rot_x(np.asarray(angle, float))
+    glide = (np.asarray(angle, float) / max_angle)[:, None] ** 2 * _GLIDE
+    if shift is not None:
+        glide = glide + np.asarray(shift, float)[:, None] * np.array([1.0, 0.0, 0.0])
+    moved = np.einsum("bij,nj->bni", R, X - _HINGE) + _HINGE + glide[:, None, :]
+    return moved - X
+
+
+def _wrap(X: np.ndarray, U: np.ndarray, radius: float = _ARCH_RADIUS) -> np.ndarray:
+    """Positions ``X + U`` with the tangential part of ``U`` taken along the dental-arch cylinder.
+
+    Identity to first order in ``U``; a corner moved sideways by s mm also moves s²/(2ρ) back.
+    """
+    px, pz = X[:, 0], X[:, 2] + radius
+    rho0, phi0 = np.hypot(px, pz), np.arctan2(px, pz)
+    e_phi = np.stack([np.cos(phi0), np.zeros_like(phi0), -np.sin(phi0)], axis=1)
+    e_rho = np.stack([np.sin(phi0), np.zeros_like(phi0), np.cos(phi0)], axis=1)
+    u_phi, u_rho = np.einsum("...ni,ni->...n", U, e_phi), np.einsum("...ni,ni->...n", U, e_rho)
+    phi, rho = phi0 + u_phi / rho0, rho0 + u_rho
+    return np.stack([rho * np.sin(phi), X[:, 1] + U[..., 1], rho * np.cos(phi) - radius], axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class Subject:
+    """A synthetic subject: the truth mesh, its physics and its calibrated actions.
+
+    Build it with :func:`default_subject`. Attributes (arrays read-only in spirit):
+
+    Attributes
+    ----------
+    mesh : LipMesh
+        The truth mesh at rest (model frame, mm), with the default anchors and the 16 markers.
+    physics : lipgen.Physics
+        Its physics, grounded at the strip's anchors *and* the outer skin border.
+    stiffness : (m,) float
+        Per-face E of the truth.
+    border_weight : (n,) float
+        How much each border node follows the jaw (0 skull ... 1 jaw); 0 off the border.
+    responses : (A, n, 3) float
+        Elastic displacement (mm) of each action at activation 1, without the jaw's rotation.
+    carry : (n, 3) float
+        Force pattern of the gum carrying the lower lip, per mm of jaw displacement.
+    jaw_max_angle : float
+        Jaw opening (rad) at jaw_open = 1.
+    seed : int
+    contact_pairs : (p, 2) int
+        Facing nodes of the upper and lower inner lip contour, which may touch but not cross.
+    contact_response : (p, n, 3) float
+        Displacement under a unit pair of contact forces pushing pair k apart (mm per unit force).
+    jaw_shift_mm : float
+        Sideways jaw shift (mm) at ``jaw_shift_left`` = 1.
+    """
+
+    mesh: LipMesh
+    physics: object
+    stiffness: np.ndarray
+    border_weight: np.ndarray
+    responses: np.ndarray
+    carry: np.ndarray
+    jaw_max_angle: float
+    seed: int
+    contact_pairs: np.ndarray = None
+    contact_response: np.ndarray = None
+    jaw_shift_mm: float = JAW_SHIFT_MM
+
+    @property
+    def n_nodes(self) -> int:
+        return self.mesh.n_nodes
+
+    def jaw_displacement(self, angles, shifts=None) -> np.ndarray:
+        """(b, n, 3) elastic displacement (mm) caused by jaw openings ``angles`` (b,) in rad and
+        sideways jaw shifts ``shifts`` (b,) in mm (+x: the subject's left; none by default)."""
+        angles = np.atleast_1d(np.asarray(angles, float))
+        X = self.mesh.vertices
+        rigid = _jaw_rigid(X, angles, self.jaw_max_angle, shifts)  # (b, n, 3)
+        held = self.border_weight[None, :, None] * rigid  # prescribed on the border, 0 elsewhere
+        force = self.carry[None] * rigid
+        K = self.physics.K
+        rhs = force.reshape(len(angles), -1).T - K @ held.reshape(len(angles), -1).T
+        return self.physics.solve(rhs).T.reshape(rigid.shape) + held
+
+    def displacements(self, activations) -> np.ndarray:
+        """(F, n, 3) vertex displacements in the model frame (mm) for activations (F, A)."""
+        A = _activation_array(activations)
+        lin = np.einsum("fa,ani->fni", A, self.responses)
+        side = A[:, action_index("jaw_shift_left")] - A[:, action_index("jaw_shift_right")]
+        shift = self.jaw_shift_mm * side
+        lin += self.jaw_displacement(A[:, action_index("jaw_open")] * self.jaw_max_angle, shift)
+        if self.contact_pairs is not None and len(self.contact_pairs):
+            lin += np.einsum("fp,pni->fni", self._contact_forces(lin), self.contact_response)
+        return _wrap(self.mesh.vertices, lin) - self.mesh.vertices
+
+    def _contact_forces(self, U: np.ndarray) -> np.ndarray:
+        """(F, p) non-negative forces that keep the inner lip contours from crossing (an LCP).
+
+        Pair k's vertical gap is ``g0 + G λ``; find λ >= 0 with gap >= 0 and λ·gap = 0 by an
+        active-set iteration (exact for this small, symmetric positive definite G).
+        """
+        up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
+        X = self.mesh.vertices
+        g0 = (X[up, 1] + U[:, up, 1]) - (X[lo, 1] + U[:, lo, 1])
+        R = self.contact_response
+        G = R[:, up, 1].T - R[:, lo, 1].T  # (p, p): gap change per unit force of each pair
+        lam = np.zeros_like(g0)
+        for f in np.flatnonzero((g0 < 0).any(axis=1)):
+            active = g0[f] < 0
+            for _ in range(4 * len(active)):
+                x = np.zeros(len(active))
+                x[active] = np.linalg.solve(G[np.ix_(active, active)], -g0[f, active])
+                gap = g0[f] + G @ x
+                neg, pen = active & (x < 0), ~active & (gap < -1e-12)
+                if not neg.any() and not pen.any():
+                    break
+                active = (active & ~neg) | pen
+            lam[f] = np.maximum(x, 0.0)
+        return lam
+
+
+def _activation_array(activations) -> np.ndarray:
+    """(F, A) activations from an array or a mapping ``{action: (F,) curve}``."""
+    if isinstance(activations, dict):
+        for name in activations:
+            action_index(name)
+        curves = {k: np.atleast_1d(np.asarray(v, float)) for k, v in activations.items()}
+        lengths = {len(v) for v in curves.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"activation curves must all have the same length, got {sorted(lengths)}")
+        n = lengths.pop()
+        A = np.zeros((n, len(ACTIONS)))
+        for k, v in curves.items():
+            A[:, action_index(k)] = v
+    else:
+        A = as_float_array(activations, "activations")
+        if A.ndim == 1 and len(A) == len(ACTIONS):
+            A = A[None]
+        if A.ndim != 2 or A.shape[1] != len(ACTIONS):
+            raise ValueError(f"activations must have shape (F, {len(ACTIONS)}) with columns {ACTIONS}, "
+                             f"or be a mapping action -> curve; got shape {A.shape}")
+    as_float_array(A, "activations")
+    if (A < 0).any() or (A > 2).any():
+        raise ValueError(f"activations must lie in [0, 2] (1 is the calibrated full action), got range "
+                         f"[{A.min():.3g}, {A.max():.3g}]")
+    return A
+
+
+def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
+    """The truth subject on ``lip_mesh(resolution)``; ``seed`` varies its stiffness and gains.
+
+    Seed 0 gives exactly :data:`TRUTH_STIFFNESS` and :data:`ACTION_TARGETS_MM`; other seeds
+    scale each region's E and each target by a factor drawn from a log-normal of 10-15 %.
+    """
+    from lipgen.fem import Physics
+    from lipgen.mesh.procedural import lip_mesh
+
+    if int(resolution) < 1:
+        raise ValueError(f"the truth subject needs a finer mesh than the model's (resolution 0); "
+                         f"got resolution {resolution}. Use 1 or more.")
+    rng = np.random.default_rng(seed)
+    mesh = lip_mesh(int(resolution))
+    region_scale = {r: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.1))) for r in TRUTH_STIFFNESS}
+    target_scale = {a: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.15))) for a in ACTIONS}
+    names = np.array(mesh.region_names)[mesh.regions]
+    E = np.array([TRUTH_STIFFNESS[r] * region_scale[r] for r in names])
+    centroid_y = mesh.vertices[mesh.faces].mean(axis=1)[:, 1]
+    E[(centroid_y < 0) & np.isin(names, ("lip", "ridge"))] *= 0.75  # a softer lower lip
+    border = _border_nodes(mesh)
+    held = replace(mesh, anchors=np.union1d(mesh.anchors, np.flatnonzero(border)))
+    physics = Physics(held, stiffness=E)
+    y = mesh.vertices[:, 1]
+    border_weight = np.where(border, _smoothstep((5.0 - y) / 25.0), 0.0)
+
+    patterns = _force_patterns(mesh)
+    zero = np.zeros((mesh.n_nodes, 3))  # the jaw shifts are rigid jaw motions, not muscle forces
+    raw = physics.displace(np.stack([patterns.get(a, zero) for a in ACTIONS]))
+    scale = np.zeros(len(ACTIONS))
+    for a, name in enumerate(ACTIONS):
+        if name not in ACTION_TARGETS_MM:
+            continue
+        marker, mm = ACTION_TARGETS_MM[name]
+        mm = (2.5 if name == "jaw_open" else mm) * target_scale[name]  # the depressor's share
+        scale[a] = mm / np.linalg.norm(raw[a, mesh.marker_index(marker)])
+    responses = raw * scale[:, None, None]
+
+    lower_lip = _region_nodes(mesh, ("lip", "ridge")) * (0.5 - 0.5 * np.tanh(y / 1.5))
+    shift_mm = JAW_SHIFT_MM * target_scale["jaw_shift_left"]
+    subject = Subject(mesh, physics, E, border_weight, responses, np.zeros((mesh.n_nodes, 3)), 1.0, int(seed),
+                      jaw_shift_mm=shift_mm)
+    subject = _calibrate_jaw(subject, lower_lip, ACTION_TARGETS_MM["jaw_open"][1] * target_scale["jaw_open"])
+    pairs = _contact_pairs(mesh)
+    push = np.zeros((len(pairs), mesh.n_nodes, 3))
+    push[np.arange(len(pairs)), pairs[:, 0], 1] = 1.0  # the upper lip pushed up ...
+    push[np.arange(len(pairs)), pairs[:, 1], 1] = -1.0  # ... and the lower lip down
+    subject = replace(subject, contact_pairs=pairs, contact_response=physics.displace(push))
+    for arr in (subject.stiffness, subject.border_weight, subject.responses, subject.carry,
+                subject.contact_pairs, subject.contact_response):
+        arr.setflags(write=False)
+    return subject
+
+
+def _contact_pairs(mesh: LipMesh) -> np.ndarray:
+    """(p, 2) [upper, lower] node pairs of the inner contour: ridge nodes that mirror each other
+    under y -> -y (the rest contour is a lens symmetric about the mouth line), corners excluded."""
+    from scipy.spatial import cKDTree
+
+    ridge = np.flatnonzero(_region_nodes(mesh, ("ridge",)))
+    V = mesh.vertices[ridge]
+    dist, j = cKDTree(V).query(V * np.array([1.0, -1.0, 1.0]))
+    ok = (dist < 1e-6) & (V[:, 1] > 1e-6)
+    return np.stack([ridge[ok], ridge[j[ok]]], axis=1)
+
+
+def _calibrate_jaw(subject: Subject, lower_lip: np.ndarray, target_mm: float) -> Subject:
+    """Set the gum's carry so the lower lip follows the jaw by ``_CARRY``, then the opening angle
+    so that ``jaw_open = 1`` moves the lower-lip marker by ``target_mm``."""
+    mesh = subject.mesh
+    ref = mesh.marker_index("lower_mid")
+    probe = np.deg2rad(10.0)
+    rigid = _jaw_rigid(mesh.vertices, np.array([probe]), probe)[0]
+    base = replace(subject, jaw_max_angle=probe)
+    no_carry = base.jaw_displacement([probe])[0, ref]
+    unit = replace(base, carry=lower_lip[:, None] * np.ones(3)).jaw_displacement([probe])[0, ref] - no_carry
+    # least-squares gain so that no_carry + gain * unit ~= _CARRY * rigid at the marker
+    gain = float(np.dot(unit, _CARRY * rigid[ref] - no_carry) / np.dot(unit, unit))
+    carry = gain * lower_lip[:, None] * np.ones(3)
+    jaw_col = action_index("jaw_open")
+    lo, hi = np.deg2rad(1.0), np.deg2rad(35.0)
+    for _ in range(40):  # bisection: the response is monotone in the angle
+        mid = 0.5 * (lo + hi)
+        trial = replace(subject, carry=carry, jaw_max_angle=mid)
+        act = np.zeros((1, len(ACTIONS)))
+        act[0, jaw_col] = 1.0
+        moved = np.linalg.norm(trial.displacements(act)[0, ref])
+        lo, hi = (mid, hi) if moved < target_mm else (lo, mid)
+    return replace(subject, carry=carry, jaw_max_angle=0.5 * (lo + hi))
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """Ground-truth frames of a synthetic subject.
+
+    Attributes
+    ----------
+    mesh : LipMesh
+        The truth mesh at rest (model frame, mm); its markers and nose define those below.
+    vertices : (F, n, 3) float
+        Vertex positions in the model (head) frame, mm.
+    poses : (F, 4, 4) float
+        Head pose, model -> world: ``X_world = poses[f, :3, :3] @ X + poses[f, :3, 3]``.
+    activations : (F, A) float
+        Activation of each action of :attr:`actions` (1 = the calibrated full action).
+    fps : float
+        Frames per second.
+    actions : tuple of str
+        Column names of :attr:`activations` (:data:`ACTIONS`).
+    """
+
+    mesh: LipMesh
+    vertices: np.ndarray
+    poses: np.ndarray
+    activations: np.ndarray
+    fps: float = DEFAULT_FPS
+    actions: tuple[str, ...] = ACTIONS
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.vertices)
+
+    @property
+    def times(self) -> np.ndarray:
+        """(F,) seconds."""
+        return np.arange(self.n_frames) / self.fps
+
+    @property
+    def displacements(self) -> np.ndarray:
+        """(F, n, 3) displacement from rest in the model frame, mm."""
+        return self.vertices - self.mesh.vertices
+
+    @property
+    def markers(self) -> np.ndarray:
+        """(F, 16, 3) marker positions in the model frame, mm (order of ``mesh.marker_names``)."""
+        return self.vertices[:, self.mesh.markers]
+
+    def to_world(self, points) -> np.ndarray:
+        """Model-frame points ``(F, k, 3)`` (or ``(k, 3)``, the same every frame) -> world, mm."""
+        P = np.asarray(points, float)
+        if P.ndim == 2:
+            P = np.broadcast_to(P, (self.n_frames, *P.shape))
+        return np.einsum("fij,fkj->fki", self.poses[:, :3, :3], P) + self.poses[:, None, :3, 3]
+
+    @property
+    def vertices_world(self) -> np.ndarray:
+        """(F, n, 3) vertex positions in the world, mm."""
+        return self.to_world(self.vertices)
+
+    @property
+    def markers_world(self) -> np.ndarray:
+        """(F, 16, 3) marker positions in the world, mm."""
+        return self.to_world(self.markers)
+
+    @property
+    def nose_world(self) -> np.ndarray:
+        """(F, 3) the nose mark in the world (fixed to the head: ``mesh.nose`` in the model frame), mm."""
+        return self.to_world(self.mesh.nose[None])[:, 0]
+
+
+def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS) -> Motion:
+    """Ground-truth frames of ``subject`` for ``activations``.
+
+    Parameters
+    ----------
+    subject : Subject
+        From :func:`default_subject`.
+    activations : (F, A) float or mapping action -> (F,) float
+        Columns in :data:`ACTIONS` order, values in [0, 2]; e.g. :func:`random_activations` or
+        :func:`viseme_activations`. Unknown action names raise ``ValueError``.
+    head : (F, 4, 4) float, optional
+        Model-to-world head poses (:func:`head_motion`); identity (world = model frame) if omitted.
+    fps : float
+        Frame rate recorded in the result.
+    """
+    A = _activation_array(activations)
+    F = len(A)
+    if head is None:
+        poses = np.tile(np.eye(4), (F, 1, 1))
+    else:
+        poses = as_float_array(head, "head", (F, 4, 4))
+        R = poses[:, :3, :3]
+        if not (np.allclose(R @ R.transpose(0, 2, 1), np.eye(3), atol=1e-9)
+                and np.allclose(np.linalg.det(R), 1.0, atol=1e-9)
+                and np.allclose(poses[:, 3], [0, 0, 0, 1])):
+            raise ValueError("head poses must be rigid 4x4 transforms (rotation with det +1, last row "
+                             "0 0 0 1); see lipgen.subject.motion.head_motion")
+    V = subject.mesh.vertices + subject.displacements(A)
+    for arr in (V, poses, A):
+        arr.setflags(write=False)
+    return Motion(subject.mesh, V, poses, A, float(fps), ACTIONS)
