@@ -9,11 +9,11 @@ import struct
 import numpy as np
 import pytest
 
-from lipgen.activation import ACTIONS, VISEMES, action_index
 from lipgen.speech.audio import RATE, AudioError, NoSpeechError, as_audio, check_speech, read_wav
 from lipgen.speech.phones import KLATT_MS, PhoneTrack, TextError, text_phones, words_of
 from lipgen.speech.score import edit_alignment, speech_shaped_noise
 from lipgen.speech.visemes import TAU, activations, phone_targets
+from lipgen.subject.activation import ACTIONS, VISEMES, action_index
 
 
 def _wav(path, data: bytes, rate: int, channels: int, bits: int, tag: int = 1) -> None:

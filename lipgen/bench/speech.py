@@ -24,14 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .measure import time_call
+from lipgen.bench.measure import time_call
 
 NAME = "speech"
 
 
 def _clip(seconds: float):
-    from ..speech import espeak
-    from ..speech.audio import Audio
+    from lipgen.speech import espeak
+    from lipgen.speech.audio import Audio
 
     if not espeak.available():
         raise RuntimeError("the speech benchmark needs eSpeak NG to make speech: apt-get install espeak-ng")
@@ -55,9 +55,9 @@ def _threadpool_one():
 
 
 def run(quick: bool = False) -> dict:
-    from ..speech.audio import write_wav
-    from ..speech.lipsync import default_model, lipsync
-    from ..speech.recognize import align, recognize
+    from lipgen.speech.audio import write_wav
+    from lipgen.speech.lipsync import default_model, lipsync
+    from lipgen.speech.recognize import align, recognize
 
     _threadpool_one()
     audio, text = _clip(5.0 if quick else 10.0)

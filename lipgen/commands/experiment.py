@@ -70,7 +70,7 @@ def add_parser(sub) -> None:
 
 
 def _lipsync(args) -> int:
-    from ..experiments.lipsync import LipsyncSettings, run_lipsync_experiment
+    from lipgen.experiments.lipsync import LipsyncSettings, run_lipsync_experiment
 
     settings = LipsyncSettings(lists=tuple(args.lists), snr_db=tuple(args.snr),
                                max_sentences=args.max_sentences)

@@ -66,10 +66,10 @@ def _text(args) -> str | None:
 
 
 def _run(args) -> int:
-    from ..modes import ModeModel
-    from ..speech.audio import read_wav
-    from ..speech.lipsync import lipsync, model_resolution
-    from ..speech.outputs import check_output, write_lipsync
+    from lipgen.modes import ModeModel
+    from lipgen.speech.audio import read_wav
+    from lipgen.speech.lipsync import lipsync, model_resolution
+    from lipgen.speech.outputs import check_output, write_lipsync
 
     out = check_output(args.out, args.force)  # before any work
     text = _text(args)
@@ -80,7 +80,7 @@ def _run(args) -> int:
     result = lipsync(audio, text, model=model, fps=args.fps, seed=args.seed, rate=args.rate)
     mesh = None
     if out.suffix.lower() in (".usda", ".usdc", ".usd"):
-        from ..procedural import lip_mesh
+        from lipgen.mesh.procedural import lip_mesh
 
         mesh = lip_mesh(model_resolution(result.model))
     write_lipsync(out, result, mesh=mesh, wav=args.speech, start=args.start, force=args.force,

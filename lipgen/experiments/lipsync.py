@@ -48,8 +48,8 @@ def _pct(x, q) -> float:
 
 
 def _one(text: str, audio, truth, fps: float) -> dict:
-    from ..speech.recognize import MIN_CONFIDENCE, AlignmentError, align, recognize
-    from ..speech.score import boundary_errors, phone_error_rate, viseme_agreement
+    from lipgen.speech.recognize import MIN_CONFIDENCE, AlignmentError, align, recognize
+    from lipgen.speech.score import boundary_errors, phone_error_rate, viseme_agreement
 
     t0 = time.perf_counter()
     try:
@@ -93,8 +93,8 @@ def _picture(path: Path, text, audio, truth, aligned, rec, fps) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..speech.lipsync import default_model, project_activations
-    from ..speech.visemes import activations
+    from lipgen.speech.lipsync import default_model, project_activations
+    from lipgen.speech.visemes import activations
 
     fig, ax = plt.subplots(3, 1, figsize=(11, 7), sharex=True, gridspec_kw={"height_ratios": [1.2, 1.3, 2]})
     t = np.arange(len(audio.samples)) / audio.rate
@@ -129,8 +129,8 @@ def run_lipsync_experiment(out: str | os.PathLike, settings: LipsyncSettings = L
     """Run the experiment, write ``report.md``, ``lipsync.json`` and pictures to ``out``."""
     from tqdm import tqdm
 
-    from ..speech import espeak
-    from ..speech.score import speech_shaped_noise
+    from lipgen.speech import espeak
+    from lipgen.speech.score import speech_shaped_noise
 
     if not espeak.available():
         raise RuntimeError("the lip-sync experiment needs eSpeak NG: apt-get install espeak-ng")

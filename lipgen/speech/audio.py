@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LipgenError
+from lipgen.errors import LipgenError
 
 __all__ = ["RATE", "Audio", "AudioError", "NoSpeechError", "read_wav", "write_wav", "as_audio",
            "check_speech", "resample"]
@@ -173,7 +173,7 @@ def read_wav(path: str | os.PathLike) -> Audio:
 
 def write_wav(path: str | os.PathLike, audio: Audio) -> None:
     """Write ``audio`` as a 16-bit mono PCM WAV at its rate (atomically)."""
-    from .._io import atomic_path
+    from lipgen._io import atomic_path
 
     pcm = audio.pcm16()
     header = (b"RIFF" + struct.pack("<I", 36 + len(pcm)) + b"WAVE"

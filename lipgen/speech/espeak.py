@@ -18,8 +18,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from .audio import Audio, as_audio
-from .phones import PhoneTrack
+from lipgen.speech.audio import Audio, as_audio
+from lipgen.speech.phones import PhoneTrack
 
 __all__ = ["available", "synthesize", "ESPEAK_TO_ARPABET", "HARVARD"]
 

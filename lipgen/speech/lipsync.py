@@ -1,6 +1,6 @@
 """Lip sync: speech (audio and/or text) -> phones -> visemes -> activations -> mode coefficients.
 
-The activations drive lipgen's synthetic subject (:mod:`lipgen.motion`: muscle-like actions, a
+The activations drive lipgen's synthetic subject (:mod:`lipgen.subject.motion`: muscle-like actions, a
 jaw hinge, lip contact); its displacements on the model's nodes (the procedural meshes are
 nested, node i of ``lip_mesh(r)`` is node i of every finer one) are projected onto the modes
 of ``model`` (a fitted :class:`lipgen.modes.ModeModel`, e.g. from ``lipgen train``), or of the
@@ -15,13 +15,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..activation import ACTIONS
-from .audio import Audio
-from .phones import PhoneTrack, text_phones
-from .recognize import phones_from_audio
-from .visemes import activations as viseme_dynamics
+from lipgen.speech.audio import Audio
+from lipgen.speech.phones import PhoneTrack, text_phones
+from lipgen.speech.recognize import phones_from_audio
+from lipgen.speech.visemes import activations as viseme_dynamics
+from lipgen.subject.activation import ACTIONS
 
-__all__ = ["LipSync", "lipsync", "default_model", "model_resolution"]
+__all__ = ["LipSync", "lipsync", "default_model", "model_resolution", "performer", "project_activations"]
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +37,7 @@ class LipSync:
     fps : float
         Frames per second; frame ``f`` is at ``f / fps`` s of the audio.
     activations : (F, A) float
-        Activations of :data:`lipgen.activation.ACTIONS`.
+        Activations of :data:`lipgen.subject.activation.ACTIONS`.
     coefficients : (F, k) float
         Mode coefficients of ``model`` (mm, as ``ModeModel.synthesize`` takes them).
     model : ModeModel
@@ -66,37 +66,52 @@ class LipSync:
         return np.arange(self.n_frames) / self.fps
 
 
+@lru_cache(maxsize=2)
+def performer(resolution: int = 1, seed: int = 0):
+    """The synthetic subject on ``lip_mesh(max(resolution, 1))`` (cached, two kept)."""
+    from lipgen.subject.motion import default_subject
+
+    return default_subject(seed=int(seed), resolution=max(int(resolution), 1))
+
+
 @lru_cache(maxsize=1)
 def default_model():
-    """Ten modes of ``lip_mesh(0)`` learned from the synthetic subject's random gestures."""
-    from ..addon.speech import gesture_displacements
-    from ..modes import ModeModel
-    from ..procedural import lip_mesh
+    """Ten modes of ``lip_mesh(0)`` learned from 240 frames (8 s) of the synthetic subject's
+    random gestures (seed 0)."""
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.modes import ModeModel
+    from lipgen.subject.activation import random_activations
 
-    return ModeModel(n_modes=10).fit(gesture_displacements(0, n_frames=240, seed=0), mesh=lip_mesh(0))
+    mesh = lip_mesh(0)
+    U = performer(1, 0).displacements(random_activations(240, seed=0, fps=30.0))[:, :mesh.n_nodes]
+    return ModeModel(n_modes=10).fit(U, mesh=mesh)
 
 
-def model_resolution(model) -> int:
+@lru_cache(maxsize=8)
+def _lips(resolution: int) -> tuple[int, str]:
+    from lipgen.mesh.procedural import lip_mesh
+
+    m = lip_mesh(resolution)
+    return m.n_nodes, m.topology_id
+
+
+def model_resolution(model, max_resolution: int = 4) -> int:
     """The procedural lips resolution ``r`` that ``model`` was fitted on (``ValueError`` if none)."""
-    from ..addon.speech import lips_resolution
-
     for attr in ("mean_", "components_"):
         if not hasattr(model, attr):
             raise TypeError(f"model must be a fitted lipgen.modes.ModeModel (no {attr!r}); "
                             "use ModeModel.load() on a `lipgen train` model.npz")
     n = np.asarray(model.mean_).size // 3
     topo = getattr(model, "topology_id_", "")
-    if topo:
-        r = lips_resolution(n, topo)
-    else:
-        from ..procedural import lip_mesh
-
-        r = next((k for k in range(5) if lip_mesh(k).n_nodes == n), None)
-    if r is None:
-        raise ValueError(f"the model's mesh ({n} nodes, topology {topo or 'unknown'}) is not lipgen's "
-                         "procedural lips: lip sync drives the synthetic subject, whose nodes are those "
-                         "meshes' nodes; train the model on `lipgen generate` data of lip_mesh(r)")
-    return r
+    for r in range(max_resolution + 1):
+        n_r, topo_r = _lips(r)
+        if n_r == n and (not topo or topo == topo_r):
+            return r
+        if n_r > n:
+            break
+    raise ValueError(f"the model's mesh ({n} nodes, topology {topo or 'unknown'}) is not lipgen's "
+                     "procedural lips: lip sync drives the synthetic subject, whose nodes are those "
+                     "meshes' nodes; train the model on `lipgen generate` data of lip_mesh(r)")
 
 
 def lipsync(audio: Audio | None = None, text: str | None = None, model=None, fps: float = 30.0,
@@ -136,8 +151,6 @@ def lipsync(audio: Audio | None = None, text: str | None = None, model=None, fps
 def project_activations(A: np.ndarray, model, resolution: int, seed: int = 0,
                         chunk: int = 512) -> np.ndarray:
     """(F, k) mode coefficients of the subject's motion for activations ``A`` (F, A)."""
-    from ..addon.speech import performer
-
     if A.ndim != 2 or A.shape[1] != len(ACTIONS):
         raise ValueError(f"activations must have shape (F, {len(ACTIONS)}), got {A.shape}")
     subject = performer(resolution, seed)

@@ -20,13 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .._io import atomic_path
-from ..activation import ACTIONS
-from .lipsync import LipSync
+from lipgen._io import atomic_path
+from lipgen.speech.lipsync import LipSync
+from lipgen.subject.activation import ACTIONS
 
 __all__ = ["OUTPUT_EXTENSIONS", "check_output", "write_lipsync", "add_audio_prim"]
 
 OUTPUT_EXTENSIONS = (".usda", ".usdc", ".usd", ".npz", ".csv")
+"""The file types a lip sync is written to (chosen by the extension)."""
 
 
 def check_output(path: str | os.PathLike, force: bool = False) -> Path:
@@ -103,7 +104,7 @@ def write_lipsync(path: str | os.PathLike, result: LipSync, mesh=None, wav: str 
         return dest
     from pxr import Usd
 
-    from ..usd import export_usd
+    from lipgen.usd import export_usd
 
     if mesh is None:
         raise ValueError("USD output needs the model's mesh")

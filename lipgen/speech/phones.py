@@ -37,12 +37,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LipgenError
+from lipgen.errors import LipgenError
 
 __all__ = ["PHONES", "VOWELS", "PhoneTrack", "TextError", "dictionary_path", "pronunciations",
            "words_of", "text_phones", "KLATT_MS"]
 
 VOWELS = ("AA", "AE", "AH", "AO", "AW", "AY", "EH", "ER", "EY", "IH", "IY", "OW", "OY", "UH", "UW")
+"""The 15 vowel phones (diphthongs included) of the CMU dictionary's ARPAbet."""
 CONSONANTS = ("B", "CH", "D", "DH", "F", "G", "HH", "JH", "K", "L", "M", "N", "NG", "P", "R", "S",
               "SH", "T", "TH", "V", "W", "Y", "Z", "ZH")
 PHONES = VOWELS + CONSONANTS + ("SIL",)
@@ -123,7 +124,7 @@ class PhoneTrack:
 
 def dictionary_path() -> Path:
     """The CMU pronouncing dictionary shipped in the ``pocketsphinx`` wheel."""
-    from .._optional import require
+    from lipgen._optional import require
 
     ps = require("pocketsphinx", "lip sync from speech")
     return Path(ps.get_model_path()) / "en-us" / "cmudict-en-us.dict"

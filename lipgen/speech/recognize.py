@@ -23,8 +23,8 @@ import threading
 
 import numpy as np
 
-from .audio import Audio, NoSpeechError, check_speech
-from .phones import PHONES, PhoneTrack, check_words, pronunciations, words_of
+from lipgen.speech.audio import Audio, NoSpeechError, check_speech
+from lipgen.speech.phones import PHONES, PhoneTrack, check_words, pronunciations, words_of
 
 __all__ = ["align", "recognize", "phones_from_audio", "CONFIDENCE_SCALE", "MIN_CONFIDENCE",
            "AlignmentError"]
@@ -59,7 +59,7 @@ class AlignmentError(RuntimeError):
 
 def _decoder(kind: str):
     """A cached PocketSphinx decoder: ``"align"`` or ``"phones"``."""
-    from .._optional import require
+    from lipgen._optional import require
 
     ps = require("pocketsphinx", "lip sync from speech")
     with _LOCK:

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .audio import Audio
-from .phones import PhoneTrack
-from .visemes import frame_visemes
+from lipgen.speech.audio import Audio
+from lipgen.speech.phones import PhoneTrack
+from lipgen.speech.visemes import frame_visemes
 
 __all__ = ["edit_alignment", "boundary_errors", "phone_error_rate", "viseme_agreement",
            "speech_shaped_noise"]

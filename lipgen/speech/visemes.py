@@ -3,7 +3,7 @@
 **Phones to visemes.** :data:`PHONE_VISEMES` follows the viseme classes of the MPEG-4 facial
 animation standard (ISO/IEC 14496-2, Annex C; I. S. Pandzic and R. Forchheimer, *MPEG-4 Facial
 Animation*, 2002, table 2.4): p b m / f v / T D / t d / k g / tS dZ S / s z / n l / r / A: / e /
-I / Q / U, with each class given the lipgen viseme (:data:`lipgen.activation.VISEMES`) that shapes
+I / Q / U, with each class given the lipgen viseme (:data:`lipgen.subject.activation.VISEMES`) that shapes
 the lips the same way. Diphthongs take two visemes, one each half. As MPEG-4 notes for its
 tongue-made classes (t d, k g, n l), their lips are whatever the neighbouring sounds make them:
 those phones (and h) set only the jaw (:data:`UNDERSPECIFIED`), and their lip actions keep
@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..activation import ACTIONS, VISEMES, action_index
-from .phones import PhoneTrack
+from lipgen.speech.phones import PhoneTrack
+from lipgen.subject.activation import ACTIONS, VISEMES, action_index
 
 __all__ = ["PHONE_VISEMES", "UNDERSPECIFIED", "TAU", "LEAD", "viseme_track", "phone_targets",
            "activations", "frame_visemes"]
