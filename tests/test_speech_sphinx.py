@@ -13,7 +13,7 @@ pytest.importorskip("pocketsphinx", reason="pip install 'lipgen[speech]' (pocket
 from lipgen.cli import main  # noqa: E402
 from lipgen.speech import espeak  # noqa: E402
 from lipgen.speech.audio import NoSpeechError, as_audio, write_wav  # noqa: E402
-from lipgen.speech.recognize import align, phones_from_audio, recognize  # noqa: E402
+from lipgen.speech.decode import align, phones_from_audio, recognize  # noqa: E402
 from lipgen.speech.score import boundary_errors, viseme_agreement  # noqa: E402
 
 needs_espeak = pytest.mark.skipif(not espeak.available(), reason="espeak-ng is not installed "
@@ -48,7 +48,7 @@ def test_forced_alignment_boundaries(spoken):
 @needs_espeak
 def test_wrong_transcript_falls_back_to_recognition(spoken, caplog):
     _, audio, _ = spoken[0]
-    with caplog.at_level(logging.WARNING, logger="lipgen.speech.recognize"):
+    with caplog.at_level(logging.WARNING, logger="lipgen.speech.decode"):
         track = phones_from_audio(audio, "we all went to the market on sunday morning")
     assert track.source == "recognition"
     assert "recognition instead" in caplog.text

@@ -56,8 +56,8 @@ def _threadpool_one():
 
 def run(quick: bool = False) -> dict:
     from lipgen.speech.audio import write_wav
+    from lipgen.speech.decode import align, recognize
     from lipgen.speech.lipsync import default_model, lipsync
-    from lipgen.speech.recognize import align, recognize
 
     _threadpool_one()
     audio, text = _clip(5.0 if quick else 10.0)

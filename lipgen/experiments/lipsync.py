@@ -48,7 +48,7 @@ def _pct(x, q) -> float:
 
 
 def _one(text: str, audio, truth, fps: float) -> dict:
-    from lipgen.speech.recognize import MIN_CONFIDENCE, AlignmentError, align, recognize
+    from lipgen.speech.decode import MIN_CONFIDENCE, AlignmentError, align, recognize
     from lipgen.speech.score import boundary_errors, phone_error_rate, viseme_agreement
 
     t0 = time.perf_counter()

@@ -16,8 +16,8 @@ from functools import lru_cache
 import numpy as np
 
 from lipgen.speech.audio import Audio
+from lipgen.speech.decode import phones_from_audio
 from lipgen.speech.phones import PhoneTrack, text_phones
-from lipgen.speech.recognize import phones_from_audio
 from lipgen.speech.visemes import activations as viseme_dynamics
 from lipgen.subject.activation import ACTIONS
 

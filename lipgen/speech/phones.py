@@ -85,7 +85,7 @@ class PhoneTrack:
         How they were found: ``"alignment"``, ``"recognition"``, ``"text"`` or ``"truth"``.
     confidence : float
         For an alignment: the transcript's fit to the audio in [0, 1] (see
-        :func:`lipgen.speech.recognize.align`; NaN if not measured); 1.0 otherwise.
+        :func:`lipgen.speech.decode.align`; NaN if not measured); 1.0 otherwise.
     """
 
     labels: tuple

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 
 import numpy as np
 
@@ -49,30 +48,33 @@ the unrelated transcripts, 0.0019 (confidence 0.15): a half-wrong transcript may
 threshold of 0.25, between true and half-wrong, was dropped after a true list-1 transcript
 scored 0.23 under it.)"""
 _LOG_BASE = math.log(1.0001)  # PocketSphinx scores are in units of log base 1.0001
-_LOCK = threading.Lock()
-_DECODERS: dict[str, object] = {}
 
 
 class AlignmentError(RuntimeError):
     """PocketSphinx found no path through the transcript (it does not fit the audio at all)."""
 
 
-def _decoder(kind: str):
-    """A cached PocketSphinx decoder: ``"align"`` or ``"phones"``."""
+def _decoder(kind: str, lexicon: dict[str, tuple[str, ...]] | None = None):
+    """A new PocketSphinx decoder: ``"align"`` (knowing only ``lexicon``'s words) or ``"phones"``.
+
+    A decoder per utterance, because a reused one carries state from the utterances it decoded
+    (its results for the same audio change with what came before). Without the 134k-word
+    dictionary (words are added one by one) one is built in about 0.05 s.
+    """
+    import os
+
     from lipgen._optional import require
 
     ps = require("pocketsphinx", "lip sync from speech")
-    with _LOCK:
-        if kind not in _DECODERS:
-            if kind == "align":
-                dec = ps.Decoder(samprate=16000, lm=None, bestpath=False, beam=1e-48, pbeam=1e-48,
-                                 wbeam=1e-48, loglevel="ERROR")
-            else:
-                lm = f"{ps.get_model_path()}/en-us/en-us-phone.lm.bin"
-                dec = ps.Decoder(samprate=16000, lm=None, allphone=lm, backtrace=True, beam=1e-20,
-                                 pbeam=1e-20, lw=2.0, loglevel="FATAL")
-            _DECODERS[kind] = dec
-        return _DECODERS[kind]
+    if kind == "align":
+        dec = ps.Decoder(samprate=16000, lm=None, dict=os.devnull, bestpath=False, beam=1e-48,
+                         pbeam=1e-48, wbeam=1e-48, loglevel="ERROR")
+        for word, phones in (lexicon or {}).items():
+            dec.add_word(word, " ".join(phones), False)
+        return dec
+    lm = f"{ps.get_model_path()}/en-us/en-us-phone.lm.bin"
+    return ps.Decoder(samprate=16000, lm=None, dict=os.devnull, allphone=lm, backtrace=True, beam=1e-20,
+                      pbeam=1e-20, lw=2.0, loglevel="FATAL")
 
 
 def _pcm(audio: Audio) -> bytes:
@@ -150,8 +152,9 @@ def align(audio: Audio, text: str, confidence: bool = True) -> PhoneTrack:
     """
     check_speech(audio)
     words = [w for clause in words_of(text) for w in clause]
-    check_words(words, pronunciations())
-    dec = _decoder("align")
+    lexicon = pronunciations()
+    check_words(words, lexicon)
+    dec = _decoder("align", {w: lexicon[w] for w in words})
     pcm = _pcm(audio)
     dec.set_align_text(" ".join(words))
     _decode(dec, pcm)
