@@ -125,3 +125,35 @@ def test_experiment_small(tmp_path):
 
     summary = json.loads((tmp_path / "lipsync.json").read_text())["summary"]
     assert summary["inf"]["sentences"] == 1 and summary["inf"]["boundary_error_median_ms"] < 40
+
+
+@needs_espeak
+def test_generate_from_speech_stores_audio_and_phones(spoken, tmp_path):
+    pytest.importorskip("pyrender", reason="pip install 'lipgen[render]'")
+    import json
+
+    from lipgen.dataset import Dataset
+    from lipgen.speech.audio import read_wav
+    from lipgen.speech.phones import PhoneTrack
+    from lipgen.speech.visemes import activations
+
+    text, audio, _ = spoken[0]
+    wav = tmp_path / "speech.wav"
+    write_wav(wav, audio)
+    out = tmp_path / "ds"
+    assert main(["generate", "--speech", str(wav), "--text", text, "--frames", "3", "--size", "160x120",
+                 "--calib-frames", "0", "--no-progress", "--out", str(out)]) == 0
+    info = json.loads((out / "speech" / "phones.json").read_text())
+    assert info["source"] == "alignment"
+    assert [p for p in info["phones"] if p != "SIL"][:4] == ["AH", "B", "L", "UW"]
+    stored = read_wav(out / "speech" / "audio.wav")
+    assert abs(stored.duration - audio.duration) < 1e-3
+    ds = Dataset(out)
+    assert ds.manifest["settings"]["speech"] == str(wav) and ds.manifest["settings"]["speech_text"] == text
+    phones = PhoneTrack(tuple(info["phones"]), info["start_s"], info["end_s"])
+    A = activations(phones, fps=30.0, n_frames=3)
+    assert np.allclose(np.stack([f.truth["activations"] for f in ds]), A)
+    with pytest.raises(ValueError, match="one source of motion"):
+        from lipgen.dataset.layout import GenerateSettings
+
+        GenerateSettings(script="AA", speech_text="hello")
