@@ -188,3 +188,26 @@ def test_resample_matches_scipy_polyphase():
     ours, ref = resample(x, 44100, 16000), resample_poly(x, 160, 441)
     assert ours.shape == ref.shape == (16000,)
     assert np.abs(ours - ref)[200:-200].max() < 2e-3 * np.abs(x).max()
+
+
+def test_artist_markers_matched_and_fitted():
+    """Markers of another mesh (shuffled, shifted, scaled) are matched to LipGen's by position, and
+    the ridge fit at the markers recovers coefficients that made the marker motion."""
+    from lipgen.blender.lipsync import marker_coefficients, match_markers
+    from lipgen.mesh.procedural import lip_mesh
+
+    lm = lip_mesh(1)
+    P = lm.vertices[lm.markers]
+    perm = np.random.default_rng(0).permutation(len(P))
+    rig = 3.0 * P[perm] + [5.0, -2.0, 1.0]
+    assert np.array_equal(match_markers(rig, None, P, lm.marker_names), perm)
+    names = [lm.marker_names[i] for i in perm[:5]]
+    assert np.array_equal(match_markers(rig[:5], names, P, lm.marker_names), perm[:5])
+    with pytest.raises(ValueError, match="16 markers"):
+        match_markers(rig[:5], None, P, lm.marker_names)
+    rng = np.random.default_rng(1)
+    comps, mean = rng.normal(size=(4, 30, 3)), rng.normal(size=(30, 3))
+    markers = np.arange(0, 30, 2)
+    coef = rng.normal(size=(6, 4))
+    targets = mean[markers] + np.einsum("fk,kmi->fmi", coef, comps[:, markers])
+    assert np.allclose(marker_coefficients(comps, mean, markers, targets, ridge=1e-12), coef, atol=1e-8)
