@@ -35,8 +35,8 @@ PAD = 0.25  # s of silence added at both ends before decoding (removed from the 
 CONFIDENCE_SCALE = 1e-3
 """Score per frame by which an alignment may fall below the phone loop for confidence 1/e.
 
-PocketSphinx's scores are log-likelihoods scaled down (by 2^10) and taken relative to the best
-state of each frame, hence the small numbers."""
+PocketSphinx's acoustic scores are log-likelihoods normalised by the best score of each frame
+and scaled down, hence the small numbers."""
 MIN_CONFIDENCE = 0.15
 """Below this transcript confidence the phones come from recognition instead (with a warning).
 
@@ -68,7 +68,7 @@ def _decoder(kind: str, lexicon: dict[str, tuple[str, ...]] | None = None):
     ps = require("pocketsphinx", "lip sync from speech")
     if kind == "align":
         dec = ps.Decoder(samprate=16000, lm=None, dict=os.devnull, bestpath=False, beam=1e-48,
-                         pbeam=1e-48, wbeam=1e-48, loglevel="ERROR")
+                         pbeam=1e-48, wbeam=1e-48, loglevel="FATAL")
         for word, phones in (lexicon or {}).items():
             dec.add_word(word, " ".join(phones), False)
         return dec
@@ -157,11 +157,16 @@ def align(audio: Audio, text: str, confidence: bool = True) -> PhoneTrack:
     dec = _decoder("align", {w: lexicon[w] for w in words})
     pcm = _pcm(audio)
     dec.set_align_text(" ".join(words))
-    _decode(dec, pcm)
-    if dec.hyp() is None:
-        raise AlignmentError(f"the transcript could not be aligned to {audio.source} at all")
-    dec.set_alignment()
-    _decode(dec, pcm)
+    try:
+        _decode(dec, pcm)
+        if dec.hyp() is None:
+            raise AlignmentError(f"the transcript could not be aligned to {audio.source} at all")
+        dec.set_alignment()  # second pass: phone by phone within the words found
+        _decode(dec, pcm)
+    except RuntimeError as exc:  # PocketSphinx reports a failed search as RuntimeError
+        if isinstance(exc, AlignmentError):
+            raise
+        raise AlignmentError(f"the transcript could not be aligned to {audio.source} ({exc})") from exc
     items, score = [], 0.0
     for word in dec.get_alignment():
         for phone in word:
