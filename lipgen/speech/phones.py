@@ -31,6 +31,7 @@ from __future__ import annotations
 import os
 import re
 import unicodedata
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -130,18 +131,34 @@ def dictionary_path() -> Path:
     return Path(ps.get_model_path()) / "en-us" / "cmudict-en-us.dict"
 
 
+class _Lexicon(Mapping):
+    """Word -> phones over the dictionary's raw lines (split on look-up: parsing all 134k
+    pronunciations up front costs half a second)."""
+
+    def __init__(self, raw: dict[str, str]) -> None:
+        self._raw = raw
+
+    def __getitem__(self, word: str) -> tuple[str, ...]:
+        return tuple(self._raw[word].split())
+
+    def __contains__(self, word: object) -> bool:
+        return word in self._raw
+
+    def __iter__(self):
+        return iter(self._raw)
+
+    def __len__(self) -> int:
+        return len(self._raw)
+
+
 @lru_cache(maxsize=2)
-def _load_dictionary(path: str) -> dict[str, tuple[str, ...]]:
-    out: dict[str, tuple[str, ...]] = {}
+def _load_dictionary(path: str) -> _Lexicon:
     with open(path, encoding="utf-8") as fh:
-        for line in fh:
-            word, _, pron = line.strip().partition(" ")
-            if word and "(" not in word:  # first variant only
-                out[word] = tuple(pron.split())
-    return out
+        # variants are keyed "word(2)": words_of never yields parentheses, so the first variant wins
+        return _Lexicon(dict(line.split(" ", 1) for line in fh.read().splitlines() if " " in line))
 
 
-def pronunciations(path: str | os.PathLike | None = None) -> dict[str, tuple[str, ...]]:
+def pronunciations(path: str | os.PathLike | None = None) -> Mapping[str, tuple[str, ...]]:
     """Word -> phones, read once from the dictionary (by default :func:`dictionary_path`)."""
     return _load_dictionary(str(path or dictionary_path()))
 
