@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?= -n 2
 
-.PHONY: demo test bench lint venv clean espeak
+.PHONY: demo test bench lint venv clean docs docs-clean browser espeak
 
 # espeak-ng (GPL-3.0, a system tool, not a lipgen dependency) synthesises test speech with exact
 # phone timings for the lip-sync accuracy tests; they skip with a message where it is missing.
@@ -33,7 +33,22 @@ bench: $(STAMP)
 	$(BIN)/lipgen bench --out renders/bench.json
 
 lint: $(STAMP)
-	$(BIN)/ruff check lipgen tests blender_addon
+	$(BIN)/ruff check lipgen tests blender_addon docs/_hooks
+	$(BIN)/lint-imports
+
+# The documentation site (site/index.html). Strict: any warning (a broken link, a docstring
+# mkdocstrings cannot read) fails the build. The pictures are made by lipgen on the first build.
+docs: $(STAMP) browser
+	$(BIN)/mkdocs build --strict
+
+docs-clean:
+	rm -rf site docs/figures docs/reference
+
+# Headless Chromium for the docs' screenshot test (Debian's package; needs root, else skipped).
+browser:
+	@command -v chromium >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1 \
+	  && (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null) \
+	  || echo "chromium not installed: the docs screenshot test will be skipped"; }
 
 clean:
-	rm -rf $(VENV) renders/demo renders/bench.json
+	rm -rf $(VENV) renders/demo renders/bench.json site docs/figures docs/reference

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _import_graph():
     grimp = pytest.importorskip("grimp", reason="pip install import-linter (in lipgen[test])")
-    return grimp.build_graph("lipgen")
+    return grimp.build_graph("lipgen", cache_dir=None)
 
 
 def test_stages_import_only_the_stages_below_them():
