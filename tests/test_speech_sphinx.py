@@ -157,3 +157,30 @@ def test_generate_from_speech_stores_audio_and_phones(spoken, tmp_path):
         from lipgen.dataset.layout import GenerateSettings
 
         GenerateSettings(script="AA", speech_text="hello")
+
+
+def test_lipsync_with_a_trained_model(tmp_path, capsys):
+    """--model: the subject's motion is projected on that model's modes (here of lip_mesh(1));
+    a model of another mesh is refused before anything is written."""
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.modes.model import ModeModel
+    from lipgen.speech.lipsync import performer
+    from lipgen.subject.activation import random_activations
+
+    mesh = lip_mesh(1)
+    U = performer(1, 0).displacements(random_activations(60, seed=3))[:, :mesh.n_nodes]
+    model = ModeModel(4).fit(U, mesh=mesh)
+    model.save(tmp_path / "model.npz")
+    out = tmp_path / "c.npz"
+    assert main(["lipsync", "--text", "Two blue fish swam.", "--model", str(tmp_path / "model.npz"),
+                 "--out", str(out)]) == 0
+    with np.load(out) as z:
+        coef, A = z["coefficients"], z["activations"]
+    want = model.project(performer(1, 0).displacements(A)[:, :mesh.n_nodes])
+    assert coef.shape == (len(A), 4) and np.allclose(coef, want)
+    other = ModeModel(2).fit(np.random.default_rng(0).normal(size=(5, 7, 3)))
+    other.save(tmp_path / "other.npz")
+    assert main(["lipsync", "--text", "Two blue fish.", "--model", str(tmp_path / "other.npz"),
+                 "--out", str(tmp_path / "d.npz")]) == 1
+    assert "not lipgen's procedural lips" in capsys.readouterr().err
+    assert not (tmp_path / "d.npz").exists()
