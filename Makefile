@@ -6,7 +6,14 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?= -n 2
 
-.PHONY: demo test test-fast test-slow test-all bench lint venv clean docs docs-clean browser fuzz bad-inputs
+.PHONY: demo test test-fast test-slow test-all bench lint venv clean docs docs-clean browser fuzz bad-inputs espeak
+
+# espeak-ng (GPL-3.0, a system tool, not a lipgen dependency) synthesises test speech with exact
+# phone timings for the lip-sync accuracy tests; they skip with a message where it is missing.
+espeak:
+	@command -v espeak-ng >/dev/null 2>&1 || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	  && (apt-get update -qq && apt-get install -y -qq espeak-ng >/dev/null) \
+	  || echo "espeak-ng not installed (apt-get install espeak-ng): lip-sync accuracy tests will skip"; }
 
 venv: $(STAMP)
 
@@ -21,7 +28,7 @@ demo: $(STAMP)
 
 # `test` leaves out the slow set (pyproject addopts: -m 'not slow'); `test-fast` also the
 # rendering and Blender tests; `test-slow` is the slow set alone (the full demo); `test-all` everything.
-test: $(STAMP)
+test: $(STAMP) espeak
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 test-fast: $(STAMP)

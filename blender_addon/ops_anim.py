@@ -116,4 +116,81 @@ class OBJECT_OT_lipgen_animate_visemes(LipgenOperator, bpy.types.Operator):
                     msg + (f"; {clamped} slider values clamped to +-10" if clamped else ""))
 
 
-classes = (OBJECT_OT_lipgen_import_curves, OBJECT_OT_lipgen_animate_visemes)
+class OBJECT_OT_lipgen_animate_audio(LipgenOperator, bpy.types.Operator, ImportHelper):
+    """Animate the mode sliders from a speech recording (PocketSphinx phones, performed by
+    lipgen's synthetic subject), and add the sound to the sequencer at the start frame"""
+
+    bl_idname = "object.lipgen_animate_audio"
+    bl_label = "Animate from Audio"
+
+    filename_ext = ".wav"
+    filter_glob: StringProperty(default="*.wav", options={"HIDDEN"})
+    transcript: StringProperty(
+        name="Transcript", default="",
+        description="What is said, in English (optional): aligned to the audio for accurate timing; "
+        "without it the phones are recognised")
+    start_frame: IntProperty(name="Start frame", default=1, description="Frame where the audio starts")
+    add_sound: bpy.props.BoolProperty(name="Add sound to the sequencer", default=True)
+
+    def invoke(self, context, event):
+        self.start_frame = context.scene.frame_current
+        return ImportHelper.invoke(self, context, event)
+
+    def run(self, context):
+        from lipgen.blender.lipsync import marker_coefficients, match_markers, speech_animation
+        from lipgen.mesh.procedural import lip_mesh
+
+        obj = lipgen_object(context)
+        if not len(obj.lipgen.modes):
+            raise UserError("the sliders follow speech through modes: train modes from Speech "
+                            "(Train > Speech) or load or build modes first")
+        path = Path(bpy.path.abspath(self.filepath))
+        if not path.is_file():
+            raise UserError(f"sound file not found: {path}")
+        basis = lipobject.mode_basis(obj)
+        try:  # LipGen's lips follow node for node; another mesh through its markers
+            resolution, markers = lipobject.lips_resolution_of(obj), None
+        except UserError:
+            resolution = None
+            markers, names = lipobject.markers_of(obj)
+            if len(markers) < 3:
+                raise UserError(f"{obj.name!r} is not LipGen's lips and has no markers group: give it "
+                                "LipGen's 16 markers (Set Up Physics > Markers) to follow speech") from None
+        scene = context.scene
+        fps = scene.render.fps / scene.render.fps_base
+        wm = context.window_manager
+        wm.progress_begin(0, 100)
+        try:
+            anim = speech_animation(str(path), self.transcript, fps)  # checks the file and the text
+            wm.progress_update(30)
+            if markers is None:
+                U = anim.displacements(lip_mesh(resolution).n_nodes,
+                                       progress=lambda f: wm.progress_update(30 + int(60 * f)))
+                coef = basis.project(U)
+            else:
+                lm = lip_mesh(1)
+                idx = match_markers(bridge.rest_vertices(obj)[markers] * obj.lipgen.unit_mm, names,
+                                    lm.vertices[lm.markers], lm.marker_names)
+                U = anim.displacements(lm.n_nodes, progress=lambda f: wm.progress_update(30 + int(60 * f)))
+                coef = marker_coefficients(basis.components, basis.mean, markers, U[:, lm.markers[idx]])
+        finally:
+            wm.progress_end()
+        frames = self.start_frame + np.arange(len(coef), dtype=np.float64)
+        clamped = key_sliders(obj, frames, basis.sliders(coef))
+        if scene.frame_end < frames[-1]:
+            scene.frame_end = int(frames[-1])
+        if self.add_sound:
+            editor = scene.sequence_editor or scene.sequence_editor_create()
+            strips = editor.strips if hasattr(editor, "strips") else editor.sequences  # 5.x / 4.x
+            channel = 1 + max((st.channel for st in strips), default=0)
+            strips.new_sound(path.stem, str(path), channel, int(self.start_frame))
+        ph = anim.phones
+        how = (f"aligned to the transcript (confidence {ph.confidence:.2f})" if ph.source == "alignment"
+               else "recognised")
+        msg = (f"keyed {len(coef)} frames ({frames[0]:g}-{frames[-1]:g}) from "
+               f"{sum(p != 'SIL' for p in ph.labels)} phones {how}")
+        self.report({"WARNING"} if clamped else {"INFO"},
+                    msg + (f"; {clamped} slider values clamped to +-10" if clamped else ""))
+
+
+classes = (OBJECT_OT_lipgen_import_curves, OBJECT_OT_lipgen_animate_visemes, OBJECT_OT_lipgen_animate_audio)

@@ -158,6 +158,7 @@ class VIEW3D_PT_lipgen_output(_SetUpLipsPanel, bpy.types.Panel):
         layout = self.layout
         layout.operator("object.lipgen_import_curves", icon="IMPORT")
         layout.operator("object.lipgen_animate_visemes", icon="SOUND")
+        layout.operator("object.lipgen_animate_audio", icon="SPEAKER")
         layout.operator("object.lipgen_export_usd", text="Export USD (lipgen)", icon="EXPORT")
         layout.label(text="File > Export > USD also writes the shape keys")
 

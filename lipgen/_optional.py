@@ -19,6 +19,7 @@ _HINTS = {
     "imageio_ffmpeg": "pip install 'lipgen[vision]'  (imageio-ffmpeg, which brings its own ffmpeg)",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
     "ray": "pip install 'lipgen[cluster]'  (ray[default], for lipgen campaign)",
+    "pocketsphinx": "pip install 'lipgen[speech]'  (pocketsphinx, with its en-US models)",
 }
 
 

@@ -43,6 +43,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("lipgen.commands.train", "learn displacement modes (ModeModel) from a reconstruction"),
     "evaluate": ("lipgen.commands.evaluate",
                  "score reconstruction and model against the dataset's ground truth"),
+    "lipsync": ("lipgen.commands.lipsync",
+                "lip sync from speech: a WAV and/or its text -> mode coefficients (USD with audio, npz, csv)"),
     "campaign": ("lipgen.commands.campaign",
                  "run many datasets through the stages on Ray; one aggregated report"),
 }

@@ -79,6 +79,20 @@ def _state() -> dict:
     return out
 
 
+def _speech_wav(tmp: str) -> str | None:
+    """A short spoken sentence (eSpeak NG) as a WAV, or None without pocketsphinx or espeak-ng."""
+    import importlib.util
+
+    from lipgen.speech import espeak
+    from lipgen.speech.audio import write_wav
+
+    if importlib.util.find_spec("pocketsphinx") is None or not espeak.available():
+        return None
+    audio, _ = espeak.synthesize("Two blue fish swam.")
+    write_wav(f"{tmp}/fish.wav", audio)
+    return f"{tmp}/fish.wav"
+
+
 def check_undo(tmp: str) -> dict:
     fresh()
     fitted_model(f"{tmp}/model.npz")
@@ -112,6 +126,9 @@ def check_undo(tmp: str) -> dict:
     undoable(bpy.ops.object.lipgen_import_curves, filepath=f"{tmp}/curves.csv")
     undoable(bpy.ops.object.lipgen_train_modes, source="ANIMATION", n_modes=2)
     undoable(bpy.ops.object.lipgen_animate_visemes, script="AA:0.2 M:0.1")
+    wav = _speech_wav(tmp)
+    if wav is not None:  # needs pocketsphinx and espeak-ng (test_blender_speech.py says why not)
+        undoable(bpy.ops.object.lipgen_animate_audio, filepath=wav, transcript="Two blue fish swam.")
 
     def select_markers():
         ob = bpy.data.objects[name]
@@ -158,7 +175,7 @@ def check_undo(tmp: str) -> dict:
         bpy.ops.ed.undo()
         assert _state() == before, op.idname()
         undone.append(op.idname_py())
-    return {"undone": undone}
+    return {"undone": undone, "speech": wav is not None}
 
 
 # ---- USD ----------------------------------------------------------------------------------------

@@ -16,8 +16,18 @@ def _import_graph():
 
 
 def test_stages_import_only_the_stages_below_them():
+    import logging
+
     cli = pytest.importorskip("importlinter.cli", reason="pip install import-linter (in lipgen[test])")
-    assert cli.lint_imports(config_filename=str(ROOT / "pyproject.toml"), no_cache=True, no_logo=True) == 0
+    # lint_imports configures logging with disable_existing_loggers: keep the other tests' loggers on
+    loggers = [lg for lg in logging.root.manager.loggerDict.values() if isinstance(lg, logging.Logger)]
+    disabled = {lg: lg.disabled for lg in loggers}
+    try:
+        status = cli.lint_imports(config_filename=str(ROOT / "pyproject.toml"), no_cache=True, no_logo=True)
+    finally:
+        for lg, was in disabled.items():
+            lg.disabled = was
+    assert status == 0
 
 
 def test_no_import_cycles():

@@ -120,6 +120,8 @@ def test_user_mesh_setup_and_messages(blender, checks):
 def test_undo_every_operator(blender, checks, tmp_path):
     out = blender.run(checks.check_undo, str(tmp_path))
     ops = blender.run(checks.check_register_twice)["operators"]
+    if not out["speech"]:  # Animate from Audio needs pocketsphinx and espeak-ng to be exercised
+        ops = [o for o in ops if o != "lipgen_animate_audio"]
     assert sorted(o.split(".")[1] for o in out["undone"]) == sorted(ops)
 
 

@@ -36,11 +36,12 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.startup",
     "lipgen.bench.load",
     "lipgen.bench.campaign",
+    "lipgen.bench.speech",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 
 _PACKAGES = ("lipgen", "numpy", "scipy", "trimesh", "usd-core", "pyrender", "PyOpenGL", "bpy",
-             "opencv-python-headless")
+             "opencv-python-headless", "pocketsphinx")
 
 
 def available_suites() -> dict[str, str]:

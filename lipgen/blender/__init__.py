@@ -14,6 +14,8 @@ it is tested, benchmarked and reused (USD export, scripts) without Blender.
 - :mod:`~lipgen.blender.curves`: coefficient curves from npz/CSV files, resampled to frames.
 - :mod:`~lipgen.blender.speech`: viseme scripts performed by lipgen's synthetic subject, on the
   procedural lips.
+- :mod:`~lipgen.blender.lipsync`: speech recordings performed by the subject, followed by the
+  procedural lips node for node and by an artist's mesh through its markers.
 - :mod:`~lipgen.blender.packaging`: the installable extension zips.
 """
 

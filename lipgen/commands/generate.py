@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 _EPILOG = """\
@@ -19,6 +20,8 @@ examples:
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2 --resume
   lipgen generate --frames 30 --depth --masks --out data/s2
+  lipgen generate --speech speech.wav --text "The birch canoe slid on the smooth planks." --out data/s3
+  lipgen generate --speech-text "Glue the sheet to the dark blue background." --out data/s4
 """
 
 
@@ -38,11 +41,16 @@ def add_parser(sub) -> None:
         epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     opt = p.add_argument
     opt("--out", required=True, help="dataset folder (new or empty; or the same dataset with --resume)")
-    opt("--frames", type=int, default=150, help="number of frames (default 150)")
+    opt("--frames", type=int, default=None,
+        help="number of frames (default 150, or as long as the speech with --speech/--speech-text)")
     opt("--seed", type=int, default=0, help="seed of every random choice (default 0)")
     opt("--script", default=None,
         help='viseme script, e.g. "AA:0.3 EE OO M F" (NAME or NAME:SECONDS, repeated to fill the '
         "frames); smooth random activations if omitted")
+    opt("--speech", default=None, help="speech recording (.wav) that times the motion: its phones "
+        "(PocketSphinx) -> visemes -> activations; the audio and phones are stored in speech/")
+    opt("--text", default=None, help="transcript of --speech (forced alignment instead of recognition)")
+    opt("--speech-text", default=None, help="English text spoken without audio (Klatt-rule durations)")
     opt("--size", type=_size, default=(640, 480), help="image size WxH, 4:3 (default 640x480)")
     opt("--workers", type=int, default=1, help="local rendering processes (default 1)")
     opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
@@ -59,12 +67,32 @@ def add_parser(sub) -> None:
     p.set_defaults(func=_run)
 
 
+def _frames(args) -> int:
+    """--frames, or enough frames for the speech (its phones' length at --fps)."""
+    if args.frames is not None:
+        return args.frames
+    if args.speech:
+        from lipgen.speech.audio import read_wav
+
+        return int(math.ceil(read_wav(args.speech).duration * args.fps)) + 1
+    if args.speech_text:
+        from lipgen.speech.phones import text_phones
+
+        return int(math.ceil(text_phones(args.speech_text).duration * args.fps)) + 1
+    return 150
+
+
 def _run(args) -> int:
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
 
+    if args.text and not args.speech:
+        raise ValueError("--text is the transcript of --speech; for text alone use --speech-text")
+    if args.text and args.speech_text:
+        raise ValueError("give the transcript once: --text (with --speech) or --speech-text")
     settings = GenerateSettings(
-        frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,
+        frames=_frames(args), seed=args.seed, script=args.script, size=args.size, fps=args.fps,
+        speech=args.speech, speech_text=args.text or args.speech_text,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
         calib_frames=args.calib_frames, depth=args.depth, masks=args.masks)

@@ -53,11 +53,27 @@ log = logging.getLogger(__name__)
 _NOISE_STREAM, _ACT_STREAM, _HEAD_STREAM, _CALIB_STREAM = 3, 1, 2, 4
 
 
-def _simulate(s: GenerateSettings):
+def _speech_phones(s: GenerateSettings):
+    """The phones that time the motion (:class:`lipgen.speech.PhoneTrack`) and the 16 kHz audio."""
+    from lipgen.speech.audio import read_wav
+    from lipgen.speech.decode import phones_from_audio
+    from lipgen.speech.phones import text_phones
+
+    if s.speech:
+        audio = read_wav(s.speech)
+        return phones_from_audio(audio, s.speech_text), audio
+    return text_phones(s.speech_text), None
+
+
+def _simulate(s: GenerateSettings, phones=None):
     """The subject's motion for ``s`` (a :class:`lipgen.subject.motion.Motion`)."""
     from lipgen.subject import motion
 
-    if s.script:
+    if phones is not None:
+        from lipgen.speech.visemes import activations
+
+        A = activations(phones, fps=s.fps, n_frames=s.frames)  # after the speech: back to rest
+    elif s.script:
         A = motion.viseme_activations(s.script, fps=s.fps)
         A = A[np.arange(s.frames) % len(A)]  # the phrase is repeated to fill the frames
     else:
@@ -231,7 +247,7 @@ def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
     return _WORKER[key]
 
 
-_SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks")
+_SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks", "speech")
 
 
 def _is_our_temporary(p: Path) -> bool:
@@ -251,6 +267,17 @@ def _check_inside(out: Path) -> None:
         if p.is_symlink() and not p.resolve().is_relative_to(root):
             raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
                                "through it (nothing was written). Replace it with a real folder")
+def _write_speech(out: Path, phones, audio) -> None:
+    """``speech/phones.json`` (phones with start and end in s, how they were found) and, from a
+    recording, ``speech/audio.wav`` (the 16 kHz mono audio they were found in)."""
+    from lipgen.speech.audio import write_wav
+
+    (out / "speech").mkdir(exist_ok=True)
+    atomic_write_json(out / "speech" / "phones.json", {
+        "phones": list(phones.labels), "start_s": phones.start.tolist(), "end_s": phones.end.tolist(),
+        "source": phones.source, "confidence": phones.confidence})
+    if audio is not None:
+        write_wav(out / "speech" / "audio.wav", audio)
 
 
 def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
@@ -312,7 +339,8 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
 
     out = Path(out)
     rig = default_rig(*s.size)
-    motion = _simulate(s)
+    phones, audio = _speech_phones(s) if (s.speech or s.speech_text) else (None, None)
+    motion = _simulate(s, phones)
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
     rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
     mesh: LipMesh = motion.mesh
@@ -329,6 +357,8 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     mesh_path = out / "mesh.npz"
     if not intact(mesh_path, "lipgen.LipMesh"):
         mesh.save(mesh_path)
+    if phones is not None:
+        _write_speech(out, phones, audio)
     # a resume checks every file it keeps (a cheap decode): empty or truncated ones are redone
     jobs = [("calib", i) for i in range(s.calib_frames)
             if not all(intact(p, k) for p, k in zip(calib_paths(out, i), (None, CALIB_KIND), strict=True))]

@@ -82,6 +82,10 @@ class GenerateSettings:
     """Also write each raw frame's depth (``depth/NNNNNN.npz``: view-camera z in mm, NaN off the face)."""
     masks: bool = False
     """Also write each raw frame's label mask (``masks/NNNNNN.png``: ids in ``manifest['mask_labels']``)."""
+    speech: str | None = None
+    """A speech recording (WAV) whose phones time the motion (:mod:`lipgen.speech`)."""
+    speech_text: str | None = None
+    """The transcript of ``speech``, or, alone, English text spoken with Klatt-rule durations."""
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -105,6 +109,8 @@ class GenerateSettings:
             if not lo <= v <= hi:
                 raise ValueError(f"{name} must be in [{lo}, {hi}], got {v}")
             object.__setattr__(self, name, v)
+        if self.script is not None and (self.speech or self.speech_text):
+            raise ValueError("choose one source of motion: a viseme script or speech, not both")
         if self.script is not None:
             from lipgen.subject.motion import parse_script
 
@@ -119,6 +125,9 @@ class GenerateSettings:
         """The settings as a JSON-ready dict (as stored in the manifest)."""
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
+        for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
+            if d[key] is None:
+                del d[key]
         return d
 
     @classmethod
