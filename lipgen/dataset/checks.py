@@ -13,7 +13,9 @@ from lipgen.errors import DatasetError
 __all__ = ["check_relative", "intact"]
 
 SCHEMA = 1
-"""The dataset schema (as :data:`lipgen.dataset.layout.SCHEMA`)."""
+"""The dataset schema version every manifest carries."""
+FORMAT = "lipgen.dataset"
+"""The ``format`` tag of a dataset manifest."""
 
 
 def _check_number(value, what: str, positive: bool = False) -> float:

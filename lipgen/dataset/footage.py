@@ -116,7 +116,7 @@ def read_video(path) -> Iterator[np.ndarray]:
 def recording_manifest(s: RecordingSettings, rig, mesh, version: str) -> dict:
     """The manifest of a recording: the dataset layout with ``"source": "recording"``, no truth files,
     ``rig`` the calibrated rig (world: the board in calibration image 0) and the model mesh's markers."""
-    from lipgen.dataset.layout import FORMAT, SCHEMA
+    from lipgen.dataset.checks import FORMAT, SCHEMA
     from lipgen.rig.camera import VIEWS
 
     return {

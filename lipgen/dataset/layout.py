@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from lipgen._io import load_npz
-from lipgen.dataset.checks import _check_number, check_relative, intact
+from lipgen.dataset.checks import FORMAT, SCHEMA, _check_number, check_relative, intact
 from lipgen.errors import DatasetError, ModelFileError
 from lipgen.rig.camera import VIEWS, MirrorRig
 
@@ -33,8 +33,6 @@ __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "T
            "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels",
            "check_relative", "intact"]
 
-SCHEMA = 1
-FORMAT = "lipgen.dataset"
 FRAME_KIND, CALIB_KIND = "lipgen.dataset.frame", "lipgen.dataset.calibration"
 DEPTH_KIND = "lipgen.dataset.depth"
 
