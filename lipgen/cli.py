@@ -44,7 +44,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("lipgen.commands.evaluate",
                  "score reconstruction and model against the dataset's ground truth"),
     "lipsync": ("lipgen.commands.lipsync",
-                "lip sync from speech: a WAV and/or its text -> mode coefficients (USD + audio, npz, csv)"),
+                "animate the lips from speech audio and/or text (USD with audio, npz, csv)"),
     "campaign": ("lipgen.commands.campaign",
                  "run many datasets through the stages on Ray; one aggregated report"),
 }

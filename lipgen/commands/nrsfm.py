@@ -118,8 +118,6 @@ def _run(args) -> int:
         raise ValueError(f"--kmax must be at least 1, got {args.kmax}")
     if not (0 < args.rtol < 1):  # also refuses nan
         raise ValueError(f"--rtol must be a number in (0, 1), got {args.rtol}")
-    data = load_tracks(args.tracks)
-    W, visible = data["W"], data.get("visible")
     write = sys.stdout.write
     data = _recon_tracks(args.tracks, args.view, write) or load_tracks(args.tracks)
     W, visible = data["W"], data.get("visible")

@@ -263,11 +263,12 @@ def _validate_manifest(m, where) -> None:
             or not isinstance(cal["frames"], list) or len(cal["frames"]) != n_cal):
         raise DatasetError(f"{where}: calibration needs the board and {n_cal} frames")
     for i, f in enumerate(cal["frames"]):
-        if not isinstance(f, dict) or not {"raw", "truth"} <= set(f) or not isinstance(f.get("index"), int):
+        if not isinstance(f, dict) or "raw" not in f or not isinstance(f.get("index"), int):
             raise DatasetError(f"{where}: calibration.frames[{i}] must be an object with index, raw and "
-                               f"truth; got {str(f)[:80]!r}")
+                               f"(optional) truth; got {str(f)[:80]!r}")
         for key in ("raw", "truth"):
-            check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
+            if key in f:
+                check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
     board = cal["board"]
     if not isinstance(board, dict) or not {"inner_cols", "inner_rows", "square"} <= set(board):
         raise DatasetError(f"{where}: calibration.board needs inner_cols, inner_rows, square")
