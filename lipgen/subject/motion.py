@@ -211,6 +211,8 @@ class Subject:
         Displacement under a unit pair of contact forces pushing pair k apart (mm per unit force).
     jaw_shift_mm : float
         Sideways jaw shift (mm) at ``jaw_shift_left`` = 1.
+    shape : lipgen.subject.shape.ShapeParams or None
+        The rest shape the mesh was warped to (None: the model's own shape).
     """
 
     mesh: LipMesh
@@ -224,6 +226,7 @@ class Subject:
     contact_pairs: np.ndarray = None
     contact_response: np.ndarray = None
     jaw_shift_mm: float = JAW_SHIFT_MM
+    shape: object = None
 
     @property
     def n_nodes(self) -> int:
@@ -305,20 +308,28 @@ def _activation_array(activations) -> np.ndarray:
     return A
 
 
-def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
+def default_subject(seed: int = 0, resolution: int = 1, shape=None) -> Subject:
     """The truth subject on ``lip_mesh(resolution)``; ``seed`` varies its stiffness and gains.
 
     Seed 0 gives exactly :data:`TRUTH_STIFFNESS` and :data:`ACTION_TARGETS_MM`; other seeds
     scale each region's E and each target by a factor drawn from a log-normal of 10-15 %.
+    ``shape`` (a :class:`lipgen.subject.shape.ShapeParams`, e.g. ``sample_shape(subject_seed)``)
+    warps the rest mesh to that subject's own lips (:func:`lipgen.subject.shape.shaped_mesh`);
+    without it the truth's rest shape is the model's.
     """
     from lipgen.fem import Physics
     from lipgen.mesh.procedural import lip_mesh
+    from lipgen.subject.shape import ShapeParams, shaped_mesh
 
     if int(resolution) < 1:
         raise ValueError(f"the truth subject needs a finer mesh than the model's (resolution 0); "
                          f"got resolution {resolution}. Use 1 or more.")
+    if shape is not None and not isinstance(shape, ShapeParams):
+        raise TypeError(f"shape must be a ShapeParams (lipgen.subject.shape.sample_shape) or None, got "
+                        f"{type(shape).__name__}")
     rng = np.random.default_rng(seed)
-    mesh = lip_mesh(int(resolution))
+    base = lip_mesh(int(resolution))
+    mesh = base if shape is None else shaped_mesh(base, shape)
     region_scale = {r: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.1))) for r in TRUTH_STIFFNESS}
     target_scale = {a: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.15))) for a in ACTIONS}
     names = np.array(mesh.region_names)[mesh.regions]
@@ -348,11 +359,11 @@ def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
     subject = Subject(mesh, physics, E, border_weight, responses, np.zeros((mesh.n_nodes, 3)), 1.0, int(seed),
                       jaw_shift_mm=shift_mm)
     subject = _calibrate_jaw(subject, lower_lip, ACTION_TARGETS_MM["jaw_open"][1] * target_scale["jaw_open"])
-    pairs = _contact_pairs(mesh)
+    pairs = _contact_pairs(base)  # by node: the shaped lips are no longer mirror images in y
     push = np.zeros((len(pairs), mesh.n_nodes, 3))
     push[np.arange(len(pairs)), pairs[:, 0], 1] = 1.0  # the upper lip pushed up ...
     push[np.arange(len(pairs)), pairs[:, 1], 1] = -1.0  # ... and the lower lip down
-    subject = replace(subject, contact_pairs=pairs, contact_response=physics.displace(push))
+    subject = replace(subject, contact_pairs=pairs, contact_response=physics.displace(push), shape=shape)
     for arr in (subject.stiffness, subject.border_weight, subject.responses, subject.carry,
                 subject.contact_pairs, subject.contact_response):
         arr.setflags(write=False)
