@@ -17,6 +17,7 @@ else is never overwritten.
 examples:
   lipgen generate --frames 150 --seed 0 --script "AA:0.3 EE:0.2 OO M:0.15 F REST:0.4" --out data/s0
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2
+  lipgen generate --frames 150 --seed 1 --subject-seed 7 --out data/s1_subject7
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2 --resume
   lipgen generate --frames 30 --depth --masks --out data/s2
 """
@@ -39,7 +40,11 @@ def add_parser(sub) -> None:
     opt = p.add_argument
     opt("--out", required=True, help="dataset folder (new or empty; or the same dataset with --resume)")
     opt("--frames", type=int, default=150, help="number of frames (default 150)")
-    opt("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+    opt("--seed", type=int, default=0, help="seed of the motion, head motion, noise and calibration "
+        "(default 0)")
+    opt("--subject-seed", type=int, default=None,
+        help="seed of the subject's own lip shape and ink-dot placement (default: none, the model's "
+        "shape with dots on its marker nodes)")
     opt("--script", default=None,
         help='viseme script, e.g. "AA:0.3 EE OO M F" (NAME or NAME:SECONDS, repeated to fill the '
         "frames); smooth random activations if omitted")
@@ -67,7 +72,7 @@ def _run(args) -> int:
         frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks)
+        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

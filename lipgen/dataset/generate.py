@@ -57,7 +57,8 @@ def _simulate(s: GenerateSettings):
         A = motion.random_activations(s.frames, seed=np.random.default_rng([s.seed, _ACT_STREAM]), fps=s.fps)
     head = motion.head_motion(s.frames, seed=np.random.default_rng([s.seed, _HEAD_STREAM]), fps=s.fps,
                               max_rotation_deg=s.head_rotation_deg, max_translation_mm=s.head_translation_mm)
-    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution)
+    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution,
+                                     subject_seed=s.subject_seed)
     return motion.simulate(subject, A, head, fps=s.fps)
 
 
@@ -102,6 +103,7 @@ class _Context:
     poses: np.ndarray
     activations: np.ndarray
     mesh_path: str
+    dots: dict | None = None
 
 
 _WORKER: dict = {}
@@ -115,7 +117,12 @@ def _init_worker(ctx: _Context) -> None:
     s = GenerateSettings.from_dict(ctx.settings)
     rig = default_rig(*s.size)
     mesh = LipMesh.load(ctx.mesh_path)
-    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter))
+    dots = None
+    if ctx.dots is not None:
+        from lipgen.subject.inkdots import SurfaceDots
+
+        dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
+    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter), dots=dots)
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, renderer=RigRenderer(rig),
                    board=Chessboard(*s.board))
 
@@ -157,7 +164,7 @@ def _render_job(job: tuple[str, int]):
         names = np.array(list(w["mesh"].marker_names) + ["nose"])
         truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
                      activations=ctx.activations[i], mark_names=names, views=np.array(VIEWS),
-                     marks_model=np.vstack([V[w["mesh"].markers], w["mesh"].nose]))
+                     marks_model=w["face"].marks(V)[0])  # identity pose: the model frame
         png, npz, kind_tag = *frame_paths(out, i), FRAME_KIND
     else:
         from lipgen.rig.target import board_scene
@@ -291,7 +298,14 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     mesh: LipMesh = motion.mesh
     from lipgen.dataset.layout import build_manifest
 
-    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
+    dots = None if motion.dots is None else motion.dots.to_dict()
+    subject = None
+    if s.subject_seed is not None:
+        from lipgen.subject.shape import sample_shape
+
+        subject = {"subject_seed": s.subject_seed, "shape": sample_shape(s.subject_seed).to_dict(),
+                   "shape_units": "mm (lipgen.subject.shape.SHAPE_RANGES)", "dots": dots}
+    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not _prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
@@ -305,7 +319,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     if done:
         log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
     ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
-                   np.asarray(motion.activations), str(mesh_path))
+                   np.asarray(motion.activations), str(mesh_path), dots)
     bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",
                disable=not progress)
     try:

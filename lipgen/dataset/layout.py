@@ -79,6 +79,9 @@ class GenerateSettings:
     """Also write each raw frame's depth (``depth/NNNNNN.npz``: view-camera z in mm, NaN off the face)."""
     masks: bool = False
     """Also write each raw frame's label mask (``masks/NNNNNN.png``: ids in ``manifest['mask_labels']``)."""
+    subject_seed: int | None = None
+    """Draws the subject's own lip shape and ink-dot placement (:mod:`lipgen.subject.shape`); None:
+    the model's shape with the dots on its marker nodes (the data before subject seeds existed)."""
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -91,6 +94,10 @@ class GenerateSettings:
         whole("subject_resolution", 1, 4)
         whole("calib_frames", 0, 1000)
         whole("png_compress_level", 0, 9)
+        if self.subject_seed is not None:
+            from lipgen.subject.shape import MAX_SUBJECT_SEED
+
+            whole("subject_seed", 0, MAX_SUBJECT_SEED)
         w, h = (int(x) for x in self.size)
         if w < 16 or h < 12 or w * 3 != h * 4:
             raise ValueError(f"size must be W x H with a 4:3 aspect (the default rig), e.g. 640x480; "
@@ -115,6 +122,8 @@ class GenerateSettings:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
+        if d["subject_seed"] is None:  # unset: the manifest of such data is as it always was
+            del d["subject_seed"]
         return d
 
     @classmethod
@@ -159,9 +168,15 @@ def mask_labels(mesh) -> dict[str, str]:
     return labels
 
 
-def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str) -> dict:
-    """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths)."""
+def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str,
+                   subject: dict | None = None) -> dict:
+    """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths).
+
+    ``subject`` (the subject seed, shape parameters and ink-dot surface points) is recorded
+    under ``"subject"`` when given."""
     extra = {"mask_labels": mask_labels(mesh)} if s.masks else {}
+    if subject is not None:
+        extra["subject"] = subject
     return extra | {
         "format": FORMAT, "schema_version": SCHEMA, "lipgen_version": version, "units": "mm",
         "convention": "opencv",
@@ -279,6 +294,28 @@ class Dataset:
             raise DatasetError(f"{self.path}: mesh.npz has topology {mesh.topology_id}, the manifest says "
                                f"{info['topology_id']}")
         return mesh
+
+    @cached_property
+    def dots(self):
+        """The subject's ink dots (:class:`lipgen.subject.inkdots.SurfaceDots`), or None when they
+        sit on the marker nodes."""
+        sub = self.manifest.get("subject")
+        if not sub or sub.get("dots") is None:
+            return None
+        from lipgen.subject.inkdots import SurfaceDots
+
+        try:
+            return SurfaceDots.from_dict(sub["dots"], self.mesh.n_faces)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DatasetError(f"{self.path}: the manifest's subject dots are malformed: {exc}") from exc
+
+    def rest_marks(self) -> np.ndarray:
+        """(16, 3) the ink dots at the subject's rest (model frame, mm)."""
+        if self.dots is None:
+            return self.mesh.vertices[self.mesh.markers]
+        from lipgen.subject.inkdots import dot_positions
+
+        return dot_positions(self.dots, self.mesh.faces, self.mesh.vertices)
 
     @property
     def settings(self) -> GenerateSettings:

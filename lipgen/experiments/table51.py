@@ -112,18 +112,19 @@ def observe(subject, physics: Physics, activations, head=None, noise_mm: float =
     """Simulate ``activations`` and measure the markers as the thesis's pipeline would."""
     mesh = physics.mesh
     n0 = mesh.n_nodes
+    if subject.mesh.n_nodes < n0:
+        raise ValueError("the truth mesh does not nest the model mesh (it has fewer nodes)")
+    # displacements are from the subject's own rest (its shape may differ from the model's)
     rest = subject.mesh.vertices[:n0]
-    if not np.allclose(rest, mesh.vertices, atol=1e-9):
-        raise ValueError("the truth mesh does not nest the model mesh (its first nodes differ)")
     motion = simulate(subject, activations, head)
     world = motion.markers_world
     if noise_mm > 0:
         world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
     R, t = motion.poses[:, :3, :3], motion.poses[:, :3, 3]
     model = np.einsum("fji,fkj->fki", R, world - t[:, None])  # known head pose: R^T (X - t)
-    goals = model - mesh.vertices[mesh.markers]
+    goals = model - motion.rest_markers
     reach, _ = physics.reach(dofs(mesh.markers), goals.reshape(len(goals), -1))
-    return Observed(goals, reach, motion.vertices[:, :n0] - mesh.vertices, motion.activations)
+    return Observed(goals, reach, motion.vertices[:, :n0] - rest, motion.activations)
 
 
 def observation_rows(mesh) -> dict[str, np.ndarray]:
