@@ -217,6 +217,9 @@ class Subject:
         The ink dots as surface points (None: on the marker nodes).
     subject_seed : int or None
         The seed the shape and dots were drawn from.
+    layer, layer_forces, layer_info
+        The nonlinear truth physics (:func:`lipgen.subject.truth.with_layer`), if any: then
+        :func:`simulate` solves it instead of the linear responses.
     """
 
     mesh: LipMesh
@@ -233,6 +236,9 @@ class Subject:
     shape: object = None
     dots: object = None
     subject_seed: int | None = None
+    layer: object = None
+    layer_forces: np.ndarray = None
+    layer_info: dict = None
 
     @property
     def n_nodes(self) -> int:
@@ -509,7 +515,8 @@ class Motion:
         return self.to_world(self.mesh.nose[None])[:, 0]
 
 
-def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS) -> Motion:
+def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS,
+             progress: bool = False) -> Motion:
     """Ground-truth frames of ``subject`` for ``activations``.
 
     Parameters
@@ -536,7 +543,12 @@ def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS)
                 and np.allclose(poses[:, 3], [0, 0, 0, 1])):
             raise ValueError("head poses must be rigid 4x4 transforms (rotation with det +1, last row "
                              "0 0 0 1); see lipgen.subject.motion.head_motion")
-    V = subject.mesh.vertices + subject.displacements(A)
+    if subject.layer is not None:
+        from lipgen.subject.truth import layer_displacements
+
+        V = subject.mesh.vertices + layer_displacements(subject, A, progress=progress)
+    else:
+        V = subject.mesh.vertices + subject.displacements(A)
     for arr in (V, poses, A):
         arr.setflags(write=False)
     return Motion(subject.mesh, V, poses, A, float(fps), ACTIONS, subject.dots)
