@@ -59,7 +59,11 @@ def _simulate(s: GenerateSettings):
                               max_rotation_deg=s.head_rotation_deg, max_translation_mm=s.head_translation_mm)
     subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution,
                                      subject_seed=s.subject_seed)
-    return motion.simulate(subject, A, head, fps=s.fps)
+    if s.truth_physics == "layer":
+        from lipgen.subject.truth import with_layer
+
+        subject = with_layer(subject)
+    return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
 
 
 def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray) -> dict:
@@ -304,7 +308,12 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
         from lipgen.subject.shape import sample_shape
 
         subject = {"subject_seed": s.subject_seed, "shape": sample_shape(s.subject_seed).to_dict(),
-                   "shape_units": "mm (lipgen.subject.shape.SHAPE_RANGES)", "dots": dots}
+                   "shape_units": "mm (lipgen.subject.shape.SHAPE_RANGES)", "dots": dots,
+                   "truth_physics": s.truth_physics}
+    if s.preset is not None:
+        from lipgen.dataset.presets import get_preset
+
+        subject = (subject or {}) | {"preset": get_preset(s.preset).to_dict()}
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not _prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours

@@ -82,6 +82,29 @@ class GenerateSettings:
     subject_seed: int | None = None
     """Draws the subject's own lip shape and ink-dot placement (:mod:`lipgen.subject.shape`); None:
     the model's shape with the dots on its marker nodes (the data before subject seeds existed)."""
+    truth_physics: str = "linear"
+    """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
+    :mod:`lipgen.subject.layer`; seconds per frame)."""
+    preset: str | None = None
+    """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such."""
+
+    @classmethod
+    def from_preset(cls, name: str, **overrides) -> GenerateSettings:
+        """Settings of preset ``name`` (``easy``, ``default``, ``hard``), any field overridden by
+        ``overrides`` (those that are not None)."""
+        from lipgen.dataset.presets import get_preset
+
+        p = get_preset(name)
+        base = {"head_rotation_deg": p.motion.head_rotation_deg,
+                "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
+                "dot_diameter": p.image.dot_diameter,
+                "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
+                "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
+        given = {k: v for k, v in overrides.items() if v is not None}
+        if not p.subject.own_shape and given.get("subject_seed") is not None:
+            raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
+                             "'default' or 'hard'")
+        return cls(**{**base, **given, "preset": p.name})
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -98,6 +121,12 @@ class GenerateSettings:
             from lipgen.subject.shape import MAX_SUBJECT_SEED
 
             whole("subject_seed", 0, MAX_SUBJECT_SEED)
+        if self.truth_physics not in ("linear", "layer"):
+            raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
+        if self.preset is not None:
+            from lipgen.dataset.presets import get_preset
+
+            get_preset(self.preset)
         w, h = (int(x) for x in self.size)
         if w < 16 or h < 12 or w * 3 != h * 4:
             raise ValueError(f"size must be W x H with a 4:3 aspect (the default rig), e.g. 640x480; "
@@ -122,8 +151,9 @@ class GenerateSettings:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
-        if d["subject_seed"] is None:  # unset: the manifest of such data is as it always was
-            del d["subject_seed"]
+        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
+            if d[k] == unset:  # unset: the manifest of such data is as it always was
+                del d[k]
         return d
 
     @classmethod
