@@ -18,10 +18,9 @@ def test_presets_group_subject_motion_and_image_conditions():
 def test_easy_settings_are_the_settings_before_presets():
     easy = GenerateSettings.from_preset("easy", frames=150, seed=0)
     plain = GenerateSettings()
-    assert easy.preset == "easy"
-    d_easy, d_plain = easy.to_dict(), plain.to_dict()
-    assert d_easy.pop("preset") == "easy" and d_easy == d_plain  # only the name is added
-    assert "subject_seed" not in d_plain and "truth_physics" not in d_plain
+    assert easy == plain and easy.to_dict() == plain.to_dict()  # the same manifest, byte for byte
+    assert "preset" not in plain.to_dict() and "subject_seed" not in plain.to_dict()
+    assert GenerateSettings.from_preset("default").to_dict()["preset"] == "default"
 
 
 def test_default_and_hard_settings_and_overrides():

@@ -86,7 +86,8 @@ class GenerateSettings:
     """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
     :mod:`lipgen.subject.layer`; seconds per frame)."""
     preset: str | None = None
-    """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such."""
+    """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
+    None is ``easy`` (the data before presets, whose manifests name none)."""
 
     @classmethod
     def from_preset(cls, name: str, **overrides) -> GenerateSettings:
@@ -104,7 +105,8 @@ class GenerateSettings:
         if not p.subject.own_shape and given.get("subject_seed") is not None:
             raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
                              "'default' or 'hard'")
-        return cls(**{**base, **given, "preset": p.name})
+        # easy is the data before presets, byte for byte: its manifest names no preset
+        return cls(**{**base, **given, "preset": None if p.name == "easy" else p.name})
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):

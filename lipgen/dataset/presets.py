@@ -12,7 +12,8 @@ settings to :class:`ImageConditions`):
   large deformation, near-incompressible, lip contact; slow: seconds per frame), with more head
   motion and sensor noise.
 
-The manifest records the preset's name and every setting it implies.
+The manifest records the preset's name (``easy``, the data as before, names none) and every
+setting it implies.
 """
 
 from __future__ import annotations
