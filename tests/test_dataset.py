@@ -134,11 +134,20 @@ def _threshold_centroids(img):
     return np.array(out)
 
 
-def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path):
+@pytest.mark.parametrize("subject_seed", [None, 5])
+def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path, subject_seed):
     from lipgen.dataset.generate import generate
 
-    s = GenerateSettings(frames=4, seed=1, size=(480, 360), calib_frames=0, dot_diameter=3.0, noise=1.0)
+    s = GenerateSettings(frames=4, seed=1, size=(480, 360), calib_frames=0, dot_diameter=3.0, noise=1.0,
+                         subject_seed=subject_seed)
     ds = Dataset(generate(tmp_path / "ds", s, progress=False))
+    if subject_seed is not None:  # the subject's own dots, recorded and at surface points
+        assert ds.manifest["subject"]["subject_seed"] == subject_seed
+        assert ds.dots is not None and ds.settings.subject_seed == subject_seed
+        rest = ds.rest_marks()
+        assert np.linalg.norm(rest - ds.mesh.vertices[ds.mesh.markers], axis=1).min() > 0.3
+    else:
+        assert "subject" not in ds.manifest and "subject_seed" not in ds.manifest["settings"]
     errors = []
     for fr in ds:
         views = ds.rig.split_views(fr.image)

@@ -37,6 +37,11 @@ def add_parser(sub) -> None:
     t.add_argument("--truth-resolution", type=int, default=1, help="lip_mesh resolution of the truth (>= 1)")
     t.add_argument("--no-head", action="store_true", help="no head motion")
     add_force(t, "the report files in --out")
+    t.add_argument("--preset", default="easy", choices=("easy", "default", "hard"),
+                   help="subject conditions: easy (the model's shape, dots on its nodes, linear truth), "
+                   "default (the subject's own shape and dots), hard (and nonlinear tissue; slow)")
+    t.add_argument("--subject-seed", type=int, default=None,
+                   help="seed of the subject's shape and dots (presets default and hard)")
     t.set_defaults(func=_table51)
     n = exp.add_parser(
         "nrsfm",
@@ -97,7 +102,8 @@ def _table51(args) -> int:
     for noise in args.noise_mm:
         settings = Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes,
                                    seed=args.seed, truth_resolution=args.truth_resolution,
-                                   marker_noise_mm=noise, head=not args.no_head)
+                                   marker_noise_mm=noise, head=not args.no_head, preset=args.preset,
+                                   subject_seed=args.subject_seed)
         runs.append(run_table51(settings))
     report = write_report(runs, args.out)
     sys.stdout.write(f"wrote {report}\n")

@@ -18,6 +18,7 @@ else is never overwritten.
 examples:
   lipgen generate --frames 150 --seed 0 --script "AA:0.3 EE:0.2 OO M:0.15 F REST:0.4" --out data/s0
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2
+  lipgen generate --frames 150 --seed 1 --preset default --subject-seed 7 --out data/s1_subject7
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2 --resume
   lipgen generate --frames 30 --depth --masks --out data/s2
   lipgen generate --speech speech.wav --text "The birch canoe slid on the smooth planks." --out data/s3
@@ -43,7 +44,15 @@ def add_parser(sub) -> None:
     opt("--out", required=True, help="dataset folder (new or empty; or the same dataset with --resume)")
     opt("--frames", type=int, default=None,
         help="number of frames (default 150, or as long as the speech with --speech/--speech-text)")
-    opt("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+    opt("--seed", type=int, default=0, help="seed of the motion, head motion, noise and calibration "
+        "(default 0)")
+    opt("--preset", default="easy", choices=("easy", "default", "hard"),
+        help="difficulty: easy (the model's shape, dots on its nodes, linear truth; as before presets), "
+        "default (the subject's own shape and hand-placed dots), hard (and nonlinear tissue physics, "
+        "slow; more head motion and noise). Default: easy. Flags below override the preset")
+    opt("--subject-seed", type=int, default=None,
+        help="seed of the subject's own lip shape and ink-dot placement (default: none, the model's "
+        "shape with dots on its marker nodes)")
     opt("--script", default=None,
         help='viseme script, e.g. "AA:0.3 EE OO M F" (NAME or NAME:SECONDS, repeated to fill the '
         "frames); smooth random activations if omitted")
@@ -56,11 +65,11 @@ def add_parser(sub) -> None:
     opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
     opt("--fps", type=float, default=30.0, help="frame rate (default 30)")
     opt("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
-    opt("--noise", type=float, default=1.0, help="sensor noise, grey levels std (default 1)")
-    opt("--head-rotation", type=float, default=4.0, help="head rotation range, degrees (default 4)")
-    opt("--head-translation", type=float, default=4.0, help="head translation range, mm (default 4)")
+    opt("--noise", type=float, default=None, help="sensor noise, grey levels std (preset: 1; hard 2)")
+    opt("--head-rotation", type=float, default=None, help="head rotation range, degrees (preset: 4; hard 8)")
+    opt("--head-translation", type=float, default=None, help="head translation range, mm (preset: 4; hard 6)")
     opt("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
-    opt("--dot-diameter", type=float, default=2.0, help="ink dot diameter, mm (default 2)")
+    opt("--dot-diameter", type=float, default=None, help="ink dot diameter, mm (preset: 2)")
     opt("--depth", action="store_true", help="also write each frame's depth image (depth/NNNNNN.npz)")
     opt("--masks", action="store_true", help="also write each frame's label mask (masks/NNNNNN.png)")
     opt("--no-progress", action="store_true", help="no progress bar")
@@ -90,12 +99,12 @@ def _run(args) -> int:
         raise ValueError("--text is the transcript of --speech; for text alone use --speech-text")
     if args.text and args.speech_text:
         raise ValueError("give the transcript once: --text (with --speech) or --speech-text")
-    settings = GenerateSettings(
-        frames=_frames(args), seed=args.seed, script=args.script, size=args.size, fps=args.fps,
+    settings = GenerateSettings.from_preset(
+        args.preset, frames=_frames(args), seed=args.seed, script=args.script, size=args.size, fps=args.fps,
         speech=args.speech, speech_text=args.text or args.speech_text,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks)
+        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

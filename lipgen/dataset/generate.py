@@ -80,8 +80,13 @@ def _simulate(s: GenerateSettings, phones=None):
         A = motion.random_activations(s.frames, seed=np.random.default_rng([s.seed, _ACT_STREAM]), fps=s.fps)
     head = motion.head_motion(s.frames, seed=np.random.default_rng([s.seed, _HEAD_STREAM]), fps=s.fps,
                               max_rotation_deg=s.head_rotation_deg, max_translation_mm=s.head_translation_mm)
-    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution)
-    return motion.simulate(subject, A, head, fps=s.fps)
+    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution,
+                                     subject_seed=s.subject_seed)
+    if s.truth_physics == "layer":
+        from lipgen.subject.truth import with_layer
+
+        subject = with_layer(subject)
+    return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
 
 
 def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray) -> dict:
@@ -125,6 +130,7 @@ class _Context:
     poses: np.ndarray
     activations: np.ndarray
     mesh_path: str
+    dots: dict | None = None
 
 
 _WORKER: dict = {}
@@ -149,7 +155,12 @@ def _init_worker(ctx: _Context) -> None:
     s = GenerateSettings.from_dict(ctx.settings)
     rig = default_rig(*s.size)
     mesh = LipMesh.load(ctx.mesh_path)
-    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter))
+    dots = None
+    if ctx.dots is not None:
+        from lipgen.subject.inkdots import SurfaceDots
+
+        dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
+    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter), dots=dots)
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, renderer=RigRenderer(rig),
                    board=Chessboard(*s.board))
 
@@ -191,7 +202,7 @@ def _render_job(job: tuple[str, int]):
         names = np.array(list(w["mesh"].marker_names) + ["nose"])
         truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
                      activations=ctx.activations[i], mark_names=names, views=np.array(VIEWS),
-                     marks_model=np.vstack([V[w["mesh"].markers], w["mesh"].nose]))
+                     marks_model=w["face"].marks(V)[0])  # identity pose: the model frame
         png, npz, kind_tag = *frame_paths(out, i), FRAME_KIND
     else:
         from lipgen.rig.target import board_scene
@@ -344,7 +355,19 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
     rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
     mesh: LipMesh = motion.mesh
-    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
+    dots = None if motion.dots is None else motion.dots.to_dict()
+    subject = None
+    if s.subject_seed is not None:
+        from lipgen.subject.shape import sample_shape
+
+        subject = {"subject_seed": s.subject_seed, "shape": sample_shape(s.subject_seed).to_dict(),
+                   "shape_units": "mm (lipgen.subject.shape.SHAPE_RANGES)", "dots": dots,
+                   "truth_physics": s.truth_physics}
+    if s.preset is not None:
+        from lipgen.dataset.presets import get_preset
+
+        subject = (subject or {}) | {"preset": get_preset(s.preset).to_dict()}
+    manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
         from lipgen.rig.target import Chessboard, board_poses
 
@@ -367,7 +390,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     if done:
         log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
     ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
-                   np.asarray(motion.activations), str(mesh_path))
+                   np.asarray(motion.activations), str(mesh_path), dots)
     return ctx, jobs
 
 

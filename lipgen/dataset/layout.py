@@ -84,6 +84,34 @@ class GenerateSettings:
     """A speech recording (WAV) whose phones time the motion (:mod:`lipgen.speech`)."""
     speech_text: str | None = None
     """The transcript of ``speech``, or, alone, English text spoken with Klatt-rule durations."""
+    subject_seed: int | None = None
+    """Draws the subject's own lip shape and ink-dot placement (:mod:`lipgen.subject.shape`); None:
+    the model's shape with the dots on its marker nodes (the data before subject seeds existed)."""
+    truth_physics: str = "linear"
+    """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
+    :mod:`lipgen.subject.layer`; seconds per frame)."""
+    preset: str | None = None
+    """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
+    None is ``easy`` (the data before presets, whose manifests name none)."""
+
+    @classmethod
+    def from_preset(cls, name: str, **overrides) -> GenerateSettings:
+        """Settings of preset ``name`` (``easy``, ``default``, ``hard``), any field overridden by
+        ``overrides`` (those that are not None)."""
+        from lipgen.dataset.presets import get_preset
+
+        p = get_preset(name)
+        base = {"head_rotation_deg": p.motion.head_rotation_deg,
+                "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
+                "dot_diameter": p.image.dot_diameter,
+                "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
+                "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
+        given = {k: v for k, v in overrides.items() if v is not None}
+        if not p.subject.own_shape and given.get("subject_seed") is not None:
+            raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
+                             "'default' or 'hard'")
+        # easy is the data before presets, byte for byte: its manifest names no preset
+        return cls(**{**base, **given, "preset": None if p.name == "easy" else p.name})
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -96,6 +124,16 @@ class GenerateSettings:
         whole("subject_resolution", 1, 4)
         whole("calib_frames", 0, 1000)
         whole("png_compress_level", 0, 9)
+        if self.subject_seed is not None:
+            from lipgen.subject.shape import MAX_SUBJECT_SEED
+
+            whole("subject_seed", 0, MAX_SUBJECT_SEED)
+        if self.truth_physics not in ("linear", "layer"):
+            raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
+        if self.preset is not None:
+            from lipgen.dataset.presets import get_preset
+
+            get_preset(self.preset)
         w, h = (int(x) for x in self.size)
         if w < 16 or h < 12 or w * 3 != h * 4:
             raise ValueError(f"size must be W x H with a 4:3 aspect (the default rig), e.g. 640x480; "
@@ -126,6 +164,9 @@ class GenerateSettings:
         for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
             if d[key] is None:
                 del d[key]
+        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
+            if d[k] == unset:  # unset: the manifest of such data is as it always was
+                del d[k]
         return d
 
     @classmethod
@@ -173,9 +214,15 @@ def mask_labels(mesh) -> dict[str, str]:
     return labels
 
 
-def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str) -> dict:
-    """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths)."""
+def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str,
+                   subject: dict | None = None) -> dict:
+    """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths).
+
+    ``subject`` (the subject seed, shape parameters and ink-dot surface points) is recorded
+    under ``"subject"`` when given."""
     extra = {"mask_labels": mask_labels(mesh)} if s.masks else {}
+    if subject is not None:
+        extra["subject"] = subject
     return extra | {
         "format": FORMAT, "schema_version": SCHEMA, "lipgen_version": version, "units": "mm",
         "convention": "opencv",
@@ -346,6 +393,28 @@ class Dataset:
             raise DatasetError(f"{self.path}: mesh.npz has topology {mesh.topology_id}, the manifest says "
                                f"{info['topology_id']}")
         return mesh
+
+    @cached_property
+    def dots(self):
+        """The subject's ink dots (:class:`lipgen.subject.inkdots.SurfaceDots`), or None when they
+        sit on the marker nodes."""
+        sub = self.manifest.get("subject")
+        if not sub or sub.get("dots") is None:
+            return None
+        from lipgen.subject.inkdots import SurfaceDots
+
+        try:
+            return SurfaceDots.from_dict(sub["dots"], self.mesh.n_faces)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DatasetError(f"{self.path}: the manifest's subject dots are malformed: {exc}") from exc
+
+    def rest_marks(self) -> np.ndarray:
+        """(16, 3) the ink dots at the subject's rest (model frame, mm)."""
+        if self.dots is None:
+            return self.mesh.vertices[self.mesh.markers]
+        from lipgen.subject.inkdots import dot_positions
+
+        return dot_positions(self.dots, self.mesh.faces, self.mesh.vertices)
 
     @property
     def settings(self):

@@ -72,14 +72,18 @@ def accepted_sightings(recon) -> np.ndarray:
     return out
 
 
-def _true_fields(truth: dict, mesh) -> np.ndarray:
-    """True displacement of the model's nodes (F, n, 3): the subject mesh nests the model's."""
+def _true_fields(truth: dict, mesh, rest: np.ndarray | None = None) -> np.ndarray:
+    """True displacement of the model's nodes (F, n, 3): the subject mesh nests the model's.
+
+    ``rest`` (N, 3) is the subject's own rest mesh (its first n nodes are the anatomical points of
+    the model's nodes; a subject with its own shape sits elsewhere at rest): the displacement is
+    from there. Without it the subject is taken to have the model's rest shape."""
     V = truth["vertices"]
     n = mesh.n_nodes
     if V.shape[1] < n:
         raise TopologyMismatchError(f"the dataset's subject mesh has {V.shape[1]} nodes, fewer than the "
                                     f"model's {n}; it is not a refinement of the model mesh")
-    return V[:, :n] - mesh.vertices
+    return V[:, :n] - (mesh.vertices if rest is None else np.asarray(rest)[:n])
 
 
 def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_modes: int = 10,
@@ -218,7 +222,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
         "head_rotation_deg_max": float(np.degrees(max(np.arccos(np.clip((np.trace(p[:3, :3]) - 1) / 2, -1, 1))
                                                       for p in truth["pose"])))}
     # Training data quality and the Table 5.1 analogue.
-    true_fields = _true_fields(truth, mesh)
+    true_fields = _true_fields(truth, mesh, ds.mesh.vertices)
     T = default_test_frames(F) if test_frames is None else int(test_frames)
     train, test = split_frames(recon.fields, T)
     if model.n_frames_ > len(train):
@@ -229,7 +233,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     from lipgen.recon.steps import reach_fields
 
     # The model's own floor: reach from the TRUE model-frame markers (no tracking, no normalisation).
-    floor = reach_fields(physics, marks_model - mesh.vertices[mesh.markers], np.ones((F, P), bool),
+    floor = reach_fields(physics, marks_model - ds.rest_marks()[:P], np.ones((F, P), bool),
                          mesh.markers)
     node_err = np.linalg.norm(recon.fields[ok] - true_fields[ok], axis=-1)
     out["fields"] = {"rms_mm_vs_truth": float(_rms(node_err)),

@@ -73,8 +73,20 @@ class Table51Settings:
     held_out_test: tuple[str, ...] = ("lip_corner_puller", "funneler")
     oos_frames: int = 40
     oos_realisations: int = 8
+    preset: str = "easy"
+    """Subject conditions (:mod:`lipgen.dataset.presets`): ``easy`` is the model's shape, dots on
+    its nodes and the linear truth; ``default`` the subject's own shape and dots; ``hard`` adds
+    the nonlinear tissue layer (slow)."""
+    subject_seed: int | None = None
+    """The subject's shape and dots (presets ``default``/``hard``; their default seed if None)."""
 
     def __post_init__(self) -> None:
+        from lipgen.dataset.presets import get_preset
+
+        p = get_preset(self.preset)
+        if self.subject_seed is not None and not p.subject.own_shape:
+            raise ValueError(f"preset {self.preset!r} uses the model's own shape; a subject seed needs "
+                             "preset 'default' or 'hard'")
         if not 1 <= self.n_modes < self.n_train < self.n_frames:
             raise ValueError(f"need 1 <= n_modes < n_train < n_frames, got {self.n_modes}, "
                              f"{self.n_train}, {self.n_frames}")
@@ -112,18 +124,19 @@ def observe(subject, physics: Physics, activations, head=None, noise_mm: float =
     """Simulate ``activations`` and measure the markers as the thesis's pipeline would."""
     mesh = physics.mesh
     n0 = mesh.n_nodes
+    if subject.mesh.n_nodes < n0:
+        raise ValueError("the truth mesh does not nest the model mesh (it has fewer nodes)")
+    # displacements are from the subject's own rest (its shape may differ from the model's)
     rest = subject.mesh.vertices[:n0]
-    if not np.allclose(rest, mesh.vertices, atol=1e-9):
-        raise ValueError("the truth mesh does not nest the model mesh (its first nodes differ)")
     motion = simulate(subject, activations, head)
     world = motion.markers_world
     if noise_mm > 0:
         world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
     R, t = motion.poses[:, :3, :3], motion.poses[:, :3, 3]
     model = np.einsum("fji,fkj->fki", R, world - t[:, None])  # known head pose: R^T (X - t)
-    goals = model - mesh.vertices[mesh.markers]
+    goals = model - motion.rest_markers
     reach, _ = physics.reach(dofs(mesh.markers), goals.reshape(len(goals), -1))
-    return Observed(goals, reach, motion.vertices[:, :n0] - mesh.vertices, motion.activations)
+    return Observed(goals, reach, motion.vertices[:, :n0] - rest, motion.activations)
 
 
 def observation_rows(mesh) -> dict[str, np.ndarray]:
@@ -296,11 +309,25 @@ def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
             "realisations": ratios}
 
 
+def make_subject(s: Table51Settings):
+    """The truth subject of the settings' preset."""
+    from lipgen.dataset.presets import get_preset
+
+    p = get_preset(s.preset).subject
+    sseed = (p.default_subject_seed if s.subject_seed is None else s.subject_seed) if p.own_shape else None
+    subject = default_subject(s.seed, s.truth_resolution, subject_seed=sseed)
+    if p.nonlinear_physics:
+        from lipgen.subject.truth import with_layer
+
+        subject = with_layer(subject)
+    return subject
+
+
 def run_table51(settings: Table51Settings | None = None) -> dict:
     """Run the experiment; returns every figure (JSON-ready) plus the fitted model under ``"_model"``."""
     s = settings or Table51Settings()
     rng = np.random.default_rng(s.seed)
-    subject = default_subject(s.seed, s.truth_resolution)
+    subject = make_subject(s)
     mesh = lip_mesh(0)
     physics = Physics(mesh)
     noise_var = s.marker_noise_mm ** 2
@@ -318,7 +345,9 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
     anchored = physics.anchored_dofs
     floor = float(np.mean(test.truth.reshape(len(test.truth), -1)[:, anchored] ** 2))
     return {
-        "settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh),
+        "settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "subject_seed": subject.subject_seed,
+        "subject_shape": None if subject.shape is None else subject.shape.to_dict(),
+        "truth_physics": "linear" if subject.layer is None else "layer",
         "n_nodes_model": mesh.n_nodes, "n_nodes_truth": subject.mesh.n_nodes,
         "variance_captured": float(np.sum(model.explained_variance_ratio_)),
         "cumulative_variance": np.cumsum(model.full_variance_ / model.total_variance_).tolist(),

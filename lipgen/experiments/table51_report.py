@@ -101,7 +101,11 @@ def _markdown(result: dict, suffix: str = "") -> str:
         f"# Table 5.1 on synthetic ground truth: marker noise {result['settings']['marker_noise_mm']} mm",
         "",
         f"Truth: `default_subject(seed={s['seed']}, resolution={s['truth_resolution']})` "
-        f"({result['n_nodes_truth']} nodes: finer mesh, own stiffness, jaw hinge, lip contact, arch wrap). "
+        f"({result['n_nodes_truth']} nodes: finer mesh, own stiffness, jaw hinge, lip contact, arch wrap); "
+        f"preset `{s.get('preset', 'easy')}`"
+        + (f", subject seed {result['subject_seed']} (own lip shape, dots at surface points)"
+           if result.get("subject_seed") is not None else " (the model's rest shape, dots on its nodes)")
+        + (", nonlinear tissue layer" if result.get("truth_physics") == "layer" else "") + ". "
         f"Model: `lip_mesh(0)` ({result['n_nodes_model']} nodes), default stiffness. "
         f"{s['n_frames']} frames of random gestures at 30 fps"
         + (" with head motion (known pose)" if s["head"] else "")

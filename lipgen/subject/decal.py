@@ -3,7 +3,8 @@
 A dot is a small disc mesh laid on the rest surface: each of its vertices is projected along
 the surface normal onto a triangle and stored by barycentric coordinates. On every frame it is
 rebuilt from the deformed triangles, so the ink stretches with the skin, hugs the surface and
-its centre stays exactly on the marked vertex. It is lifted by a few hundredths of a millimetre
+its centre stays exactly on the marked vertex (or surface point, :func:`make_decal_at`).
+It is lifted by a few hundredths of a millimetre
 along the surface normal so that the depth test draws it over the skin.
 """
 
@@ -13,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Decal", "make_decal", "place_decal"]
+__all__ = ["Decal", "make_decal", "make_decal_at", "place_decal"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,7 +91,29 @@ def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, cen
     ValueError
         If the surface around ``center`` is too small or folded to hold the disc's centre.
     """
-    p, n = vertices[center], normals[center]
+    home = np.isin(faces, center).any(axis=1)
+    return _lay(vertices, faces, vertices[center], normals[center], home, radius, rings, sectors,
+                f"vertex {center}")
+
+
+def make_decal_at(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, face: int, bary,
+                  radius: float, rings: int = 3, sectors: int = 16) -> Decal:
+    """Lay a disc of ``radius`` mm centred on the surface point ``bary`` (3,) of triangle ``face``.
+
+    As :func:`make_decal`, for a dot that is not at a vertex: its centre maps exactly onto that
+    surface point on every frame.
+    """
+    b = np.asarray(bary, float)
+    tri = faces[int(face)]
+    p = b @ vertices[tri]
+    n = b @ normals[tri]
+    n = n / np.linalg.norm(n)
+    home = np.zeros(len(faces), bool)
+    home[int(face)] = True
+    return _lay(vertices, faces, p, n, home, radius, rings, sectors, f"face {int(face)}", force_home=True)
+
+
+def _lay(vertices, faces, p, n, home, radius, rings, sectors, where, force_home=False) -> Decal:
     e1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
@@ -101,20 +124,21 @@ def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, cen
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
     near = np.linalg.norm(tri - p, axis=2).min(axis=1) <= 2 * radius + 1.0
-    cand = np.flatnonzero(near & (fn @ n > 0.3))
-    has_center = np.isin(faces[cand], center).any(axis=1)
+    facing = near & (fn @ n > 0.3)
+    cand = np.flatnonzero(facing | (home if force_home else False))
+    has_center = home[cand]
     if not has_center.any():
-        raise ValueError(f"no surface triangle around vertex {center} faces its normal; cannot place a dot")
+        raise ValueError(f"no surface triangle around {where} faces its normal; cannot place a dot")
     lam, u, v = _line_hits(q, n, tri[cand])
     eps = 1e-9
     inside = (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (np.abs(lam) <= radius)
     score = np.where(inside, np.abs(lam), np.inf)
-    score[0] = np.where(has_center, score[0], np.inf)  # the centre lies on a triangle of its own vertex
+    score[0] = np.where(has_center, score[0], np.inf)  # the centre lies on its own triangle
     best = np.argmin(score, axis=1)
     rows = np.arange(len(q))
     found = np.isfinite(score[rows, best])
     if not found[0]:
-        raise ValueError(f"cannot place a dot at vertex {center}: its own triangles are degenerate")
+        raise ValueError(f"cannot place a dot at {where}: its own triangles are degenerate")
     uu, vv = u[rows, best], v[rows, best]
     bary = np.stack([1 - uu - vv, uu, vv], axis=1)
     face = cand[best]

@@ -23,7 +23,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.rig.scene import Light, Material, MeshItem, Scene, vertex_normals
-from lipgen.subject.decal import make_decal, place_decal
+from lipgen.subject.decal import make_decal, make_decal_at, place_decal
 
 __all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops"]
 
@@ -131,10 +131,16 @@ class FaceModel:
         The lips (model frame, mm); any mesh with one outer boundary loop around the mouth.
     look : FaceLook
         Colours, dot size, whether to draw the surroundings.
+    dots : lipgen.subject.inkdots.SurfaceDots, optional
+        The ink dots as surface points of ``mesh`` (one per marker, in marker order); by default
+        each dot sits on its marker's node.
     """
 
-    def __init__(self, mesh: LipMesh, look: FaceLook = FaceLook()) -> None:
-        self.mesh, self.look = mesh, look
+    def __init__(self, mesh: LipMesh, look: FaceLook = FaceLook(), dots=None) -> None:
+        self.mesh, self.look, self.dots = mesh, look, dots
+        if dots is not None and len(dots.face) != len(mesh.markers):
+            raise ValueError(f"dots must give one surface point per marker ({len(mesh.markers)}), "
+                             f"got {len(dots.face)}")
         vermilion = [mesh.region_names.index(r) for r in ("lip", "ridge") if r in mesh.region_names]
         mouth = [mesh.region_names.index(r) for r in ("strip",) if r in mesh.region_names]
         lip_mat = np.where(np.isin(mesh.regions, vermilion), 1, np.where(np.isin(mesh.regions, mouth), 2, 0))
@@ -157,7 +163,11 @@ class FaceModel:
         V0 = self._face_vertices(mesh.vertices)
         N0 = vertex_normals(V0, self.faces)
         radius = look.dot_diameter / 2
-        self.marker_decals = [make_decal(V0, self.faces, N0, int(i), radius) for i in mesh.markers]
+        if dots is None:
+            self.marker_decals = [make_decal(V0, self.faces, N0, int(i), radius) for i in mesh.markers]
+        else:
+            self.marker_decals = [make_decal_at(V0, self.faces, N0, int(f), b, radius)
+                                  for f, b in zip(dots.face, dots.bary, strict=True)]
         self.nose_decal = make_decal(self.nose_vertices, self.nose_faces, self.nose_normals, 0, radius)
 
     # ---- construction ---------------------------------------------------------------------
@@ -244,8 +254,15 @@ class FaceModel:
         R, t = _pose(pose)
         V = as_float_array(vertices, "vertices", (self.mesh.n_nodes, 3))
         Vf = self._face_vertices(V)
-        N = vertex_normals(Vf, self.faces)[self.mesh.markers]
-        P = np.vstack([V[self.mesh.markers], self.mesh.nose])
+        Nv = vertex_normals(Vf, self.faces)
+        if self.dots is None:
+            N, M = Nv[self.mesh.markers], V[self.mesh.markers]
+        else:  # the dots' own surface points and interpolated normals
+            idx = self.mesh.faces[self.dots.face]
+            M = np.einsum("kj,kjd->kd", self.dots.bary, V[idx])
+            N = np.einsum("kj,kjd->kd", self.dots.bary, Nv[idx])
+            N /= np.linalg.norm(N, axis=1, keepdims=True)
+        P = np.vstack([M, self.mesh.nose])
         return P @ R.T + t, np.vstack([N, self.nose_normals[:1]]) @ R.T
 
     def dot_rims(self, surfaces: dict) -> list[np.ndarray]:

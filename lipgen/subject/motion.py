@@ -211,6 +211,15 @@ class Subject:
         Displacement under a unit pair of contact forces pushing pair k apart (mm per unit force).
     jaw_shift_mm : float
         Sideways jaw shift (mm) at ``jaw_shift_left`` = 1.
+    shape : lipgen.subject.shape.ShapeParams or None
+        The rest shape the mesh was warped to (None: the model's own shape).
+    dots : lipgen.subject.inkdots.SurfaceDots or None
+        The ink dots as surface points (None: on the marker nodes).
+    subject_seed : int or None
+        The seed the shape and dots were drawn from.
+    layer, layer_forces, layer_info
+        The nonlinear truth physics (:func:`lipgen.subject.truth.with_layer`), if any: then
+        :func:`simulate` solves it instead of the linear responses.
     """
 
     mesh: LipMesh
@@ -224,6 +233,12 @@ class Subject:
     contact_pairs: np.ndarray = None
     contact_response: np.ndarray = None
     jaw_shift_mm: float = JAW_SHIFT_MM
+    shape: object = None
+    dots: object = None
+    subject_seed: int | None = None
+    layer: object = None
+    layer_forces: np.ndarray = None
+    layer_info: dict = None
 
     @property
     def n_nodes(self) -> int:
@@ -305,20 +320,38 @@ def _activation_array(activations) -> np.ndarray:
     return A
 
 
-def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
+def default_subject(seed: int = 0, resolution: int = 1, shape=None,
+                    subject_seed: int | None = None) -> Subject:
     """The truth subject on ``lip_mesh(resolution)``; ``seed`` varies its stiffness and gains.
 
     Seed 0 gives exactly :data:`TRUTH_STIFFNESS` and :data:`ACTION_TARGETS_MM`; other seeds
     scale each region's E and each target by a factor drawn from a log-normal of 10-15 %.
+    ``shape`` (a :class:`lipgen.subject.shape.ShapeParams`, e.g. ``sample_shape(subject_seed)``)
+    warps the rest mesh to that subject's own lips (:func:`lipgen.subject.shape.shaped_mesh`);
+    without it the truth's rest shape is the model's. ``subject_seed`` draws the shape (unless
+    given) and places the ink dots at surface points 1-2 mm from the model's markers
+    (:func:`lipgen.subject.inkdots.place_dots`); without it the dots sit on the marker nodes.
     """
     from lipgen.fem import Physics
     from lipgen.mesh.procedural import lip_mesh
+    from lipgen.subject.shape import ShapeParams, sample_shape, shaped_mesh
 
     if int(resolution) < 1:
         raise ValueError(f"the truth subject needs a finer mesh than the model's (resolution 0); "
                          f"got resolution {resolution}. Use 1 or more.")
+    if shape is not None and not isinstance(shape, ShapeParams):
+        raise TypeError(f"shape must be a ShapeParams (lipgen.subject.shape.sample_shape) or None, got "
+                        f"{type(shape).__name__}")
     rng = np.random.default_rng(seed)
-    mesh = lip_mesh(int(resolution))
+    if subject_seed is not None and shape is None:
+        shape = sample_shape(subject_seed)
+    base = lip_mesh(int(resolution))
+    mesh = base if shape is None else shaped_mesh(base, shape)
+    dots = None
+    if subject_seed is not None:
+        from lipgen.subject.inkdots import place_dots
+
+        dots = place_dots(mesh, lip_mesh(0), np.random.default_rng([int(subject_seed), 0xD075]))
     region_scale = {r: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.1))) for r in TRUTH_STIFFNESS}
     target_scale = {a: 1.0 if seed == 0 else float(np.exp(rng.normal(0, 0.15))) for a in ACTIONS}
     names = np.array(mesh.region_names)[mesh.regions]
@@ -348,11 +381,12 @@ def default_subject(seed: int = 0, resolution: int = 1) -> Subject:
     subject = Subject(mesh, physics, E, border_weight, responses, np.zeros((mesh.n_nodes, 3)), 1.0, int(seed),
                       jaw_shift_mm=shift_mm)
     subject = _calibrate_jaw(subject, lower_lip, ACTION_TARGETS_MM["jaw_open"][1] * target_scale["jaw_open"])
-    pairs = _contact_pairs(mesh)
+    pairs = _contact_pairs(base)  # by node: the shaped lips are no longer mirror images in y
     push = np.zeros((len(pairs), mesh.n_nodes, 3))
     push[np.arange(len(pairs)), pairs[:, 0], 1] = 1.0  # the upper lip pushed up ...
     push[np.arange(len(pairs)), pairs[:, 1], 1] = -1.0  # ... and the lower lip down
-    subject = replace(subject, contact_pairs=pairs, contact_response=physics.displace(push))
+    subject = replace(subject, contact_pairs=pairs, contact_response=physics.displace(push), shape=shape,
+                      dots=dots, subject_seed=None if subject_seed is None else int(subject_seed))
     for arr in (subject.stiffness, subject.border_weight, subject.responses, subject.carry,
                 subject.contact_pairs, subject.contact_response):
         arr.setflags(write=False)
@@ -414,6 +448,8 @@ class Motion:
         Frames per second.
     actions : tuple of str
         Column names of :attr:`activations` (:data:`ACTIONS`).
+    dots : lipgen.subject.inkdots.SurfaceDots or None
+        The subject's ink dots as surface points; None: the dots are the marker nodes.
     """
 
     mesh: LipMesh
@@ -422,6 +458,7 @@ class Motion:
     activations: np.ndarray
     fps: float = DEFAULT_FPS
     actions: tuple[str, ...] = ACTIONS
+    dots: object = None
 
     @property
     def n_frames(self) -> int:
@@ -439,8 +476,21 @@ class Motion:
 
     @property
     def markers(self) -> np.ndarray:
-        """(F, 16, 3) marker positions in the model frame, mm (order of ``mesh.marker_names``)."""
-        return self.vertices[:, self.mesh.markers]
+        """(F, 16, 3) marker (ink dot) positions in the model frame, mm (order of ``mesh.marker_names``)."""
+        if self.dots is None:
+            return self.vertices[:, self.mesh.markers]
+        from lipgen.subject.inkdots import dot_positions
+
+        return dot_positions(self.dots, self.mesh.faces, self.vertices)
+
+    @property
+    def rest_markers(self) -> np.ndarray:
+        """(16, 3) the marker (ink dot) positions at the subject's rest, model frame, mm."""
+        if self.dots is None:
+            return self.mesh.vertices[self.mesh.markers]
+        from lipgen.subject.inkdots import dot_positions
+
+        return dot_positions(self.dots, self.mesh.faces, self.mesh.vertices)
 
     def to_world(self, points) -> np.ndarray:
         """Model-frame points ``(F, k, 3)`` (or ``(k, 3)``, the same every frame) -> world, mm."""
@@ -465,7 +515,8 @@ class Motion:
         return self.to_world(self.mesh.nose[None])[:, 0]
 
 
-def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS) -> Motion:
+def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS,
+             progress: bool = False) -> Motion:
     """Ground-truth frames of ``subject`` for ``activations``.
 
     Parameters
@@ -492,7 +543,12 @@ def simulate(subject: Subject, activations, head=None, fps: float = DEFAULT_FPS)
                 and np.allclose(poses[:, 3], [0, 0, 0, 1])):
             raise ValueError("head poses must be rigid 4x4 transforms (rotation with det +1, last row "
                              "0 0 0 1); see lipgen.subject.motion.head_motion")
-    V = subject.mesh.vertices + subject.displacements(A)
+    if subject.layer is not None:
+        from lipgen.subject.truth import layer_displacements
+
+        V = subject.mesh.vertices + layer_displacements(subject, A, progress=progress)
+    else:
+        V = subject.mesh.vertices + subject.displacements(A)
     for arr in (V, poses, A):
         arr.setflags(write=False)
-    return Motion(subject.mesh, V, poses, A, float(fps), ACTIONS)
+    return Motion(subject.mesh, V, poses, A, float(fps), ACTIONS, subject.dots)

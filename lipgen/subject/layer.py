@@ -1,0 +1,365 @@
+"""The truth subject's own physics: a thin volumetric layer of large-deformation elastic tissue.
+
+The reconstruction model is lipgen.fem's linear thin shell (thesis §2.3). The truth must not be
+(DESIGN.md, "avoid the inverse crime"), so the truth subject's lips are a different mechanical
+model altogether:
+
+- **geometry**: the surface mesh extruded inwards by a per-node thickness into one layer of
+  prisms, each split into three tetrahedra (conforming by global node order);
+- **material**: St Venant-Kirchhoff, ``W = mu tr(E^2) + lambda/2 tr(E)^2`` with the Green strain
+  ``E = (F^T F - I)/2`` (large rotations and stretches: geometrically nonlinear), per-face
+  Young's modulus and Poisson's ratio per subject;
+- **near-incompressibility**: a volume penalty ``kappa/2 (det F - 1)^2`` per tetrahedron, so a lip
+  squeezed in its plane (a pucker) grows thicker;
+- **contact between the lips**: a one-sided penalty on facing pairs of the inner contour, so the
+  upper and lower lips press on each other instead of crossing;
+- **the gum**: the inner side of the lower lip rests on the lower teeth and is pulled along by the
+  jaw through stiff springs (the upper lip's inner side lies free on the upper teeth).
+
+Each frame is an energy minimisation (scipy's L-BFGS with the analytic gradient), warm-started
+from the previous frame, with the anchors and the jaw-carried border prescribed. In the
+small-strain limit it agrees with the linear elasticity of its own Hessian at rest (tested), and
+it departs from it at lip-sized strains (measured in the tests).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Layer", "build_layer", "stvk_energy_density"]
+
+log = logging.getLogger(__name__)
+
+
+def stvk_energy_density(F: np.ndarray, mu, lam) -> np.ndarray:
+    """St Venant-Kirchhoff energy per unit rest volume of deformation gradients ``F`` (..., 3, 3)."""
+    E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
+    trE = np.trace(E, axis1=-2, axis2=-1)
+    return mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * lam * trE**2
+
+
+def _vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
+    fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n = np.zeros_like(V)
+    for k in range(3):
+        np.add.at(n, F[:, k], fn)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _prism_tets(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(3m, 4) tetrahedra of the prisms over ``faces`` (inner copy of node i is i + n), split by
+    global node order so neighbouring prisms share their diagonals; and each tet's face."""
+    s = np.sort(faces, axis=1)
+    i, j, k = s[:, 0], s[:, 1], s[:, 2]
+    tets = np.concatenate([np.stack([i, j, k, k + n], 1), np.stack([i, j, j + n, k + n], 1),
+                           np.stack([i, i + n, j + n, k + n], 1)])
+    return tets, np.tile(np.arange(len(faces)), 3)
+
+
+@dataclass(frozen=True, eq=False)
+class Layer:
+    """A layer of St Venant-Kirchhoff tetrahedra under the lip surface (see the module docstring).
+
+    Attributes
+    ----------
+    rest : (2n, 3) float
+        Rest positions: the surface nodes, then their inner copies (mm).
+    tets : (T, 4) int
+    Dm_inv : (T, 3, 3) float
+        Inverse rest edge matrices.
+    volume : (T,) float
+        Rest volumes (mm³).
+    mu, lam, kappa : (T,) float
+        Lamé parameters and volume penalty per tetrahedron.
+    fixed : (2n,) bool
+        Nodes whose positions are prescribed (anchors and their inner copies).
+    contact_pairs : (p, 2) int
+        [upper, lower] surface nodes that may touch but not cross (in y).
+    contact_stiffness : float
+    gum : (2n,) float
+        Spring stiffness of each node to the jaw (the lower lip's inner side), per mm.
+    scatter : (2n, 4T) sparse
+        Sums per-tet-node vectors (tet corner 0 of every tet, then corner 1, ...) onto the nodes.
+    K0 : (6n, 6n) sparse
+        Stiffness at rest (linear elasticity with the volume penalty, plus the gum and contact
+        springs): the solver's preconditioner, and the small-strain theory the tests compare with.
+    """
+
+    rest: np.ndarray
+    tets: np.ndarray
+    Dm_inv: np.ndarray
+    volume: np.ndarray
+    mu: np.ndarray
+    lam: np.ndarray
+    kappa: np.ndarray
+    fixed: np.ndarray
+    contact_pairs: np.ndarray
+    contact_stiffness: float
+    gum: np.ndarray
+    scatter: object = None
+    K0: object = None
+    cache: dict = field(default_factory=dict)
+    iterations: list = field(default_factory=list)
+
+    @property
+    def n_surface(self) -> int:
+        return len(self.rest) // 2
+
+    def energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None = None):
+        """Total energy and its gradient (2n, 3) at positions ``x`` (2n, 3) under nodal ``force``.
+
+        ``force`` (2n, 3) is a dead load (potential ``-f . (x - rest)``); ``gum_target`` (2n, 3) the
+        positions the gum springs pull toward (their rest by default).
+        """
+        t = self.tets
+        P0 = x[t[:, 0]]
+        Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
+        F = Ds @ self.Dm_inv
+        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
+        trE = np.trace(E, axis1=-2, axis2=-1)
+        W = self.mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * self.lam * trE**2
+        S = 2 * self.mu[:, None, None] * E + (self.lam * trE)[:, None, None] * np.eye(3)
+        Pk = F @ S  # first Piola-Kirchhoff stress
+        f0, f1, f2 = F[..., 0], F[..., 1], F[..., 2]
+        cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)  # det(F) F^-T
+        J = np.sum(f0 * cof[..., 0], axis=-1)
+        Wv = 0.5 * self.kappa * (J - 1.0) ** 2
+        stress = Pk + (self.kappa * (J - 1.0))[:, None, None] * cof
+        H = self.volume[:, None, None] * stress @ np.swapaxes(self.Dm_inv, -1, -2)  # dE/dDs
+        per_node = np.concatenate([-H.sum(axis=-1), H[..., 0], H[..., 1], H[..., 2]])  # (4T, 3)
+        g = self.scatter @ per_node
+        energy = float(np.sum(self.volume * (W + Wv)))
+        energy -= float(np.sum(force * (x - self.rest)))
+        g -= force
+        if self.gum.any():
+            target = self.rest if gum_target is None else gum_target
+            d = x - target
+            energy += 0.5 * float(np.sum(self.gum[:, None] * d * d))
+            g += self.gum[:, None] * d
+        if len(self.contact_pairs):
+            up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
+            gap = x[up, 1] - x[lo, 1]
+            pen = np.minimum(gap, 0.0)
+            energy += 0.5 * self.contact_stiffness * float(np.sum(pen * pen))
+            push = self.contact_stiffness * pen
+            g[:, 1] += np.bincount(up, push, len(x)) - np.bincount(lo, push, len(x))
+        return energy, g
+
+    def tangent(self, x: np.ndarray, clip: bool = True):
+        """(6n, 6n) sparse stiffness at ``x``: each tet's Hessian with its negative eigenvalues
+        clipped (positive semi-definite, for a descent direction), plus the springs as in K0."""
+        from scipy.sparse import coo_matrix, diags
+
+        t = self.tets
+        P0 = x[t[:, 0]]
+        Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
+        F = Ds @ self.Dm_inv
+        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
+        trE = np.trace(E, axis1=-2, axis2=-1)
+        S = 2 * self.mu[:, None, None] * E + (self.lam * trE)[:, None, None] * np.eye(3)
+        f = [F[..., 0], F[..., 1], F[..., 2]]
+        cof = np.stack([np.cross(f[1], f[2]), np.cross(f[2], f[0]), np.cross(f[0], f[1])], axis=-1)
+        J = np.sum(f[0] * cof[..., 0], axis=-1)
+        C = np.zeros((len(t), 9, 9))
+        for q in range(9):  # dP for dF = unit matrix q (row-major index)
+            dF = np.zeros((3, 3))
+            dF.flat[q] = 1.0
+            FtdF = np.swapaxes(F, -1, -2) @ dF
+            dE = 0.5 * (FtdF + np.swapaxes(FtdF, -1, -2))
+            trdE = np.trace(dE, axis1=-2, axis2=-1)
+            dS = 2 * self.mu[:, None, None] * dE + (self.lam * trdE)[:, None, None] * np.eye(3)
+            dP = dF @ S + F @ dS
+            df = [np.broadcast_to(dF[:, k], f[0].shape) for k in range(3)]
+            dcof = np.stack([np.cross(df[1], f[2]) + np.cross(f[1], df[2]),
+                             np.cross(df[2], f[0]) + np.cross(f[2], df[0]),
+                             np.cross(df[0], f[1]) + np.cross(f[0], df[1])], axis=-1)
+            dJ = cof.reshape(len(t), 9)[:, q]
+            dP = dP + self.kappa[:, None, None] * (dJ[:, None, None] * cof + (J - 1.0)[:, None, None] * dcof)
+            C[:, :, q] = dP.reshape(len(t), 9)
+        gN = np.concatenate([-self.Dm_inv.sum(axis=1, keepdims=True), self.Dm_inv], axis=1)  # (T, 4, 3)
+        G = np.zeros((len(t), 9, 12))  # dF_ij (row-major) per node dof (a, i)
+        for i in range(3):
+            for a in range(4):
+                G[:, 3 * i:3 * i + 3, 3 * a + i] = gN[:, a, :]
+        K = self.volume[:, None, None] * np.swapaxes(G, 1, 2) @ C @ G
+        K = 0.5 * (K + np.swapaxes(K, 1, 2))
+        w, U = np.linalg.eigh(K)
+        if clip:
+            K = (U * np.maximum(w, 0.0)[:, None, :]) @ np.swapaxes(U, 1, 2)
+        dof = (3 * t[:, :, None] + np.arange(3)).reshape(len(t), 12)
+        rows = np.broadcast_to(dof[:, :, None], K.shape).ravel()
+        cols = np.broadcast_to(dof[:, None, :], K.shape).ravel()
+        N3 = 3 * len(x)
+        M = coo_matrix((K.ravel(), (rows, cols)), shape=(N3, N3)).tocsr()
+        M = M + diags(np.repeat(self.gum, 3))
+        if len(self.contact_pairs):  # the engaged contact springs
+            on = self.contact_pairs[x[self.contact_pairs[:, 0], 1] < x[self.contact_pairs[:, 1], 1]]
+            M = M + _rest_stiffness(x, t[:0], self.Dm_inv[:0], self.volume[:0], self.mu[:0], self.lam[:0],
+                                    np.zeros(len(x)), on, self.contact_stiffness)
+        return M
+
+    def solve(self, force: np.ndarray, prescribed: np.ndarray, x0: np.ndarray | None = None,
+              gum_target: np.ndarray | None = None, tol: float = 1e-4, maxiter: int = 100,
+              callback=None) -> np.ndarray:
+        """Equilibrium positions (2n, 3): minimise the energy over the free nodes.
+
+        A Newton-like descent preconditioned by the rest stiffness :attr:`K0` (factorised once):
+        each step is ``-K0^-1 g``, shortened by backtracking until the energy decreases (Armijo),
+        so the energy decreases monotonically. Stops when the step is below ``tol`` mm.
+
+        Parameters
+        ----------
+        force : (2n, 3) float
+            Dead loads on the nodes.
+        prescribed : (2n, 3) float
+            Positions of the fixed nodes (the others' entries are ignored).
+        x0 : (2n, 3) float, optional
+            Start (warm start: the previous frame); the rest by default.
+        callback : callable, optional
+            Called with the energy after each accepted step.
+        """
+        free = ~self.fixed
+        x = (self.rest if x0 is None else np.asarray(x0, float)).copy()
+        x[self.fixed] = prescribed[self.fixed]
+        solve = self.cache.get("last", self._factor())  # the latest tangent: frames are alike
+        e, g = self.energy_grad(x, force, gum_target)
+        fresh = False
+        for it in range(maxiter):
+            step = -solve(g[free].ravel()).reshape(-1, 3)
+            slope = float(np.sum(g[free] * step))
+            alpha, trial = 1.0, x.copy()
+            while True:
+                trial[free] = x[free] + alpha * step
+                e_new, g_new = self.energy_grad(trial, force, gum_target)
+                if e_new <= e + 1e-4 * alpha * slope or alpha < 1e-6:
+                    break
+                alpha *= 0.5
+            if e_new > e:  # no decrease possible at this precision: converged
+                break
+            x, e, g = trial, e_new, g_new
+            if callback is not None:
+                callback(e)
+            if alpha * np.abs(step).max() < tol:
+                break
+            if (alpha < 1.0 or it % 5 == 4) and not (fresh and alpha == 1.0):  # a new tangent
+                solve, fresh = self._factor(x), True
+                self.cache["last"] = solve
+        else:
+            log.warning("truth layer: no equilibrium after %d steps (last step %.2g mm)", maxiter,
+                        alpha * np.abs(step).max())
+        self.iterations.append(it + 1)
+        return x
+
+    def _factor(self, x: np.ndarray | None = None):
+        """A solver with the free block of K0 (``x`` None, cached) or of the tangent at ``x``."""
+        from scipy.sparse.linalg import factorized
+
+        dof_free = np.repeat(~self.fixed, 3)
+        if x is not None:
+            K = self.tangent(x)[dof_free][:, dof_free]
+            return factorized((K + 1e-9 * self.cache["diag"]).tocsc())
+        if "solve" not in self.cache:
+            self.cache["solve"] = factorized(self.K0[dof_free][:, dof_free].tocsc())
+        return self.cache["solve"]
+
+
+def _rest_stiffness(rest, tets, Dm_inv, volume, mu, lam, gum, pairs, kc):
+    """(3N, 3N) linear-elastic stiffness of the tets at rest (Lamé ``lam``, ``mu``), plus springs."""
+    from scipy.sparse import coo_matrix
+
+    gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3) shape gradients
+    # K[a, i, b, k] = V (lam dNa_i dNb_k + mu dNa_k dNb_i + mu delta_ik dNa . dNb)
+    K = (lam[:, None, None, None, None] * np.einsum("tai,tbk->taibk", gN, gN)
+         + mu[:, None, None, None, None] * np.einsum("tak,tbi->taibk", gN, gN)
+         + mu[:, None, None, None, None] * np.einsum("taj,tbj,ik->taibk", gN, gN, np.eye(3)))
+    K *= volume[:, None, None, None, None]
+    dof = (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 12)
+    rows = np.broadcast_to(dof[:, :, None], (len(tets), 12, 12)).ravel()
+    cols = np.broadcast_to(dof[:, None, :], (len(tets), 12, 12)).ravel()
+    N3 = 3 * len(rest)
+    M = coo_matrix((K.reshape(len(tets), 12, 12).ravel(), (rows, cols)), shape=(N3, N3)).tocsr()
+    d = np.repeat(gum, 3).astype(float)
+    if len(pairs):  # the contact springs as if engaged: a preconditioner only
+        up, lo = 3 * pairs[:, 0] + 1, 3 * pairs[:, 1] + 1
+        r = np.concatenate([up, lo, up, lo])
+        c = np.concatenate([up, lo, lo, up])
+        v = np.concatenate([np.full(len(up), kc), np.full(len(up), kc), np.full(len(up), -kc),
+                            np.full(len(up), -kc)])
+        M = M + coo_matrix((v, (r, c)), shape=(N3, N3)).tocsr()
+    from scipy.sparse import diags
+
+    return (M + diags(d)).tocsr()
+
+
+def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float = 0.45,
+                kappa_ratio: float = 20.0, anchors=None, contact_pairs=None, contact_stiffness: float = 50.0,
+                gum_nodes: np.ndarray | None = None, gum_stiffness: float = 5.0) -> Layer:
+    """A :class:`Layer` under ``mesh``'s surface.
+
+    Parameters
+    ----------
+    mesh : LipMesh
+        The truth's rest surface; its face orientation gives the outward side (the layer goes the
+        other way, into the tissue).
+    young : (m,) float
+        Young's modulus per face (the model's relative units).
+    thickness : (n,) float
+        Layer thickness under each node, mm.
+    poisson : float
+        Poisson's ratio of the StVK part (< 0.5).
+    kappa_ratio : float
+        Volume penalty as a multiple of the shear modulus (near-incompressibility).
+    anchors : (a,) int, optional
+        Surface nodes held (with their inner copies); ``mesh.anchors`` by default.
+    contact_pairs : (p, 2) int, optional
+        [upper, lower] surface node pairs kept from crossing in y.
+    gum_nodes : (n,) float, optional
+        Weight of each surface node's inner copy's spring to the jaw (0 .. 1).
+    """
+    V, Fc = mesh.vertices, mesh.faces
+    n = len(V)
+    young = np.broadcast_to(np.asarray(young, float), (len(Fc),))
+    thickness = np.broadcast_to(np.asarray(thickness, float), (n,))
+    if not 0 <= poisson < 0.5:
+        raise ValueError(f"poisson must be in [0, 0.5), got {poisson}")
+    if (thickness <= 0).any() or (young <= 0).any():
+        raise ValueError("layer thickness and Young's modulus must be positive")
+    N = _vertex_normals(V, Fc)
+    rest = np.vstack([V, V - thickness[:, None] * N])
+    tets, tface = _prism_tets(Fc, n)
+    Dm = np.stack([rest[tets[:, k]] - rest[tets[:, 0]] for k in (1, 2, 3)], axis=-1)
+    det = np.linalg.det(Dm)
+    flip = det < 0
+    tets[flip] = tets[flip][:, [0, 2, 1, 3]]
+    Dm[flip] = Dm[flip][..., [1, 0, 2]]
+    det = np.abs(det)
+    if (det < 1e-12).any():
+        raise ValueError("degenerate layer tetrahedra: the thickness is too small for the mesh")
+    E = young[tface]
+    mu = E / (2 * (1 + poisson))
+    lam = E * poisson / ((1 + poisson) * (1 - 2 * poisson))
+    fixed = np.zeros(2 * n, bool)
+    a = mesh.anchors if anchors is None else np.asarray(anchors)
+    fixed[a] = fixed[a + n] = True
+    gum = np.zeros(2 * n)
+    if gum_nodes is not None:
+        gum[n:] = gum_stiffness * np.asarray(gum_nodes, float)
+    pairs = np.zeros((0, 2), np.int64) if contact_pairs is None else np.asarray(contact_pairs, np.int64)
+    from scipy.sparse import coo_matrix
+
+    T = len(tets)
+    scatter = coo_matrix((np.ones(4 * T), (tets.T.ravel(), np.arange(4 * T))), shape=(2 * n, 4 * T)).tocsr()
+    Dm_inv, vol, kappa = np.linalg.inv(Dm), det / 6.0, kappa_ratio * mu
+    # at rest the volume penalty adds kappa to lambda (d det F = tr dF)
+    K0 = _rest_stiffness(rest, tets, Dm_inv, vol, mu, lam + kappa, gum, pairs, float(contact_stiffness))
+    springs = _rest_stiffness(rest, tets[:0], Dm_inv[:0], vol[:0], mu[:0], lam[:0], gum, pairs,
+                              float(contact_stiffness))
+    dof_free = np.repeat(~fixed, 3)
+    diag = K0.diagonal()[dof_free]
+    from scipy.sparse import diags
+
+    return Layer(rest, tets, Dm_inv, vol, mu, lam, kappa, fixed, pairs, float(contact_stiffness), gum,
+                 scatter, K0, {"springs": springs, "diag": diags(diag)})

@@ -1,0 +1,145 @@
+"""The truth's nonlinear tissue layer: closed forms, the linear limit, monotone energy, and
+measured departures from linear theory."""
+
+import numpy as np
+import pytest
+
+from lipgen.mesh.procedural import lip_mesh
+from lipgen.subject.layer import build_layer, stvk_energy_density
+
+
+@pytest.fixture(scope="module")
+def small():
+    m = lip_mesh(0)
+    return m, build_layer(m, np.ones(m.n_faces), np.full(m.n_nodes, 1.5), poisson=0.3, kappa_ratio=2.0)
+
+
+def _affine_energy(layer, A):
+    x = layer.rest @ A.T
+    return layer.energy_grad(x, np.zeros_like(x))[0]
+
+
+def test_homogeneous_deformation_matches_the_closed_form(small):
+    _, L = small
+    mu, lam, kappa = L.mu[0], L.lam[0], L.kappa[0]
+    V = L.volume.sum()
+    rng = np.random.default_rng(0)
+    for eps in (1e-3, 0.3):
+        A = np.eye(3) + eps * rng.normal(size=(3, 3))
+        want = V * (stvk_energy_density(A, mu, lam) + 0.5 * kappa * (np.linalg.det(A) - 1) ** 2)
+        assert _affine_energy(L, A) == pytest.approx(want, rel=1e-10)
+
+
+def test_small_strain_energy_is_linear_elasticity_and_large_strain_is_not(small):
+    _, L = small
+    mu, lam = L.mu[0], L.lam[0] + L.kappa[0]  # at rest the volume penalty adds to lambda
+    V = L.volume.sum()
+    G = np.array([[0.3, 0.1, 0.0], [0.05, -0.2, 0.1], [0.0, 0.2, 0.1]])
+
+    def linear(eps):
+        e = 0.5 * eps * (G + G.T)
+        return V * (mu * np.sum(e * e) + 0.5 * lam * np.trace(e) ** 2)
+
+    small_ratio = _affine_energy(L, np.eye(3) + 1e-4 * G) / linear(1e-4)
+    large_ratio = _affine_energy(L, np.eye(3) + 1.0 * G) / linear(1.0)
+    assert small_ratio == pytest.approx(1.0, abs=1e-3)
+    assert abs(large_ratio - 1.0) > 0.05  # measured: the geometric nonlinearity at 20-30 % strain
+
+
+def test_the_solver_agrees_with_the_linear_solve_for_small_loads_and_not_for_large(small):
+    from scipy.sparse.linalg import spsolve
+
+    m, L = small
+    f = np.zeros_like(L.rest)
+    k = m.marker_index("corner_left")
+    f[k] = [0.02, 0.01, -0.005]
+    free = ~L.fixed
+    dof = np.repeat(free, 3)
+    lin = np.zeros_like(L.rest)
+    lin[free] = spsolve(L.K0[dof][:, dof].tocsc(), f[free].ravel()).reshape(-1, 3)
+    energies = []
+    x = L.solve(1e-3 * f, L.rest, callback=energies.append, tol=1e-12)
+    u = (x - L.rest) / 1e-3
+    assert np.linalg.norm(u - lin) / np.linalg.norm(lin) < 2e-3
+    big = L.solve(200 * f, L.rest, callback=energies.append)
+    rel = np.linalg.norm((big - L.rest) - 200 * lin) / np.linalg.norm(200 * lin)
+    print(f"large load: {np.linalg.norm(200 * lin[k]):.2f} mm linear, relative difference {rel:.3f}")
+    assert rel > 0.05
+    assert np.all(np.diff(energies[: L.iterations[0]]) <= 0)
+    assert np.all(np.diff(energies[L.iterations[0]:]) <= 0)
+
+
+def _volume_ratios(L, x):
+    t = L.tets
+    Ds = np.stack([x[t[:, k]] - x[t[:, 0]] for k in (1, 2, 3)], axis=-1)
+    return np.linalg.det(Ds) / 6.0 / L.volume
+
+
+def test_squeezed_lips_keep_their_volume():
+    m = lip_mesh(0)
+    n = m.n_nodes
+    lips = np.zeros(n, bool)
+    lips[m.region_nodes("lip")] = True
+    out = {}
+    for name, nu, kappa in (("incompressible", 0.45, 20.0), ("compressible", 0.0, 0.0)):
+        L = build_layer(m, np.ones(m.n_faces), np.full(m.n_nodes, 1.5), poisson=nu, kappa_ratio=kappa)
+        f = np.zeros_like(L.rest)
+        f[:n][lips, 0] = -0.5 * m.vertices[lips, 0] / 25.0  # the corners pulled in (a pucker)
+        f[n:][lips, 0] = f[:n][lips, 0]
+        x = L.solve(f, L.rest)
+        assert np.ptp(x[:n][lips, 0]) < 0.97 * np.ptp(L.rest[:n][lips, 0])  # it was squeezed
+        out[name] = np.mean(np.abs(_volume_ratios(L, x) - 1.0))
+    print(out)
+    assert out["incompressible"] < 0.3 * out["compressible"]
+
+
+def test_contact_keeps_the_lips_from_crossing():
+    from lipgen.subject.motion import _contact_pairs
+
+    m = lip_mesh(0)
+    pairs = _contact_pairs(m)
+    L = build_layer(m, np.ones(m.n_faces), np.full(m.n_nodes, 1.0), contact_pairs=pairs,
+                    contact_stiffness=200.0)
+    f = np.zeros_like(L.rest)
+    f[pairs[:, 0], 1] = -0.4  # the upper lip pushed down
+    f[pairs[:, 1], 1] = 0.4  # the lower lip pushed up
+    free = ~L.fixed
+    dof = np.repeat(free, 3)
+    from scipy.sparse.linalg import spsolve
+
+    K = build_layer(m, np.ones(m.n_faces), np.full(m.n_nodes, 1.0)).K0
+    lin = np.zeros_like(L.rest)
+    lin[free] = spsolve(K[dof][:, dof].tocsc(), f[free].ravel()).reshape(-1, 3)
+    crossed_lin = (L.rest + lin)[pairs[:, 0], 1] - (L.rest + lin)[pairs[:, 1], 1]
+    assert crossed_lin.min() < -1.0  # without contact they would cross by more than a millimetre
+    x = L.solve(f, L.rest)
+    gap = x[pairs[:, 0], 1] - x[pairs[:, 1], 1]
+    assert gap.min() > -0.05
+
+
+def test_bad_layers_are_refused():
+    m = lip_mesh(0)
+    with pytest.raises(ValueError, match="poisson"):
+        build_layer(m, np.ones(m.n_faces), np.ones(m.n_nodes), poisson=0.5)
+    with pytest.raises(ValueError, match="positive"):
+        build_layer(m, np.ones(m.n_faces), np.zeros(m.n_nodes))
+
+
+def test_the_layered_subject_moves_like_its_calibration_and_unlike_the_linear_model():
+    from lipgen.subject.activation import ACTIONS
+    from lipgen.subject.motion import ACTION_TARGETS_MM, default_subject, simulate
+    from lipgen.subject.truth import with_layer
+
+    linear = default_subject(0, subject_seed=1)
+    layered = with_layer(linear)
+    A = np.zeros((3, len(ACTIONS)))
+    a = ACTIONS.index("lip_corner_puller_left")
+    A[:, a] = [0.01, 1.0, 1.8]
+    lin, non = simulate(linear, A), simulate(layered, A)
+    marker = layered.mesh.marker_index(ACTION_TARGETS_MM["lip_corner_puller_left"][0])
+    small = np.linalg.norm(non.displacements[0, marker]) / 0.01
+    assert small == pytest.approx(np.linalg.norm(linear.responses[a, marker]), rel=0.02)  # calibrated
+    d_lin, d_non = lin.displacements[2], non.displacements[2]
+    rel = np.linalg.norm(d_non - d_lin) / np.linalg.norm(d_lin)
+    print(f"1.8 x corner puller: nonlinear layer vs linear subject differ by {rel:.2f} (relative)")
+    assert rel > 0.1
