@@ -27,6 +27,7 @@ import numpy as np
 from lipgen._io import load_npz
 from lipgen.errors import DatasetError, ModelFileError
 from lipgen.rig.camera import VIEWS, MirrorRig
+from lipgen.rig.conditions import ImageConditions
 
 __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "TRUTH_FIELDS",
            "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels"]
@@ -79,6 +80,8 @@ class GenerateSettings:
     """Also write each raw frame's depth (``depth/NNNNNN.npz``: view-camera z in mm, NaN off the face)."""
     masks: bool = False
     """Also write each raw frame's label mask (``masks/NNNNNN.png``: ids in ``manifest['mask_labels']``)."""
+    conditions: ImageConditions = ImageConditions()
+    """Lens, mirror, light and sensor (:mod:`lipgen.rig.conditions`); the default is the ideal camera."""
 
     def __post_init__(self) -> None:
         def whole(name, lo, hi):
@@ -111,10 +114,15 @@ class GenerateSettings:
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         c, r, sq = self.board
         object.__setattr__(self, "board", (int(c), int(r), float(sq)))
+        if isinstance(self.conditions, dict):  # as to_dict() writes it
+            object.__setattr__(self, "conditions", ImageConditions.from_dict(self.conditions))
+        if not isinstance(self.conditions, ImageConditions):
+            raise TypeError(f"conditions must be ImageConditions, got {type(self.conditions).__name__}")
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
+        d["conditions"] = self.conditions.to_dict()
         return d
 
     @classmethod
