@@ -51,6 +51,7 @@ TRUTH_FIELDS: dict[str, str] = {
     "facing": "(2, k) the surface faces the view camera",
     "visible": "(2, k) in_image and not occluded and facing",
     "dot_visible_fraction": "(2, k) share of the ink dot's rim seen", "views": "(2,) view names",
+    "uv_exposure": "(2, 2, k, 2) projections when the shutter opens and closes (only with motion blur)",
 }
 _REQUIRED = ("format", "schema_version", "units", "convention", "seed", "settings", "rig", "views", "mesh",
              "marks", "actions", "frames", "calibration", "lipgen_version")
