@@ -87,7 +87,8 @@ def test_mirror_tint_ghost_and_edge():
     virt, real = former.views([tuple(views)])
     inside = former.mirror_mask[..., 0]
     lin = srgb_decode(np.uint8(188))
-    expected = lin * 0.85 * np.array([0.9, 1.0, 0.95]) * (0.96 ** 2 + 0.04 / (0.85 * np.array([0.9, 1, 0.95])))
+    tint = 0.85 * np.array([0.9, 1.0, 0.95])
+    expected = lin * (tint * 0.96 ** 2 + 0.04)
     np.testing.assert_allclose(virt[inside].mean(axis=0), expected, rtol=1e-3)
     assert virt[~inside].max() < 0.05  # the dark room beyond the edge
     np.testing.assert_allclose(real, lin, rtol=1e-6)
