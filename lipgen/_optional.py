@@ -17,6 +17,7 @@ _HINTS = {
     "bpy": "pip install 'lipgen[blender]'  (bpy==5.0.1 needs Python 3.11)",
     "skfem": "pip install scikit-fem",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
+    "imageio_ffmpeg": "pip install 'lipgen[video]'  (imageio-ffmpeg, a wheel that ships ffmpeg)",
 }
 
 

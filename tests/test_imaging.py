@@ -127,9 +127,47 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
     from lipgen.dataset.layout import Dataset
 
     s = preset_settings("hard", frames=3, seed=2, size=(320, 240), calib_frames=1, script="AA:0.1 OO:0.1")
+    s = replace(s, conditions=replace(s.conditions, video_codec="h264"))
     a, b = generate(tmp_path / "a", s, progress=False), generate(tmp_path / "b", s, progress=False)
     files = sorted(p.relative_to(a) for p in Path(a).rglob("*") if p.is_file())
     assert files and all((Path(a) / f).read_bytes() == (Path(b) / f).read_bytes() for f in files)
     ds = Dataset(a)
     assert ds.rig.camera.dist is not None and "lighting" in ds.manifest
     assert ds[1].truth["uv_exposure"].shape == (2, 2, 17, 2)
+    from lipgen.dataset.video import read_video_frames
+
+    video = list(read_video_frames(Path(a) / ds.manifest["video"]["file"]))
+    assert len(video) == 3 and np.abs(video[2].astype(int) - ds[2].image).mean() < 4
+
+
+def test_video_round_trip_keeps_count_and_order(tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    from lipgen.dataset.video import read_video_frames, write_video
+
+    frames = []
+    for k in range(12):  # frame k carries its number as a bright block at column 8 k
+        f = np.full((48, 128, 3), 30, np.uint8)
+        f[8:40, 8 * k:8 * k + 8] = 230
+        frames.append(f)
+    path = write_video(tmp_path / "v.mp4", frames, fps=30.0, crf=18)
+    back = list(read_video_frames(path))
+    assert len(back) == len(frames)
+    for k, f in enumerate(back):
+        assert int(np.argmax(f[24, :, 1].reshape(16, 8).mean(axis=1))) == k
+        assert np.abs(f.astype(int) - frames[k]).mean() < 3
+    again = write_video(tmp_path / "w.mp4", frames, fps=30.0, crf=18)
+    assert again.read_bytes() == path.read_bytes()  # one x264 thread: the same bytes
+
+
+def test_bad_video_and_preset_requests_write_nothing(tmp_path):
+    from lipgen.cli import main
+
+    with pytest.raises(ValueError, match="unknown video codec 'vp9'"):
+        ImageConditions(video_codec="vp9")
+    for argv in (["--preset", "medium"], ["--video", "vp9"]):
+        try:
+            code = main(["generate", "--frames", "2", "--out", str(tmp_path / "x"), *argv])
+        except SystemExit as exc:
+            code = exc.code
+        assert code != 0
+        assert not (tmp_path / "x").exists()

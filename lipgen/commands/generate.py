@@ -19,6 +19,14 @@ examples:
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2
   lipgen generate --frames 150 --seed 1 --out data/s1 --workers 2 --resume
   lipgen generate --frames 30 --depth --masks --out data/s2
+  lipgen generate --frames 150 --preset hard --out data/hard0
+  lipgen generate --frames 150 --preset default --video h264 --video-crf 20 --out data/v0
+
+presets (image conditions; lipgen.dataset.presets): easy = today's ideal frames (pinhole, fixed
+light, 1 grey level of noise, PNG; the default); default = a good laboratory recording; hard = an
+ordinary camera: lens distortion, defocus, motion blur, light/exposure/white balance varying per
+seed, a real mirror (tint, ghost, edge), shot and read noise, Bayer demosaicing, JPEG 85.
+--video also writes video.mp4 (H.264 of the raw frames, in order) beside the PNGs.
 """
 
 
@@ -48,7 +56,13 @@ def add_parser(sub) -> None:
     opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
     opt("--fps", type=float, default=30.0, help="frame rate (default 30)")
     opt("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
-    opt("--noise", type=float, default=1.0, help="sensor noise, grey levels std (default 1)")
+    opt("--preset", default="easy", choices=["easy", "default", "hard"],
+        help="image conditions: lens, light, mirror, sensor (default easy: today's ideal frames)")
+    opt("--video", default=None, metavar="CODEC",
+        help="also deliver the frames as one video, video.mp4 (codec: h264)")
+    opt("--video-crf", type=int, default=None, help="video quality, x264 CRF 0 (lossless)..51 (default 18)")
+    opt("--noise", type=float, default=None,
+        help="extra Gaussian noise, grey levels std (default: 1 with --preset easy, else 0)")
     opt("--head-rotation", type=float, default=4.0, help="head rotation range, degrees (default 4)")
     opt("--head-translation", type=float, default=4.0, help="head translation range, mm (default 4)")
     opt("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
@@ -60,14 +74,21 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
-    from lipgen.dataset.generate import generate
-    from lipgen.dataset.layout import GenerateSettings
+    from dataclasses import replace
 
-    settings = GenerateSettings(
-        frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.presets import preset_settings
+
+    extra = {} if args.noise is None else {"noise": args.noise}
+    if args.video is not None or args.video_crf is not None:
+        cond = preset_settings(args.preset).conditions
+        extra["conditions"] = replace(cond, video_codec=args.video or "h264",
+                                      video_crf=18 if args.video_crf is None else args.video_crf)
+    settings = preset_settings(
+        args.preset, frames=args.frames, seed=args.seed, script=args.script, size=args.size, fps=args.fps,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
-        head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks)
+        head_translation_mm=args.head_translation, dot_diameter=args.dot_diameter,
+        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, **extra)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

@@ -333,6 +333,13 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__)
     if not s.conditions.is_ideal:
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))
+    if s.conditions.video_codec:
+        from lipgen.dataset.video import check_video_codec
+
+        check_video_codec(s.conditions.video_codec)  # before anything is written
+        manifest["video"] = {"file": VIDEO_FILE, "codec": s.conditions.video_codec, "fps": s.fps,
+                             "crf": s.conditions.video_crf, "frames": s.frames,
+                             "content": "the raw frames in order, H.264 (yuv420p)"}
     if not _prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
@@ -387,5 +394,25 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
                     raise
     finally:
         bar.close()
+    if s.conditions.video_codec and not (out / VIDEO_FILE).is_file():
+        _write_video(out, s)
     return out
+
+
+VIDEO_FILE = "video.mp4"
+
+
+def _write_video(out: Path, s: GenerateSettings) -> None:
+    """Encode the written raw frames, in order, as the dataset's video (atomically)."""
+    from PIL import Image
+
+    from lipgen.dataset.video import write_video
+
+    def frames():
+        for i in range(s.frames):
+            with Image.open(frame_paths(out, i)[0]) as im:
+                yield np.asarray(im.convert("RGB"))
+
+    log.info("encoding %d frames as %s video", s.frames, s.conditions.video_codec)
+    write_video(out / VIDEO_FILE, frames(), s.fps, s.conditions.video_codec, s.conditions.video_crf)
 

@@ -13,14 +13,16 @@ electrons); pixel sizes refer to the full-resolution raw frame.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 
 import numpy as np
 
-__all__ = ["ImageConditions", "CODECS"]
+__all__ = ["ImageConditions", "CODECS", "VIDEO_CODECS"]
 
 CODECS = ("png", "jpeg")
 """How raw frames are stored: lossless PNG, or PNG of the JPEG-decoded frame (``jpeg_quality``)."""
+VIDEO_CODECS = ("h264",)
+"""Codecs of the optional video of the frames (``video_codec``)."""
 
 
 def _check_range(name: str, value, lo: float, hi: float) -> float:
@@ -77,6 +79,10 @@ class ImageConditions:
         ``"png"`` (lossless) or ``"jpeg"`` (the camera compresses; stored decoded).
     jpeg_quality : int
         JPEG quality, 1..100 (with ``codec="jpeg"``).
+    video_codec : str
+        ``""`` (no video) or ``"h264"``: the frames are also delivered as one video, ``video.mp4``.
+    video_crf : int
+        x264's constant rate factor, 0 (lossless) .. 51; 18 is visually lossless.
     """
 
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -98,6 +104,8 @@ class ImageConditions:
     bayer: bool = False
     codec: str = "png"
     jpeg_quality: int = 95
+    video_codec: str = ""
+    video_crf: int = 18
 
     def __post_init__(self) -> None:
         def vec(name, n, lo, hi):
@@ -119,7 +127,7 @@ class ImageConditions:
         if self.aperture_px > 0 and self.focus_mm <= 0:
             raise ValueError(f"ImageConditions.aperture_px = {self.aperture_px} needs focus_mm > 0 "
                              "(the distance the lens is focused at, mm)")
-        for name, lo, hi in (("blur_samples", 1, 64), ("jpeg_quality", 1, 100)):
+        for name, lo, hi in (("blur_samples", 1, 64), ("jpeg_quality", 1, 100), ("video_crf", 0, 51)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
                 raise ValueError(f"ImageConditions.{name} must be a whole number in [{lo}, {hi}], got {v!r}")
@@ -132,6 +140,9 @@ class ImageConditions:
                 raise ValueError(f"ImageConditions.{name} must be True or False, got {getattr(self, name)!r}")
         if self.codec not in CODECS:
             raise ValueError(f"ImageConditions.codec must be one of {CODECS}, got {self.codec!r}")
+        if self.video_codec not in ("", *VIDEO_CODECS):
+            raise ValueError(f"unknown video codec {self.video_codec!r}; choose one of {VIDEO_CODECS} "
+                             "(or none)")
 
     # ---- what is on ---------------------------------------------------------------------------
     @property
@@ -155,8 +166,8 @@ class ImageConditions:
 
     @property
     def is_ideal(self) -> bool:
-        """Every effect off (the ideal renderer's frames)."""
-        return self == ImageConditions()
+        """Every effect off (the ideal renderer's frames; a video may still be written)."""
+        return replace(self, video_codec="", video_crf=18) == ImageConditions()
 
     # ---- files --------------------------------------------------------------------------------
     def to_dict(self) -> dict:
