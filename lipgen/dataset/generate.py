@@ -131,7 +131,7 @@ def _init_worker(ctx: _Context) -> None:
     c = s.conditions
     rig = rig_for(s.size, c)
     mesh = LipMesh.load(ctx.mesh_path)
-    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter))
+    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed))
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
                    renderer=RigRenderer(rig, c.mirror_reflectance, shadows=c.shadows))
     if not c.is_ideal:

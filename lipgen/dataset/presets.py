@@ -36,7 +36,7 @@ PRESETS: dict[str, dict] = {
             distortion=(-0.08, 0.03, 0.0005, -0.0003, 0.0), focus_mm=330.0, aperture_px=6.0,
             shutter=0.15, blur_samples=3, light_jitter=0.3, mirror_reflectance=0.88,
             mirror_tint=(0.96, 1.0, 0.97), ghost=0.02, glass_mm=2.0, full_well=20000.0, read_noise=1.0,
-            codec="jpeg", jpeg_quality=95),
+            codec="jpeg", jpeg_quality=95, texture=0.6),
     },
     "hard": {
         "noise": 0.0,
@@ -44,7 +44,7 @@ PRESETS: dict[str, dict] = {
             distortion=(-0.15, 0.10, 0.0012, -0.0008, 0.0), focus_mm=340.0, aperture_px=12.0,
             shutter=0.25, blur_samples=5, light_jitter=1.0, mirror_reflectance=0.85,
             mirror_tint=(0.93, 1.0, 0.95), ghost=0.04, glass_mm=3.0, mirror_extent_mm=(70.0, 90.0),
-            full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85),
+            full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85, texture=1.0),
     },
 }
 

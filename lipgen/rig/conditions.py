@@ -79,6 +79,9 @@ class ImageConditions:
         ``"png"`` (lossless) or ``"jpeg"`` (the camera compresses; stored decoded).
     jpeg_quality : int
         JPEG quality, 1..100 (with ``codec="jpeg"``).
+    texture : float
+        Strength of the subject's procedural skin and lip textures (pores, blotches, lip lines;
+        skin tone drawn per subject), 0 for plain colours.
     video_codec : str
         ``""`` (no video) or ``"h264"``: the frames are also delivered as one video, ``video.mp4``.
     video_crf : int
@@ -104,6 +107,7 @@ class ImageConditions:
     bayer: bool = False
     codec: str = "png"
     jpeg_quality: int = 95
+    texture: float = 0.0
     video_codec: str = ""
     video_crf: int = 18
 
@@ -122,7 +126,7 @@ class ImageConditions:
         for name, lo, hi in (("focus_mm", 0, 1e5), ("aperture_px", 0, 50), ("shutter", 0, 1),
                              ("exposure", 0.05, 20), ("light_jitter", 0, 1), ("mirror_reflectance", 0.05, 1),
                              ("ghost", 0, 0.5), ("glass_mm", 0, 20), ("full_well", 0, 1e7),
-                             ("read_noise", 0, 50)):
+                             ("read_noise", 0, 50), ("texture", 0, 1)):
             object.__setattr__(self, name, _check_range(name, getattr(self, name), lo, hi))
         if self.aperture_px > 0 and self.focus_mm <= 0:
             raise ValueError(f"ImageConditions.aperture_px = {self.aperture_px} needs focus_mm > 0 "

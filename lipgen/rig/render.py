@@ -170,7 +170,8 @@ class RigRenderer:
                 continue
             if old is not None:
                 self._drop(old)
-            groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided))
+            groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided,
+                                              None if m.texture is None else id(m.texture)))
             meshes = [_pyrender_mesh(pr, item, faces, mat) for faces, mat in groups]
             colour = [self._scene.add(m, name=m.name) for m in meshes]
             self._items[name] = {"key": key, "colour": colour,
@@ -292,7 +293,9 @@ def _fingerprint(item: MeshItem) -> str:
     h = hashlib.blake2b(digest_size=16)
     for a in (item.vertices, item.faces, item.normals, item.face_material):
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr(item.materials).encode())
+    h.update(repr([m.key for m in item.materials]).encode())
+    if item.uv is not None:
+        h.update(np.ascontiguousarray(item.uv).tobytes())
     return h.hexdigest()
 
 
@@ -310,11 +313,14 @@ def _groups(item: MeshItem, key) -> list[tuple[np.ndarray, object]]:
 def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat):
     """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer)."""
     used, inv = np.unique(faces, return_inverse=True)
+    textured = mat.texture is not None and item.uv is not None
     material = pr.MetallicRoughnessMaterial(
         baseColorFactor=np.append(srgb_to_linear(mat.color), 1.0), metallicFactor=0.0,
-        roughnessFactor=mat.roughness, doubleSided=mat.double_sided)
+        roughnessFactor=mat.roughness, doubleSided=mat.double_sided,
+        baseColorTexture=pr.Texture(source=mat.texture, source_channels="RGB") if textured else None)
     prim = pr.Primitive(positions=item.vertices[used].astype(np.float32),
                         normals=item.normals[used].astype(np.float32),
+                        texcoord_0=item.uv[used].astype(np.float32) if textured else None,
                         indices=inv.reshape(-1, 3).astype(np.uint32), material=material)
     return pr.Mesh([prim], name=f"{item.name}:{mat.name}")
 
