@@ -86,3 +86,22 @@ def test_calibration_recovers_the_lens():
     X = rng.uniform([-40, -35, -20], [40, 45, 25], (500, 3))
     for est, tru in zip(cal.views, rig.views, strict=True):
         assert np.abs(est.project(X) - tru.project(X)).max() < 0.3
+
+
+@pytest.mark.render
+def test_rendered_dots_on_textured_skin_land_on_the_truth_through_a_full_lens():
+    """pyrender with radial and tangential distortion (and the procedural textures): the rendered
+    ink dots' centroids agree with the truth projections."""
+    pytest.importorskip("pyrender")
+    pytest.importorskip("cv2")
+    from test_render import _centroid_errors, _frames
+
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.subject.face import FaceLook, FaceModel
+
+    face = FaceModel(lip_mesh(1), FaceLook(texture=1.0, texture_seed=4))
+    assert face.materials[0].texture is not None and face.uv is not None
+    err = _centroid_errors(_rig(DIST5), face, _frames(face.mesh, 1, seed=3))
+    assert len(err) >= 15
+    assert np.sqrt(np.mean(np.sum(err**2, axis=1))) < 0.5
+    assert np.abs(err.mean(axis=0)).max() < 0.15

@@ -206,6 +206,7 @@ def _render_job(job: tuple[str, int]):
         obj = w["board"].object_points()
         Xw = obj @ P[:3, :3].T + P[:3, 3]
         uv, _, inside = rig.project(Xw)
+        inside[0] &= on_mirror(rig, c.mirror_extent_mm, Xw)
         truth = {"index": np.int64(i), "A": P[:3, :3], "b": P[:3, 3], "pose": P, "corners_board": obj,
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
