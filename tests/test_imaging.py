@@ -126,7 +126,7 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import Dataset
 
-    s = preset_settings("hard", frames=3, seed=2, size=(320, 240), calib_frames=1, script="AA:0.1 OO:0.1")
+    s = preset_settings("hard", frames=3, seed=2, size=(320, 240), calib_frames=0, script="AA:0.1 OO:0.1")
     s = replace(s, conditions=replace(s.conditions, video_codec="h264"))
     a, b = generate(tmp_path / "a", s, progress=False), generate(tmp_path / "b", s, progress=False)
     files = sorted(p.relative_to(a) for p in Path(a).rglob("*") if p.is_file())
@@ -138,6 +138,15 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
 
     video = list(read_video_frames(Path(a) / ds.manifest["video"]["file"]))
     assert len(video) == 3 and np.abs(video[2].astype(int) - ds[2].image).mean() < 4
+    # the picture of a hard frame beside an easy one
+    from lipgen.cli import main
+    from lipgen.dataset.pictures import preset_of
+
+    easy = generate(tmp_path / "e", replace(s, conditions=ImageConditions(), noise=1.0), progress=False)
+    assert preset_of(Dataset(easy)) == "easy" and preset_of(ds) == "custom"  # hard + video
+    picture = tmp_path / "p.png"
+    assert main(["show", str(easy), "--beside", str(a), "--frame", "1", "--out", str(picture)]) == 0
+    assert picture.stat().st_size > 10_000
 
 
 def test_video_round_trip_keeps_count_and_order(tmp_path):
