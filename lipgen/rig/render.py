@@ -144,6 +144,7 @@ class RigRenderer:
         for v in self._views:
             self._scene.add_node(v.node)
         self._items: dict[str, dict] = {}
+        self._textures: dict[int, tuple] = {}  # id(array) -> (array, pyrender Texture): uploaded once
         self._lights: tuple = ()
         self._light_nodes: list = []
 
@@ -172,7 +173,7 @@ class RigRenderer:
                 self._drop(old)
             groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided,
                                               None if m.texture is None else id(m.texture)))
-            meshes = [_pyrender_mesh(pr, item, faces, mat) for faces, mat in groups]
+            meshes = [_pyrender_mesh(pr, item, faces, mat, self._textures) for faces, mat in groups]
             colour = [self._scene.add(m, name=m.name) for m in meshes]
             self._items[name] = {"key": key, "colour": colour,
                                  "label": self._add_label_nodes(item) if labels else None}
@@ -187,7 +188,7 @@ class RigRenderer:
     def _add_label_nodes(self, item: MeshItem) -> list:
         out = []
         for faces, mat in _groups(item, lambda m: m.label):
-            mesh = _pyrender_mesh(self.pyrender, item, faces, mat)
+            mesh = _pyrender_mesh(self.pyrender, item, faces, mat, self._textures)
             mesh.is_visible = False
             out.append((self._scene.add(mesh, name=f"label:{mesh.name}"), _label_color(mat.label)))
         return out
@@ -310,14 +311,22 @@ def _groups(item: MeshItem, key) -> list[tuple[np.ndarray, object]]:
     return [(item.faces[g == j], item.materials[i]) for j, i in enumerate(first.values()) if (g == j).any()]
 
 
-def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat):
-    """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer)."""
+def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | None = None):
+    """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer).
+
+    ``textures`` caches pyrender textures by image, so a texture shared by every frame stays on
+    the GPU (pyrender uploads a texture object once while some mesh uses it)."""
     used, inv = np.unique(faces, return_inverse=True)
     textured = mat.texture is not None and item.uv is not None
+    tex = None
+    if textured:
+        cache = {} if textures is None else textures
+        if id(mat.texture) not in cache:
+            cache[id(mat.texture)] = (mat.texture, pr.Texture(source=mat.texture, source_channels="RGB"))
+        tex = cache[id(mat.texture)][1]
     material = pr.MetallicRoughnessMaterial(
         baseColorFactor=np.append(srgb_to_linear(mat.color), 1.0), metallicFactor=0.0,
-        roughnessFactor=mat.roughness, doubleSided=mat.double_sided,
-        baseColorTexture=pr.Texture(source=mat.texture, source_channels="RGB") if textured else None)
+        roughnessFactor=mat.roughness, doubleSided=mat.double_sided, baseColorTexture=tex)
     prim = pr.Primitive(positions=item.vertices[used].astype(np.float32),
                         normals=item.normals[used].astype(np.float32),
                         texcoord_0=item.uv[used].astype(np.float32) if textured else None,
