@@ -24,9 +24,9 @@ __all__ = ["rig_for", "realize", "sub_frame_states", "exposure_offsets", "film_f
 _LIGHT_STREAM = 5
 
 
-def rig_for(size: tuple[int, int], conditions: ImageConditions) -> MirrorRig:
-    """The default rig at ``size`` with the lens distortion of ``conditions``."""
-    rig = default_rig(*size)
+def rig_for(size: tuple[int, int], conditions: ImageConditions, base=default_rig) -> MirrorRig:
+    """The rig ``base(width, height)`` (the default rig) with the lens distortion of ``conditions``."""
+    rig = base(*size)
     dist = conditions.lens_distortion
     if dist is None:
         return rig

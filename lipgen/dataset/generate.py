@@ -43,7 +43,7 @@ from lipgen.dataset.layout import (
     validate_manifest,
 )
 from lipgen.errors import DatasetError
-from lipgen.rig.camera import VIEWS, MirrorRig
+from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
 from lipgen.rig.render import RenderedFrame
 from lipgen.rig.visibility import occluded
@@ -129,7 +129,7 @@ def _init_worker(ctx: _Context) -> None:
 
     s = GenerateSettings.from_dict(ctx.settings)
     c = s.conditions
-    rig = rig_for(s.size, c)
+    rig = rig_for(s.size, c, default_rig)
     mesh = LipMesh.load(ctx.mesh_path)
     face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed))
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
@@ -324,7 +324,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
         raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
     s = GenerateSettings() if settings is None else settings
     out = Path(out)
-    rig = rig_for(s.size, s.conditions)
+    rig = rig_for(s.size, s.conditions, default_rig)
     motion = _simulate(s)
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
     rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
