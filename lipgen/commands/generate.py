@@ -23,6 +23,14 @@ examples:
   lipgen generate --frames 30 --depth --masks --out data/s2
   lipgen generate --speech speech.wav --text "The birch canoe slid on the smooth planks." --out data/s3
   lipgen generate --speech-text "Glue the sheet to the dark blue background." --out data/s4
+  lipgen generate --frames 150 --preset hard --out data/hard0
+  lipgen generate --frames 150 --preset default --video h264 --video-crf 20 --out data/v0
+
+presets (image conditions; lipgen.dataset.presets): easy = today's ideal frames (pinhole, fixed
+light, 1 grey level of noise, PNG; the default); default = a good laboratory recording; hard = an
+ordinary camera: lens distortion, defocus, motion blur, light/exposure/white balance varying per
+seed, a real mirror (tint, ghost, edge), shot and read noise, Bayer demosaicing, JPEG 85.
+--video also writes video.mp4 (H.264 of the raw frames, in order) beside the PNGs.
 """
 
 
@@ -65,7 +73,11 @@ def add_parser(sub) -> None:
     opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
     opt("--fps", type=float, default=30.0, help="frame rate (default 30)")
     opt("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
-    opt("--noise", type=float, default=None, help="sensor noise, grey levels std (preset: 1; hard 2)")
+    opt("--video", default=None, metavar="CODEC",
+        help="also deliver the frames as one video, video.mp4 (codec: h264)")
+    opt("--video-crf", type=int, default=None, help="video quality, x264 CRF 0 (lossless)..51 (default 18)")
+    opt("--noise", type=float, default=None,
+        help="extra Gaussian noise, grey levels std (preset: 1 with easy, else 0: a sensor model instead)")
     opt("--head-rotation", type=float, default=None, help="head rotation range, degrees (preset: 4; hard 8)")
     opt("--head-translation", type=float, default=None, help="head translation range, mm (preset: 4; hard 6)")
     opt("--subject-resolution", type=int, default=1, help="truth mesh resolution (default 1)")
@@ -92,6 +104,8 @@ def _frames(args) -> int:
 
 
 def _run(args) -> int:
+    from dataclasses import replace
+
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
 
@@ -99,12 +113,18 @@ def _run(args) -> int:
         raise ValueError("--text is the transcript of --speech; for text alone use --speech-text")
     if args.text and args.speech_text:
         raise ValueError("give the transcript once: --text (with --speech) or --speech-text")
+    video = {}
+    if args.video is not None or args.video_crf is not None:
+        cond = GenerateSettings.from_preset(args.preset).conditions
+        video["conditions"] = replace(cond, video_codec=args.video or "h264",
+                                      video_crf=18 if args.video_crf is None else args.video_crf)
     settings = GenerateSettings.from_preset(
         args.preset, frames=_frames(args), seed=args.seed, script=args.script, size=args.size, fps=args.fps,
         speech=args.speech, speech_text=args.text or args.speech_text,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed)
+        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed,
+        **video)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

@@ -28,6 +28,9 @@ def add_parser(sub) -> None:
     p.add_argument("--frame", type=int, default=0, help="frame number (default 0)")
     p.add_argument("--recon", help="also draw the marks tracked in this reconstruction (.npz)")
     p.add_argument("--out", required=True, help="picture to write (.png, .pdf, .svg)")
+    p.add_argument("--beside", default=None, metavar="DATASET",
+                   help="show the same frame of another dataset beside it (e.g. a --preset hard one beside "
+                   "an easy one), titled with their presets, with close-ups of the mouth")
     add_force(p)
     p.set_defaults(func=_run)
 
@@ -38,6 +41,12 @@ def _run(args) -> int:
 
     check_file_output(args.out, args.force)
     ds = Dataset(args.dataset)
+    if args.beside is not None:
+        from lipgen.dataset.pictures import save_side_by_side
+
+        out = save_side_by_side([ds, Dataset(args.beside)], args.frame, args.out)
+        sys.stdout.write(f"wrote {out}\n")
+        return 0
     if not 0 <= args.frame < len(ds):
         raise ValueError(f"--frame {args.frame} is out of range: {args.dataset} has frames 0..{len(ds) - 1}")
     tracked = None

@@ -29,6 +29,14 @@ from lipgen._io import (
     save_npz,
     stale_temporaries,
 )
+from lipgen.dataset.film import (
+    exposure_offsets,
+    film_frame,
+    lighting_record,
+    realize,
+    rig_for,
+    sub_frame_states,
+)
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -43,6 +51,8 @@ from lipgen.dataset.layout import (
 )
 from lipgen.errors import DatasetError
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
+from lipgen.rig.imaging import on_mirror
+from lipgen.rig.render import RenderedFrame
 from lipgen.rig.visibility import occluded
 from lipgen.subject.face import FaceLook, FaceModel
 
@@ -89,8 +99,12 @@ def _simulate(s: GenerateSettings, phones=None):
     return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
 
 
-def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray) -> dict:
+def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray,
+                mirror_extent=(0.0, 0.0)) -> dict:
     """Per-frame truth of the marks (16 markers then the nose) in both views.
+
+    ``mirror_extent`` (half width, half height, mm; 0 for infinite): marks whose reflection the
+    mirror's rectangle does not hold are not in the virtual view.
 
     Returns a dict of arrays named as :data:`lipgen.dataset.TRUTH_FIELDS` (views first).
     """
@@ -99,6 +113,7 @@ def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.
     tris = face.occluders(surf)
     rims = face.dot_rims(surf)
     uv, depth, inside = rig.project(X)
+    inside[0] &= on_mirror(rig, mirror_extent, X)
     k = len(X)
     occ, facing, frac = np.zeros((2, k), bool), np.zeros((2, k), bool), np.zeros((2, k))
     rim_pts = np.vstack([r[::2] for r in rims])  # every other rim point is plenty
@@ -110,7 +125,7 @@ def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.
         facing[v] = np.sum((cam.center - X) * N, axis=1) > 0
         seen = cam.in_view(rim_pts) & ~hidden[k:]
         if v == 0:
-            seen &= rig.mirror_distance(rim_pts) > 0
+            seen &= (rig.mirror_distance(rim_pts) > 0) & on_mirror(rig, mirror_extent, rim_pts)
         frac[v, : len(rims)] = np.bincount(owner, seen, len(rims)) / np.bincount(owner, minlength=len(rims))
         frac[v] *= facing[v]
     visible = inside & ~occ & facing
@@ -153,16 +168,24 @@ def _init_worker(ctx: _Context) -> None:
     from lipgen.rig.target import Chessboard
 
     s = GenerateSettings.from_dict(ctx.settings)
-    rig = default_rig(*s.size)
+    c = s.conditions
+    rig = rig_for(s.size, c, default_rig)
     mesh = LipMesh.load(ctx.mesh_path)
     dots = None
     if ctx.dots is not None:
         from lipgen.subject.inkdots import SurfaceDots
 
         dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
-    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter), dots=dots)
-    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, renderer=RigRenderer(rig),
-                   board=Chessboard(*s.board))
+    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed),
+                     dots=dots)
+    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
+                   renderer=RigRenderer(rig, c.mirror_reflectance, shadows=c.shadows))
+    if not c.is_ideal:
+        from lipgen.rig.imaging import FrameFormer
+
+        light = realize(c, s.seed)
+        _WORKER.update(lights=light["lights"], former=FrameFormer(rig, c, light["exposure"],
+                                                                   light["white_balance"]))
 
 
 def _png_bytes(image: np.ndarray, level: int) -> bytes:
@@ -193,12 +216,24 @@ def _render_job(job: tuple[str, int]):
     kind, i = job
     out = Path(ctx.out)
     rng = np.random.default_rng([s.seed, _NOISE_STREAM, 0 if kind == "frame" else 1, i])
+    c = s.conditions
     if kind == "frame":
         V, P = ctx.vertices[i], ctx.poses[i]
-        rendered = w["renderer"].render(w["face"].scene(V, P), depth=s.depth, labels=s.masks)
+        if c.is_ideal:
+            rendered = w["renderer"].render(w["face"].scene(V, P), depth=s.depth, labels=s.masks)
+        else:
+            ends = sub_frame_states(ctx.vertices, ctx.poses, i, c.sub_frame_offsets[[0, -1]])
+            uv_ends = [rig.project(w["face"].marks(Vs, Ps)[0])[0] for Vs, Ps in ends]
+            span = np.nanmax(np.linalg.norm(uv_ends[1] - uv_ends[0], axis=-1), initial=0.0)
+            offsets = exposure_offsets(c, float(span))
+            states = sub_frame_states(ctx.vertices, ctx.poses, i, offsets)
+            rendered = RenderedFrame(*film_frame(w["renderer"], w["former"], w["face"], states, w["lights"],
+                                                 rng, s.depth, s.masks))
         image = _noisy(rendered.image, s.noise, rng)
         extras = _extras(rendered, *extra_paths(out, i), s.png_compress_level)
-        truth = frame_truth(rig, w["face"], V, P)
+        truth = frame_truth(rig, w["face"], V, P, c.mirror_extent_mm)
+        if c.shutter > 0:  # where the marks were while the shutter was open (start, end)
+            truth["uv_exposure"] = np.stack(uv_ends)
         names = np.array(list(w["mesh"].marker_names) + ["nose"])
         truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
                      activations=ctx.activations[i], mark_names=names, views=np.array(VIEWS),
@@ -208,10 +243,16 @@ def _render_job(job: tuple[str, int]):
         from lipgen.rig.target import board_scene
 
         P = _calib_poses(rig, w["board"], s)[i]
-        image = _noisy(w["renderer"].render(board_scene(w["board"], P)).image, s.noise, rng)
+        if c.is_ideal:
+            image = w["renderer"].render(board_scene(w["board"], P)).image
+        else:
+            views = w["renderer"].render_views(board_scene(w["board"], P))
+            image = w["former"].form([(views[0][0], views[1][0])], rng)
+        image = _noisy(image, s.noise, rng)
         obj = w["board"].object_points()
         Xw = obj @ P[:3, :3].T + P[:3, 3]
         uv, _, inside = rig.project(Xw)
+        inside[0] &= on_mirror(rig, c.mirror_extent_mm, Xw)
         truth = {"index": np.int64(i), "A": P[:3, :3], "b": P[:3, 3], "pose": P, "corners_board": obj,
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
@@ -349,7 +390,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     from lipgen.mesh.lipmesh import LipMesh
 
     out = Path(out)
-    rig = default_rig(*s.size)
+    rig = rig_for(s.size, s.conditions, default_rig)
     phones, audio = _speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = _simulate(s, phones)
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
@@ -368,6 +409,15 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
 
         subject = (subject or {}) | {"preset": get_preset(s.preset).to_dict()}
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
+    if not s.conditions.is_ideal:
+        manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))
+    if s.conditions.video_codec:
+        from lipgen.dataset.video import check_video_codec
+
+        check_video_codec(s.conditions.video_codec)  # before anything is written
+        manifest["video"] = {"file": VIDEO_FILE, "codec": s.conditions.video_codec, "fps": s.fps,
+                             "crf": s.conditions.video_crf, "frames": s.frames,
+                             "content": "the raw frames in order, H.264 (yuv420p)"}
     if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
         from lipgen.rig.target import Chessboard, board_poses
 
@@ -492,5 +542,25 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
                     raise
     finally:
         bar.close()
+    if s.conditions.video_codec and not (out / VIDEO_FILE).is_file():
+        _write_video(out, s)
     return out
+
+
+VIDEO_FILE = "video.mp4"
+
+
+def _write_video(out: Path, s: GenerateSettings) -> None:
+    """Encode the written raw frames, in order, as the dataset's video (atomically)."""
+    from PIL import Image
+
+    from lipgen.dataset.video import write_video
+
+    def frames():
+        for i in range(s.frames):
+            with Image.open(frame_paths(out, i)[0]) as im:
+                yield np.asarray(im.convert("RGB"))
+
+    log.info("encoding %d frames as %s video", s.frames, s.conditions.video_codec)
+    write_video(out / VIDEO_FILE, frames(), s.fps, s.conditions.video_codec, s.conditions.video_crf)
 

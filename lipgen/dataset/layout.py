@@ -28,6 +28,7 @@ from lipgen._io import load_npz
 from lipgen.dataset.checks import FORMAT, SCHEMA, _check_number, check_relative, intact
 from lipgen.errors import DatasetError, ModelFileError
 from lipgen.rig.camera import VIEWS, MirrorRig
+from lipgen.rig.conditions import ImageConditions
 
 __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "TRUTH_FIELDS",
            "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels",
@@ -50,6 +51,7 @@ TRUTH_FIELDS: dict[str, str] = {
     "facing": "(2, k) the surface faces the view camera",
     "visible": "(2, k) in_image and not occluded and facing",
     "dot_visible_fraction": "(2, k) share of the ink dot's rim seen", "views": "(2,) view names",
+    "uv_exposure": "(2, 2, k, 2) projections when the shutter opens and closes (only with motion blur)",
 }
 """The arrays of a frame's truth file, with their shapes and units."""
 _REQUIRED = ("format", "schema_version", "units", "convention", "seed", "settings", "rig", "views", "mesh",
@@ -94,6 +96,9 @@ class GenerateSettings:
     """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
     None is ``easy`` (the data before presets, whose manifests name none)."""
 
+    conditions: ImageConditions = ImageConditions()
+    """Lens, mirror, light and sensor (:mod:`lipgen.rig.conditions`); the default is the ideal camera."""
+
     @classmethod
     def from_preset(cls, name: str, **overrides) -> GenerateSettings:
         """Settings of preset ``name`` (``easy``, ``default``, ``hard``), any field overridden by
@@ -103,7 +108,7 @@ class GenerateSettings:
         p = get_preset(name)
         base = {"head_rotation_deg": p.motion.head_rotation_deg,
                 "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
-                "dot_diameter": p.image.dot_diameter,
+                "dot_diameter": p.image.dot_diameter, "conditions": p.image.conditions,
                 "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
                 "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
         given = {k: v for k, v in overrides.items() if v is not None}
@@ -156,6 +161,10 @@ class GenerateSettings:
                 raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         c, r, sq = self.board
         object.__setattr__(self, "board", (int(c), int(r), float(sq)))
+        if isinstance(self.conditions, dict):  # as to_dict() writes it
+            object.__setattr__(self, "conditions", ImageConditions.from_dict(self.conditions))
+        if not isinstance(self.conditions, ImageConditions):
+            raise TypeError(f"conditions must be ImageConditions, got {type(self.conditions).__name__}")
 
     def to_dict(self) -> dict:
         """The settings as a JSON-ready dict (as stored in the manifest)."""
@@ -167,6 +176,7 @@ class GenerateSettings:
         for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]
+        d["conditions"] = self.conditions.to_dict()
         return d
 
     @classmethod

@@ -1,26 +1,40 @@
 """Difficulty presets: subject, motion and image conditions chosen together (``--preset``).
 
-A :class:`Preset` groups three frozen dataclasses, so each stage's conditions stay separate and
-other work can add fields to its own part (image realism adds its lens, sensor and texture
-settings to :class:`ImageConditions`):
+A :class:`Preset` groups three frozen dataclasses, so each stage's conditions stay separate:
+who is filmed (:class:`SubjectConditions`), how they move (:class:`MotionConditions`) and how the
+frames are formed (:class:`FrameConditions`, whose lens, mirror, light and sensor are one
+:class:`~lipgen.rig.conditions.ImageConditions`).
 
-- ``easy``: the data as lipgen made it before presets: the truth has the model's rest shape,
-  ink dots on the model's marker nodes and the linear truth physics (kept for regression);
+- ``easy``: the data as lipgen made it before presets, byte for byte: the truth has the model's
+  rest shape, ink dots on the model's marker nodes and the linear truth physics, filmed by the
+  ideal camera (pinhole, fixed light, Gaussian noise of one grey level, PNG). Kept for regression.
 - ``default``: the subject has its own shape (:mod:`lipgen.subject.shape`) and hand-placed dots
-  at surface points 1-2 mm from the model's markers (:mod:`lipgen.subject.inkdots`);
+  at surface points 1-2 mm from the model's markers (:mod:`lipgen.subject.inkdots`), filmed like
+  a good laboratory recording: a mild lens, slight defocus and motion blur, light varying per
+  dataset, a real mirror, a low-noise sensor, high-quality JPEG.
 - ``hard``: as ``default``, moved by the nonlinear truth physics (:mod:`lipgen.subject.layer`:
   large deformation, near-incompressible, lip contact; slow: seconds per frame), with more head
-  motion and sensor noise.
+  motion, filmed by an ordinary camera: a wide lens with visible radial and tangential
+  distortion, defocus (the mirror view is farther than the focus), 1/120 s exposure at 30
+  frames/s (motion blur), light, exposure and white balance varying per dataset, a
+  back-silvered mirror with tint, ghost and edge, shot and read noise of a small sensor, Bayer
+  demosaicing and JPEG at quality 85.
 
-The manifest records the preset's name (``easy``, the data as before, names none) and every
-setting it implies.
+Image values follow published camera figures: phone and webcam lenses have k1 of -0.1 to -0.3
+and tangential terms around 1e-3 (decentring); small sensors hold 5,000 to 10,000 electrons per
+pixel; back-silvered mirrors reflect about 85-90 % with a 4 % front-surface ghost.
+
+The manifest records the preset's name and every setting it implies.
 """
 
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-__all__ = ["SubjectConditions", "MotionConditions", "ImageConditions", "Preset", "PRESETS", "get_preset"]
+from lipgen.rig.conditions import ImageConditions
+
+__all__ = ["SubjectConditions", "MotionConditions", "FrameConditions", "Preset", "PRESETS", "get_preset",
+           "preset_names"]
 
 
 @dataclass(frozen=True)
@@ -44,13 +58,15 @@ class MotionConditions:
 
 
 @dataclass(frozen=True)
-class ImageConditions:
+class FrameConditions:
     """How the frames are formed."""
 
     noise: float = 1.0
-    """Sensor noise, grey levels (standard deviation)."""
+    """Extra Gaussian noise, grey levels (standard deviation); the sensor model is in ``conditions``."""
     dot_diameter: float = 2.0
     """Ink dot diameter, mm."""
+    conditions: ImageConditions = ImageConditions()
+    """Lens, mirror, light and sensor (the default is the ideal camera)."""
 
 
 @dataclass(frozen=True)
@@ -60,18 +76,30 @@ class Preset:
     name: str
     subject: SubjectConditions = SubjectConditions()
     motion: MotionConditions = MotionConditions()
-    image: ImageConditions = ImageConditions()
+    image: FrameConditions = FrameConditions()
 
     def to_dict(self) -> dict:
+        """The preset as a JSON-ready dict (as recorded in the manifest)."""
         return asdict(self)
 
 
 PRESETS: dict[str, Preset] = {
     "easy": Preset("easy"),
-    "default": Preset("default", SubjectConditions(own_shape=True)),
-    "hard": Preset("hard", SubjectConditions(own_shape=True, nonlinear_physics=True),
-                   MotionConditions(head_rotation_deg=8.0, head_translation_mm=6.0),
-                   ImageConditions(noise=2.0)),
+    "default": Preset(
+        "default", SubjectConditions(own_shape=True),
+        image=FrameConditions(noise=0.0, conditions=ImageConditions(
+            distortion=(-0.08, 0.03, 0.0005, -0.0003, 0.0), focus_mm=330.0, aperture_px=6.0,
+            shutter=0.15, blur_samples=3, light_jitter=0.3, mirror_reflectance=0.88,
+            mirror_tint=(0.96, 1.0, 0.97), ghost=0.02, glass_mm=2.0, full_well=20000.0, read_noise=1.0,
+            codec="jpeg", jpeg_quality=95, texture=0.6))),
+    "hard": Preset(
+        "hard", SubjectConditions(own_shape=True, nonlinear_physics=True),
+        MotionConditions(head_rotation_deg=8.0, head_translation_mm=6.0),
+        FrameConditions(noise=0.0, conditions=ImageConditions(
+            distortion=(-0.15, 0.10, 0.0012, -0.0008, 0.0), focus_mm=340.0, aperture_px=12.0,
+            shutter=0.25, blur_samples=5, light_jitter=1.0, mirror_reflectance=0.85,
+            mirror_tint=(0.93, 1.0, 0.95), ghost=0.04, glass_mm=3.0, mirror_extent_mm=(90.0, 110.0),
+            full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85, texture=1.0))),
 }
 """The presets by name."""
 
@@ -81,3 +109,8 @@ def get_preset(name) -> Preset:
     if not isinstance(name, str) or name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
     return PRESETS[name]
+
+
+def preset_names() -> tuple[str, ...]:
+    """The presets' names, easiest first."""
+    return tuple(PRESETS)

@@ -108,7 +108,7 @@ class MirrorRig:
         K = cam.K.copy()
         K[0, 2] = W - 1 - K[0, 2]
         virtual = PinholeCamera(K, _FLIP_X @ cam.R @ S, _FLIP_X @ (cam.R @ (2 * d * n) + cam.t),
-                                W, H, cam.dist, "virtual")
+                                W, H, cam.mirrored_dist(), "virtual")
         object.__setattr__(self, "virtual", virtual)
         if self.mirror_side == "left":
             real_x0, virt_x0, real_w, virt_w = split, W - split, W - split, split

@@ -2,7 +2,8 @@
 
 Conventions (DESIGN.md): millimetres; ``x_cam = R @ X + t`` with camera x right, y down, z
 forward; pixel (0, 0) is the centre of the top-left pixel, so an image of width W covers
-u in [-0.5, W - 0.5]; optional radial distortion ``(k1, k2[, k3])`` as in OpenCV.
+u in [-0.5, W - 0.5]; optional lens distortion as in OpenCV: radial ``(k1, k2[, k3])`` or
+radial and tangential ``(k1, k2, p1, p2[, k3])`` (OpenCV's ``distCoeffs`` order).
 
 The camera-mirror rig built from these cameras is :class:`lipgen.rig.camera.MirrorRig`;
 ``lipgen.rig.camera`` re-exports everything here.
@@ -55,7 +56,7 @@ def look_at_rotation(eye, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class PinholeCamera:
-    """A pinhole camera with optional radial distortion, OpenCV convention.
+    """A pinhole camera with optional radial and tangential distortion, OpenCV convention.
 
     Parameters
     ----------
@@ -68,8 +69,9 @@ class PinholeCamera:
         World-to-camera translation in mm: ``x_cam = R @ X + t``.
     width, height : int
         Image size in pixels.
-    dist : (2,) or (3,) float, optional
-        Radial distortion ``(k1, k2[, k3])``; ``None`` for none.
+    dist : (2,), (3,), (4,) or (5,) float, optional
+        Radial ``(k1, k2[, k3])`` or OpenCV's ``(k1, k2, p1, p2[, k3])``; ``None`` for none.
+        Stored as the five OpenCV coefficients ``(k1, k2, p1, p2, k3)``.
     name : str
         A label for messages and files.
     """
@@ -107,9 +109,12 @@ class PinholeCamera:
         dist = None
         if self.dist is not None and len(np.atleast_1d(self.dist)) and np.any(np.asarray(self.dist) != 0):
             dist = as_float_array(self.dist, f"{self.name}.dist", (None,))
-            if len(dist) not in (2, 3):
-                raise ValueError(f"{self.name}.dist must be (k1, k2) or (k1, k2, k3), got shape {dist.shape}")
-            dist = _readonly(np.pad(dist, (0, 3 - len(dist))))
+            if len(dist) not in (2, 3, 4, 5):
+                raise ValueError(f"{self.name}.dist must be (k1, k2[, k3]) or (k1, k2, p1, p2[, k3]), got "
+                                 f"shape {dist.shape}")
+            if len(dist) <= 3:
+                dist = np.r_[dist[:2], 0.0, 0.0, dist[2:3]]
+            dist = _readonly(np.pad(dist, (0, 5 - len(dist))))
         object.__setattr__(self, "K", _readonly(K))
         object.__setattr__(self, "R", _readonly(R))
         object.__setattr__(self, "t", _readonly(t))
@@ -163,19 +168,49 @@ class PinholeCamera:
             raise ValueError(f"points must have shape (..., 3), got {X.shape}")
         return X @ self.R.T + self.t
 
+    @property
+    def tangential(self) -> bool:
+        """The lens has tangential (decentring) distortion p1, p2."""
+        return self.dist is not None and bool(self.dist[2] or self.dist[3])
+
     def distort(self, xy: np.ndarray) -> np.ndarray:
-        """Apply the radial distortion to normalised image coordinates (..., 2)."""
+        """Apply the lens distortion (OpenCV's model) to normalised image coordinates (..., 2)."""
         if self.dist is None:
             return xy
-        k1, k2, k3 = self.dist
+        k1, k2, p1, p2, k3 = self.dist
         r2 = np.sum(xy * xy, axis=-1, keepdims=True)
-        return xy * (1 + r2 * (k1 + r2 * (k2 + r2 * k3)))
+        out = xy * (1 + r2 * (k1 + r2 * (k2 + r2 * k3)))
+        if self.tangential:
+            x, y = xy[..., 0], xy[..., 1]
+            out = out + np.stack([2 * p1 * x * y + p2 * (r2[..., 0] + 2 * x * x),
+                                  p1 * (r2[..., 0] + 2 * y * y) + 2 * p2 * x * y], axis=-1)
+        return out
 
     def undistort(self, xy_d: np.ndarray) -> np.ndarray:
-        """Invert :meth:`distort` (Newton on the radius, to machine precision)."""
+        """Invert :meth:`distort`: Newton on the radius, then (with tangential terms) 2-D Newton
+        steps on the full model, to machine precision."""
         if self.dist is None:
             return xy_d
-        k1, k2, k3 = self.dist
+        xy = self._undistort_radial(xy_d)
+        if not self.tangential:
+            return xy
+        k1, k2, p1, p2, k3 = self.dist
+        for _ in range(_NEWTON_STEPS // 3):
+            x, y = xy[..., 0], xy[..., 1]
+            r2 = x * x + y * y
+            rad = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+            g = 2 * (k1 + r2 * (2 * k2 + r2 * 3 * k3))
+            res = self.distort(xy) - xy_d
+            a = rad + g * x * x + 2 * p1 * y + 6 * p2 * x
+            d = rad + g * y * y + 6 * p1 * y + 2 * p2 * x
+            b = g * x * y + 2 * p1 * x + 2 * p2 * y  # the Jacobian is symmetric
+            det = a * d - b * b
+            xy = xy - np.stack([(d * res[..., 0] - b * res[..., 1]) / det,
+                                (a * res[..., 1] - b * res[..., 0]) / det], axis=-1)
+        return xy
+
+    def _undistort_radial(self, xy_d: np.ndarray) -> np.ndarray:
+        k1, k2, _, _, k3 = self.dist
         rd = np.linalg.norm(xy_d, axis=-1, keepdims=True)
         r = rd.copy()
         for _ in range(_NEWTON_STEPS):
@@ -252,8 +287,11 @@ class PinholeCamera:
 
     def opencv_dist(self) -> np.ndarray:
         """(5,) OpenCV ``distCoeffs`` ``(k1, k2, p1, p2, k3)``."""
-        k = np.zeros(3) if self.dist is None else self.dist
-        return np.array([k[0], k[1], 0.0, 0.0, k[2]])
+        return np.zeros(5) if self.dist is None else self.dist.copy()
+
+    def mirrored_dist(self) -> np.ndarray | None:
+        """The distortion seen through a left-right flipped image (x -> -x): p2 changes sign."""
+        return None if self.dist is None else self.dist * np.array([1.0, 1.0, 1.0, -1.0, 1.0])
 
     # ---- files ---------------------------------------------------------------------------
     def to_dict(self) -> dict:
@@ -278,7 +316,7 @@ class PinholeCamera:
         """
         if self.dist is None:
             return np.inf
-        k1, k2, k3 = self.dist
+        k1, k2, _, _, k3 = self.dist
         corners = np.array([[-0.5, -0.5], [self.width - 0.5, -0.5], [-0.5, self.height - 0.5],
                             [self.width - 0.5, self.height - 0.5]])
         rd_corner = np.linalg.norm((corners - self.K[:2, 2]) / np.diag(self.K)[:2], axis=1).max()

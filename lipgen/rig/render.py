@@ -88,12 +88,8 @@ class _View:
             x0, y0 = lo
             w, h = int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1
             s = src - lo
-            i0 = np.floor(s).astype(np.int64)
-            f = s - i0
-            self.taps = [(i0[..., 1] + dy) * w + (i0[..., 0] + dx) for dy in (0, 1) for dx in (0, 1)]
-            self.weights = [((1 - f[..., 1]) if dy == 0 else f[..., 1])[..., None]
-                            * ((1 - f[..., 0]) if dx == 0 else f[..., 0])[..., None]
-                            for dy in (0, 1) for dx in (0, 1)]
+            self.cv2 = require("cv2", "rendering a camera with lens distortion")
+            self.map = s.astype(np.float32)  # bilinear resampling by OpenCV's remap (1/32 px weights)
             self.nearest = np.round(s[..., 1]).astype(np.int64) * w + np.round(s[..., 0]).astype(np.int64)
         self.size = (w, h)
         gl = pyrender.IntrinsicsCamera(K[0, 0], K[1, 1], K[0, 2] - x0 + 0.5, K[1, 2] - y0 + 0.5, znear, zfar)
@@ -105,9 +101,8 @@ class _View:
     def resample(self, color: np.ndarray, depth: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         if self.cam.dist is None:
             return color, depth
-        flat = color.reshape(-1, color.shape[-1]).astype(np.float32)
-        out = sum(w * flat[t] for t, w in zip(self.taps, self.weights, strict=True))
-        color = np.clip(np.round(out), 0, 255).astype(np.uint8)
+        color = self.cv2.remap(color, self.map, None, self.cv2.INTER_LINEAR,
+                               borderMode=self.cv2.BORDER_REPLICATE)
         return color, None if depth is None else depth.ravel()[self.nearest]
 
 
@@ -124,16 +119,19 @@ class RigRenderer:
         Fraction of light the mirror returns (a silvered mirror: about 0.9).
     znear, zfar : float
         Clipping depths, mm.
+    shadows : bool
+        Directional lights cast shadows (shadow maps).
     """
 
     def __init__(self, rig: MirrorRig, mirror_reflectance: float = 0.9, znear: float = 20.0,
-                 zfar: float = 5000.0) -> None:
+                 zfar: float = 5000.0, shadows: bool = False) -> None:
         if not isinstance(rig, MirrorRig):
             raise TypeError(f"rig must be a MirrorRig, got {type(rig).__name__}")
         if not 0 < mirror_reflectance <= 1:
             raise ValueError(f"mirror_reflectance must be in (0, 1], got {mirror_reflectance}")
         self.pyrender = pr = import_pyrender()
         self.rig, self.reflectance = rig, float(mirror_reflectance)
+        self._flags = pr.RenderFlags.SHADOWS_DIRECTIONAL if shadows else pr.RenderFlags.NONE
         self._views = [_View(pr, cam, znear, zfar) for cam in rig.views]
         w, h = self._views[0].size
         try:
@@ -146,6 +144,7 @@ class RigRenderer:
         for v in self._views:
             self._scene.add_node(v.node)
         self._items: dict[str, dict] = {}
+        self._textures: dict[int, tuple] = {}  # id(array) -> (array, pyrender Texture): uploaded once
         self._lights: tuple = ()
         self._light_nodes: list = []
 
@@ -172,8 +171,9 @@ class RigRenderer:
                 continue
             if old is not None:
                 self._drop(old)
-            groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided))
-            meshes = [_pyrender_mesh(pr, item, faces, mat) for faces, mat in groups]
+            groups = _groups(item, lambda m: (m.color, m.roughness, m.double_sided,
+                                              None if m.texture is None else id(m.texture)))
+            meshes = [_pyrender_mesh(pr, item, faces, mat, self._textures) for faces, mat in groups]
             colour = [self._scene.add(m, name=m.name) for m in meshes]
             self._items[name] = {"key": key, "colour": colour,
                                  "label": self._add_label_nodes(item) if labels else None}
@@ -188,7 +188,7 @@ class RigRenderer:
     def _add_label_nodes(self, item: MeshItem) -> list:
         out = []
         for faces, mat in _groups(item, lambda m: m.label):
-            mesh = _pyrender_mesh(self.pyrender, item, faces, mat)
+            mesh = _pyrender_mesh(self.pyrender, item, faces, mat, self._textures)
             mesh.is_visible = False
             out.append((self._scene.add(mesh, name=f"label:{mesh.name}"), _label_color(mat.label)))
         return out
@@ -209,13 +209,12 @@ class RigRenderer:
         Returns a list of ``(color (h, w, 3) uint8, depth (h, w) float32 or None, labels or None)``
         per view, in :data:`~lipgen.rig.camera.VIEWS` order (no mirror dimming).
         """
-        pr = self.pyrender
         self._sync(scene, labels)
         out = []
         for v in self._views:
             self._scene.main_camera_node = v.node
             self._renderer.viewport_width, self._renderer.viewport_height = v.size
-            color, z = self._renderer.render(self._scene, flags=pr.RenderFlags.NONE)
+            color, z = self._renderer.render(self._scene, flags=self._flags)
             color, z = v.resample(color, z if depth else None)
             out.append([color, z, self._render_labels(v, scene) if labels else None])
         return out
@@ -295,7 +294,9 @@ def _fingerprint(item: MeshItem) -> str:
     h = hashlib.blake2b(digest_size=16)
     for a in (item.vertices, item.faces, item.normals, item.face_material):
         h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr(item.materials).encode())
+    h.update(repr([m.key for m in item.materials]).encode())
+    if item.uv is not None:
+        h.update(np.ascontiguousarray(item.uv).tobytes())
     return h.hexdigest()
 
 
@@ -310,14 +311,25 @@ def _groups(item: MeshItem, key) -> list[tuple[np.ndarray, object]]:
     return [(item.faces[g == j], item.materials[i]) for j, i in enumerate(first.values()) if (g == j).any()]
 
 
-def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat):
-    """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer)."""
+def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | None = None):
+    """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer).
+
+    ``textures`` caches pyrender textures by image, so a texture shared by every frame stays on
+    the GPU (pyrender uploads a texture object once while some mesh uses it)."""
     used, inv = np.unique(faces, return_inverse=True)
+    textured = mat.texture is not None and item.uv is not None
+    tex = None
+    if textured:
+        cache = {} if textures is None else textures
+        if id(mat.texture) not in cache:
+            cache[id(mat.texture)] = (mat.texture, pr.Texture(source=mat.texture, source_channels="RGB"))
+        tex = cache[id(mat.texture)][1]
     material = pr.MetallicRoughnessMaterial(
         baseColorFactor=np.append(srgb_to_linear(mat.color), 1.0), metallicFactor=0.0,
-        roughnessFactor=mat.roughness, doubleSided=mat.double_sided)
+        roughnessFactor=mat.roughness, doubleSided=mat.double_sided, baseColorTexture=tex)
     prim = pr.Primitive(positions=item.vertices[used].astype(np.float32),
                         normals=item.normals[used].astype(np.float32),
+                        texcoord_0=item.uv[used].astype(np.float32) if textured else None,
                         indices=inv.reshape(-1, 3).astype(np.uint32), material=material)
     return pr.Mesh([prim], name=f"{item.name}:{mat.name}")
 

@@ -48,6 +48,9 @@ class Material:
         Draw back faces too (open shells seen from inside).
     label : int
         Class id written by label renders (0 is reserved for the background).
+    texture : (h, w, 3) uint8, optional
+        sRGB image multiplied with ``color``, mapped by the mesh item's ``uv`` (read-only; compared
+        by identity, so share one array between frames).
     """
 
     name: str
@@ -55,6 +58,7 @@ class Material:
     roughness: float = 0.6
     double_sided: bool = False
     label: int = 1
+    texture: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         c = as_float_array(self.color, f"material {self.name!r} color", (3,))
@@ -65,6 +69,17 @@ class Material:
         if not 1 <= int(self.label) <= 255:
             raise ValueError(f"material {self.name!r} label must be in [1, 255], got {self.label}")
         object.__setattr__(self, "color", tuple(float(x) for x in c))
+        t = self.texture
+        if t is not None and (not isinstance(t, np.ndarray) or t.dtype != np.uint8 or t.ndim != 3
+                              or t.shape[2] != 3):
+            raise ValueError(f"material {self.name!r} texture must be an (h, w, 3) uint8 array, got "
+                             f"{getattr(t, 'shape', type(t).__name__)} {getattr(t, 'dtype', '')}")
+
+    @property
+    def key(self) -> tuple:
+        """What a renderer needs to tell two materials apart (the texture by identity)."""
+        return (self.color, self.roughness, self.double_sided, self.label,
+                None if self.texture is None else id(self.texture))
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,6 +100,8 @@ class MeshItem:
         Index into ``materials`` per face; all 0 by default.
     normals : (n, 3) float, optional
         Unit shading normals; area-weighted vertex normals by default.
+    uv : (n, 2) float, optional
+        Texture coordinates in [0, 1] (for textured materials).
     """
 
     name: str
@@ -93,6 +110,7 @@ class MeshItem:
     materials: tuple[Material, ...]
     face_material: np.ndarray | None = None
     normals: np.ndarray | None = None
+    uv: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         V = as_float_array(self.vertices, f"{self.name}.vertices", (None, 3))
@@ -113,6 +131,10 @@ class MeshItem:
         object.__setattr__(self, "face_material", fm)
         object.__setattr__(self, "normals", N)
         object.__setattr__(self, "materials", tuple(self.materials))
+        if self.uv is not None:
+            object.__setattr__(self, "uv", as_float_array(self.uv, f"{self.name}.uv", (len(V), 2)))
+        if any(m.texture is not None for m in self.materials) and self.uv is None:
+            raise ValueError(f"{self.name} has a textured material but no uv coordinates")
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,11 @@ class FaceLook:
     """Height of the dots above the skin, mm (keeps them in front in the depth test)."""
     surroundings: bool = True
     """Draw the face proxy, the nose and the mouth cavity (otherwise the lips alone)."""
+    texture: float = 0.0
+    """Strength of the procedural skin and lip textures (:mod:`lipgen.subject.skin`), 0 for none;
+    with textures the skin tone is drawn per subject too."""
+    texture_seed: int = 0
+    """Seed of the subject's textures and skin tone."""
 
     def __post_init__(self) -> None:
         if not 0.2 <= self.dot_diameter <= 20:
@@ -144,8 +149,18 @@ class FaceModel:
         vermilion = [mesh.region_names.index(r) for r in ("lip", "ridge") if r in mesh.region_names]
         mouth = [mesh.region_names.index(r) for r in ("strip",) if r in mesh.region_names]
         lip_mat = np.where(np.isin(mesh.regions, vermilion), 1, np.where(np.isin(mesh.regions, mouth), 2, 0))
-        self.materials = (Material("skin", look.skin, 0.65, label=1),
-                          Material("vermilion", look.vermilion, 0.4, label=2),
+        skin_tex = lip_tex = None
+        skin = look.skin
+        if look.texture > 0:
+            from lipgen.subject import skin as proc
+
+            rng = np.random.default_rng([look.texture_seed, 7])
+            skin = proc.skin_tone(rng)
+            skin_tex, lip_tex = proc.skin_texture(rng, look.texture), proc.lip_texture(rng, look.texture)
+        # wet vermilion: smoother (more specular) than the skin when textured
+        self.materials = (Material("skin", skin, 0.65, label=1, texture=skin_tex),
+                          Material("vermilion", look.vermilion, 0.4 if lip_tex is None else 0.3, label=2,
+                                   texture=lip_tex),
                           Material("mucosa", look.mucosa, 0.4, double_sided=True, label=3))
         self.ink = tuple(Material(f"ink_{k}", look.ink, 0.8, label=DOT_LABEL0 + k)
                          for k in range(len(mesh.markers) + 1))
@@ -162,6 +177,11 @@ class FaceModel:
         self._build_nose(mesh.nose)
         V0 = self._face_vertices(mesh.vertices)
         N0 = vertex_normals(V0, self.faces)
+        self.uv = self.nose_uv = None
+        if look.texture > 0:
+            from lipgen.subject.skin import uv_of
+
+            self.uv, self.nose_uv = uv_of(V0), uv_of(self.nose_vertices)
         radius = look.dot_diameter / 2
         if dots is None:
             self.marker_decals = [make_decal(V0, self.faces, N0, int(i), radius) for i in mesh.markers]
@@ -278,11 +298,11 @@ class FaceModel:
         """The renderer-independent :class:`~lipgen.rig.scene.Scene` of one frame."""
         surf = self.surfaces(vertices, pose)
         Vf, F, N = surf["face"]
-        items = [MeshItem("face", Vf, F, self.materials, self.face_material, N)]
+        items = [MeshItem("face", Vf, F, self.materials, self.face_material, N, self.uv)]
         dots = [(d, Vf, F, N) for d in self.marker_decals]
         if self.look.surroundings:
             Vn, Fn, Nn = surf["nose"]
-            items.append(MeshItem("nose", Vn, Fn, self.materials[:1], None, Nn))
+            items.append(MeshItem("nose", Vn, Fn, self.materials[:1], None, Nn, self.nose_uv))
             dots.append((self.nose_decal, Vn, Fn, Nn))
             Vc, Fc, Nc = surf["cavity"]
             items.append(MeshItem("cavity", Vc, Fc, (self.cavity_material,), None, Nc))

@@ -1,0 +1,66 @@
+"""Pictures comparing datasets: the same frame under two image conditions, side by side."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from lipgen.dataset.layout import Dataset
+
+__all__ = ["preset_of", "save_side_by_side"]
+
+
+def preset_of(ds: Dataset) -> str:
+    """The preset whose image conditions ``ds`` was made with, or ``"custom"``."""
+    from lipgen.dataset.presets import PRESETS
+
+    cond = ds.settings.conditions
+    for name, preset in PRESETS.items():
+        if preset.image.conditions == cond:
+            return name
+    return "custom"
+
+
+def save_side_by_side(datasets: list[Dataset], index: int, out, zoom: bool = True) -> Path:
+    """Save frame ``index`` of each dataset side by side, each titled with its preset, with the
+    truth projections of the visible marks as small circles; ``zoom`` adds a row of close-ups of
+    the mouth in the direct view (where the texture, blur and noise show).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lipgen._io import atomic_path
+
+    for ds in datasets:
+        if not 0 <= index < len(ds):
+            raise ValueError(f"frame {index} is out of range: {ds.path} has frames 0..{len(ds) - 1}")
+    rows = 2 if zoom else 1
+    fig, axes = plt.subplots(rows, len(datasets), figsize=(6.4 * len(datasets), 4.8 * rows), squeeze=False)
+    for j, ds in enumerate(datasets):
+        frame = ds[index]
+        uv, vis = frame.truth["uv_raw"], frame.truth["visible"]
+        for r in range(rows):
+            ax = axes[r, j]
+            ax.imshow(frame.image, interpolation="nearest")
+            for v in range(2):
+                ax.scatter(uv[v, vis[v], 0], uv[v, vis[v], 1], s=40 if r else 14, facecolors="none",
+                           edgecolors="lime", linewidths=0.6)
+            ax.axis("off")
+            if r == 0:
+                ax.set_title(f"{ds.path.name}: preset {preset_of(ds)}, frame {frame.index}", fontsize=10)
+            else:  # the mouth in the direct view
+                real = uv[1, :-1][vis[1, :-1]]
+                if len(real):
+                    c = np.nanmean(real, axis=0)
+                    ax.set_xlim(c[0] - 90, c[0] + 90)
+                    ax.set_ylim(c[1] + 60, c[1] - 60)
+                ax.set_title("mouth, direct view (circles: truth)", fontsize=9)
+    fig.tight_layout()
+    out = Path(out)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
+    plt.close(fig)
+    return out
