@@ -23,7 +23,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TUTORIALS = ROOT / "docs" / "tutorials"
 FENCE = re.compile(r"^```(\w+)[^\n]*\n(.*?)^```", re.S | re.M)
 # What each tutorial needs beyond the core, as importable module names.
-NEEDS = {"usd": ("pxr",), "validate": ("pyrender", "cv2"), "blender": ("bpy",)}
+NEEDS = {"usd": ("pxr",), "validate": ("pyrender", "cv2"), "recording": ("pyrender", "cv2", "imageio_ffmpeg"),
+         "blender": ("bpy",)}
 
 
 def _blocks(page: Path) -> list[tuple[str, str]]:
