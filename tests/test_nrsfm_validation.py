@@ -73,3 +73,17 @@ def test_dai_ba_returns_its_start_when_the_refinement_shakes_depth(monkeypatch):
     rec = reconstruct(s.W, 2, method="dai-ba")
     assert rec.info["ba_kept"] is False
     assert np.array_equal(rec.S, start.S)
+
+
+def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
+    from lipgen.experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
+
+    settings = NrsfmBenchSettings(methods=("dai",), sequences=(), validation_seeds=(104,),
+                                  validation_ks=(2,), validation_frames=40)
+    result = run_nrsfm_benchmarks(tmp_path, settings)
+    (entry,) = result["validation"]
+    assert [r["auto"] for r in entry["runs"]] == [False, True]
+    assert all(r["cpu_seconds"] > 0 and np.isfinite(r["e3d"]) for r in entry["runs"])
+    text = (tmp_path / "benchmarks.md").read_text()
+    assert "human-walk-104" in text and f"{entry['flat_e3d']:.3f}" in text
+    assert "worse than the flat baseline" in text

@@ -17,7 +17,8 @@ from lipgen.nrsfm.lowrank import fit_rank_k
 from lipgen.nrsfm.plausibility import plausible, shape_figures
 from lipgen.nrsfm.refine import bundle_adjust
 
-__all__ = ["Reconstruction", "reconstruct", "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
+__all__ = ["Reconstruction", "reconstruct", "curve_values", "choose_k",
+           "METHODS", "DEFAULT_METHOD", "MEAN_PLUS_MODES", "n_basis_shapes",
            "check_method_k"]
 
 log = logging.getLogger(__name__)
@@ -221,12 +222,11 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     if isinstance(k, str):
         if k.strip().lower() != "auto":
             raise ValueError(f"k must be an integer (number of basis shapes) or 'auto', got {k!r}")
-        from .metrics import reprojection_curve  # metrics builds on reconstruct
-
-        curve = reprojection_curve(W, method=method, visible=visible, **options)
-        rec = reconstruct(W, curve.chosen, method, visible, **options)
-        rec.info["k_curve"] = {"ks": curve.ks.tolist(), "relative": curve.relative.tolist(),
-                               "chosen": curve.chosen, "rule": curve.rule}
+        ks, _, relative = curve_values(W, None, method, visible, **options)
+        chosen, rule = choose_k(ks, relative)
+        rec = reconstruct(W, chosen, method, visible, **options)
+        rec.info["k_curve"] = {"ks": ks.tolist(), "relative": relative.tolist(), "chosen": chosen,
+                               "rule": rule}
         return rec
     W, unit = _normalise_scale(W, visible)
     rec = _reconstruct(W, k, method, visible, **options)
@@ -300,12 +300,16 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         ref = shape_figures(R, shapes)
         info.update(rotation_cost=cost, trace_norm_shapes=ref)
         # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
-        # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start
+        # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start.
+        # Complete tracks of numerical rank > 3K cannot be explained exactly: no fit for dai then.
         C, B = rank_k_shapes(shapes, k)
-        C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
-                                      seed=seed)
-        info.update(fit)
-        fitted = (R, C, B, t + shift)
+        fit = {"shape_exact": False}
+        fitted = (R, C, B, t)
+        if method == "dai-ba" or rank <= 3 * k or not tracks.complete:
+            C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
+                                          seed=seed)
+            info.update(fit)
+            fitted = (R, C, B, t + shift)
         info["rank_k_reprojection_rms"] = _reprojection_rms(tracks, *_tidy(*fitted))
         if fit["shape_exact"]:
             info["shapes"] = "rank-K fit"
@@ -331,3 +335,62 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
     return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                           reprojection_rms=rms, info=info)
 
+
+def curve_values(W, ks, method: str, visible, progress: bool = False, **options):
+    """The reprojection curve's values: ks (n,) int, RMS (n,) and RMS relative to the centred tracks
+    (see :func:`lipgen.nrsfm.reprojection_curve`, which adds the choice of K)."""
+    tracks = check_tracks(W, visible)
+    F, P = tracks.mask.shape
+    if ks is None:
+        limit = min(2 * F, P - 1) // 3
+        ks = range(1, min(limit, 15) + 1)
+        if method in MEAN_PLUS_MODES:
+            ks = [k - 1 for k in ks]
+    ks = np.array([check_method_k(int(k), method, F, P, tracks.n_observed) for k in ks])
+    if ks.size == 0:
+        raise ValueError("ks is empty: give at least one K")
+    seen = np.repeat(tracks.mask, 2, axis=0)
+    means = (tracks.W * seen).sum(1) / seen.sum(1)
+    scale = float(np.sqrt((((tracks.W - means[:, None]) * seen) ** 2).sum() / seen.sum()))
+    rms = []
+    iterator = ks
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(ks, desc=f"reprojection curve ({method})", unit="K")
+    for k in iterator:
+        rec = reconstruct(tracks.W, int(k), method=method,
+                          visible=None if tracks.complete else tracks.mask, **options)
+        # methods that return more than K shapes (dai's trace-norm shapes) report K shapes' fit apart
+        rms.append(rec.info.get("rank_k_reprojection_rms", rec.reprojection_rms))
+        log.info("K=%d: RMS reprojection %.4g (%.3g%%)", k, rms[-1], 100 * rms[-1] / scale)
+    rms = np.array(rms)
+    return ks, rms, rms / scale
+
+
+def choose_k(ks, relative, rtol: float = 0.01, flat: float = 0.05) -> tuple[int, str]:
+    """Pick K from a reprojection curve.
+
+    Rule: the smallest K whose relative RMS reprojection error is at most ``rtol``; if no K
+    reaches it, the smallest K after which one more basis shape lowers the error by less than
+    ``flat`` of its value (the curve has reached its floor: Bregler's "the error vanishes");
+    otherwise the largest K tried.
+
+    Returns
+    -------
+    k : int
+    rule : str
+    """
+    ks = np.asarray(ks, dtype=int)
+    rel = np.asarray(relative, dtype=float)
+    order = np.argsort(ks)
+    ks, rel = ks[order], rel[order]
+    rule = (f"smallest K with RMS reprojection <= {rtol:g} of the RMS of the centred tracks; else the "
+            f"first K after which one more basis lowers it by < {flat:g} of its value; else the largest K")
+    hit = np.flatnonzero(rel <= rtol)
+    if hit.size:
+        return int(ks[hit[0]]), rule
+    for i in range(len(ks) - 1):
+        if rel[i + 1] > (1 - flat) * rel[i]:
+            return int(ks[i]), rule
+    return int(ks[-1]), rule

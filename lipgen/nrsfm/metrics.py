@@ -8,8 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.nrsfm._tracks import check_tracks
-from lipgen.nrsfm.core import DEFAULT_METHOD, MEAN_PLUS_MODES, check_method_k, reconstruct
+from lipgen.nrsfm.core import DEFAULT_METHOD, MEAN_PLUS_MODES, choose_k, curve_values
 
 __all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve"]
 
@@ -104,34 +103,6 @@ class KCurve:
     method: str
 
 
-def choose_k(ks, relative, rtol: float = 0.01, flat: float = 0.05) -> tuple[int, str]:
-    """Pick K from a reprojection curve.
-
-    Rule: the smallest K whose relative RMS reprojection error is at most ``rtol``; if no K
-    reaches it, the smallest K after which one more basis shape lowers the error by less than
-    ``flat`` of its value (the curve has reached its floor: Bregler's "the error vanishes");
-    otherwise the largest K tried.
-
-    Returns
-    -------
-    k : int
-    rule : str
-    """
-    ks = np.asarray(ks, dtype=int)
-    rel = np.asarray(relative, dtype=float)
-    order = np.argsort(ks)
-    ks, rel = ks[order], rel[order]
-    rule = (f"smallest K with RMS reprojection <= {rtol:g} of the RMS of the centred tracks; else the "
-            f"first K after which one more basis lowers it by < {flat:g} of its value; else the largest K")
-    hit = np.flatnonzero(rel <= rtol)
-    if hit.size:
-        return int(ks[hit[0]]), rule
-    for i in range(len(ks) - 1):
-        if rel[i + 1] > (1 - flat) * rel[i]:
-            return int(ks[i]), rule
-    return int(ks[-1]), rule
-
-
 def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, rtol: float = 0.01,
                        flat: float = 0.05, progress: bool = False, **options) -> KCurve:
     """Reconstruct with K = 1, 2, ... and record the reprojection error; choose K by :func:`choose_k`.
@@ -152,33 +123,7 @@ def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, r
     **options
         Passed to :func:`lipgen.nrsfm.reconstruct`.
     """
-    tracks = check_tracks(W, visible)
-    F, P = tracks.mask.shape
-    if ks is None:
-        limit = min(2 * F, P - 1) // 3
-        ks = range(1, min(limit, 15) + 1)
-        if method in MEAN_PLUS_MODES:
-            ks = [k - 1 for k in ks]
-    ks = np.array([check_method_k(int(k), method, F, P, tracks.n_observed) for k in ks])
-    if ks.size == 0:
-        raise ValueError("ks is empty: give at least one K")
-    seen = np.repeat(tracks.mask, 2, axis=0)
-    means = (tracks.W * seen).sum(1) / seen.sum(1)
-    scale = float(np.sqrt((((tracks.W - means[:, None]) * seen) ** 2).sum() / seen.sum()))
-    rms = []
-    iterator = ks
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(ks, desc=f"reprojection curve ({method})", unit="K")
-    for k in iterator:
-        rec = reconstruct(tracks.W, int(k), method=method,
-                          visible=None if tracks.complete else tracks.mask, **options)
-        # methods that return more than K shapes (dai's trace-norm shapes) report K shapes' fit apart
-        rms.append(rec.info.get("rank_k_reprojection_rms", rec.reprojection_rms))
-        log.info("K=%d: RMS reprojection %.4g (%.3g%%)", k, rms[-1], 100 * rms[-1] / scale)
-    rms = np.array(rms)
-    relative = rms / scale
+    ks, rms, relative = curve_values(W, ks, method, visible, progress, **options)
     chosen, rule = choose_k(ks, relative, rtol=rtol, flat=flat)
     return KCurve(ks=ks, rms=rms, relative=relative, chosen=chosen, rule=rule, method=method)
 

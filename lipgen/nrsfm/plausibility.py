@@ -40,6 +40,8 @@ def roughness(shapes: np.ndarray, axis: slice = slice(None)) -> float:
 
 
 ROUGHNESS_LIMIT = 5.0
+"""Largest depth roughness of a plausible refinement, as a multiple of the reference's (see DEPTH_LIMIT)."""
+
 DEPTH_LIMIT = 2.0
 """A refined shape sequence is plausible when its depth roughness is at most ROUGHNESS_LIMIT times,
 and its depth ratio at most DEPTH_LIMIT times, those of the reference (Dai's trace-norm shapes,

@@ -20,6 +20,7 @@ from ._rotation import expm_so3
 __all__ = ["HumanSequence", "human_sequence", "validation_set", "MOTIONS"]
 
 MOTIONS = ("walk", "pickup", "dance", "stretch")
+"""The kinds of motion of the validation bodies (sequence ``seed`` gets ``MOTIONS[seed % 4]``)."""
 
 # joint: (parent, rest direction (y up), length in units of the body height)
 _BONES = {
