@@ -63,6 +63,7 @@ class RecordingSettings:
         object.__setattr__(self, "calib_sources", tuple(str(s) for s in self.calib_sources))
 
     def to_dict(self) -> dict:
+        """The settings as a JSON-ready dict (as stored in the manifest)."""
         d = asdict(self)
         d["size"], d["board"] = list(self.size), list(self.board)
         d["calib_sources"] = list(self.calib_sources)
@@ -70,6 +71,7 @@ class RecordingSettings:
 
     @classmethod
     def from_dict(cls, d: dict) -> RecordingSettings:
+        """Settings from a manifest's dict, checking every key."""
         known = {f.name for f in fields(cls)}
         if set(d) - known:
             raise ValueError(f"unknown recording settings {sorted(set(d) - known)}")

@@ -36,6 +36,7 @@ __all__ = ["IMAGE_SUFFIXES", "init_recording", "detect_split", "detect_mirror_si
 log = logging.getLogger(__name__)
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+"""File suffixes read as calibration photos."""
 
 
 def calibration_photos(folder, size: tuple[int, int]) -> tuple[list[Path], list[np.ndarray]]:

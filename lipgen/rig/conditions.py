@@ -175,10 +175,12 @@ class ImageConditions:
 
     # ---- files --------------------------------------------------------------------------------
     def to_dict(self) -> dict:
+        """The conditions as a JSON-ready dict (as stored in the manifest)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
 
     @classmethod
     def from_dict(cls, d: dict) -> ImageConditions:
+        """Conditions from a manifest's dict (written by :meth:`to_dict`)."""
         if not isinstance(d, dict):
             raise TypeError(f"image conditions must be a dict, got {type(d).__name__}")
         known = {f.name for f in fields(cls)}

@@ -33,10 +33,12 @@ class SurfaceDots:
     bary: np.ndarray
 
     def to_dict(self) -> dict:
+        """The dots as a JSON-ready dict (as stored in the manifest)."""
         return {"face": self.face.tolist(), "bary": self.bary.tolist()}
 
     @classmethod
     def from_dict(cls, d: dict, n_faces: int | None = None) -> SurfaceDots:
+        """Dots from a manifest's dict (written by :meth:`to_dict`), checked against the mesh."""
         face = np.asarray(d["face"], np.int64)
         bary = np.asarray(d["bary"], float)
         if face.ndim != 1 or bary.shape != (len(face), 3):

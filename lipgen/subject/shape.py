@@ -46,6 +46,7 @@ __all__ = ["ShapeParams", "SHAPE_RANGES", "SHAPE_MEANS", "SHAPE_SDS", "sample_sh
            "measure_shape", "model_shape", "MAX_SUBJECT_SEED"]
 
 MAX_SUBJECT_SEED = 2**32 - 1
+"""The largest subject seed accepted."""
 
 SHAPE_RANGES: dict[str, tuple[float, float]] = {
     "width": (44.0, 62.0),
@@ -98,10 +99,12 @@ class ShapeParams:
                                  f"[{lo}, {hi}] mm (lipgen.subject.shape.SHAPE_RANGES)")
 
     def to_dict(self) -> dict:
+        """The shape parameters as a JSON-ready dict (mm)."""
         return {k: float(v) for k, v in asdict(self).items()}
 
     @classmethod
     def from_dict(cls, d: dict) -> ShapeParams:
+        """Shape parameters from a dict (written by :meth:`to_dict`), each checked against its range."""
         names = {f.name for f in fields(cls)}
         unknown, missing = set(d) - names, names - set(d)
         if unknown or missing:

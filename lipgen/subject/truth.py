@@ -44,7 +44,7 @@ def with_layer(subject, rng=None):
     relative Young's moduli per region as the linear subject.
     """
     from lipgen.subject.layer import build_layer
-    from lipgen.subject.motion import ACTION_TARGETS_MM, _force_patterns, _region_nodes
+    from lipgen.subject.sources import ACTION_TARGETS_MM, _force_patterns, _region_nodes
 
     rng = np.random.default_rng(subject.seed if rng is None else rng)
     mesh = subject.mesh
@@ -82,7 +82,7 @@ def layer_displacements(subject, A: np.ndarray, progress: bool = False) -> np.nd
     frame by frame with the nonlinear layer (each frame warm-started from the previous one)."""
     from tqdm import tqdm
 
-    from lipgen.subject.motion import _jaw_rigid
+    from lipgen.subject.sources import _jaw_rigid
 
     layer = subject.layer
     n = subject.mesh.n_nodes
