@@ -4,13 +4,13 @@ import numpy as np
 import pytest
 
 from lipgen.dataset.layout import GenerateSettings
-from lipgen.dataset.presets import PRESETS, ImageConditions, Preset, get_preset
+from lipgen.dataset.presets import PRESETS, FrameConditions, Preset, get_preset
 
 
 def test_presets_group_subject_motion_and_image_conditions():
     assert set(PRESETS) == {"easy", "default", "hard"}
     for p in PRESETS.values():
-        assert isinstance(p, Preset) and isinstance(p.image, ImageConditions)
+        assert isinstance(p, Preset) and isinstance(p.image, FrameConditions)
     assert not PRESETS["easy"].subject.own_shape and PRESETS["default"].subject.own_shape
     assert PRESETS["hard"].subject.nonlinear_physics
 
