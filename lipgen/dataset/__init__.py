@@ -1,7 +1,13 @@
 """Datasets on disk: the documented layout and its reader, and the generator that writes them.
 
-* :mod:`~lipgen.dataset.layout`: :class:`Dataset` (the reader), the manifest and its checks, file paths.
-* :mod:`~lipgen.dataset.generate`: ``lipgen generate``: simulate, render and write a dataset.
+* :mod:`~lipgen.dataset.layout`: :class:`Dataset`, the reader.
+* :mod:`~lipgen.dataset.settings`: :class:`GenerateSettings`, everything that fixes a dataset's bytes.
+* :mod:`~lipgen.dataset.manifest`: the manifest, its checks and the files' paths.
+* :mod:`~lipgen.dataset.presets`: ``--preset easy|default|hard``.
+* :mod:`~lipgen.dataset.generate`: ``lipgen generate``: simulate, render and write a dataset
+  (:mod:`~lipgen.dataset.folder`: the folder it writes into; :mod:`~lipgen.dataset.film`: image
+  conditions per frame).
+* :mod:`~lipgen.dataset.footage`: a user's own recording in the same layout.
 """
 
 from lipgen.dataset.layout import (

@@ -11,7 +11,6 @@ the same bytes.
 from __future__ import annotations
 
 import io
-import json
 import logging
 import multiprocessing
 import os
@@ -25,9 +24,7 @@ from lipgen import __version__
 from lipgen._io import (
     atomic_write_bytes,
     atomic_write_json,
-    remove_stale_temporaries,
     save_npz,
-    stale_temporaries,
 )
 from lipgen.dataset.film import (
     exposure_offsets,
@@ -37,6 +34,7 @@ from lipgen.dataset.film import (
     rig_for,
     sub_frame_states,
 )
+from lipgen.dataset.folder import prepare_folder
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -47,9 +45,7 @@ from lipgen.dataset.layout import (
     extra_paths,
     frame_paths,
     intact,
-    validate_manifest,
 )
-from lipgen.errors import DatasetError
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
 from lipgen.rig.render import RenderedFrame
@@ -299,26 +295,6 @@ def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
     return _WORKER[key]
 
 
-_SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks", "speech")
-
-
-def _is_our_temporary(p: Path) -> bool:
-    """A temporary manifest or mesh left by a killed first run (the folder is still ours to fill)."""
-    for name in ("manifest.json", "mesh.npz"):
-        if p.name.startswith(f".{name}.tmp-"):
-            return p in stale_temporaries(p.parent / name)
-    return False
-
-
-def _check_inside(out: Path) -> None:
-    """Refuse a dataset whose subfolders or files are symlinks leading out of it: a resume must
-    neither write nor delete anything elsewhere."""
-    root = out.resolve()
-    for name in ("manifest.json", "mesh.npz", *_SUBFOLDERS):
-        p = out / name
-        if p.is_symlink() and not p.resolve().is_relative_to(root):
-            raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
-                               "through it (nothing was written). Replace it with a real folder")
 def _write_speech(out: Path, phones, audio) -> None:
     """``speech/phones.json`` (phones with start and end in s, how they were found) and, from a
     recording, ``speech/audio.wav`` (the 16 kHz mono audio they were found in)."""
@@ -330,52 +306,6 @@ def _write_speech(out: Path, phones, audio) -> None:
         "source": phones.source, "confidence": phones.confidence})
     if audio is not None:
         write_wav(out / "speech" / "audio.wav", audio)
-
-
-def _prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
-    """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
-
-    Returns whether ``out`` already held this dataset.
-    """
-    if out.exists() and not out.is_dir():
-        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
-    if out.is_dir() and any(not _is_our_temporary(p) for p in out.iterdir()):
-        mf = out / "manifest.json"
-        if not mf.is_file():
-            raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
-                               "nothing was written. Choose a new or empty folder")
-        if not resume:
-            raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
-                               "another folder (nothing was overwritten)")
-        try:
-            old = json.loads(mf.read_text())
-        except (OSError, ValueError) as exc:
-            raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
-        validate_manifest(old, mf)
-        diffs = [k for k in ("seed", "settings", "rig", "mesh", "frames", "calibration", "schema_version")
-                 if old.get(k) != manifest.get(k)]
-        if diffs:
-            was, now = old.get("settings", {}), manifest["settings"]
-            detail = "; ".join(f"{k} was {was.get(k)!r}, now {now.get(k)!r}"
-                               for k in now if was.get(k) != now.get(k))
-            raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
-                               f"{': ' + detail if detail else ''}); resume only with the same settings, or "
-                               "choose a new folder (nothing was overwritten)")
-        _check_inside(out)
-        for sub in ("", *_SUBFOLDERS):  # temporary files of writes cut short by a kill
-            if (out / sub).is_dir():
-                remove_stale_temporaries(out / sub, folder=True)
-        return True
-    if out.is_dir():  # only a killed first run's temporary manifest is here
-        remove_stale_temporaries(out, folder=True)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise DatasetError(f"cannot create the dataset folder {out}: {exc.strerror or exc}; choose a "
-                           "writable location for --out") from exc
-    if not os.access(out, os.W_OK):
-        raise DatasetError(f"the dataset folder {out} is not writable; choose another --out")
-    return False
 
 
 def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
@@ -423,7 +353,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
 
         rng = np.random.default_rng([s.seed, _CALIB_STREAM])
         board_poses(rig, Chessboard(*s.board), s.calib_frames, seed=rng)
-    if not _prepare_folder(out, manifest, resume):
+    if not prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
         (out / sub).mkdir(exist_ok=True)

@@ -1,4 +1,6 @@
-"""Synthetic camera-mirror datasets on disk: layout, manifest, settings and the reader.
+"""Synthetic camera-mirror datasets on disk: the layout and the reader (:class:`Dataset`); the
+settings are in :mod:`lipgen.dataset.settings`, the manifest and its checks in
+:mod:`lipgen.dataset.manifest`.
 
 Layout (DESIGN.md)::
 
@@ -18,317 +20,33 @@ top-left pixel. The marks are the 16 markers then the nose.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
 from lipgen._io import load_npz
-from lipgen.dataset.checks import FORMAT, SCHEMA, _check_number, check_relative, intact
+from lipgen.dataset.checks import SCHEMA, check_relative, intact
+from lipgen.dataset.manifest import (
+    CALIB_KIND,
+    DEPTH_KIND,
+    FRAME_KIND,
+    TRUTH_FIELDS,
+    build_manifest,
+    calib_paths,
+    extra_paths,
+    frame_paths,
+    mask_labels,
+    validate_manifest,
+)
+from lipgen.dataset.settings import GenerateSettings
 from lipgen.errors import DatasetError, ModelFileError
 from lipgen.rig.camera import VIEWS, MirrorRig
-from lipgen.rig.conditions import ImageConditions
 
 __all__ = ["Dataset", "DatasetFrame", "CalibrationFrame", "GenerateSettings", "TRUTH_FIELDS",
            "build_manifest", "validate_manifest", "frame_paths", "calib_paths", "extra_paths", "mask_labels",
            "check_relative", "intact"]
-
-FRAME_KIND, CALIB_KIND = "lipgen.dataset.frame", "lipgen.dataset.calibration"
-DEPTH_KIND = "lipgen.dataset.depth"
-
-TRUTH_FIELDS: dict[str, str] = {
-    "index": "frame number", "time": "seconds",
-    "vertices": "(n, 3) subject vertices, model (head) frame, mm",
-    "pose": "(4, 4) head pose, model -> world",
-    "activations": "(A,) action activations, columns as manifest 'actions'",
-    "mark_names": "(k,) the 16 marker names then 'nose'",
-    "marks_model": "(k, 3) marks in the model frame, mm", "marks_world": "(k, 3) marks in the world, mm",
-    "normals_world": "(k, 3) unit surface normals at the marks",
-    "uv": "(2, k, 2) projections in the split views (virtual, real), px",
-    "uv_raw": "(2, k, 2) the same in raw-frame pixels", "depth": "(2, k) view camera depth, mm",
-    "in_image": "(2, k) inside the view", "occluded": "(2, k) line of sight blocked by a surface",
-    "facing": "(2, k) the surface faces the view camera",
-    "visible": "(2, k) in_image and not occluded and facing",
-    "dot_visible_fraction": "(2, k) share of the ink dot's rim seen", "views": "(2,) view names",
-    "uv_exposure": "(2, 2, k, 2) projections when the shutter opens and closes (only with motion blur)",
-}
-"""The arrays of a frame's truth file, with their shapes and units."""
-_REQUIRED = ("format", "schema_version", "units", "convention", "seed", "settings", "rig", "views", "mesh",
-             "marks", "actions", "frames", "calibration", "lipgen_version")
-
-
-@dataclass(frozen=True)
-class GenerateSettings:
-    """Everything that determines a dataset's bytes (with the lipgen version)."""
-
-    frames: int = 150
-    seed: int = 0
-    script: str | None = None
-    """Viseme script (repeated to fill the frames); smooth random activations if None."""
-    size: tuple[int, int] = (640, 480)
-    fps: float = 30.0
-    subject_resolution: int = 1
-    head_rotation_deg: float = 4.0
-    head_translation_mm: float = 4.0
-    noise: float = 1.0
-    """Sensor noise, standard deviation in 8-bit grey levels."""
-    dot_diameter: float = 2.0
-    calib_frames: int = 10
-    board: tuple[int, int, float] = (9, 6, 8.0)
-    """Chessboard inner corners (cols, rows) and square size, mm."""
-    png_compress_level: int = 1
-    depth: bool = False
-    """Also write each raw frame's depth (``depth/NNNNNN.npz``: view-camera z in mm, NaN off the face)."""
-    masks: bool = False
-    """Also write each raw frame's label mask (``masks/NNNNNN.png``: ids in ``manifest['mask_labels']``)."""
-    speech: str | None = None
-    """A speech recording (WAV) whose phones time the motion (:mod:`lipgen.speech`)."""
-    speech_text: str | None = None
-    """The transcript of ``speech``, or, alone, English text spoken with Klatt-rule durations."""
-    subject_seed: int | None = None
-    """Draws the subject's own lip shape and ink-dot placement (:mod:`lipgen.subject.shape`); None:
-    the model's shape with the dots on its marker nodes (the data before subject seeds existed)."""
-    truth_physics: str = "linear"
-    """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
-    :mod:`lipgen.subject.layer`; seconds per frame)."""
-    preset: str | None = None
-    """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
-    None is ``easy`` (the data before presets, whose manifests name none)."""
-
-    conditions: ImageConditions = ImageConditions()
-    """Lens, mirror, light and sensor (:mod:`lipgen.rig.conditions`); the default is the ideal camera."""
-
-    @classmethod
-    def from_preset(cls, name: str, **overrides) -> GenerateSettings:
-        """Settings of preset ``name`` (``easy``, ``default``, ``hard``), any field overridden by
-        ``overrides`` (those that are not None)."""
-        from lipgen.dataset.presets import get_preset
-
-        p = get_preset(name)
-        base = {"head_rotation_deg": p.motion.head_rotation_deg,
-                "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
-                "dot_diameter": p.image.dot_diameter, "conditions": p.image.conditions,
-                "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
-                "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
-        given = {k: v for k, v in overrides.items() if v is not None}
-        if not p.subject.own_shape and given.get("subject_seed") is not None:
-            raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
-                             "'default' or 'hard'")
-        # easy is the data before presets, byte for byte: its manifest names no preset
-        return cls(**{**base, **given, "preset": None if p.name == "easy" else p.name})
-
-    def __post_init__(self) -> None:
-        def whole(name, lo, hi):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
-                raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {v!r}")
-
-        whole("frames", 1, 10**6)
-        whole("seed", 0, 2**63 - 1)
-        whole("subject_resolution", 1, 4)
-        whole("calib_frames", 0, 1000)
-        whole("png_compress_level", 0, 9)
-        if self.subject_seed is not None:
-            from lipgen.subject.shape import MAX_SUBJECT_SEED
-
-            whole("subject_seed", 0, MAX_SUBJECT_SEED)
-        if self.truth_physics not in ("linear", "layer"):
-            raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
-        if self.preset is not None:
-            from lipgen.dataset.presets import get_preset
-
-            get_preset(self.preset)
-        w, h = (int(x) for x in self.size)
-        if w < 16 or h < 12 or w * 3 != h * 4:
-            raise ValueError(f"size must be W x H with a 4:3 aspect (the default rig), e.g. 640x480; "
-                             f"got {w}x{h}")
-        object.__setattr__(self, "size", (w, h))
-        for name, lo, hi in (("fps", 1, 1000), ("head_rotation_deg", 0, 30), ("head_translation_mm", 0, 50),
-                             ("noise", 0, 50), ("dot_diameter", 0.2, 10)):
-            v = float(getattr(self, name))
-            if not lo <= v <= hi:
-                raise ValueError(f"{name} must be in [{lo}, {hi}], got {v}")
-            object.__setattr__(self, name, v)
-        if self.script is not None and (self.speech or self.speech_text):
-            raise ValueError("choose one source of motion: a viseme script or speech, not both")
-        if self.script is not None:
-            from lipgen.subject.motion import parse_script
-
-            parse_script(self.script)  # unknown visemes: a clear error now, not after the simulation
-        for name in ("depth", "masks"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-        c, r, sq = self.board
-        object.__setattr__(self, "board", (int(c), int(r), float(sq)))
-        if isinstance(self.conditions, dict):  # as to_dict() writes it
-            object.__setattr__(self, "conditions", ImageConditions.from_dict(self.conditions))
-        if not isinstance(self.conditions, ImageConditions):
-            raise TypeError(f"conditions must be ImageConditions, got {type(self.conditions).__name__}")
-
-    def to_dict(self) -> dict:
-        """The settings as a JSON-ready dict (as stored in the manifest)."""
-        d = asdict(self)
-        d["size"], d["board"] = list(self.size), list(self.board)
-        for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
-            if d[key] is None:
-                del d[key]
-        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
-            if d[k] == unset:  # unset: the manifest of such data is as it always was
-                del d[k]
-        d["conditions"] = self.conditions.to_dict()
-        return d
-
-    @classmethod
-    def from_dict(cls, d: dict) -> GenerateSettings:
-        """Settings from a manifest's dict, checking every key and value."""
-        if not isinstance(d, dict):
-            raise ValueError(f"generator settings must be a JSON object, got {type(d).__name__}")
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown generator settings {sorted(unknown)}")
-        return cls(**{k: tuple(v) if k in ("size", "board") else v for k, v in d.items()})
-
-
-def frame_paths(root, i: int) -> tuple[Path, Path]:
-    """(raw PNG, truth npz) of frame ``i``."""
-    return Path(root) / "raw" / f"{i:06d}.png", Path(root) / "truth" / f"{i:06d}.npz"
-
-
-def calib_paths(root, i: int) -> tuple[Path, Path]:
-    """(PNG, truth npz) of calibration frame ``i``."""
-    return Path(root) / "calib" / f"{i:06d}.png", Path(root) / "calib" / f"{i:06d}.npz"
-
-
-def extra_paths(root, i: int) -> tuple[Path, Path]:
-    """(depth npz, mask PNG) of frame ``i``, written when the settings ask for them."""
-    return Path(root) / "depth" / f"{i:06d}.npz", Path(root) / "masks" / f"{i:06d}.png"
-
-
-def _frame_entry(s: GenerateSettings, i: int) -> dict:
-    entry = {"index": i, "time": i / s.fps, "raw": f"raw/{i:06d}.png", "truth": f"truth/{i:06d}.npz"}
-    if s.depth:
-        entry["depth"] = f"depth/{i:06d}.npz"
-    if s.masks:
-        entry["mask"] = f"masks/{i:06d}.png"
-    return entry
-
-
-def mask_labels(mesh) -> dict[str, str]:
-    """Label id (as a string, for JSON) -> name, for the masks of a dataset of ``mesh``."""
-    from lipgen.subject.face import DOT_LABEL0, LABELS
-
-    labels = {str(k): v for k, v in LABELS.items()}
-    labels.update({str(DOT_LABEL0 + k): f"dot:{n}" for k, n in enumerate([*mesh.marker_names, "nose"])})
-    return labels
-
-
-def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str], version: str,
-                   subject: dict | None = None) -> dict:
-    """The manifest of a dataset made with settings ``s`` (deterministic: no clock, no paths).
-
-    ``subject`` (the subject seed, shape parameters and ink-dot surface points) is recorded
-    under ``"subject"`` when given."""
-    extra = {"mask_labels": mask_labels(mesh)} if s.masks else {}
-    if subject is not None:
-        extra["subject"] = subject
-    return extra | {
-        "format": FORMAT, "schema_version": SCHEMA, "lipgen_version": version, "units": "mm",
-        "convention": "opencv",
-        "pixels": "pixel (0, 0) is the centre of the top-left pixel; uv = (column, row)",
-        "seed": s.seed, "fps": s.fps, "settings": s.to_dict(), "rig": rig.to_dict(), "views": list(VIEWS),
-        "mesh": {"file": "mesh.npz", "name": mesh.name, "topology_id": mesh.topology_id,
-                 "resolution": s.subject_resolution, "n_nodes": mesh.n_nodes, "n_faces": mesh.n_faces,
-                 "marker_names": list(mesh.marker_names), "regions": list(mesh.region_names)},
-        "marks": list(mesh.marker_names) + ["nose"], "actions": list(actions),
-        "frames": [_frame_entry(s, i) for i in range(s.frames)],
-        "truth": {"kind": FRAME_KIND, "schema": SCHEMA, "fields": TRUTH_FIELDS},
-        "calibration": {
-            "board": {"type": "chessboard", "inner_cols": s.board[0], "inner_rows": s.board[1],
-                      "square": s.board[2], "margin_squares": 2,
-                      "frame": "origin at corner 0 (black outer diagonal square), x along a row of "
-                               "corners, y along a column, z = x cross y; printed face is -z"},
-            "pose_convention": "world X = A p + b for board points p",
-            "truth": {"kind": CALIB_KIND, "schema": SCHEMA},
-            "frames": [{"index": i, "raw": f"calib/{i:06d}.png", "truth": f"calib/{i:06d}.npz"}
-                       for i in range(s.calib_frames)]},
-    }
-
-
-def validate_manifest(m, where="manifest") -> None:
-    """Raise :class:`DatasetError` unless ``m`` is a well-formed manifest this lipgen reads.
-
-    Every file it names must be a relative path inside the dataset folder (:func:`check_relative`).
-    """
-    try:
-        _validate_manifest(m, where)
-    except (TypeError, AttributeError, KeyError, IndexError) as exc:  # a field of the wrong type
-        raise DatasetError(f"{where}: malformed manifest ({type(exc).__name__}: {exc})") from exc
-
-
-def _validate_manifest(m, where) -> None:
-    if not isinstance(m, dict):
-        raise DatasetError(f"{where}: a manifest is a JSON object, got {type(m).__name__}")
-    missing = [k for k in _REQUIRED if k not in m]
-    if missing:
-        raise DatasetError(f"{where} lacks {missing}; it is not a complete lipgen dataset manifest")
-    if m["format"] != FORMAT:
-        raise DatasetError(f"{where}: format is {m['format']!r}, not {FORMAT!r}")
-    if m["schema_version"] != SCHEMA:
-        raise DatasetError(f"{where}: schema version {m['schema_version']}; this lipgen reads {SCHEMA}. "
-                           "Regenerate the dataset with this lipgen")
-    if m["units"] != "mm" or m["convention"] != "opencv" or list(m["views"]) != list(VIEWS):
-        raise DatasetError(f"{where}: expected units 'mm', convention 'opencv', views {list(VIEWS)}")
-    recording = m.get("source") == "recording"
-    try:
-        if recording:
-            from lipgen.dataset.footage import RecordingSettings
-
-            RecordingSettings.from_dict(m["settings"])
-        else:
-            GenerateSettings.from_dict(m["settings"])
-        MirrorRig.from_dict(m["rig"])
-    except (KeyError, TypeError, ValueError, AttributeError) as exc:
-        raise DatasetError(f"{where}: bad settings or rig: {exc}") from exc
-    n = m["settings"]["frames"]
-    frames = m["frames"]
-    if not isinstance(frames, list) or len(frames) != n:
-        got = f"a list of {len(frames)}" if isinstance(frames, list) else type(frames).__name__
-        raise DatasetError(f"{where}: the frame list must have {n} entries (settings.frames), got {got}")
-    for i, f in enumerate(frames):
-        if not isinstance(f, dict) or f.get("index") != i or "raw" not in f:
-            raise DatasetError(f"{where}: frames[{i}] must be an object with index {i}, raw and (optional) "
-                               f"truth; got {str(f)[:80]!r}")
-        _check_number(f.get("time", 0.0), f"{where}: frames[{i}].time")
-        for key in ("raw", "truth", "depth", "mask"):
-            if key in f:
-                check_relative(f[key], f"{where}: frames[{i}].{key}")
-    _check_number(m.get("fps", 1.0), f"{where}: fps", positive=True)
-    mesh = m["mesh"]
-    if not isinstance(mesh, dict) or not {"file", "topology_id", "resolution", "n_nodes"} <= set(mesh):
-        raise DatasetError(f"{where}: mesh needs file, topology_id, resolution, n_nodes; got "
-                           f"{sorted(mesh) if isinstance(mesh, dict) else type(mesh).__name__}")
-    check_relative(mesh["file"], f"{where}: mesh.file")
-    marks, names = m["marks"], mesh.get("marker_names", [])
-    if (not isinstance(marks, list) or not isinstance(names, list) or len(marks) != len(names) + 1
-            or marks[-1:] != ["nose"]):
-        raise DatasetError(f"{where}: marks must be the marker names then 'nose'")
-    cal = m["calibration"]
-    n_cal = m["settings"]["calib_frames"]
-    if (not isinstance(cal, dict) or not {"board", "frames"} <= set(cal)
-            or not isinstance(cal["frames"], list) or len(cal["frames"]) != n_cal):
-        raise DatasetError(f"{where}: calibration needs the board and {n_cal} frames")
-    for i, f in enumerate(cal["frames"]):
-        if not isinstance(f, dict) or "raw" not in f or not isinstance(f.get("index"), int):
-            raise DatasetError(f"{where}: calibration.frames[{i}] must be an object with index, raw and "
-                               f"(optional) truth; got {str(f)[:80]!r}")
-        for key in ("raw", "truth"):
-            if key in f:
-                check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
-    board = cal["board"]
-    if not isinstance(board, dict) or not {"inner_cols", "inner_rows", "square"} <= set(board):
-        raise DatasetError(f"{where}: calibration.board needs inner_cols, inner_rows, square")
 
 
 @dataclass(frozen=True, eq=False)
@@ -608,4 +326,3 @@ def save_annotated(ds: Dataset, index: int, out, tracked=None) -> Path:
         fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
     plt.close(fig)
     return out
-

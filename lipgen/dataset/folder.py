@@ -1,0 +1,84 @@
+"""The dataset folder ``lipgen generate`` writes into: a new or empty folder, or the same
+dataset to resume; never a folder holding anything else, never through a symlink leading out,
+and a killed run's temporaries removed only after those checks."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+from lipgen._io import remove_stale_temporaries, stale_temporaries
+from lipgen.dataset.layout import validate_manifest
+from lipgen.errors import DatasetError
+
+__all__ = ["prepare_folder"]
+
+log = logging.getLogger(__name__)
+
+
+_SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks", "speech")
+
+
+def _is_our_temporary(p: Path) -> bool:
+    """A temporary manifest or mesh left by a killed first run (the folder is still ours to fill)."""
+    for name in ("manifest.json", "mesh.npz"):
+        if p.name.startswith(f".{name}.tmp-"):
+            return p in stale_temporaries(p.parent / name)
+    return False
+
+
+def _check_inside(out: Path) -> None:
+    """Refuse a dataset whose subfolders or files are symlinks leading out of it: a resume must
+    neither write nor delete anything elsewhere."""
+    root = out.resolve()
+    for name in ("manifest.json", "mesh.npz", *_SUBFOLDERS):
+        p = out / name
+        if p.is_symlink() and not p.resolve().is_relative_to(root):
+            raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
+                               "through it (nothing was written). Replace it with a real folder")
+def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
+    """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
+
+    Returns whether ``out`` already held this dataset.
+    """
+    if out.exists() and not out.is_dir():
+        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
+    if out.is_dir() and any(not _is_our_temporary(p) for p in out.iterdir()):
+        mf = out / "manifest.json"
+        if not mf.is_file():
+            raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
+                               "nothing was written. Choose a new or empty folder")
+        if not resume:
+            raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
+                               "another folder (nothing was overwritten)")
+        try:
+            old = json.loads(mf.read_text())
+        except (OSError, ValueError) as exc:
+            raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
+        validate_manifest(old, mf)
+        diffs = [k for k in ("seed", "settings", "rig", "mesh", "frames", "calibration", "schema_version")
+                 if old.get(k) != manifest.get(k)]
+        if diffs:
+            was, now = old.get("settings", {}), manifest["settings"]
+            detail = "; ".join(f"{k} was {was.get(k)!r}, now {now.get(k)!r}"
+                               for k in now if was.get(k) != now.get(k))
+            raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
+                               f"{': ' + detail if detail else ''}); resume only with the same settings, or "
+                               "choose a new folder (nothing was overwritten)")
+        _check_inside(out)
+        for sub in ("", *_SUBFOLDERS):  # temporary files of writes cut short by a kill
+            if (out / sub).is_dir():
+                remove_stale_temporaries(out / sub, folder=True)
+        return True
+    if out.is_dir():  # only a killed first run's temporary manifest is here
+        remove_stale_temporaries(out, folder=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"cannot create the dataset folder {out}: {exc.strerror or exc}; choose a "
+                           "writable location for --out") from exc
+    if not os.access(out, os.W_OK):
+        raise DatasetError(f"the dataset folder {out} is not writable; choose another --out")
+    return False
