@@ -46,7 +46,14 @@ def test_every_tutorial_has_blocks_that_run():
         assert _blocks(page), f"{page.name} has no python or sh block to test"
 
 
-@pytest.mark.parametrize("page", [p for p in _pages() if p.stem != "blender"], ids=lambda p: p.stem)
+def _params():
+    # pages that render frames carry the render mark (left out of `make test-fast`)
+    render = [pytest.mark.render]
+    return [pytest.param(p, id=p.stem, marks=render if "pyrender" in NEEDS.get(p.stem, ()) else [])
+            for p in _pages() if p.stem != "blender"]
+
+
+@pytest.mark.parametrize("page", _params())
 def test_tutorial_runs_as_written(page, tmp_path, monkeypatch):
     _skip_unless_available(page)
     monkeypatch.chdir(tmp_path)
