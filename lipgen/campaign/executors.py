@@ -9,10 +9,12 @@ and every task it lost is submitted again.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
 import socket
+import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from concurrent.futures.process import BrokenProcessPool
@@ -23,7 +25,14 @@ __all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "mak
 
 log = logging.getLogger(__name__)
 
-_THREADS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _worker_env() -> dict:
+    """Environment of every Ray worker: one BLAS thread, GL rasterizing in the rendering thread."""
+    from lipgen._threads import POLICY_ENV, RENDER_THREAD_ENV, THREAD_ENV
+
+    env = dict.fromkeys(THREAD_ENV, "1")
+    return env if os.environ.get(POLICY_ENV) == "off" else env | RENDER_THREAD_ENV
 
 
 class ClusterError(LipgenError, ConnectionError):
@@ -50,6 +59,59 @@ def check_address(address: str, timeout: float = 5.0) -> None:
                            "(ray status on the head node), and is the port open from here?") from None
 
 
+def _raylet_alive() -> bool | None:
+    """Whether a ``raylet`` child of this process runs (None where /proc cannot tell)."""
+    me = str(os.getpid())
+    try:
+        for d in os.scandir("/proc"):
+            if d.name.isdigit():
+                try:
+                    with open(f"/proc/{d.name}/stat") as fh:
+                        stat = fh.read()
+                except OSError:
+                    continue
+                name, rest = stat[stat.index("(") + 1:stat.rindex(")")], stat[stat.rindex(")") + 2:]
+                if name == "raylet" and rest.split()[1] == me:
+                    return True
+    except OSError:
+        return None
+    return False
+
+
+@contextlib.contextmanager
+def _patient_node_start(ray, poll: float = 0.2, give_up_s: float = 1800.0):
+    """Let an embedded Ray node start however loaded the machine is.
+
+    ``ray.init`` gives the raylet a fixed 30 s (``raylet_start_wait_time_s`` in
+    ``ray/_private/node.py``, not configurable) to register with the GCS; the raylet registers
+    once its Python agents have imported, which on 2 cores shared with 20-30 busy processes takes
+    longer. Inside this block the node's registration check waits for as long as its raylet
+    process is alive (so a raylet that died still fails at once), instead of a wall-clock window.
+    It only touches the check Ray calls while a local node starts, and puts it back after.
+    """
+    services = getattr(getattr(ray, "_private", None), "services", None)
+    original = getattr(services, "get_node", None)
+    if original is None:  # another Ray layout: keep Ray's own window
+        yield
+        return
+
+    def get_node(gcs_address, node_id):
+        t0 = time.monotonic()
+        while True:
+            try:
+                return original(gcs_address, node_id)
+            except RuntimeError:
+                if _raylet_alive() is False or time.monotonic() - t0 > give_up_s:
+                    raise
+                time.sleep(poll)
+
+    services.get_node = get_node
+    try:
+        yield
+    finally:
+        services.get_node = original
+
+
 class RayExecutor:
     """Tasks as Ray remote functions; ``address=None`` starts an embedded local Ray."""
 
@@ -61,24 +123,19 @@ class RayExecutor:
 
         ray = require("ray", "lipgen campaign")
         self.ray, self.retries = ray, retries
-        env = {"env_vars": dict(_THREADS_ENV)}
+        env = {"env_vars": _worker_env()}
         if address is not None:
             check_address(address)
-        for attempt in range(3):  # Ray gives its raylet 30 s to start, which a loaded machine can miss
-            try:
-                if address is None:
-                    ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard,
-                             runtime_env=env, log_to_driver=False, configure_logging=False)
-                else:
-                    ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
-                break
-            except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a slow start)
-                ray.shutdown()
-                if address is None and "timed out during startup" in str(exc) and attempt < 2:
-                    log.warning("Ray did not start in time (%s); trying again", exc)
-                    continue
-                where = address or "local"
-                raise ClusterError(f"could not start or join Ray (address {where}): {exc}") from exc
+        try:
+            if address is None:
+                with _patient_node_start(ray):
+                    ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard, runtime_env=env,
+                             log_to_driver=False, configure_logging=False)
+            else:
+                ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
+        except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a failed start)
+            ray.shutdown()
+            raise ClusterError(f"could not start or join Ray (address {address or 'local'}): {exc}") from exc
         self._remote: dict = {}
         ctx = ray.get_runtime_context()
         self.dashboard_url = getattr(ctx, "dashboard_url", None) or None
