@@ -9,6 +9,7 @@ import json
 import os
 import threading
 import time
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -161,6 +162,41 @@ def test_the_local_executor_reruns_a_task_whose_worker_died(tmp_path):
             done = ex.wait([h])
         assert done and isinstance(ex.result(h), int) and h.attempts == 2
         assert ex.result(ex.submit(os.getenv, "OPENBLAS_NUM_THREADS")) == "1"
+    finally:
+        ex.shutdown()
+
+
+def _crash_when(started: str, marker: str) -> int:
+    """Once ``started`` exists (a sibling task is running), die as under SIGKILL (first call)."""
+    while not os.path.exists(started):
+        time.sleep(0.01)
+    return _crash_once(marker)
+
+
+def _sibling(started: str, marker: str) -> int:
+    """Count its runs in ``started``; stay running until the crash happened and a while after."""
+    with open(started, "a") as fh:
+        fh.write("run\n")
+    while not os.path.exists(marker):
+        time.sleep(0.01)
+    time.sleep(1.0)  # still running when the driver learns of its sibling's death
+    return os.getpid()
+
+
+def test_a_dead_local_worker_loses_only_its_own_task(tmp_path):
+    started, marker = str(tmp_path / "started"), str(tmp_path / "marker")
+    ex = LocalExecutor(workers=2, retries=1)
+    try:
+        crash, sibling = ex.submit(_crash_when, started, marker), ex.submit(_sibling, started, marker)
+        pids = {ex.result(crash), ex.result(sibling)}
+        assert crash.attempts == 2 and sibling.attempts == 1 and ex.lost == 1
+        assert Path(started).read_text() == "run\n", "the sibling task was run again"
+        assert len(pids) == 2
+        # a task that kills its worker every time ends with the pool's error after its retries
+        doomed = ex.submit(os._exit, 3)
+        with pytest.raises(BrokenProcessPool):
+            ex.result(doomed)
+        assert doomed.attempts == 2 and ex.result(ex.submit(os.getenv, "LP_NUM_THREADS")) == "0"
     finally:
         ex.shutdown()
 

@@ -3,22 +3,19 @@
 Both give the driver the same three calls: ``submit(fn, *args) -> handle``, ``wait(handles)``
 (the handles that finished, within a short timeout) and ``result(handle)`` (the value, or the
 task's exception). A task whose worker dies is run again (``retries`` times): Ray re-runs just
-that task; the local pool, which breaks as a whole when one of its processes dies, is rebuilt
-and every task it lost is submitted again.
+that task; so does the local executor (:mod:`lipgen.campaign.local`), whose workers are
+one-process pools given a task only when free.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
-import multiprocessing
 import os
 import socket
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor
-from concurrent.futures import wait as futures_wait
-from concurrent.futures.process import BrokenProcessPool
 
+from lipgen.campaign.local import LocalExecutor
 from lipgen.errors import LipgenError
 
 __all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "make_executor"]
@@ -174,88 +171,6 @@ class RayExecutor:
     def shutdown(self) -> None:
         """Disconnect (and stop the embedded Ray)."""
         self.ray.shutdown()
-
-
-class _Handle:
-    __slots__ = ("fn", "args", "future", "attempts")
-
-    def __init__(self, fn, args) -> None:
-        self.fn, self.args, self.future, self.attempts = fn, args, None, 0
-
-
-def _broke(h: _Handle) -> bool:
-    return h.future.done() and isinstance(h.future.exception(), BrokenProcessPool)
-
-
-def _init_local(parent_pid: int) -> None:
-    from lipgen._lifeline import die_with_parent
-    from lipgen.campaign.stages import limit_threads
-
-    die_with_parent(parent_pid)
-    limit_threads()
-
-
-class LocalExecutor:
-    """Tasks on ``workers`` local processes (spawned, one core and one BLAS thread each)."""
-
-    kind = "local"
-
-    def __init__(self, workers: int = 2, retries: int = 2) -> None:
-        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
-            raise ValueError(f"workers must be a whole number in [1, 256], got {workers!r}")
-        self._n, self.retries, self.dashboard_url = workers, retries, None
-        self._pool = self._new_pool()
-        self._live: list[_Handle] = []
-
-    @property
-    def workers(self) -> int:
-        return self._n
-
-    def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(self._n, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_init_local, initargs=(os.getpid(),))
-
-    def put(self, obj):
-        """``obj`` itself: it is pickled with each task."""
-        return obj
-
-    def _start(self, h: _Handle) -> None:
-        h.attempts += 1
-        h.future = self._pool.submit(h.fn, *h.args)
-
-    def submit(self, fn, *args) -> _Handle:
-        """Run ``fn(*args)`` on a local process; returns its handle."""
-        h = _Handle(fn, args)
-        self._start(h)
-        self._live.append(h)
-        return h
-
-    def wait(self, handles, timeout: float = 0.5) -> list:
-        """The ``handles`` that finished within ``timeout`` seconds; tasks lost with a dead worker
-        are submitted again (up to ``retries`` times) and are not finished."""
-        handles = list(handles)
-        if not handles:
-            return []
-        futures_wait([h.future for h in handles], timeout=timeout, return_when=FIRST_COMPLETED)
-        broken = [h for h in self._live if _broke(h)]
-        if broken:  # a worker died: every task the pool still held is lost with it
-            log.warning("a local worker died; %d task(s) are run again", len(broken))
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = self._new_pool()
-            for h in self._live:
-                if _broke(h) and h.attempts <= self.retries:
-                    self._start(h)
-        done = [h for h in handles if h.future.done()]
-        self._live = [h for h in self._live if not h.future.done()]
-        return done
-
-    def result(self, handle: _Handle):
-        """The task's value, or its exception raised here."""
-        return handle.future.result()
-
-    def shutdown(self) -> None:
-        """Stop the processes (pending tasks are cancelled)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def make_executor(kind: str = "ray", address: str | None = None, workers: int | None = None, retries: int = 2,
