@@ -247,6 +247,24 @@ def test_a_local_campaign_matches_generate_fails_one_item_and_resumes(tmp_path):
     assert len(index["runs"]) == 2
 
 
+@pytest.mark.render
+def test_a_worker_reuses_its_renderer_for_the_next_dataset_with_the_same_bytes(tmp_path):
+    pytest.importorskip("lipgen.rig.render")
+    from lipgen.campaign.stages import prepare, render_chunk
+    from lipgen.dataset import generate as gen
+
+    a, b = (GenerateSettings(frames=2, size=(160, 120), calib_frames=1, seed=k, noise=1.0) for k in (1, 2))
+    for name, s in (("a", a), ("b", b)):
+        ctx, jobs, _ = prepare(str(tmp_path / name), s.to_dict())
+        renderer = gen._WORKER.get("renderer")
+        render_chunk(ctx, jobs)
+    assert renderer is not None and gen._WORKER["renderer"] is renderer, "the renderer was not kept"
+    gen._close_worker()
+    ref = gen.generate(tmp_path / "ref", b, progress=False)
+    x, y = _files(ref), _files(tmp_path / "b")
+    assert x.keys() == y.keys() and all(x[k] == y[k] for k in x), "a reused renderer changed the bytes"
+
+
 # --- running: Ray ----------------------------------------------------------------------------
 
 
