@@ -459,3 +459,27 @@ def test_the_cluster_model_is_waves_of_slots_plus_serial_scheduling():
     # 1000 items on 100 x 2 slots: 5 waves of 10 s at efficiency 0.5, plus start and 1000 x 3 submits
     assert predict(1000, 100, 2, 10.0, 0.5, 20.0, 0.001, 3) == pytest.approx(20 + 5 * 20 + 3.0)
     assert predict(1, 100, 2, 10.0, 1.0, 0.0, 0.0, 1) == pytest.approx(10.0)  # one item: one wave
+
+
+def test_the_bench_reads_a_childs_cpu_time_from_proc():
+    import subprocess
+    import sys
+
+    from lipgen.bench.campaign import _cpu_split, _descendants_cpu
+
+    code = ("import time, sys\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass\n"
+            "print(time.process_time(), flush=True)\nsys.stdin.read()")
+    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)
+    try:
+        own = float(child.stdout.readline())  # the child's own count, once it has burnt 0.3 s
+        seen = _descendants_cpu()
+        assert child.pid in seen
+        assert seen[child.pid][1] == pytest.approx(own, abs=0.05)  # /proc ticks are 10 ms
+        split = _cpu_split("local", {}, {child.pid: seen[child.pid]}, 0.1)
+        assert split == {"workers_s": seen[child.pid][1], "ray_system_s": 0.0, "driver_s": 0.1}
+        ray = _cpu_split("ray", {}, {1: ("ray::render_chunk", 2.0), 2: ("raylet", 0.5),
+                                     3: ("ray::DashboardAgent", 0.25)}, 0.0)
+        assert ray["workers_s"] == 2.0 and ray["ray_system_s"] == 0.75
+    finally:
+        child.communicate("")

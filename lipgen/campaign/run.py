@@ -220,6 +220,7 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, place, bar) 
                     peaks = [r["peak_rss_mib"] for r in res if r["peak_rss_mib"] is not None]
                     _finish_stage(ex, plan, item, "generate", {
                         "chunks": len(res), "render_seconds": sum(r["seconds"] for r in res),
+                        "render_cpu_seconds": sum(r.get("cpu_seconds", 0.0) for r in res),
                         "task_seconds": item.prepare_s + sum(r["seconds"] for r in res),
                         "workers": len({r["pid"] for r in res}),
                         "peak_rss_mib": max(peaks) if peaks else None}, index, place, pending)

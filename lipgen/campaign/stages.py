@@ -41,13 +41,15 @@ def prepare(dataset: str, settings: dict):
 
 
 def render_chunk(ctx, jobs: list) -> dict:
-    """Render and write some frames of one dataset."""
+    """Render and write some frames of one dataset; returns frames, seconds, CPU seconds (all the
+    worker's threads), pid and peak resident MiB."""
     from lipgen.dataset.generate import render_jobs
 
     limit_threads()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     n = render_jobs(ctx, [tuple(j) for j in jobs])
-    return {"frames": n, "seconds": time.perf_counter() - t0, "pid": os.getpid(), "peak_rss_mib": _peak_mib()}
+    return {"frames": n, "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0,
+            "pid": os.getpid(), "peak_rss_mib": _peak_mib()}
 
 
 def _peak_mib() -> float | None:
