@@ -75,6 +75,11 @@ def _raylet_alive() -> bool | None:
     return False
 
 
+_PATIENT = {"worker_register_timeout_seconds": 600, "agent_register_timeout_ms": 600_000}
+"""The embedded Ray's start-up limits (Ray 2.60's worker default is 60 s): a worker or agent that
+imports slowly on a loaded machine is waited for, not killed and started again."""
+
+
 @contextlib.contextmanager
 def _patient_node_start(ray, poll: float = 0.2, give_up_s: float = 1800.0):
     """Let an embedded Ray node start however loaded the machine is.
@@ -127,7 +132,7 @@ class RayExecutor:
             if address is None:
                 with _patient_node_start(ray):
                     ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard, runtime_env=env,
-                             log_to_driver=False, configure_logging=False)
+                             log_to_driver=False, configure_logging=False, _system_config=_PATIENT)
             else:
                 ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
         except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a failed start)
