@@ -17,7 +17,7 @@ __all__ = ["limit_threads", "prepare", "render_chunk", "reconstruct", "train", "
 
 def limit_threads() -> None:
     """One BLAS thread per task, and GL rasterizing in the rendering thread: a worker is given one
-    core; more threads would oversubscribe it (:func:`lipgen._threads.limit_worker_threads`)."""
+    core; more threads would oversubscribe it (``lipgen._threads.limit_worker_threads``)."""
     from lipgen._threads import limit_worker_threads
 
     limit_worker_threads(1)
