@@ -10,9 +10,11 @@ took 70-100 s instead of 8 s. So (see CONTRIBUTING.md, "Threads"):
   on tracks) runs inside :func:`blas_threads` ``(1)``;
 * every worker process calls :func:`limit_worker_threads` first (its siblings use the other
   cores); that also makes Mesa's software rasterizer (llvmpipe, which starts one thread per core
-  in every GL context) rasterize in the rendering thread (``LP_NUM_THREADS=0``): measured on 2
-  cores under load, its two threads took 30 % of a render worker's CPU, the worker spent 7 % more
-  CPU in all and 1.4x the wall time than with none, and two workers ran 6 threads on 2 cores;
+  in every GL context) rasterize in the rendering thread (``LP_NUM_THREADS=0``), so a worker
+  given one core uses one: its two threads did 30 % of a render worker's work, and two workers
+  ran 6 threads on 2 cores. CPU per frame is the same either way (interleaved A/B, 2 workers,
+  load 22-29: 0.98x); on a loaded machine the extra threads win a larger share of the cores
+  (wall 0.86x), which is taken from the other processes, not efficiency;
 * large factorisations and SVDs (the physics of a fine mesh) keep the default threads.
 """
 
