@@ -30,7 +30,7 @@ the marker rows are given the true marker-noise variance.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -120,8 +120,11 @@ class Observed:
     activations: np.ndarray
 
 
-def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None) -> Observed:
-    """Simulate ``activations`` and measure the markers as the thesis's pipeline would."""
+def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None,
+            residual=None) -> Observed:
+    """Simulate ``activations`` (plus a ``residual`` deformation (F, n, 3) in mm of the truth mesh,
+    :func:`lipgen.subject.independent.residual_motion`) and measure the markers as the thesis's
+    pipeline would."""
     mesh = physics.mesh
     n0 = mesh.n_nodes
     if subject.mesh.n_nodes < n0:
@@ -129,6 +132,8 @@ def observe(subject, physics: Physics, activations, head=None, noise_mm: float =
     # displacements are from the subject's own rest (its shape may differ from the model's)
     rest = subject.mesh.vertices[:n0]
     motion = simulate(subject, activations, head)
+    if residual is not None:
+        motion = replace(motion, vertices=motion.vertices + residual)
     world = motion.markers_world
     if noise_mm > 0:
         world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
@@ -230,18 +235,42 @@ def _modes_curve(model, physics, data: Observed, rows, noise_var, k_max) -> dict
     return curve
 
 
-def _without(acts: np.ndarray, names) -> np.ndarray:
+def _columns(names, sides: bool = False) -> list[int]:
+    """Columns of the actions ``names``, with ``sides`` also of their one-sided halves (which
+    replace a two-sided action in the independent motion)."""
+    from lipgen.subject.independent import BILATERAL
+
+    return [ACTIONS.index(b) for a in names for b in (a, *(BILATERAL.get(a, ()) if sides else ()))]
+
+
+def _without(acts: np.ndarray, names, sides: bool = False) -> np.ndarray:
     acts = acts.copy()
-    acts[:, [ACTIONS.index(a) for a in names]] = 0.0
+    acts[:, _columns(names, sides)] = 0.0
     return acts
 
 
-def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3) -> np.ndarray:
+def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3, sides: bool = False) -> np.ndarray:
     """The first ``n`` frames in which one of ``names`` is active above ``threshold``."""
-    keep = acts[:, [ACTIONS.index(a) for a in names]].max(axis=1) > threshold
+    keep = acts[:, _columns(names, sides)].max(axis=1) > threshold
     if keep.sum() < 3:
         raise ValueError(f"too few frames use {names} (found {int(keep.sum())}); simulate more frames")
     return acts[keep][:n]
+
+
+def _independent(s: Table51Settings) -> bool:
+    from lipgen.dataset.presets import get_preset
+
+    return get_preset(s.preset).motion.sources == "independent"
+
+
+def _motion(s: Table51Settings, subject, n: int, seed: int):
+    """Activations (n, A) and the residual deformation ((n, N, 3) or None) of the preset's motion."""
+    if not _independent(s):
+        return random_activations(n, seed), None
+    from lipgen.subject.independent import independent_activations, residual_motion
+
+    a_rng, r_rng = np.random.default_rng(seed).spawn(2)
+    return independent_activations(n, a_rng), residual_motion(subject, n, r_rng)
 
 
 def _selection(cm: CombinedModel) -> dict:
@@ -256,14 +285,19 @@ def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int
     rows = {k: v for k, v in observation_rows(physics.mesh).items() if "points" in k}
     T = s.held_out_test
 
-    def session(acts, sd):
+    def session(acts, residual, sd):
         head = head_motion(len(acts), sd) if s.head else None
-        return observe(subject, physics, acts, head, s.marker_noise_mm, rng)
+        return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
 
-    train = session(_without(random_activations(s.n_train, seed), T), seed)
+    sides = _independent(s)
+    acts, residual = _motion(s, subject, s.n_train, seed)
+    train = session(_without(acts, T, sides), residual, seed)
     model = ModeModel(s.n_modes).fit(train.reach, mesh=physics.mesh)
     combined = fit_combined(model, physics, train.reach)
-    test = session(_using(random_activations(400, seed + 1), T, s.oos_frames), seed + 1)
+    acts, residual = _motion(s, subject, 400, seed + 1)
+    keep = acts[:, _columns(T, sides)].max(axis=1) > 0.3
+    residual = None if residual is None else residual[keep][:s.oos_frames]
+    test = session(_using(acts, T, s.oos_frames, sides=sides), residual, seed + 1)
     return model, combined, test, rows
 
 
@@ -331,9 +365,9 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
     mesh = lip_mesh(0)
     physics = Physics(mesh)
     noise_var = s.marker_noise_mm ** 2
-    acts = random_activations(s.n_frames, s.seed)
+    acts, residual = _motion(s, subject, s.n_frames, s.seed)
     head = head_motion(s.n_frames, s.seed) if s.head else None
-    data = observe(subject, physics, acts, head, s.marker_noise_mm, rng)
+    data = observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
     model = ModeModel(s.n_modes).fit(data.reach[:s.n_train], mesh=mesh)
     test = Observed(*(a[s.n_train:] for a in (data.goals, data.reach, data.truth, data.activations)))
     rows = observation_rows(mesh)
@@ -348,6 +382,7 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
         "settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "subject_seed": subject.subject_seed,
         "subject_shape": None if subject.shape is None else subject.shape.to_dict(),
         "truth_physics": "linear" if subject.layer is None else "layer",
+        "motion_sources": "independent" if _independent(s) else "gestures",
         "n_nodes_model": mesh.n_nodes, "n_nodes_truth": subject.mesh.n_nodes,
         "variance_captured": float(np.sum(model.explained_variance_ratio_)),
         "cumulative_variance": np.cumsum(model.full_variance_ / model.total_variance_).tolist(),
