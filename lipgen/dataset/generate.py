@@ -347,8 +347,9 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     if s.motion_sources == "independent":
         from lipgen.subject import independent as ind
 
-        subject = (subject or {}) | {"motion": {"sources": list(ind.INDEPENDENT_SOURCES), "jaw_gain": ind.JAW_GAIN,
-                                                "residual_rms_mm": ind.RESIDUAL_MM}}
+        record = {"sources": list(ind.INDEPENDENT_SOURCES), "jaw_gain": ind.JAW_GAIN,
+                  "residual_rms_mm": ind.RESIDUAL_MM}
+        subject = (subject or {}) | {"motion": record}
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not s.conditions.is_ideal:
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))

@@ -94,7 +94,8 @@ class GenerateSettings:
         if self.truth_physics not in ("linear", "layer"):
             raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
         if self.motion_sources not in ("gestures", "independent"):
-            raise ValueError(f"motion_sources must be 'gestures' or 'independent', got {self.motion_sources!r}")
+            raise ValueError(f"motion_sources must be 'gestures' or 'independent', got "
+                             f"{self.motion_sources!r}")
         if self.preset is not None:
             from lipgen.dataset.presets import get_preset
 

@@ -15,7 +15,8 @@ import re
 
 import numpy as np
 
-__all__ = ["ACTIONS", "CLASSIC_ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS", "parse_script",
+__all__ = ["ACTIONS", "CLASSIC_ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS",
+           "parse_script",
            "random_activations", "viseme_activations", "head_motion", "action_index"]
 
 DEFAULT_FPS = 30.0

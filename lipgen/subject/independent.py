@@ -108,7 +108,8 @@ def independent_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
         table[:, action_index(both)] = 0.0
         for k, side in enumerate(sides):
             table[:, action_index(side)] += col * gains[:, k]
-    table[:, action_index("upper_lip_protrusion")] += _PROTRUSION_SHARE * table[:, action_index("pucker_left")]
+    rounding = table[:, action_index("pucker_left")]  # (the left side's gain: lip rounding)
+    table[:, action_index("upper_lip_protrusion")] += _PROTRUSION_SHARE * rounding
     table[:, action_index("jaw_open")] *= jaw_gain
     A = coarticulate(table[which], fps)
     t = np.arange(n_frames) / fps
