@@ -54,10 +54,10 @@ INDEPENDENT_SOURCES: tuple[str, ...] = (
 )
 """The sources of this motion (``jaw_shift`` is signed: ``jaw_shift_left`` or ``_right``)."""
 
-JAW_GAIN = 1.6
+JAW_GAIN = 1.7
 """Jaw activation per unit of a viseme's ``jaw_open`` (1 = 14 mm at the lower-lip marker)."""
 
-RESIDUAL_MM = 1.3
+RESIDUAL_MM = 1.4
 """RMS (over frames and dots) of the residual deformation at the ink dots, mm (see the module)."""
 
 _SIDE_SIGMA = 0.25  # per-syllable log-normal spread of each side's gain

@@ -44,14 +44,14 @@ ACTION_TARGETS_MM: dict[str, tuple[str, float]] = {
     "lip_stretcher_right": ("corner_right", 5.0),
     "upper_lip_roll_in": ("upper_mid", 3.0),
     "lower_lip_roll_in": ("lower_mid", 3.0),
-    "upper_lip_protrusion": ("upper_mid", 6.0),
+    "upper_lip_protrusion": ("upper_mid", 7.0),
 }
 """Action -> (marker, displacement in mm at activation 1 of the default subject). The jaw shifts
 are rigid motions of the jaw instead (:data:`JAW_SHIFT_MM`).
 
 The independent sources (from ``pucker_left`` on) are set from published lip kinematics: upper
 and lower lip protrusion for rounded vowels reach about 5-10 mm together (Fromkin, "Lip positions
-in American English vowels", Language and Speech 7, 1964; the upper lip's own share 6 mm here,
+in American English vowels", Language and Speech 7, 1964; the upper lip's own share 7 mm here,
 with the pucker and the mentalis adding to it); lower-lip depression and corner retraction of
 3-6 mm in speech and expression (Weeden, Trotman & Faraway, "Three-dimensional analysis of facial
 movement in normal adults", Cleft Palate-Craniofacial Journal 38, 2001: commissure movements of
