@@ -191,15 +191,21 @@ def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_mode
 
 
 def row_errors(est: LLSE, d: np.ndarray, measured: np.ndarray, reference: np.ndarray,
-               hidden: np.ndarray) -> float:
-    """MSE per hidden DOF (mm²) of the estimate from ``measured[:, d]`` against ``reference``."""
+               hidden: np.ndarray, relative: bool = False) -> float:
+    """Error per hidden DOF (mm², :func:`lipgen.evaluate.metric.per_dof_error`, the definition
+    ``lipgen evaluate`` uses) of the estimate from ``measured[:, d]`` against ``reference``; with
+    ``relative``, over the reference's own mean square on those DOFs."""
+    from lipgen.evaluate.metric import per_dof_error, relative_error
+
     F = len(reference)
     X = est(measured.reshape(F, -1)[:, d]).reshape(F, -1)
-    return float(np.mean((X[:, hidden] - reference.reshape(F, -1)[:, hidden]) ** 2))
+    return (relative_error if relative else per_dof_error)(X, reference, hidden)
 
 
 def _hidden(physics: Physics, d: np.ndarray) -> np.ndarray:
-    return np.setdiff1d(physics.free_dofs, d)
+    from lipgen.evaluate.metric import hidden_dofs
+
+    return hidden_dofs(physics.free_dofs, d)
 
 
 def _score(model, physics, data: Observed, rows, noise_var, combined, columns=COLUMNS) -> dict:
@@ -216,6 +222,8 @@ def _score(model, physics, data: Observed, rows, noise_var, combined, columns=CO
                 reference = getattr(data, ref)
                 measured = data.reach if markers_only else reference  # markers are what was measured
                 scores[ref] = row_errors(ests[col], d, measured, reference, _hidden(physics, d))
+            scores["truth_relative"] = row_errors(ests[col], d, measured, data.truth, _hidden(physics, d),
+                                                  relative=True)
             out[name][col] = scores
     return out
 
