@@ -95,7 +95,8 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     error per hidden DOF (:mod:`lipgen.evaluate.metric`, the definition ``lipgen experiment
     table51`` uses; each frame's hidden DOFs, averaged over the frames) against the frame's reach
     field (the thesis's reference) and against the true surface, and relative to the true test
-    motion's own mean square on those DOFs (``vs_truth_relative``). Columns: the first ``n_modes`` modes, the full sample covariance, the combined
+    motion's own mean square on those DOFs (``vs_truth_relative``). Columns: the first
+    ``n_modes`` modes, the full sample covariance, the combined
     learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
 
     ``combined`` is True (the combined model with the default prior and no noise), False (no
