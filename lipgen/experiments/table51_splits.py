@@ -55,6 +55,9 @@ class SplitSettings:
     n_train: int = 140
     n_test: int = 10
     lead_in: int = 30
+    n_windows: int = 3
+    """Test windows per split and seed, each ``n_test`` consecutive frames of its own utterance;
+    a seed's figure is their mean."""
     n_modes: int = 10
     marker_noise_mm: float = 0.0
     head: bool = True
@@ -65,9 +68,12 @@ class SplitSettings:
             raise ValueError(f"seeds must hold 2 or more distinct subject seeds (5 for the report), got "
                              f"{self.seeds}")
         if self.n_test < 10:
-            raise ValueError(f"n_test must be >= 10 consecutive test frames (thesis Table 5.1), got {self.n_test}")
+            raise ValueError(f"n_test must be >= 10 consecutive test frames (thesis Table 5.1), got "
+                             f"{self.n_test}")
         if not 1 <= self.n_modes < self.n_train:
             raise ValueError(f"need 1 <= n_modes < n_train, got {self.n_modes}, {self.n_train}")
+        if self.n_windows < 1:
+            raise ValueError(f"n_windows must be >= 1, got {self.n_windows}")
         if self.lead_in < 0:
             raise ValueError(f"lead_in must be >= 0 frames, got {self.lead_in}")
         Table51Settings(preset=self.preset, marker_noise_mm=self.marker_noise_mm)  # checks the rest
@@ -94,8 +100,8 @@ def order(table: dict, ref: str = "truth", column: str = "modes") -> float:
 def _settings(s: SplitSettings, subject_seed: int) -> Table51Settings:
     own = s.preset != "easy"
     return Table51Settings(seed=subject_seed, preset=s.preset, subject_seed=subject_seed if own else None,
-                           marker_noise_mm=s.marker_noise_mm, head=s.head, truth_resolution=s.truth_resolution,
-                           n_modes=s.n_modes)
+                           marker_noise_mm=s.marker_noise_mm, head=s.head,
+                           truth_resolution=s.truth_resolution, n_modes=s.n_modes)
 
 
 def _clip(s: SplitSettings, t51: Table51Settings, subject, physics, n: int, motion_seed: int, rng):
@@ -133,27 +139,39 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
         model = ModeModel(s.n_modes).fit(train.reach, mesh=mesh)
         combined = fit_combined(model, physics, train.reach)
         n = s.lead_in + s.n_test
-        utter = _window(_clip(s, t51, subject, physics, n, 1000 * seed + 1, rng), s.lead_in, s.n_test)
         other = _settings(s, seed + 1000)
-        other_subject = make_subject(other)
-        subj = _window(_clip(s, other, other_subject, physics, n, 1000 * seed + 2, rng), s.lead_in, s.n_test)
-        per_seed.append({
-            "seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
-            "utterance": _score(model, physics, utter, rows, noise_var, combined, ESTIMATORS),
-            "subject": _score(model, physics, subj, rows, noise_var, combined, ESTIMATORS),
-            "test_mean_square_mm2": {"utterance": float(np.mean(utter.truth**2)),
-                                     "subject": float(np.mean(subj.truth**2))}})
+        tests = {"utterance": (t51, subject), "subject": (other, make_subject(other))}
+        record = {"seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
+                  "test_mean_square_mm2": {}}
+        for k, (split, (ts, sub)) in enumerate(tests.items()):
+            tables, ms = [], []
+            for w in range(s.n_windows):
+                data = _window(_clip(s, ts, sub, physics, n, 1000 * seed + 10 * (k + 1) + w, rng), s.lead_in,
+                               s.n_test)
+                tables.append(_score(model, physics, data, rows, noise_var, combined, ESTIMATORS))
+                ms.append(float(np.mean(data.truth**2)))
+            record[split] = _mean_tables(tables)
+            record["test_mean_square_mm2"][split] = float(np.mean(ms))
+        per_seed.append(record)
     summary = {}
     for split in SPLITS:
         summary[split] = {row: {col: {ref: mean_interval([r[split][row][col][ref] for r in per_seed])
                                       for ref in ("truth", "reach", "truth_relative")}
                                 for col in ESTIMATORS} for row in rows}
-    orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed]) for ref in ("truth", "reach")}
-              for split in SPLITS}
+    orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed])
+                      for ref in ("truth", "reach")} for split in SPLITS}
     return {"settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "per_seed": per_seed,
             "summary": summary, "order_xy_over_yz": orders,
             "variance_captured": mean_interval([r["variance_captured"] for r in per_seed]),
-            "separated": {split: {row: _separated(summary[split][row]) for row in rows} for split in SPLITS}}
+            "separated": {split: {ref: {row: _separated(summary[split][row], ref) for row in rows}
+                                  for ref in ("truth", "truth_relative")} for split in SPLITS}}
+
+
+def _mean_tables(tables: list) -> dict:
+    """The cell-by-cell mean of tables ``{row: {column: {ref: value}}}``."""
+    first = tables[0]
+    return {row: {col: {ref: float(np.mean([t[row][col][ref] for t in tables])) for ref in first[row][col]}
+                  for col in first[row]} for row in first}
 
 
 def _separated(cells: dict, ref: str = "truth") -> bool:
