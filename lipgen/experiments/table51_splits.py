@@ -35,7 +35,8 @@ from lipgen.experiments.table51 import (
     observe,
 )
 
-__all__ = ["SplitSettings", "run_splits", "mean_interval", "order", "ESTIMATORS", "SPLITS"]
+__all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "order", "ESTIMATORS",
+           "SPLITS"]
 
 log = logging.getLogger(__name__)
 
@@ -178,3 +179,59 @@ def _separated(cells: dict, ref: str = "truth") -> bool:
     """True when the estimators' intervals do not all overlap (some pair is disjoint)."""
     iv = [cells[c][ref][1:] for c in ESTIMATORS]
     return any(a[1] < b[0] or b[1] < a[0] for i, a in enumerate(iv) for b in iv[i + 1:])
+
+
+_NAMES = {"modes": "10 modes", "full": "full cov.", "combined": "combined",
+          "physics_force": "physics (reach)"}
+
+
+def _cell(v) -> str:
+    return f"{v[0]:.3g} [{v[1]:.3g}, {v[2]:.3g}]"
+
+
+def write_splits_report(result: dict, out) -> str:
+    """Write ``splits.md`` and ``splits.json`` into the folder ``out``; returns the markdown path."""
+    import json
+    from pathlib import Path
+
+    from lipgen.evaluate.metric import ERROR_DEFINITION
+    from lipgen.experiments.table51_report import THESIS_TABLE
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    s = result["settings"]
+    u2 = result["mm_per_unit"] ** 2
+    v = result["variance_captured"]
+    lines = ["# Table 5.1 with utterance and subject splits", "",
+             f"Preset `{s['preset']}`, subject seeds {list(s['seeds'])}; trained on {s['n_train']} "
+             f"frames of one utterance; tested on {s['n_windows']} windows of {s['n_test']} consecutive "
+             f"frames of other utterances (frames {s['lead_in']}-{s['lead_in'] + s['n_test'] - 1}) of the "
+             f"same subject and of another subject (seed + 1000); marker noise {s['marker_noise_mm']} mm.",
+             "",
+             f"Error: {ERROR_DEFINITION}. Mean over the seeds and 95 % Student-t interval.", "",
+             f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the training "
+             "variance (thesis: 99.2 %).", ""]
+    for split in SPLITS:
+        lines += [f"## {split.capitalize()} split: vs the true surface, mm² (relative)", "",
+                  "| observed | " + " | ".join(_NAMES[c] for c in ESTIMATORS) + " | intervals separate |",
+                  "|---|" + "---|" * (len(ESTIMATORS) + 1)]
+        for row, cols in result["summary"][split].items():
+            cells = [f"{_cell(cols[c]['truth'])} ({cols[c]['truth_relative'][0]:.3f})" for c in ESTIMATORS]
+            sep = result["separated"][split]
+            lines.append(f"| {row} | " + " | ".join(cells) + f" | {'yes' if sep['truth'][row] else 'no'} "
+                         f"(relative: {'yes' if sep['truth_relative'][row] else 'no'}) |")
+        o = result["order_xy_over_yz"][split]
+        lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
+                  f"{_cell(o['reach'])} vs the least-strain field (thesis: "
+                  f"{THESIS_TABLE['xy (16 points)'][0] / THESIS_TABLE['yz (16 points)'][0]:.1f}).", "",
+                  "In the thesis's terms (vs the least-strain field, units², 10 modes / full cov.):", "",
+                  "| observed | thesis | ours |", "|---|---|---|"]
+        for row, (a, b) in THESIS_TABLE.items():
+            c = result["summary"][split][row]
+            lines.append(f"| {row} | {a:.2e} / {b:.2e} | {c['modes']['reach'][0] / u2:.2e} / "
+                         f"{c['full']['reach'][0] / u2:.2e} |")
+        lines.append("")
+    md = out / "splits.md"
+    md.write_text("\n".join(lines) + "\n")
+    (out / "splits.json").write_text(json.dumps(result, indent=1))
+    return str(md)
