@@ -146,6 +146,20 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     return out
 
 
+def _check_provenance(model, dataset_path, test) -> None:
+    """Refuse test frames the model was trained on (its :attr:`provenance_`, from lipgen train)."""
+    from lipgen.dataset.manifest import dataset_digest
+
+    prov = getattr(model, "provenance_", None)
+    if not prov or prov.get("dataset_id") is None or prov["dataset_id"] != dataset_digest(dataset_path):
+        return
+    seen = sorted(set(prov.get("frames", ())) & {int(f) for f in test})
+    if seen:
+        raise ValueError(f"the model was trained on frames {seen[:10]}{' ...' if len(seen) > 10 else ''} "
+                         f"of this dataset ({len(seen)} of the {len(test)} test frames); test on frames it "
+                         "has not seen: use the --test-frames given to lipgen train, or another dataset")
+
+
 def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     """Every figure of the report, from a dataset, a trained model and its reconstruction."""
     from lipgen.fem import Physics
@@ -233,6 +247,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     true_fields = _true_fields(truth, mesh, ds.mesh.vertices)
     T = default_test_frames(F) if test_frames is None else int(test_frames)
     train, test = split_frames(recon.fields, T)
+    _check_provenance(model, ds.path, test)
     if model.n_frames_ > len(train):
         raise ValueError(f"the model was trained on {model.n_frames_} frames but this reconstruction has "
                          f"only {len(train)} training frames before its last {T}; use the same "
