@@ -50,7 +50,7 @@ def add_parser(sub) -> None:
         "one utterance, then reconstruct 3 windows of 10 consecutive frames of other utterances of "
         "the same subject and of another subject (seed + 1000). Reports the error per hidden DOF "
         "(mm² and relative to the test motion) of 10 modes, the full covariance, the combined model "
-        "and the physics, with the mean and a 95 %% interval over the seeds, the x-y/y-z order and "
+        "and the physics, with the mean and a 95 % interval over the seeds, the x-y/y-z order and "
         "whether the estimators' intervals separate. Writes splits.md and splits.json to --out.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
