@@ -108,7 +108,7 @@ def _table51_md(items: list[dict]) -> list[str]:
 
     rows = [r for r in ROWS if r in tabs[0]] + [r for r in tabs[0] if r not in ROWS]
     cols = list(tabs[0][rows[0]])
-    L = [f"Mean [95% interval] over {len(tabs)} item(s), mm² per DOF.", "",
+    L = [f"Mean [95% interval] over {len(tabs)} item(s), mm² per hidden DOF.", "",
          "| constraints used | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for ref, label in (("vs_truth", "vs TRUE surface"), ("vs_reach", "vs reach fields (thesis's reference)")):
         L.append(f"| *{label}* |" + " |" * len(cols))

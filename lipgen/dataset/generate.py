@@ -92,6 +92,12 @@ def _simulate(s: GenerateSettings, phones=None):
         from lipgen.subject.truth import with_layer
 
         subject = with_layer(subject)
+    if s.motion_sources == "independent":
+        from lipgen.subject.independent import simulate_independent
+
+        given = None if phones is None and not s.script else A  # else: its own speech and gestures
+        return simulate_independent(subject, s.frames, np.random.default_rng([s.seed, _ACT_STREAM]), head,
+                                    s.fps, activations=given, progress=s.truth_physics == "layer")
     return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
 
 
@@ -338,6 +344,12 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
         from lipgen.dataset.presets import get_preset
 
         subject = (subject or {}) | {"preset": get_preset(s.preset).to_dict()}
+    if s.motion_sources == "independent":
+        from lipgen.subject import independent as ind
+
+        record = {"sources": list(ind.INDEPENDENT_SOURCES), "jaw_gain": ind.JAW_GAIN,
+                  "residual_rms_mm": ind.RESIDUAL_MM}
+        subject = (subject or {}) | {"motion": record}
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not s.conditions.is_ideal:
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))

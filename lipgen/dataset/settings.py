@@ -45,6 +45,10 @@ class GenerateSettings:
     truth_physics: str = "linear"
     """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
     :mod:`lipgen.subject.layer`; seconds per frame)."""
+    motion_sources: str = "gestures"
+    """``"gestures"`` (:func:`lipgen.subject.activation.random_activations`, the motion before
+    presets) or ``"independent"`` (:mod:`lipgen.subject.independent`: speech from independent
+    asymmetric sources plus a stochastic residual; a script or speech adds the residual only)."""
     preset: str | None = None
     """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
     None is ``easy`` (the data before presets, whose manifests name none)."""
@@ -63,6 +67,7 @@ class GenerateSettings:
                 "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
                 "dot_diameter": p.image.dot_diameter, "conditions": p.image.conditions,
                 "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
+                "motion_sources": p.motion.sources,
                 "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
         given = {k: v for k, v in overrides.items() if v is not None}
         if not p.subject.own_shape and given.get("subject_seed") is not None:
@@ -88,6 +93,9 @@ class GenerateSettings:
             whole("subject_seed", 0, MAX_SUBJECT_SEED)
         if self.truth_physics not in ("linear", "layer"):
             raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
+        if self.motion_sources not in ("gestures", "independent"):
+            raise ValueError(f"motion_sources must be 'gestures' or 'independent', got "
+                             f"{self.motion_sources!r}")
         if self.preset is not None:
             from lipgen.dataset.presets import get_preset
 
@@ -126,7 +134,8 @@ class GenerateSettings:
         for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
             if d[key] is None:
                 del d[key]
-        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
+        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("motion_sources", "gestures"),
+                         ("preset", None)):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]
         d["conditions"] = self.conditions.to_dict()
