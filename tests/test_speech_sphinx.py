@@ -46,6 +46,21 @@ def test_forced_alignment_boundaries(spoken):
 
 
 @needs_espeak
+def test_reused_decoders_give_a_fresh_decoders_results(spoken):
+    from lipgen.speech import decode
+
+    def key(track):
+        return track.labels, track.start.tolist(), track.end.tolist(), track.confidence
+
+    (text_a, audio_a, _), (text_b, audio_b, _) = spoken
+    decode._LOCAL.__dict__.pop("decoders", None)  # fresh decoders
+    first = key(align(audio_a, text_a)), key(recognize(audio_a))
+    align(audio_b, text_b), recognize(audio_b)  # other speech through the same decoders
+    assert (key(align(audio_a, text_a)), key(recognize(audio_a))) == first
+    assert (key(align(audio_a, text_a)), key(recognize(audio_a))) == first
+
+
+@needs_espeak
 def test_wrong_transcript_falls_back_to_recognition(spoken, caplog):
     _, audio, _ = spoken[0]
     with caplog.at_level(logging.WARNING, logger="lipgen.speech.decode"):
