@@ -66,23 +66,24 @@ def _text(args) -> str | None:
 
 
 def _run(args) -> int:
-    from lipgen.modes import ModeModel
     from lipgen.speech.audio import read_wav
-    from lipgen.speech.lipsync import lipsync, model_resolution
+    from lipgen.speech.lipsync import lipsync, model_mesh, model_resolution
     from lipgen.speech.outputs import check_output, write_lipsync
 
     out = check_output(args.out, args.force)  # before any work
     text = _text(args)
     if args.speech is None and text is None:
         raise ValueError("give a speech recording (SPEECH.wav), a transcript (--text / --text-file), or both")
-    model = ModeModel.load(args.model) if args.model else None
+    model = None
+    if args.model:
+        from lipgen.modes.model import ModeModel
+
+        model = ModeModel.load(args.model)
     audio = read_wav(args.speech) if args.speech else None
     result = lipsync(audio, text, model=model, fps=args.fps, seed=args.seed, rate=args.rate)
     mesh = None
     if out.suffix.lower() in (".usda", ".usdc", ".usd"):
-        from lipgen.mesh.procedural import lip_mesh
-
-        mesh = lip_mesh(model_resolution(result.model))
+        mesh = model_mesh(model_resolution(result.model))
     write_lipsync(out, result, mesh=mesh, wav=args.speech, start=args.start, force=args.force,
                   weight_range=args.weight_range)
     ph = result.phones
