@@ -1,4 +1,4 @@
-"""``lipgen lipsync``: animate the lips from speech (audio and/or text) to USD, npz or CSV."""
+"""``lipgen lipsync``: animate the lips from speech (audio and/or text) to USD(Z), npz or CSV."""
 
 from __future__ import annotations
 
@@ -27,7 +27,8 @@ procedural lips) or of the default lips (10 modes of lip_mesh(0)).
 
 Outputs: .usda/.usdc/.usd hold the blend-shape animation (as `lipgen export-usd` writes it) and,
 from audio, a UsdMedia.SpatialAudio prim playing the WAV from frame 0; .npz holds the
-coefficient and activation curves and the phones; .csv the coefficient curves. Nothing is
+coefficient and activation curves and the phones; .csv the coefficient curves; .usdz packages
+the USD stage with the WAV inside, as one file. Nothing is
 written when the command fails, and an existing --out is kept unless --force.
 """
 
@@ -48,7 +49,7 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic subject (default 0)")
     p.add_argument("--weight-range", choices=("signed", "unit"), default="signed",
                    help="USD blend-shape weights in standard deviations (signed) or in [0, 1] (unit)")
-    p.add_argument("--out", required=True, help="output: .usda, .usdc, .usd, .npz or .csv")
+    p.add_argument("--out", required=True, help="output: .usda, .usdc, .usd, .usdz, .npz or .csv")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.set_defaults(func=_run)
 
@@ -82,7 +83,7 @@ def _run(args) -> int:
     audio = read_wav(args.speech) if args.speech else None
     result = lipsync(audio, text, model=model, fps=args.fps, seed=args.seed, rate=args.rate)
     mesh = None
-    if out.suffix.lower() in (".usda", ".usdc", ".usd"):
+    if out.suffix.lower() in (".usda", ".usdc", ".usd", ".usdz"):
         mesh = model_mesh(model_resolution(result.model))
     write_lipsync(out, result, mesh=mesh, wav=args.speech, start=args.start, force=args.force,
                   weight_range=args.weight_range)
