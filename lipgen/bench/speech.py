@@ -114,6 +114,7 @@ def _parts(audio, text, work: Path, repeat: int) -> dict:
     from lipgen.speech.audio import write_wav
 
     write_wav(wav, audio)
+    usd()  # warm: pxr imported (the imports are timed with the interpreter's)
     out = {"dictionary": _cpu(dictionary, repeat),
            "alignment": _cpu(lambda: decode.align(audio, text, confidence=False), repeat),
            "confidence_pass": _cpu(lambda: decode._recognize(audio), repeat),
