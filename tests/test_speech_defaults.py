@@ -74,3 +74,16 @@ def test_lipsync_projection_uses_the_default_lips():
     A = random_activations(60, seed=4, fps=30.0)
     want = model.project(ls.performer(0, 0).displacements(A)[:, :model.n_nodes_])
     assert np.allclose(ls.project_activations(A, model, 0), want, rtol=0, atol=1e-9)
+
+
+def test_missing_default_lips_files_are_built(monkeypatch, tmp_path, fresh):
+    from lipgen.speech import defaults
+
+    monkeypatch.setattr(defaults, "DATA_DIR", tmp_path)  # an install without the data files
+    defaults.load_default_lips.cache_clear()
+    try:
+        model, mesh, motion = defaults.load_default_lips()
+    finally:
+        defaults.load_default_lips.cache_clear()
+    assert np.allclose(model.components_, fresh[0].components_, rtol=0, atol=1e-12)
+    assert mesh.topology_id == fresh[1].topology_id and motion.n_out == fresh[2].n_out

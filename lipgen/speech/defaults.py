@@ -23,6 +23,7 @@ result never changes between runs. So:
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import dataclass
 from functools import lru_cache
@@ -34,6 +35,8 @@ from lipgen.subject.activation import ACTIONS, action_index
 
 __all__ = ["DATA_DIR", "NodeMotion", "node_motion", "build_default_lips", "save_default_lips",
            "load_default_lips"]
+
+log = logging.getLogger(__name__)
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
 """Folder of the shipped default lips (``modes.npz``, ``mesh.npz``, ``motion.npz``)."""
@@ -192,13 +195,15 @@ def save_default_lips(folder: str | os.PathLike = DATA_DIR) -> Path:
 
 @lru_cache(maxsize=1)
 def load_default_lips():
-    """(model, mesh, motion) of the default lips, read from the shipped files (cached)."""
+    """(model, mesh, motion) of the default lips, read from the shipped files (cached); built by
+    :func:`build_default_lips` where the files are missing."""
     from lipgen.mesh.lipmesh import LipMesh
     from lipgen.modes.model import ModeModel
 
     missing = [name for name in _FILES if not (DATA_DIR / name).is_file()]
-    if missing:
-        raise FileNotFoundError(f"the default lips' files {missing} are missing from {DATA_DIR}; "
-                                "write them with lipgen.speech.defaults.save_default_lips()")
+    if missing:  # e.g. a build that ships .py files only (the Blender extension's wheel)
+        log.info("the default lips' files %s are not in %s: building them (about half a second)",
+                 missing, DATA_DIR)
+        return build_default_lips()
     return (ModeModel.load(DATA_DIR / _FILES[0]), LipMesh.load(DATA_DIR / _FILES[1]),
             NodeMotion.load(DATA_DIR / _FILES[2]))
