@@ -10,6 +10,7 @@ _EPILOG = """\
 examples:
   lipgen lipsync speech.wav --text "The birch canoe slid on the smooth planks." --out canoe.usda
   lipgen lipsync speech.wav --out speech.usdc                 (no transcript: phone recognition)
+  lipgen lipsync speech.wav --text-file words.txt --out lips.usdz       (one file, audio inside)
   lipgen lipsync speech.wav --text-file words.txt --model model.npz --fps 24 --out curves.csv
   lipgen lipsync --text "Glue the sheet to the dark blue background." --out glue.npz   (text alone)
 
@@ -28,8 +29,8 @@ procedural lips) or of the default lips (10 modes of lip_mesh(0)).
 Outputs: .usda/.usdc/.usd hold the blend-shape animation (as `lipgen export-usd` writes it) and,
 from audio, a UsdMedia.SpatialAudio prim playing the WAV from frame 0; .npz holds the
 coefficient and activation curves and the phones; .csv the coefficient curves; .usdz packages
-the USD stage with the WAV inside, as one file. Nothing is
-written when the command fails, and an existing --out is kept unless --force.
+the USD stage with the WAV inside, as one file. Nothing is written when the command fails, and
+an existing --out is kept unless --force.
 """
 
 
