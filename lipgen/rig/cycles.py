@@ -21,8 +21,10 @@ scene's background colour.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
+import sys
 import tempfile
 
 import numpy as np
@@ -62,7 +64,24 @@ def import_bpy():
     MissingDependencyError
         bpy is not installed (it needs Python 3.11).
     """
-    return require("bpy", "rendering with Blender Cycles (--renderer cycles)")
+    with _quiet():  # its first import logs to standard output (the GPU libraries it did not find)
+        return require("bpy", "rendering with Blender Cycles (--renderer cycles)")
+
+
+@contextlib.contextmanager
+def _quiet():
+    """Blender writes its render log ("Fra:", "Saved:") to the process's standard output; the
+    library prints nothing, so file descriptor 1 points at the null device meanwhile."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(null)
+        os.close(saved)
 
 
 class _View:
@@ -104,7 +123,8 @@ class _View:
     def resample(self, lin: np.ndarray) -> np.ndarray:
         if self.map is None:
             return lin
-        return self.cv2.remap(lin, self.map, None, self.cv2.INTER_LINEAR, borderMode=self.cv2.BORDER_REPLICATE)
+        cv2 = self.cv2
+        return cv2.remap(lin, self.map, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 class CyclesRenderer:
@@ -145,9 +165,10 @@ class CyclesRenderer:
                                 ("seed", seed, 0, 2**31 - 1)):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
                 raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {v!r}")
-        self.bpy = bpy = import_bpy()
+        with _quiet():
+            self.bpy = bpy = import_bpy()
+            bpy.ops.wm.read_factory_settings(use_empty=True)
         self.rig, self.reflectance, self.shadows = rig, float(mirror_reflectance), bool(shadows)
-        bpy.ops.wm.read_factory_settings(use_empty=True)
         self._tmp = tempfile.TemporaryDirectory(prefix="lipgen-cycles-")
         sc = self._scene = bpy.data.scenes[0]
         sc.render.engine = "CYCLES"
@@ -278,7 +299,8 @@ class CyclesRenderer:
         sc.render.resolution_x, sc.render.resolution_y = v.size
         path = os.path.join(self._tmp.name, "view.exr")
         sc.render.filepath = path
-        bpy.ops.render.render(write_still=True, scene=sc.name)
+        with _quiet():
+            bpy.ops.render.render(write_still=True, scene=sc.name)
         img = bpy.data.images.load(path, check_existing=False)
         try:
             w, h = v.size
@@ -313,7 +335,8 @@ class CyclesRenderer:
     def close(self) -> None:
         """Empty the Blender session and remove the temporary folder."""
         if getattr(self, "_tmp", None) is not None:
-            self.bpy.ops.wm.read_factory_settings(use_empty=True)
+            with _quiet():
+                self.bpy.ops.wm.read_factory_settings(use_empty=True)
             self._tmp.cleanup()
             self._tmp = None
 
@@ -357,7 +380,8 @@ def _image(bpy, texture: np.ndarray):
 
 def _world_nodes(world, ambient: np.ndarray, background: np.ndarray) -> None:
     """The world: ``ambient`` radiance for every ray but camera rays, which see ``background``."""
-    world.use_nodes = True
+    if world.node_tree is None:  # Blender < 5 (use_nodes is deprecated from 5.0)
+        world.use_nodes = True
     nt = world.node_tree
     nt.nodes.clear()
     path = nt.nodes.new("ShaderNodeLightPath")
@@ -377,7 +401,8 @@ def _principled(bpy, mat: Material, image, sss_radius):
     ``image`` is given, with subsurface scattering of radius ``sss_radius`` (mm) when given;
     back faces are see-through unless the material is double-sided (pyrender culls them)."""
     m = bpy.data.materials.new(mat.name)
-    m.use_nodes = True
+    if m.node_tree is None:
+        m.use_nodes = True
     nt = m.node_tree
     nt.nodes.clear()
     bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
