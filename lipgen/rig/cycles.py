@@ -30,6 +30,7 @@ import tempfile
 import numpy as np
 
 from lipgen._optional import require
+from lipgen.errors import RenderBackendError
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.imaging import srgb_encode
 from lipgen.rig.pinhole import PinholeCamera
@@ -39,6 +40,8 @@ from lipgen.rig.scene import Material, MeshItem, Scene, srgb_to_linear
 __all__ = ["CyclesRenderer", "SUBSURFACE", "import_bpy"]
 
 log = logging.getLogger(__name__)
+
+_OPEN: list = []  # the CyclesRenderer holding this process's Blender session, if any
 
 SUBSURFACE: dict[str, tuple[float, float, float]] = {
     "skin": (3.67, 1.37, 0.68),
@@ -165,17 +168,33 @@ class CyclesRenderer:
                                 ("seed", seed, 0, 2**31 - 1)):
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
                 raise ValueError(f"{name} must be a whole number in [{lo}, {hi}], got {v!r}")
-        with _quiet():
-            self.bpy = bpy = import_bpy()
-            bpy.ops.wm.read_factory_settings(use_empty=True)
         self.rig, self.reflectance, self.shadows = rig, float(mirror_reflectance), bool(shadows)
+        self.bpy = import_bpy()
+        if _OPEN:
+            raise RenderBackendError("bpy holds one Blender session per process and another CyclesRenderer "
+                                     "is open in it: close() that one first")
+        with _quiet():  # Cycles logs its devices to standard output when it first starts
+            self._open(samples, denoise, threads, seed, znear, zfar)
         self._tmp = tempfile.TemporaryDirectory(prefix="lipgen-cycles-")
+        _OPEN.append(self)
+        self._items: dict[str, dict] = {}
+        self._materials: dict[tuple, object] = {}
+        self._textures: dict[int, tuple] = {}
+        self._lights: tuple | None = None
+        self._light_objs: list = []
+        self._env: tuple | None = None
+
+    def _open(self, samples, denoise, threads, seed, znear, zfar) -> None:
+        bpy = self.bpy
+        bpy.ops.wm.read_factory_settings(use_empty=True)
         sc = self._scene = bpy.data.scenes[0]
         sc.render.engine = "CYCLES"
         cy = sc.cycles
         cy.device, cy.samples, cy.seed = "CPU", int(samples), int(seed)
         cy.use_adaptive_sampling = False
         cy.use_denoising = bool(denoise) and _has_oidn(bpy)
+        if denoise and not cy.use_denoising:
+            log.warning("this Blender build has no OpenImageDenoise: Cycles renders without denoising")
         if cy.use_denoising:
             cy.denoiser = "OPENIMAGEDENOISE"
         self.denoise = cy.use_denoising
@@ -184,22 +203,19 @@ class CyclesRenderer:
             sc.render.threads = int(threads)
         sc.render.resolution_percentage = 100
         sc.render.film_transparent = False
-        sc.render.use_persistent_data = True  # keep the kernels and images between renders
+        # persistent data would keep Cycles' scene between renders, but its updates made the pixels
+        # depend on what was rendered before (measured: up to 60 grey levels); off, the same
+        # scene, samples and seed give the same bytes
+        sc.render.use_persistent_data = False
         sc.view_settings.view_transform = "Standard"
         st = sc.render.image_settings
         st.file_format, st.color_depth, st.exr_codec = "OPEN_EXR", "32", "NONE"
         self._world = bpy.data.worlds.new("lipgen-world")
         sc.world = self._world
-        self._views = [_View(bpy, cam, znear, zfar, f"view:{cam.name}") for cam in rig.views]
+        self._views = [_View(bpy, cam, znear, zfar, f"view:{cam.name}") for cam in self.rig.views]
         for v in self._views:
             sc.collection.objects.link(v.obj)
             v.obj.matrix_world = _matrix(v.pose)
-        self._items: dict[str, dict] = {}
-        self._materials: dict[tuple, object] = {}
-        self._textures: dict[int, tuple] = {}
-        self._lights: tuple | None = None
-        self._light_objs: list = []
-        self._env: tuple | None = None
 
     # ---- scene sync -----------------------------------------------------------------------
     def _sync(self, scene: Scene) -> None:
@@ -339,6 +355,7 @@ class CyclesRenderer:
                 self.bpy.ops.wm.read_factory_settings(use_empty=True)
             self._tmp.cleanup()
             self._tmp = None
+            _OPEN.remove(self)
 
     def __enter__(self) -> CyclesRenderer:
         return self
