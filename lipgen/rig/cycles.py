@@ -389,9 +389,9 @@ def _image(bpy, texture: np.ndarray):
     h, w, _ = texture.shape
     img = bpy.data.images.new(f"tex:{id(texture)}", w, h, alpha=False)
     rgba = np.concatenate([texture[::-1], np.full((h, w, 1), 255, np.uint8)], axis=2)
-    img.pixels.foreach_set((rgba.astype(np.float32) / 255.0).ravel())
     img.colorspace_settings.name = "sRGB"
-    img.pack()
+    img.pixels.foreach_set((rgba.astype(np.float32) / 255.0).ravel())
+    img.update()  # not packed: packing a generated image would regenerate it blank
     return img
 
 
@@ -435,11 +435,14 @@ def _principled(bpy, mat: Material, image, sss_radius):
         uv.uv_map = "uv"
         mul = nt.nodes.new("ShaderNodeMix")
         mul.data_type, mul.blend_type = "RGBA", "MULTIPLY"
+        # the Mix node has float, vector and colour sockets of the same names: take the colour ones
+        a, b = (next(x for x in mul.inputs if x.identifier == f"{n}_Color") for n in "AB")
+        result = next(x for x in mul.outputs if x.identifier == "Result_Color")
         mul.inputs["Factor"].default_value = 1.0
         nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-        nt.links.new(tex.outputs["Color"], mul.inputs["A"])
-        mul.inputs["B"].default_value = color
-        nt.links.new(mul.outputs["Result"], bsdf.inputs["Base Color"])
+        nt.links.new(tex.outputs["Color"], a)
+        b.default_value = color
+        nt.links.new(result, bsdf.inputs["Base Color"])
     if sss_radius is not None:
         bsdf.subsurface_method = "BURLEY"  # diffusion on the surface: right for open shells
         bsdf.inputs["Subsurface Weight"].default_value = 1.0
