@@ -16,7 +16,9 @@ OpenGL), and a lens shift of 0 puts the principal point at the image centre, Ope
 ``(w - 1) / 2``. Light units follow pyrender's shader: a directional light of intensity E gives a
 white Lambertian surface facing it the radiance ``E / pi`` (a Cycles sun of strength E), and the
 ambient light A is a uniform world radiance A seen by everything but the camera, which sees the
-scene's background colour.
+scene's background colour; a point light of pyrender intensity I is a Cycles point of power
+``4 pi I``. Measured on a grey matte plane, the two renderers agree within 4-7 % in linear light
+(``tests/test_cycles.py``).
 """
 
 from __future__ import annotations
