@@ -30,6 +30,14 @@ def run(quick: bool = False) -> dict:
     ``quick``: 160x120, 2 rounds, 4 samples; otherwise 320x240 and 640x480, 4 rounds, 16 and 64
     samples.
     """
+    if quick:
+        return measure([(160, 120)], [4], 2)
+    return measure([(320, 240), (640, 480)], [16, 64], 4)
+
+
+def measure(sizes: list[tuple[int, int]], sample_counts: list[int], rounds: int) -> dict:
+    """The figures of :func:`run` for chosen sizes ``[(w, h), ...]``, Cycles sample counts and
+    rounds (after one warm-up round)."""
     from lipgen.bench.compare import load_average
     from lipgen.mesh.procedural import lip_mesh
     from lipgen.rig.camera import default_rig
@@ -37,9 +45,6 @@ def run(quick: bool = False) -> dict:
     from lipgen.rig.render import RigRenderer
     from lipgen.subject.face import FaceModel
 
-    sizes = [(160, 120)] if quick else [(320, 240), (640, 480)]
-    sample_counts = [4] if quick else [16, 64]
-    rounds = 2 if quick else 4
     face = FaceModel(lip_mesh(1))  # the truth subject's resolution
     shapes = _shapes(face.mesh, 8)
     out: dict = {"load_average_before": load_average(), "rounds": rounds, "baseline": "pyrender",
