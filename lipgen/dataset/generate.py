@@ -166,7 +166,7 @@ def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
 
 def _init_worker(ctx: _Context, renderer=None) -> None:
     from lipgen.mesh.lipmesh import LipMesh
-    from lipgen.rig.render import RigRenderer
+    from lipgen.rig.backends import open_renderer
     from lipgen.rig.target import Chessboard
 
     s = GenerateSettings.from_dict(ctx.settings)
@@ -181,7 +181,7 @@ def _init_worker(ctx: _Context, renderer=None) -> None:
     face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed),
                      dots=dots)
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
-                   renderer=renderer or RigRenderer(rig, c.mirror_reflectance, shadows=c.shadows))
+                   renderer=renderer or open_renderer(s.renderer, rig, c, s.cycles_samples, s.seed % 2**31))
     if not c.is_ideal:
         from lipgen.rig.imaging import FrameFormer
 
@@ -324,8 +324,10 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     """
     from lipgen.dataset.layout import build_manifest
     from lipgen.mesh.lipmesh import LipMesh
+    from lipgen.rig.backends import check_renderer
 
     out = Path(out)
+    check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     rig = rig_for(s.size, s.conditions, default_rig)
     phones, audio = _speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = _simulate(s, phones)
@@ -394,8 +396,12 @@ def render_jobs(ctx: _Context, jobs) -> int:
     image conditions, cleared (making one costs about 3 frames' rendering).
     """
     if _WORKER.get("key") != (ctx.out, ctx.mesh_path):
-        rig_key = (tuple(ctx.settings["size"]), repr(ctx.settings.get("conditions")))
+        rig_key = (tuple(ctx.settings["size"]), repr(ctx.settings.get("conditions")),
+                   ctx.settings.get("renderer", "pyrender"))
         keep = _WORKER.pop("renderer", None) if _WORKER.get("rig_key") == rig_key else None
+        if keep is not None and not hasattr(keep, "clear"):  # Cycles: a new scene per dataset
+            keep.close()
+            keep = None
         if keep is not None:
             keep.clear()
         _close_worker()

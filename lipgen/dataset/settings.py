@@ -52,6 +52,11 @@ class GenerateSettings:
     preset: str | None = None
     """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
     None is ``easy`` (the data before presets, whose manifests name none)."""
+    renderer: str = "pyrender"
+    """``"pyrender"`` (OpenGL) or ``"cycles"`` (Blender Cycles on the CPU: path tracing, subsurface
+    scattering in skin and lips; colour only, no depth or masks); :mod:`lipgen.rig.backends`."""
+    cycles_samples: int = 16
+    """Cycles' path-tracing samples per pixel (denoised); used with ``renderer="cycles"``."""
 
     conditions: ImageConditions = ImageConditions()
     """Lens, mirror, light and sensor (:mod:`lipgen.rig.conditions`); the default is the ideal camera."""
@@ -87,6 +92,14 @@ class GenerateSettings:
         whole("subject_resolution", 1, 4)
         whole("calib_frames", 0, 1000)
         whole("png_compress_level", 0, 9)
+        whole("cycles_samples", 1, 4096)
+        from lipgen.rig.backends import RENDERERS
+
+        if self.renderer not in RENDERERS:
+            raise ValueError(f"unknown renderer {self.renderer!r}; choose one of {RENDERERS}")
+        if self.renderer == "cycles" and (self.depth or self.masks):
+            raise ValueError(f"the cycles renderer draws colour only (depth={self.depth}, "
+                             f"masks={self.masks}); write depth and masks with renderer 'pyrender'")
         if self.subject_seed is not None:
             from lipgen.subject.shape import MAX_SUBJECT_SEED
 
@@ -135,9 +148,11 @@ class GenerateSettings:
             if d[key] is None:
                 del d[key]
         for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("motion_sources", "gestures"),
-                         ("preset", None)):
+                         ("preset", None), ("renderer", "pyrender")):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]
+        if self.renderer == "pyrender" and self.cycles_samples == 16:
+            del d["cycles_samples"]  # pyrender data: the manifest is as it always was
         d["conditions"] = self.conditions.to_dict()
         return d
 
