@@ -31,6 +31,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.pointreg import match_to_expected
+from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
 from lipgen.recon.twins import resolve_twins
 from lipgen.rig.camera import VIEWS, MirrorRig
@@ -61,6 +62,12 @@ class ReconstructSettings:
     twin_model : bool
         Find markers whose dots merge in one view (twins) with a model of both dots on their
         epipolar lines from the other view (:mod:`lipgen.recon.twins`).
+    ray_gap_k : float or None
+        The views disagree when the rays pass farther apart than ``ray_gap_k`` times the median
+        gap of the sequence's agreeing sightings (:class:`lipgen.recon.raygap.RayGapLimit`),
+        within [``min_ray_gap_px``, ``max_ray_gap``]; None: ``max_ray_gap`` alone.
+    min_ray_gap_px : float
+        Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -68,6 +75,12 @@ class ReconstructSettings:
     max_ray_gap: float = 2.0
     min_visible: int = 4
     twin_model: bool = True
+    ray_gap_k: float | None = 8.0
+    min_ray_gap_px: float = 1.0
+
+    def ray_gap_limit(self, cameras) -> RayGapLimit:
+        """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
+        return RayGapLimit(self.max_ray_gap, self.ray_gap_k, self.min_ray_gap_px / px_per_mm(cameras))
 
 
 def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
@@ -108,6 +121,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     """
     exp = as_float_array(expected, "expected", (2, None, 2), finite=False)
     trackers: list[MarkerTracker] = []
+    gap_limit = None if cameras is None else settings.ray_gap_limit(cameras)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
@@ -147,7 +161,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
-            _check_views(trackers, cameras, settings.max_ray_gap)
+            _check_views(trackers, cameras, gap_limit)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if progress is not None:
@@ -157,8 +171,11 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     return trackers[0].tracks(), trackers[1].tracks()
 
 
-def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None:
-    """Take back sightings whose two rays pass more than ``max_gap`` apart (a wrong dot in a view).
+def _check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit | float) -> None:
+    """Take back sightings whose two rays pass farther apart than ``gap_limit`` (a wrong dot in a view).
+
+    ``gap_limit`` is a :class:`~lipgen.recon.raygap.RayGapLimit` (it learns from the gaps of the
+    sightings kept) or a fixed limit in mm.
 
     A sighting that continues a track (seen in the previous image) beats one just re-acquired:
     only the latter is taken back. Otherwise both are, since a lost marker is far better than a
@@ -170,6 +187,10 @@ def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None
         return
     gap = np.full(len(both), np.nan)
     gap[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[1]
+    if not isinstance(gap_limit, RayGapLimit):
+        gap_limit = RayGapLimit(float(gap_limit), k=None)
+    max_gap = gap_limit.limit()
+    gap_limit.add(gap[both & (gap <= max_gap)])
     bad = np.flatnonzero(both & (gap > max_gap))
     if len(bad) == 0:
         return
