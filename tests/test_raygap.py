@@ -94,3 +94,36 @@ def test_a_wrong_dot_within_the_fixed_gap_is_taken_back_by_the_learned_limit():
             for v in range(2):
                 t_v = trackers[v].tracks()
                 assert np.all(np.linalg.norm(t_v.uv - uv[v], axis=2)[t_v.visible] < 1.0)
+
+
+def test_a_dot_that_fits_a_lost_neighbour_as_well_is_not_accepted_unchecked():
+    # Marks 0 and 1 at one height: in both views they lie on one epipolar line, so the ray gap
+    # cannot tell them apart. View 0 has lost mark 1 and gives mark 0 mark 1's dot (a wrong
+    # sighting whose rays still meet view 1's mark 0). It is taken back; view 1 and the other
+    # marks keep theirs. With mark 1 seen in view 0 too, nothing is taken back.
+    from lipgen.recon.association import LOST
+    from lipgen.recon.steps import _check_views
+    from lipgen.recon.track import MarkerTracker
+    from lipgen.rig.pinhole import triangulate
+
+    cams = _two_views()
+    rng = np.random.default_rng(2)
+    X = np.array([(-4.0, 0.0, 0.0), (4.0, 0.0, 0.0), (0.0, -6.0, 1.0), (0.0, 6.0, -1.0)])
+    uv = np.stack([c.project(X) for c in cams])
+    wrong_gap = triangulate(cams[1], uv[1, 0], cams[0], uv[0, 1])[1]
+    assert wrong_gap < 0.05, "mark 1's dot in view 0 meets mark 0's ray from view 1"
+    for lost in (True, False):
+        trackers = [MarkerTracker(uv[v]) for v in range(2)]
+        for v in range(2):
+            trackers[v].step(frame(background((120, 160), rng), uv[v], rng))
+        out_uv, status, _ = trackers[0]._out[-1]
+        if lost:
+            out_uv[0], out_uv[1], status[1] = uv[0, 1], np.nan, LOST
+        _check_views(trackers, cams, 2.0)
+        t0, t1 = trackers[0].tracks(), trackers[1].tracks()
+        assert t1.visible[0].all()
+        if lost:
+            assert not t0.visible[0, 0] and t0.rejected[0, 0], "the ambiguous sighting is taken back"
+            assert t0.visible[0, 2:].all()
+        else:
+            assert t0.visible[0].all() and not t0.rejected.any()

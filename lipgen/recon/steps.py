@@ -192,12 +192,37 @@ def _check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit 
     max_gap = gap_limit.limit()
     gap_limit.add(gap[both & (gap <= max_gap)])
     bad = np.flatnonzero(both & (gap > max_gap))
-    if len(bad) == 0:
-        return
-    fresh = [tr.reacquired[bad] for tr in trackers]
-    only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
-    trackers[0].reject(bad[~only1])
-    trackers[1].reject(bad[~only0])
+    if len(bad):
+        fresh = [tr.reacquired[bad] for tr in trackers]
+        only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
+        trackers[0].reject(bad[~only1])
+        trackers[1].reject(bad[~only0])
+    _reject_ambiguous(trackers, cameras, max_gap)
+
+
+def _reject_ambiguous(trackers: list[MarkerTracker], cameras, max_gap: float) -> None:
+    """Take back sightings the other view cannot vouch for: their dot fits another marker as well.
+
+    The ray-gap test sees nothing along an epipolar line. Where marker k is lost in view A but
+    seen in view B, and the dot A gives marker j also meets k's ray from B (within ``max_gap``),
+    A's dot may be k's own (the left bow peak on the right one's dot, both at one height in the
+    mirror view): j's sighting in A is then taken back rather than accepted unchecked. (Sparing
+    sightings that continue a correlation track was tried on the validation sets, noise 32, seeds
+    7-10: 8 sightings > 3 px accepted against 2, for the same share.)
+    """
+    for a in range(2):
+        (uv_a, st_a, _), (uv_b, st_b, _) = trackers[a]._out[-1], trackers[1 - a]._out[-1]
+        ks = np.flatnonzero((st_a == LOST) & (st_b != LOST))
+        js = np.flatnonzero(st_a != LOST)
+        if len(ks) == 0 or len(js) == 0:
+            continue
+        jj, kk = np.repeat(js, len(ks)), np.tile(ks, len(js))
+        pa, pb = uv_a[jj], uv_b[kk]
+        cam_a, cam_b = cameras[a], cameras[1 - a]
+        g = triangulate(cam_b, pb, cam_a, pa)[1]
+        hit = np.unique(jj[(g <= max_gap) & (jj != kk)])
+        if len(hit):
+            trackers[a].reject(hit)
 
 
 def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],
