@@ -96,11 +96,14 @@ def test_a_wrong_dot_within_the_fixed_gap_is_taken_back_by_the_learned_limit():
                 assert np.all(np.linalg.norm(t_v.uv - uv[v], axis=2)[t_v.visible] < 1.0)
 
 
-def test_a_dot_that_fits_a_lost_neighbour_as_well_is_not_accepted_unchecked():
+def test_a_dot_another_lost_marker_explains_better_is_not_accepted_unchecked():
     # Marks 0 and 1 at one height: in both views they lie on one epipolar line, so the ray gap
-    # cannot tell them apart. View 0 has lost mark 1 and gives mark 0 mark 1's dot (a wrong
-    # sighting whose rays still meet view 1's mark 0). It is taken back; view 1 and the other
-    # marks keep theirs. With mark 1 seen in view 0 too, nothing is taken back.
+    # cannot tell them apart. View 0 has lost mark 1 and gives mark 0 mark 1's dot: its rays
+    # still meet view 1's mark 0, but paired with view 1's mark 1 the dot lands where mark 1
+    # was, while paired with mark 0 it lands millimetres in front of where mark 0 was. It is
+    # taken back. So is mark 0 when both views lost mark 1 and gave mark 0 its dot (it lands
+    # where mark 1 was). A right sighting of mark 0 beside a lost mark 1 (a dot hidden in one
+    # view) is kept, and so is everything when mark 1 is seen.
     from lipgen.recon.association import LOST
     from lipgen.recon.steps import _check_views
     from lipgen.recon.track import MarkerTracker
@@ -112,18 +115,27 @@ def test_a_dot_that_fits_a_lost_neighbour_as_well_is_not_accepted_unchecked():
     uv = np.stack([c.project(X) for c in cams])
     wrong_gap = triangulate(cams[1], uv[1, 0], cams[0], uv[0, 1])[1]
     assert wrong_gap < 0.05, "mark 1's dot in view 0 meets mark 0's ray from view 1"
-    for lost in (True, False):
+    for case in ("wrong", "both wrong", "hidden", "seen"):
         trackers = [MarkerTracker(uv[v]) for v in range(2)]
         for v in range(2):
             trackers[v].step(frame(background((120, 160), rng), uv[v], rng))
-        out_uv, status, _ = trackers[0]._out[-1]
-        if lost:
-            out_uv[0], out_uv[1], status[1] = uv[0, 1], np.nan, LOST
-        _check_views(trackers, cams, 2.0)
+        for v in range(2 if case == "both wrong" else 1):   # "both wrong": mark 1 lost in both views,
+            out_uv, status, _ = trackers[v]._out[-1]        # and both give mark 0 its dot
+            if case != "seen":
+                out_uv[1], status[1] = np.nan, LOST
+            if "wrong" in case:
+                out_uv[0] = uv[v, 1]
+        last3d = X + 0.3                              # where the marks were a frame ago
+        _check_views(trackers, cams, 2.0, last3d)
         t0, t1 = trackers[0].tracks(), trackers[1].tracks()
+        if case == "both wrong":
+            assert not t0.visible[0, 0] and not t1.visible[0, 0], "taken back in both views"
+            assert t0.visible[0, 2:].all() and t1.visible[0, 2:].all()
+            continue
         assert t1.visible[0].all()
-        if lost:
+        if case == "wrong":
             assert not t0.visible[0, 0] and t0.rejected[0, 0], "the ambiguous sighting is taken back"
             assert t0.visible[0, 2:].all()
         else:
-            assert t0.visible[0].all() and not t0.rejected.any()
+            assert t0.visible[0, [0, 2, 3]].all() and not t0.rejected.any()
+        assert np.isfinite(last3d).all()
