@@ -12,7 +12,12 @@ passes it but with a chance of ~1e-7 for Gaussian pixel errors), never below ``f
 (for clean footage, where the median is tiny and calibration bias dominates) and never above the
 fixed ``max_ray_gap``.
 
-An error along the epipolar line does not change the gap: no two-view test sees it.
+An error along the epipolar line does not change the gap: no two-view test sees it. For those,
+:func:`lipgen.recon.steps._check_views` also asks whether a lost marker explains the dot better
+(depth against each marker's last accepted 3-D point). Noise 32, validation seeds 7-10 (60 frames
+each), accepted sightings more than 3 px off (both views): fixed 2 mm limit 21 / 1 / 5 / 12 ->
+learned limit 0 / 0 / 3 / 17 -> with the identity check 10 / 0 / 0 / 0 (the 10: a lip corner's
+neighbour on the corner's dot in both views, the corner never accepted, so nothing to compare).
 """
 
 from __future__ import annotations
