@@ -18,6 +18,7 @@ _HINTS = {
     "skfem": "pip install scikit-fem",
     "imageio_ffmpeg": "pip install 'lipgen[vision]'  (imageio-ffmpeg, which brings its own ffmpeg)",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
+    "cholespy": "pip install 'lipgen[fast-bsd]'  (cholespy, CHOLMOD under a BSD licence)",
     "ray": "pip install 'lipgen[cluster]'  (ray[default], for lipgen campaign)",
     "pocketsphinx": "pip install 'lipgen[speech]'  (pocketsphinx, with its en-US models)",
 }

@@ -91,7 +91,7 @@ class Physics:
         Poisson's ratio ν (the thesis: 0.01).
     out_of_plane : {"thesis", "laplacian"}
         Out-of-plane block: eq 2.13 as printed (default) or its shape-aware variant.
-    solver : {"auto", "cholmod", "superlu"}
+    solver : {"auto", "cholmod", "cholespy", "superlu"}
         Sparse factorisation (see :mod:`lipgen.fem.solver`).
 
     Attributes
