@@ -26,10 +26,10 @@ Measured at 33,000 free DOFs (resolution 3; factor / 48 right-hand sides): cvxop
 0.19 s / 0.12 s in one call (0.51 s column by column); cholespy 0.75 s / 0.37 s; SuperLU
 1.05 s / 1.64 s (``lipgen bench --suite physics``, ``multi_rhs``).
 
-``"auto"`` takes cvxopt's CHOLMOD when cvxopt imports, else cholespy, else SuperLU. Either way the factor is checked
-before use: a non-positive or tiny pivot, or a known solution that does not come back, raises
-:class:`~lipgen.errors.SingularStiffnessError` instead of returning garbage. Nothing here forms
-a dense inverse.
+``"auto"`` takes cvxopt's CHOLMOD when cvxopt imports, else cholespy, else SuperLU. Either way
+the factor is checked before use: a non-positive or tiny pivot, or a known solution that does not
+come back, raises :class:`~lipgen.errors.SingularStiffnessError` instead of returning garbage.
+Nothing here forms a dense inverse.
 """
 
 from __future__ import annotations
