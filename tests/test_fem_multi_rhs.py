@@ -80,3 +80,36 @@ def test_reach_plan_with_block_solves_equals_the_superlu_plan(system, solver):
         assert np.abs(U[:, :, :].reshape(3, -1)[:, d] - goals).max() <= 1e-9 * np.abs(goals).max()
         assert np.abs(U - U0).max() <= 1e-8 * np.abs(U0).max()
         assert np.abs(F - F0).max() <= 1e-8 * np.abs(F0).max()
+
+
+def test_cholesky_qr2_is_a_thin_qr_and_declines_ill_conditioned_input():
+    from lipgen.fem.physics import _cholesky_qr2
+
+    rng = np.random.default_rng(5)
+    # columns scaled over 4 decades, like compliance columns of near and far goal nodes
+    S = np.asfortranarray(rng.standard_normal((3000, 20)) * np.logspace(0, 4, 20))
+    Q, R = _cholesky_qr2(S)
+    assert np.abs(Q.T @ Q - np.eye(20)).max() <= 1e-13
+    assert np.abs(Q @ R - S).max() <= 1e-13 * np.abs(S).max()
+    assert np.array_equal(R, np.triu(R))
+    Qh, Rh = np.linalg.qr(S)  # Householder: the same factorisation up to column signs
+    signs = np.sign(np.diag(Rh)) * np.sign(np.diag(R))
+    assert np.allclose(R * signs[:, None], Rh, rtol=1e-10, atol=1e-10 * np.abs(Rh).max())
+    S[:, 1] = S[:, 0] * (1 + 1e-9)  # cond ~1e9: CholeskyQR would lose orthogonality
+    assert _cholesky_qr2(S) is None
+
+
+def test_reach_plan_without_cholesky_qr_is_the_same(system, monkeypatch):
+    physics, *_ = system
+    d = lipgen.dofs(physics.mesh.markers, "xyz")
+    goals = np.random.default_rng(6).standard_normal((2, len(d)))
+    physics._plans.clear()
+    U, F = physics.reach(d, goals)
+    import lipgen.fem.physics as phys
+
+    monkeypatch.setattr(phys, "_cholesky_qr2", lambda S: None)  # force the Householder path
+    physics._plans.clear()
+    U1, F1 = physics.reach(d, goals)
+    physics._plans.clear()
+    assert np.abs(U - U1).max() <= 1e-9 * np.abs(U1).max()
+    assert np.abs(F - F1).max() <= 1e-9 * np.abs(F1).max()

@@ -243,16 +243,21 @@ class Physics:
         if plan is not None:
             self._plans.move_to_end(key)
             return plan
-        S = self.compliance_columns(d)
-        Q = np.zeros_like(S)
-        Q[self.free_dofs], R = np.linalg.qr(S[self.free_dofs])  # anchored rows stay exactly zero
+        S = np.asfortranarray(self.compliance_columns(d)[self.free_dofs])  # anchored rows are zero
+        W = self._factor.solve(S)  # K_s⁻¹ S: both block solves before the QR, Z = W R⁻¹
+        qr = _cholesky_qr2(S)
+        Qf, R = qr if qr is not None else np.linalg.qr(S)
         diag = np.abs(np.diag(R))
         if diag.min() <= 1e-12 * diag.max():
             raise SingularStiffnessError(
                 f"the goal DOFs are (numerically) redundant: their compliance columns are dependent "
                 f"(smallest/largest |R_ii| = {diag.min() / diag.max():.1e}); drop duplicate or "
                 f"coincident goal nodes")
-        plan = _ReachPlan(Q, R, self.solve(Q))
+        Q = np.zeros((self.n_dofs, len(d)))
+        Z = np.zeros((self.n_dofs, len(d)))
+        Q[self.free_dofs] = Qf
+        Z[self.free_dofs] = sla.blas.dtrsm(1.0, R, W, side=1)  # W R⁻¹ = K_s⁻¹ Q
+        plan = _ReachPlan(Q, R, Z)
         self._plans[key] = plan
         if len(self._plans) > _REACH_CACHE:
             self._plans.popitem(last=False)
@@ -365,6 +370,29 @@ class Physics:
     def __repr__(self) -> str:
         return (f"Physics(mesh={self.mesh.name!r}, n_nodes={self.n_nodes}, n_faces={self.mesh.n_faces}, "
                 f"free_dofs={len(self.free_dofs)}, solver={self.solver!r})")
+
+
+def _cholesky_qr2(S: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Thin QR of a tall (m, d) matrix by Cholesky QR applied twice (level-3 BLAS only).
+
+    S = Q₁R₁ from the Cholesky factor of SᵀS, then Q₁ = Q R₂ again; R = R₂R₁. Orthogonal to
+    round-off when cond(S) is below ~1e8 (Yamamoto et al. 2015); a third to a half of the time of
+    a Householder QR of 135,000 x 48. Returns None (the caller takes Householder) when SᵀS is
+    not numerically positive definite or cond(S) may exceed ~1e6.
+    """
+    try:
+        R1 = sla.cholesky(S.T @ S)
+    except np.linalg.LinAlgError:
+        return None
+    diag = np.abs(np.diag(R1))
+    if not np.isfinite(diag).all() or diag.min() <= 1e-6 * diag.max():
+        return None
+    Q1 = sla.blas.dtrsm(1.0, R1, S, side=1)  # S R₁⁻¹
+    try:
+        R2 = sla.cholesky(Q1.T @ Q1)
+    except np.linalg.LinAlgError:
+        return None
+    return sla.blas.dtrsm(1.0, R2, Q1, side=1, overwrite_b=1), R2 @ R1
 
 
 def _rebuild(mesh: LipMesh, E: np.ndarray, poisson: float, out_of_plane: str) -> Physics:
