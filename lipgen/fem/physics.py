@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from lipgen._threads import blas_threads
 from lipgen._validate import as_float_array, as_index_array
 from lipgen.errors import SingularStiffnessError
 from lipgen.fem.assembly import assemble_stiffness, check_grounding, face_stiffness
@@ -237,16 +238,24 @@ class Physics:
         rhs[d, np.arange(len(d))] = 1.0
         return self.solve(rhs)
 
+    def _free_compliance(self, d: np.ndarray) -> np.ndarray:
+        """The free rows of :meth:`compliance_columns` (checked ``d``), (3n - 3a, d), Fortran order."""
+        unit = np.zeros((len(self.free_dofs), len(d)), order="F")
+        unit[np.searchsorted(self.free_dofs, d), np.arange(len(d))] = 1.0
+        return self._factor.solve(unit)
+
     def _plan(self, d: np.ndarray) -> _ReachPlan:
         key = tuple(int(i) for i in d)
         plan = self._plans.get(key)
         if plan is not None:
             self._plans.move_to_end(key)
             return plan
-        S = np.asfortranarray(self.compliance_columns(d)[self.free_dofs])  # anchored rows are zero
+        S = self._free_compliance(d)
         W = self._factor.solve(S)  # K_s⁻¹ S: both block solves before the QR, Z = W R⁻¹
-        qr = _cholesky_qr2(S)
-        Qf, R = qr if qr is not None else np.linalg.qr(S)
+        with blas_threads(1):  # tall-skinny BLAS-3: 2 threads cost 5-40x the wall time under load
+            qr = _cholesky_qr2(S)
+            Qf, R = qr if qr is not None else np.linalg.qr(S)
+            Zf = sla.blas.dtrsm(1.0, R, W, side=1, overwrite_b=1)  # W R⁻¹ = K_s⁻¹ Q
         diag = np.abs(np.diag(R))
         if diag.min() <= 1e-12 * diag.max():
             raise SingularStiffnessError(
@@ -256,7 +265,7 @@ class Physics:
         Q = np.zeros((self.n_dofs, len(d)))
         Z = np.zeros((self.n_dofs, len(d)))
         Q[self.free_dofs] = Qf
-        Z[self.free_dofs] = sla.blas.dtrsm(1.0, R, W, side=1)  # W R⁻¹ = K_s⁻¹ Q
+        Z[self.free_dofs] = Zf
         plan = _ReachPlan(Q, R, Z)
         self._plans[key] = plan
         if len(self._plans) > _REACH_CACHE:
