@@ -32,8 +32,8 @@ def test_one_pass_equals_a_pass_per_view(dist):
             # a second frame re-uploads geometry into the same framebuffer
             got[one_pass] = [(r.render_views(_scene(face, k), depth=True, labels=True),
                               r.render(_scene(face, k)).image) for k in range(2)]
-    for (a, fa), (b, fb) in zip(got[True], got[False]):
-        for (ca, za, la), (cb, zb, lb) in zip(a, b):
+    for (a, fa), (b, fb) in zip(got[True], got[False], strict=True):
+        for (ca, za, la), (cb, zb, lb) in zip(a, b, strict=True):
             assert ca.shape == cb.shape and ca.dtype == cb.dtype == np.uint8
             assert np.abs(ca.astype(int) - cb.astype(int)).max() <= 1  # same samples, same resolve
             assert np.mean(ca != cb) < 1e-3

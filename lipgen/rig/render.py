@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._optional import require
-from lipgen.rig import _onepass
 from lipgen.errors import MissingDependencyError, RenderBackendError
+from lipgen.rig import _onepass
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.scene import MeshItem, Scene, srgb_to_linear
