@@ -24,6 +24,7 @@ import numpy as np
 from lipgen._optional import require
 from lipgen._threads import single_threaded
 from lipgen.errors import MissingDependencyError, RenderBackendError
+from lipgen.rig import _onepass
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.scene import MeshItem, Scene, srgb_to_linear
@@ -123,10 +124,13 @@ class RigRenderer:
         Clipping depths, mm.
     shadows : bool
         Directional lights cast shadows (shadow maps).
+    one_pass : bool
+        Draw both views in one forward pass and read them back once (:mod:`lipgen.rig._onepass`);
+        False renders each view on its own (pyrender's way, kept to measure against).
     """
 
     def __init__(self, rig: MirrorRig, mirror_reflectance: float = 0.9, znear: float = 20.0,
-                 zfar: float = 5000.0, shadows: bool = False) -> None:
+                 zfar: float = 5000.0, shadows: bool = False, one_pass: bool = True) -> None:
         if not isinstance(rig, MirrorRig):
             raise TypeError(f"rig must be a MirrorRig, got {type(rig).__name__}")
         if not 0 < mirror_reflectance <= 1:
@@ -142,6 +146,7 @@ class RigRenderer:
             raise RenderBackendError(
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
+        self._one_pass = bool(one_pass) and _onepass.install(self._renderer, pr)
         self._scene = _ordered_scene(pr)()
         for v in self._views:
             self._scene.add_node(v.node)
@@ -213,11 +218,15 @@ class RigRenderer:
         per view, in :data:`~lipgen.rig.camera.VIEWS` order (no mirror dimming).
         """
         self._sync(scene, labels)
+        drawn = None
+        if self._one_pass:
+            drawn = _onepass.render_side_by_side(self._renderer, self._scene,
+                                                 [(v.node, *v.size) for v in self._views], self._flags, depth)
         out = []
-        for v in self._views:
+        for k, v in enumerate(self._views):
             self._scene.main_camera_node = v.node
             self._renderer.viewport_width, self._renderer.viewport_height = v.size
-            color, z = self._renderer.render(self._scene, flags=self._flags)
+            color, z = drawn[k] if drawn else self._renderer.render(self._scene, flags=self._flags)
             color, z = v.resample(color, z if depth else None)
             out.append([color, z, self._render_labels(v, scene) if labels else None])
         return out
