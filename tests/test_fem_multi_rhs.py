@@ -113,3 +113,17 @@ def test_reach_plan_without_cholesky_qr_is_the_same(system, monkeypatch):
     physics._plans.clear()
     assert np.abs(U - U1).max() <= 1e-9 * np.abs(U1).max()
     assert np.abs(F - F1).max() <= 1e-9 * np.abs(F1).max()
+
+
+@pytest.mark.slow  # ~5 s quiet, 25 s at load 28
+@needs_cholmod
+def test_solvers_bench_quick_reports_ratios():
+    from lipgen.bench import available_suites, solvers
+
+    assert "solvers" in available_suites()
+    out = solvers.run(quick=True)
+    assert out["resolution"] == 2 and out["right_hand_sides"] == 48 and out["multi_column"]
+    ratios = [out["reach_plan_over_factor"], out["block_48_over_factor"],
+              *out["over_column_loop_48"].values(), *out["over_column_loop_48_cpu"].values()]
+    assert all(np.isfinite(r) and r > 0 for r in ratios)
+    assert {"lipgen_48", "superlu_48"} <= set(out["over_column_loop_48"])

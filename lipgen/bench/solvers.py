@@ -11,7 +11,9 @@ round (:func:`lipgen.bench.compare.interleaved`):
   factor, made outside the timing); with one right-hand side, lipgen against cholespy.
 * cholespy's factorisation against cvxopt's.
 
-Each figure is the median over rounds of the per-round ratio; the load average is recorded.
+Each figure is the median over rounds of the per-round ratio of wall times; the load average is
+recorded. On a loaded machine wall times swing by 2-3x between rounds, so the peer comparisons
+are also given per core (``*_cpu``): CPU-time ratios with BLAS limited to one thread for all.
 """
 
 from __future__ import annotations
@@ -32,6 +34,25 @@ TARGETS = {"reach_plan_over_factor": 1.5}
 
 def _solve_with(factor, B):
     return lambda: factor.solve(B)
+
+
+def _interleaved_cpu(fns: dict, baseline: str, rounds: int) -> dict:
+    """Median over rounds of CPU time(name) / CPU time(baseline), one BLAS thread, interleaved."""
+    import time
+
+    from lipgen._threads import blas_threads
+
+    times = {name: [] for name in fns}
+    with blas_threads(1):
+        for fn in fns.values():
+            fn()
+        for _ in range(rounds):
+            for name, fn in fns.items():
+                c0 = time.process_time()
+                fn()
+                times[name].append(time.process_time() - c0)
+    base = np.asarray(times[baseline])
+    return {name: float(np.median(np.asarray(t) / base)) for name, t in times.items() if name != baseline}
 
 
 def run(quick: bool = False) -> dict:
@@ -82,6 +103,8 @@ def run(quick: bool = False) -> dict:
     out["loop_48_s_median"] = t["loop_48"]["median_s"]
     t = interleaved(singles, "lipgen_1", rounds=5)
     out["one_rhs_over_lipgen"] = {k: t[k]["ratio_median"] for k in singles if k != "lipgen_1"}
+    out["over_column_loop_48_cpu"] = _interleaved_cpu(peers, "loop_48", rounds)
+    out["one_rhs_over_lipgen_cpu"] = _interleaved_cpu(singles, "lipgen_1", 5)
     out["load_average_after"] = load_average()
     out["targets"] = TARGETS
     out["meets_targets"] = {"reach_plan_at_most_1.5x_factor":
