@@ -9,7 +9,7 @@ time (5-6 ms against 10-12 ms for 640x480x3, measured side by side).
 
 The table has 2**20 equal-probability entries, so each ``p_k`` is met to within 2**-20 and
 values with ``P(|k| ≥ K) < 2**-21`` (beyond about 5σ: for σ = 1, ``|k| ≥ 6``, 4e-8 of the pixels)
-do not occur. ``tests/test_rig_noise.py`` checks the law against ``p_k`` on a million draws.
+do not occur. ``tests/test_frame_pipeline.py`` checks the law against ``p_k`` on a million draws.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Integer sensor noise: the law of round(σZ), its clipping and its determinism (issue 22)."""
+"""The frame pipeline (issue 22): integer sensor noise (law, clipping, determinism), lossless PNG."""
 
 import numpy as np
 import pytest
@@ -41,3 +41,17 @@ def test_noise_clips_is_deterministic_and_off_at_zero():
     assert add_gray_noise(image, 0.0, rng) is image
     with pytest.raises(TypeError, match="uint8"):
         add_gray_noise(image.astype(float), 1.0, rng)
+
+
+@pytest.mark.parametrize("shape", [(30, 40, 3), (30, 40)])
+@pytest.mark.parametrize("level", [0, 1, 9])
+def test_generate_png_is_lossless(shape, level):
+    import io
+
+    from PIL import Image
+
+    from lipgen.dataset.generate import _png_bytes
+
+    image = np.random.default_rng(1).integers(0, 256, shape, dtype=np.uint8)
+    back = np.array(Image.open(io.BytesIO(_png_bytes(image, level))))
+    assert back.dtype == np.uint8 and np.array_equal(back, image)
