@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from lipgen import __version__
+from lipgen._threads import single_threaded
 from lipgen._io import (
     atomic_write_bytes,
     atomic_write_json,
@@ -216,6 +217,7 @@ def _run_job(job: tuple[str, int]) -> tuple[str, int]:
     return job
 
 
+@single_threaded  # many small numpy calls (truth, visibility): 2 BLAS threads only wait under load
 def _render_job(job: tuple[str, int]):
     """The image, truth and destination of one job (nothing written yet)."""
     w = _WORKER
