@@ -21,12 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from lipgen import __version__
-from lipgen._threads import single_threaded
 from lipgen._io import (
     atomic_write_bytes,
     atomic_write_json,
     save_npz,
 )
+from lipgen._threads import single_threaded
 from lipgen.dataset.film import (
     exposure_offsets,
     film_frame,
