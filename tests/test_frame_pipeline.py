@@ -50,8 +50,8 @@ def test_generate_png_is_lossless(shape, level):
 
     from PIL import Image
 
-    from lipgen.dataset.generate import _png_bytes
+    from lipgen._io import png_bytes
 
     image = np.random.default_rng(1).integers(0, 256, shape, dtype=np.uint8)
-    back = np.array(Image.open(io.BytesIO(_png_bytes(image, level))))
+    back = np.array(Image.open(io.BytesIO(png_bytes(image, level))))
     assert back.dtype == np.uint8 and np.array_equal(back, image)
