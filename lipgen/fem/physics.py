@@ -385,9 +385,10 @@ def _cholesky_qr2(S: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Thin QR of a tall (m, d) matrix by Cholesky QR applied twice (level-3 BLAS only).
 
     S = Q₁R₁ from the Cholesky factor of SᵀS, then Q₁ = Q R₂ again; R = R₂R₁. Orthogonal to
-    round-off when cond(S) is below ~1e8 (Yamamoto et al. 2015); a third to a half of the time of
-    a Householder QR of 135,000 x 48. Returns None (the caller takes Householder) when SᵀS is
-    not numerically positive definite or cond(S) may exceed ~1e6.
+    round-off when cond(S) is below ~1e8 (Yamamoto et al. 2015); on one thread, 0.06-0.07 s of CPU
+    for 135,000 x 48 against 0.30-0.56 s for numpy's Householder QR (measured at load 15-25).
+    Returns None (the caller takes Householder) when SᵀS is not numerically positive definite or
+    cond(S) may exceed ~1e6.
     """
     try:
         R1 = sla.cholesky(S.T @ S)
