@@ -49,7 +49,6 @@ from lipgen.dataset.layout import (
 )
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
-from lipgen.rig.noise import add_gray_noise
 from lipgen.rig.render import RenderedFrame
 from lipgen.rig.visibility import occluded
 from lipgen.subject.face import FaceLook, FaceModel
@@ -187,7 +186,10 @@ def _init_worker(ctx: _Context) -> None:
 
 
 def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    return add_gray_noise(image, sigma, rng)  # integer draws of round(σZ) (lipgen.rig.noise)
+    if sigma <= 0:
+        return image
+    noise = rng.standard_normal(image.shape, dtype=np.float32) * np.float32(sigma)
+    return np.clip(np.round(image + noise), 0, 255).astype(np.uint8)
 
 
 def _run_job(job: tuple[str, int]) -> tuple[str, int]:
