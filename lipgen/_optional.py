@@ -18,6 +18,7 @@ _HINTS = {
     "skfem": "pip install scikit-fem",
     "imageio_ffmpeg": "pip install 'lipgen[vision]'  (imageio-ffmpeg, which brings its own ffmpeg)",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
+    "cholespy": "pip install 'lipgen[fast-bsd]'  (cholespy, CHOLMOD under a BSD licence)",
     "ray": "pip install 'lipgen[cluster]'  (ray[default], for lipgen campaign)",
     "pyarrow": "pip install 'lipgen[cluster]'  (pyarrow, for campaign.parquet)",
     "fsspec": "pip install 'lipgen[cluster]'  (fsspec, for campaigns into object stores)",

@@ -3,9 +3,11 @@
 import numpy as np
 
 from lipgen.fem import cholmod_available
+from lipgen.fem.solver import cholespy_available
 from lipgen.mesh.lipmesh import LipMesh
 
-SOLVERS = ["superlu"] + (["cholmod"] if cholmod_available() else [])
+SOLVERS = (["superlu"] + (["cholmod"] if cholmod_available() else [])
+           + (["cholespy"] if cholespy_available() else []))
 
 
 def grid(nx=6, ny=5, bend=0.15, jitter=0.0, seed=0):

@@ -29,6 +29,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.usd",
     "lipgen.bench.nrsfm",
     "lipgen.bench.physics",
+    "lipgen.bench.solvers",
     "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",

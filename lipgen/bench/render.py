@@ -4,7 +4,10 @@ The baseline, measured in the same run and interleaved with the frames, is ONE p
 of the same scene (already uploaded) at the same size through the real camera: the practical
 limit of this renderer on this machine. A raw frame costs more: the subject's surfaces and dots
 are rebuilt for every frame, uploaded, and the two halves rendered from their own view cameras
-and composed. ``end_to_end`` adds encoding the PNG and writing it and a truth file.
+and composed (both views in one forward pass, :mod:`lipgen.rig._onepass`; ``two_pass`` is the
+same against a renderer that draws one view at a time, in its own interleaved block;
+``raw_over_single_*`` are medians of per-round ratios, wall and CPU). ``end_to_end`` adds
+encoding the PNG and writing it and a truth file.
 ``generate_fps`` is the whole ``lipgen generate`` (subject simulation, rendering, sensor noise,
 visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up included;
 ``preset_frame_fps`` is what generate spends per frame once started (render, form, truth, PNG
@@ -63,6 +66,34 @@ def _preset_frame_fps(n: int, preset_settings) -> dict:
     return {name: 1.0 / float(np.mean(t)) for name, t in times.items()}
 
 
+def _two_pass_ratio(rig, face, shapes, reps: int) -> dict:
+    """A raw frame rendered a view at a time (``one_pass=False``, the way before issue 22) against
+    one pyrender pass, interleaved in its own block: wall and CPU ratios (medians per round)."""
+    from lipgen.rig.render import RigRenderer, _View
+
+    width, height = rig.camera.width, rig.camera.height
+    walls, cpus = [], []
+    with RigRenderer(rig, one_pass=False) as r:
+        full = _View(r.pyrender, rig.camera, 20.0, 5000.0)
+        r._scene.add_node(full.node)
+
+        def single():
+            r._scene.main_camera_node = full.node
+            r._renderer.viewport_width, r._renderer.viewport_height = width, height
+            return r._renderer.render(r._scene)
+
+        r.render(face.scene(shapes[0]))
+        single()
+        for k in range(reps):
+            c0, t0 = time.process_time(), time.perf_counter()
+            r.render(face.scene(shapes[(k + 1) % len(shapes)]))
+            c1, t1 = time.process_time(), time.perf_counter()
+            single()
+            walls.append((t1 - t0) / (time.perf_counter() - t1))
+            cpus.append((c1 - c0) / max(time.process_time() - c1, 1e-9))
+    return {"raw_over_single_wall": float(np.median(walls)), "raw_over_single_cpu": float(np.median(cpus))}
+
+
 def run(quick: bool = False) -> dict:
     from PIL import Image
 
@@ -105,18 +136,20 @@ def run(quick: bool = False) -> dict:
         raw(0)
         single()
         end_to_end(0)
-        t_raw, t_single, t_e2e, cpu_raw = [], [], [], []
+        t_raw, t_single, t_e2e, cpu_raw, cpu_single = [], [], [], [], []
         for k in range(reps):  # interleaved, so load changes hit all three alike
             c0, t0 = time.process_time(), time.perf_counter()
             raw(k + 1)
             t_raw.append(time.perf_counter() - t0)
             cpu_raw.append(time.process_time() - c0)
-            t0 = time.perf_counter()
+            c0, t0 = time.process_time(), time.perf_counter()
             single()
             t_single.append(time.perf_counter() - t0)
+            cpu_single.append(time.process_time() - c0)
             t0 = time.perf_counter()
             end_to_end(k + 1)
             t_e2e.append(time.perf_counter() - t0)
+    two_pass = _two_pass_ratio(rig, face, shapes, reps)  # after the first context is closed
     gen = {}
     n_gen = 8 if quick else 40
     for workers in (1, 2):
@@ -138,6 +171,9 @@ def run(quick: bool = False) -> dict:
         "raw_fps": 1.0 / med["raw"],
         "pyrender_limit_fps": 1.0 / med["single"],
         "ratio_to_limit": med["single"] / med["raw"],
+        "raw_over_single_wall": float(np.median(np.asarray(t_raw) / np.asarray(t_single))),
+        "raw_over_single_cpu": float(np.median(np.asarray(cpu_raw) / np.maximum(cpu_single, 1e-9))),
+        "two_pass": two_pass,
         "end_to_end_fps": 1.0 / med["e2e"],
         "generate_frames": n_gen,
         "generate_fps": gen,

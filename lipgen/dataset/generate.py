@@ -10,7 +10,6 @@ the same bytes.
 
 from __future__ import annotations
 
-import io
 import logging
 import multiprocessing
 import os
@@ -24,8 +23,10 @@ from lipgen import __version__
 from lipgen._io import (
     atomic_write_bytes,
     atomic_write_json,
+    png_bytes,
     save_npz,
 )
+from lipgen._threads import single_threaded
 from lipgen.dataset.film import (
     exposure_offsets,
     film_frame,
@@ -190,14 +191,6 @@ def _init_worker(ctx: _Context, renderer=None) -> None:
                                                                    light["white_balance"]))
 
 
-def _png_bytes(image: np.ndarray, level: int) -> bytes:
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(image).save(buf, format="PNG", compress_level=level)
-    return buf.getvalue()
-
-
 def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
     if sigma <= 0:
         return image
@@ -211,6 +204,7 @@ def _run_job(job: tuple[str, int]) -> tuple[str, int]:
     return job
 
 
+@single_threaded  # many small numpy calls (truth, visibility): 2 BLAS threads only wait under load
 def _render_job(job: tuple[str, int]):
     """The image, truth and destination of one job (nothing written yet)."""
     w = _WORKER
@@ -270,7 +264,7 @@ def _extras(rendered, depth_path: Path, mask_path: Path, level: int) -> list:
         z = np.where(rendered.depth > 0, rendered.depth, np.nan).astype(np.float32)  # 0: nothing drawn
         out.append((depth_path, lambda p: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z})))
     if rendered.labels is not None:
-        mask = _png_bytes(rendered.labels.astype(np.uint8), level)
+        mask = png_bytes(rendered.labels.astype(np.uint8), level)
         out.append((mask_path, lambda p: atomic_write_bytes(p, mask)))
     return out
 
@@ -280,7 +274,7 @@ def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
     counts as written once the truth exists, so the truth goes last."""
     for path, write in extras:
         write(path)
-    atomic_write_bytes(png, _png_bytes(image, level))
+    atomic_write_bytes(png, png_bytes(image, level))
     save_npz(npz, kind_tag, SCHEMA, truth)
 
 

@@ -14,6 +14,7 @@ Radial distortion, which OpenGL cannot draw, is applied by resampling a wider pi
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 from dataclasses import dataclass
@@ -21,7 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._optional import require
+from lipgen._threads import single_threaded
 from lipgen.errors import MissingDependencyError, RenderBackendError
+from lipgen.rig import _onepass
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.scene import MeshItem, Scene, srgb_to_linear
@@ -121,10 +124,13 @@ class RigRenderer:
         Clipping depths, mm.
     shadows : bool
         Directional lights cast shadows (shadow maps).
+    one_pass : bool
+        Draw both views in one forward pass and read them back once (:mod:`lipgen.rig._onepass`);
+        False renders each view on its own (pyrender's way, kept to measure against).
     """
 
     def __init__(self, rig: MirrorRig, mirror_reflectance: float = 0.9, znear: float = 20.0,
-                 zfar: float = 5000.0, shadows: bool = False) -> None:
+                 zfar: float = 5000.0, shadows: bool = False, one_pass: bool = True) -> None:
         if not isinstance(rig, MirrorRig):
             raise TypeError(f"rig must be a MirrorRig, got {type(rig).__name__}")
         if not 0 < mirror_reflectance <= 1:
@@ -140,6 +146,7 @@ class RigRenderer:
             raise RenderBackendError(
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
+        self._one_pass = bool(one_pass) and _onepass.install(self._renderer, pr)
         self._scene = _ordered_scene(pr)()
         for v in self._views:
             self._scene.add_node(v.node)
@@ -203,6 +210,7 @@ class RigRenderer:
         return [pair for entry in self._items.values() for pair in entry["label"] or ()]
 
     # ---- rendering ------------------------------------------------------------------------
+    @single_threaded  # pyrender inverts a 4x4 per view: 2 BLAS threads cost ~30 ms of it under load
     def render_views(self, scene: Scene, depth: bool = False, labels: bool = False):
         """The corrected (virtual, real) view images, as :meth:`MirrorRig.split_views` returns them.
 
@@ -210,11 +218,15 @@ class RigRenderer:
         per view, in :data:`~lipgen.rig.camera.VIEWS` order (no mirror dimming).
         """
         self._sync(scene, labels)
+        drawn = None
+        if self._one_pass:
+            drawn = _onepass.render_side_by_side(self._renderer, self._scene,
+                                                 [(v.node, *v.size) for v in self._views], self._flags, depth)
         out = []
-        for v in self._views:
+        for k, v in enumerate(self._views):
             self._scene.main_camera_node = v.node
             self._renderer.viewport_width, self._renderer.viewport_height = v.size
-            color, z = self._renderer.render(self._scene, flags=self._flags)
+            color, z = drawn[k] if drawn else self._renderer.render(self._scene, flags=self._flags)
             color, z = v.resample(color, z if depth else None)
             out.append([color, z, self._render_labels(v, scene) if labels else None])
         return out
@@ -236,7 +248,7 @@ class RigRenderer:
     def render(self, scene: Scene, depth: bool = False, labels: bool = False) -> RenderedFrame:
         """One raw frame of ``scene`` as the rig's real camera sees it."""
         (cv, zv, lv), (cr, zr, lr) = self.render_views(scene, depth, labels)
-        dimmed = np.round(cv.astype(np.float32) * self.reflectance).astype(np.uint8)
+        dimmed = _dimming_table(self.reflectance)[cv]  # the same float32 rounding, per value
         image = self.rig.compose(dimmed, cr)
         return RenderedFrame(image, self.rig.compose(zv, zr) if depth else None,
                              self.rig.compose(lv, lr) if labels else None)
@@ -263,6 +275,12 @@ class RigRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@functools.lru_cache(maxsize=8)
+def _dimming_table(reflectance: float) -> np.ndarray:
+    """(256,) uint8: ``round(v * reflectance)`` in float32 for every 8-bit value ``v``."""
+    return np.round(np.arange(256, dtype=np.float32) * np.float32(reflectance)).astype(np.uint8)
 
 
 def _ordered_scene(pr):

@@ -1,0 +1,181 @@
+"""Both view cameras of the rig drawn in one forward pass into one framebuffer, read back once.
+
+pyrender draws one camera per ``render`` call: it binds and clears the framebuffer, and for every
+primitive binds its program, the camera, every light and the material, then draws; then it
+resolves the multisampled buffer and reads depth (linearised in numpy) and colour back. The rig
+needs two cameras (the real and the virtual view) whose images are the two halves of one raw
+frame, so it paid all of that twice, and read a depth map nobody asked for.
+
+Here the two views sit side by side in one framebuffer: each primitive is bound once (program,
+lights, shadow maps) and drawn once per view, with that view's camera uniforms, viewport and
+scissor box. The resolve and the read-back happen once, and depth is resolved and read only when
+asked for. pyrender's shaders, materials and light binding are used as they are: the renderer
+object gets a subclass of :class:`pyrender.Renderer` that overrides the forward pass while
+``views`` is set, and a plain render (the label pass, any other caller) is pyrender's.
+
+pyrender sorts meshes by the distance of their node origin from the camera, and the draw order
+decides ties in depth. When the two cameras would sort them differently, the two views are
+rendered one after the other as before, so the pixels never depend on this module.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["install", "render_side_by_side"]
+
+
+def _one_pass_class(pr):
+    from OpenGL import GL
+    from pyrender.constants import ProgramFlags
+
+    class OnePassRenderer(pr.Renderer):
+        """pyrender's renderer that can draw several cameras side by side in one forward pass."""
+
+        views = None  # [(camera node, (x, y, w, h)), ...] while drawing side by side
+        want_depth = False
+
+        def _forward_pass(self, scene, flags, seg_node_map=None):
+            if self.views is None:
+                return super()._forward_pass(scene, flags, seg_node_map)
+            self.viewport_width = W = sum(r[2] for _, r in self.views)
+            self.viewport_height = H = max(r[1] + r[3] for _, r in self.views)
+            self._configure_main_framebuffer()
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb_ms)
+            GL.glViewport(0, 0, W, H)
+            GL.glEnable(GL.GL_DEPTH_TEST)
+            GL.glDepthMask(GL.GL_TRUE)
+            GL.glDepthFunc(GL.GL_LESS)
+            GL.glDepthRange(0.0, 1.0)
+            GL.glClearColor(*scene.bg_color)
+            GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+            GL.glEnable(GL.GL_MULTISAMPLE)
+            cams = []
+            for node, (x, y, w, h) in self.views:
+                pose = scene.get_pose(node)
+                cams.append((np.linalg.inv(pose), node.camera.get_projection_matrix(width=w, height=h),
+                             pose[:3, 3], (x, y, w, h)))
+            GL.glEnable(GL.GL_SCISSOR_TEST)
+            program = None
+            try:
+                for node in self._sorted_mesh_nodes(scene):
+                    if not node.mesh.is_visible:
+                        continue
+                    pose = scene.get_pose(node)
+                    for primitive in node.mesh.primitives:
+                        program = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+                        program._bind()
+                        self._bind_lighting(scene, program, node, flags)
+                        for V, P, cam_pos, region in cams:
+                            GL.glViewport(*region)
+                            GL.glScissor(*region)
+                            program.set_uniform("V", V)
+                            program.set_uniform("P", P)
+                            program.set_uniform("cam_pos", cam_pos)
+                            self._bind_and_draw_primitive(primitive=primitive, pose=pose, program=program,
+                                                          flags=flags)
+                            self._reset_active_textures()
+                if program is not None:
+                    program._unbind()
+            finally:
+                GL.glDisable(GL.GL_SCISSOR_TEST)
+            GL.glFlush()
+            return self._read_both(W, H)
+
+        def _read_both(self, W: int, H: int):
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+            GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+            if self.want_depth:
+                GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_DEPTH_BUFFER_BIT, GL.GL_NEAREST)
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            color = np.empty((H, W, 3), np.uint8)
+            GL.glReadPixels(0, 0, W, H, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, color)
+            depth = None
+            if self.want_depth:
+                depth = np.empty((H, W), np.float32)
+                GL.glReadPixels(0, 0, W, H, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, depth)
+            return color, depth
+
+    return OnePassRenderer
+
+
+def install(offscreen, pr) -> bool:
+    """Give ``offscreen`` (a ``pyrender.OffscreenRenderer``) the one-pass renderer.
+
+    Returns False, changing nothing, when its platform draws without framebuffer objects.
+    """
+    if not offscreen._platform.supports_framebuffers():
+        return False
+    offscreen._renderer.__class__ = _one_pass_class(pr)  # adds methods only; no state to convert
+    return True
+
+
+def _linear_depth(d: np.ndarray, znear: float, zfar: float) -> np.ndarray:
+    """Window depth (0-1) to distance along the camera axis, 0 where nothing was drawn (the same
+    float32 arithmetic as pyrender's read-back)."""
+    inf = d == 1.0
+    d = 2.0 * d - 1.0
+    ok = ~inf
+    d[ok] = (2.0 * znear * zfar) / (zfar + znear - d[ok] * (zfar - znear))
+    d[inf] = 0.0
+    return d
+
+
+def _same_draw_order(renderer, scene, nodes) -> bool:
+    orders = []
+    for node in nodes:
+        scene.main_camera_node = node
+        orders.append([id(n) for n in renderer._sorted_mesh_nodes(scene)])
+    return all(o == orders[0] for o in orders)
+
+
+def render_side_by_side(offscreen, scene, views, flags, depth: bool = False):
+    """Draw the views side by side in one forward pass and read the framebuffer back once.
+
+    Parameters
+    ----------
+    offscreen : pyrender.OffscreenRenderer
+        After :func:`install` returned True.
+    scene : pyrender.Scene
+    views : list of (node, width, height)
+        Camera nodes (pyrender ``IntrinsicsCamera`` s) and their image sizes, left to right.
+    flags : int
+        ``pyrender.RenderFlags`` of a colour render (OFFSCREEN is added).
+    depth : bool
+        Also read the depth buffer (linear, mm; 0 where nothing was drawn).
+
+    Returns
+    -------
+    list of (color (h, w, 3) uint8, depth (h, w) float32 or None), or None
+        One per view, rows top-down; None when the views would draw the meshes in different
+        orders (the caller then renders them one by one).
+    """
+    from pyrender.constants import RenderFlags
+
+    r = offscreen._renderer
+    if not _same_draw_order(r, scene, [node for node, _, _ in views]):
+        return None
+    H = max(int(h) for _, _, h in views)
+    regions, x = [], 0
+    for node, w, h in views:
+        regions.append((node, (x, H - int(h), int(w), int(h))))  # GL rows count from the bottom
+        x += int(w)
+    offscreen._platform.make_current()
+    r.point_size = offscreen.point_size
+    r.views, r.want_depth = regions, bool(depth)
+    try:
+        color, z = r.render(scene, flags | RenderFlags.OFFSCREEN)
+    finally:
+        r.views, r.want_depth = None, False
+        offscreen._platform.make_uncurrent()
+    color = color[::-1]
+    z = None if z is None else z[::-1]
+    out = []
+    for node, (x, _, w, h) in regions:
+        zi = None
+        if z is not None:
+            zi = _linear_depth(np.ascontiguousarray(z[:h, x:x + w]), node.camera.znear, node.camera.zfar)
+        out.append((color[:h, x:x + w], zi))
+    return out

@@ -1,0 +1,51 @@
+"""Both views drawn into one framebuffer equal each view rendered on its own (issue 22)."""
+
+import numpy as np
+import pytest
+
+from lipgen.mesh.procedural import lip_mesh
+from lipgen.rig.camera import MirrorRig, PinholeCamera, default_rig
+from lipgen.subject.face import FaceModel
+
+pytestmark = pytest.mark.render
+render = pytest.importorskip("lipgen.rig.render")
+
+
+def _scene(face, k):
+    V = face.mesh.vertices.copy()
+    V[:, 1] -= 0.3 * k * np.clip(-V[:, 1], 0, 25)
+    return face.scene(V)
+
+
+@pytest.mark.parametrize("dist", [None, (-0.12, 0.03, 0.0, 0.0, 0.0)])
+def test_one_pass_equals_a_pass_per_view(dist):
+    rig = default_rig(160, 120)
+    if dist is not None:  # the lens of the hard preset: each view renders wider, then resamples
+        c = rig.camera
+        rig = MirrorRig(PinholeCamera(c.K, c.R, c.t, c.width, c.height, dist, c.name), rig.mirror_normal,
+                        rig.mirror_offset, rig.mirror_side, rig.split)
+    face = FaceModel(lip_mesh(1))
+    got = {}
+    for one_pass in (True, False):  # one context at a time: pyrender's EGL close ends the display
+        with render.RigRenderer(rig, one_pass=one_pass) as r:
+            assert r._one_pass == one_pass
+            if one_pass:  # the side-by-side pass is taken (the draw order agrees between the views)
+                r._sync(_scene(face, 0), False)
+                views = [(v.node, *v.size) for v in r._views]
+                assert render._onepass.render_side_by_side(r._renderer, r._scene, views, r._flags) is not None
+            # a second frame re-uploads geometry into the same framebuffer
+            got[one_pass] = [(r.render_views(_scene(face, k), depth=True, labels=True),
+                              r.render(_scene(face, k)).image) for k in range(2)]
+    for (a, fa), (b, fb) in zip(got[True], got[False], strict=True):
+        for (ca, za, la), (cb, zb, lb) in zip(a, b, strict=True):
+            assert ca.shape == cb.shape and ca.dtype == cb.dtype == np.uint8
+            assert np.abs(ca.astype(int) - cb.astype(int)).max() <= 1  # same samples, same resolve
+            assert np.mean(ca != cb) < 1e-3
+            drawn = zb > 0
+            assert drawn.any() and np.array_equal(za > 0, drawn)
+            # within two steps of the 24-bit depth buffer at that distance (znear 20, zfar 5000)
+            step = za[drawn] ** 2 * (5000.0 - 20.0) / (20.0 * 5000.0) * 2.0**-24
+            assert np.all(np.abs(za[drawn] - zb[drawn]) <= 2 * step + 1e-6 * za[drawn])
+            assert np.array_equal(la, lb)
+        assert fa.shape == fb.shape == (120, 160, 3)
+        assert np.abs(fa.astype(int) - fb.astype(int)).max() <= 1
