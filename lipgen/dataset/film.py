@@ -124,8 +124,10 @@ def exposure_offsets(conditions: ImageConditions, span_px: float, step_px: float
 
 
 def film_frame(renderer, former, face, states: list, lights: tuple, rng: np.random.Generator,
-               depth: bool = False, labels: bool = False):
+               depth: bool = False, labels: bool = False, age: float = 0.0):
     """Render the sub-frame ``states`` [(vertices, pose), ...] and form the raw frame.
+
+    ``age`` (0..1) is how far through the clip the frame is (the ink's smudging).
 
     Returns ``(image (H, W, 3) uint8, depth or None, labels or None)``; depth and labels are
     those of the middle instant (the frame time), as the truth.
@@ -133,7 +135,7 @@ def film_frame(renderer, former, face, states: list, lights: tuple, rng: np.rand
     instants, mid = [], None
     centre = len(states) // 2
     for k, (V, P) in enumerate(states):
-        views = renderer.render_views(face.scene(V, P, lights=lights), depth and k == centre,
+        views = renderer.render_views(face.scene(V, P, lights=lights, age=age), depth and k == centre,
                                       labels and k == centre)
         instants.append((views[0][0], views[1][0]))
         if k == centre:
