@@ -79,7 +79,8 @@ def test_jaw_carries_lower_teeth_and_tongue_only_down(mesh):
     off = opened["lower_teeth"][0] - rest["lower_teeth"][0]
     assert off[:, 1].max() < -5 and np.allclose(off, off[0]) and np.isclose(off[0, 2], 0.5 * off[0, 1])
     np.testing.assert_array_equal(opened["upper_teeth"][0], rest["upper_teeth"][0])
-    np.testing.assert_allclose(opened["tongue"][0] - rest["tongue"][0], np.broadcast_to(off[0], rest["tongue"][0].shape))
+    tongue = opened["tongue"][0] - rest["tongue"][0]
+    np.testing.assert_allclose(tongue, np.broadcast_to(off[0], tongue.shape))
     raised = mesh.vertices.copy()
     raised[:, 1] += 3.0
     np.testing.assert_array_equal(m.surfaces(raised)["lower_teeth"][0], rest["lower_teeth"][0])
@@ -96,7 +97,8 @@ def test_ink_style_is_seeded_and_keeps_the_centroid():
     assert a.scale.std() > 0.05 and 0.7 <= a.scale.min() and a.scale.max() <= 1.45
     ang = 2 * np.pi * (np.arange(4096) + 0.5) / 4096
     for k in range(17):
-        r = np.interp(ang, 2 * np.pi * np.arange(SECTORS + 1) / SECTORS, np.append(a.outline(k), a.outline(k)[0]))
+        knots = 2 * np.pi * np.arange(SECTORS + 1) / SECTORS
+        r = np.interp(ang, knots, np.append(a.outline(k), a.outline(k)[0]))
         x, y = r * np.cos(ang), r * np.sin(ang)
         area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
         cx = np.sum((x + np.roll(x, -1)) * (x * np.roll(y, -1) - np.roll(x, -1) * y)) / (6 * area)
