@@ -61,7 +61,7 @@ def realize(conditions: ImageConditions, seed: int) -> dict:
                 "white_balance": tuple(conditions.white_balance)}
     rng = np.random.default_rng([seed, _LIGHT_STREAM])
     lights = tuple(Light(lt.kind, lt.color, float(lt.intensity * (1 + 0.5 * j * rng.uniform(-1, 1))),
-                         direction=_turn(lt.direction, 40.0 * j, rng)) for lt in base)
+                         direction=_turn(lt.direction, 40.0 * j, rng), shadows=lt.shadows) for lt in base)
     exposure = float(conditions.exposure * (1 + 0.3 * j * rng.uniform(-1, 1)))
     wb = tuple(float(g * (1 + 0.08 * j * rng.uniform(-1, 1))) for g in conditions.white_balance)
     return {"lights": lights, "exposure": exposure, "white_balance": wb}
@@ -70,7 +70,7 @@ def realize(conditions: ImageConditions, seed: int) -> dict:
 def lighting_record(real: dict) -> dict:
     """JSON-able form of :func:`realize`'s result (for the manifest)."""
     return {"lights": [{"kind": lt.kind, "color": list(lt.color), "intensity": lt.intensity,
-                        "direction": list(lt.direction)} for lt in real["lights"]],
+                        "direction": list(lt.direction), "shadows": lt.shadows} for lt in real["lights"]],
             "exposure": real["exposure"], "white_balance": list(real["white_balance"])}
 
 

@@ -180,7 +180,8 @@ class RigRenderer:
         if scene.lights != self._lights:
             for node in self._light_nodes:
                 self._scene.remove_node(node)
-            lights = [_pyrender_light(pr, lt) for lt in scene.lights]
+            shadows = self._flags != pr.RenderFlags.NONE
+            lights = [_pyrender_light(pr, lt, shadows) for lt in scene.lights]
             self._light_nodes = [self._scene.add(light, name=f"light:{i:03d}", pose=pose)
                                  for i, (light, pose) in enumerate(lights)]
             self._lights = scene.lights
@@ -335,9 +336,19 @@ def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | 
     return pr.Mesh([prim], name=f"{item.name}:{mat.name}")
 
 
-def _pyrender_light(pr, light) -> tuple:
+_FAR = 1e5  # mm: a point light this far stands in for a directional light that casts no shadow
+
+
+def _pyrender_light(pr, light, shadows: bool = False) -> tuple:
+    """A pyrender light and its pose. When shadows are drawn, a directional light that casts none
+    becomes a point light ``_FAR`` mm away along its direction, as bright at the scene (pyrender
+    draws shadows for every directional light or none)."""
     color = srgb_to_linear(light.color)
     pose = np.eye(4)
+    if light.kind == "directional" and shadows and not light.shadows:
+        d = np.asarray(light.direction, float)
+        pose[:3, 3] = -_FAR * d / np.linalg.norm(d)
+        return pr.PointLight(color=color, intensity=light.intensity * _FAR**2), pose
     if light.kind == "directional":
         z = -np.asarray(light.direction, float)
         z /= np.linalg.norm(z)

@@ -157,6 +157,8 @@ class Light:
         Directional lights: the direction the light travels (world).
     position : (3,) float
         Point lights: position, mm.
+    shadows : bool
+        The light casts shadows when the renderer draws shadows (fill lights usually do not).
     """
 
     kind: str
@@ -164,6 +166,7 @@ class Light:
     intensity: float = 3.0
     direction: tuple[float, float, float] = (0.0, 0.0, -1.0)
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    shadows: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in ("directional", "point"):

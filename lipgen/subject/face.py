@@ -395,7 +395,8 @@ def _pose(pose) -> tuple[np.ndarray, np.ndarray]:
 
 
 def default_lights() -> tuple[Light, ...]:
-    """A key light from above the camera side, a dimmer fill from the mirror side, and a top light."""
+    """A key light from above the camera side (the one that casts shadows), a dimmer fill from the
+    mirror side, and a top light."""
     return (Light("directional", (1.0, 0.97, 0.92), 3.2, direction=(-0.3, -0.45, -1.0)),
-            Light("directional", (0.9, 0.95, 1.0), 1.4, direction=(0.7, -0.1, -0.8)),
-            Light("directional", (1.0, 1.0, 1.0), 0.8, direction=(0.0, -1.0, -0.2)))
+            Light("directional", (0.9, 0.95, 1.0), 1.4, direction=(0.7, -0.1, -0.8), shadows=False),
+            Light("directional", (1.0, 1.0, 1.0), 0.8, direction=(0.0, -1.0, -0.2), shadows=False))
