@@ -236,3 +236,21 @@ def test_shadows_without_acne_and_cast_by_the_nose(mesh):
     skin = fa.labels == 1
     darker = (fb - fa.image.astype(int)).sum(axis=2) > 30
     assert 50 < (darker & skin).sum() < 0.3 * skin.sum()  # the nose's shadow, not acne everywhere
+
+
+def test_scene_conditions_are_checked_and_recorded():
+    from lipgen.rig.conditions import ImageConditions
+
+    with pytest.raises(ValueError, match="ink"):
+        ImageConditions(ink=1.5)
+    with pytest.raises(ValueError, match="smudge"):
+        ImageConditions(smudge=-0.1)
+    with pytest.raises(ValueError, match="head"):
+        ImageConditions(head="yes")
+    c = ImageConditions(head=True, mouth=True, ink=0.5, smudge=0.2)
+    assert ImageConditions.from_dict(json.loads(json.dumps(c.to_dict()))) == c and not c.is_ideal
+    old = c.to_dict()
+    for k in ("head", "mouth", "ink", "smudge"):
+        old.pop(k)  # a manifest written before these existed reads as the plain scene
+    plain = ImageConditions.from_dict(old)
+    assert (plain.head, plain.mouth, plain.ink, plain.smudge) == (False, False, 0.0, 0.0)
