@@ -19,6 +19,8 @@ _HINTS = {
     "imageio_ffmpeg": "pip install 'lipgen[vision]'  (imageio-ffmpeg, which brings its own ffmpeg)",
     "cvxopt": "pip install 'lipgen[fast]'  (cvxopt, for the CHOLMOD sparse Cholesky)",
     "ray": "pip install 'lipgen[cluster]'  (ray[default], for lipgen campaign)",
+    "pyarrow": "pip install 'lipgen[cluster]'  (pyarrow, for campaign.parquet)",
+    "fsspec": "pip install 'lipgen[cluster]'  (fsspec, for campaigns into object stores)",
     "pocketsphinx": "pip install 'lipgen[speech]'  (pocketsphinx, with its en-US models)",
 }
 

@@ -9,7 +9,12 @@ took 70-100 s instead of 8 s. So (see CONTRIBUTING.md, "Threads"):
 * per-frame and per-marker work (dot fitting, tracking, normalisation, reach over frames, NRSfM
   on tracks) runs inside :func:`blas_threads` ``(1)``;
 * every worker process calls :func:`limit_worker_threads` first (its siblings use the other
-  cores);
+  cores); that also makes Mesa's software rasterizer (llvmpipe, which starts one thread per core
+  in every GL context) rasterize in the rendering thread (``LP_NUM_THREADS=0``), so a worker
+  given one core uses one: its two threads did 30 % of a render worker's work, and two workers
+  ran 6 threads on 2 cores. CPU per frame is the same either way (interleaved A/B, 2 workers,
+  load 22-29: 0.98x); on a loaded machine the extra threads win a larger share of the cores
+  (wall 0.86x), which is taken from the other processes, not efficiency;
 * large factorisations and SVDs (the physics of a fine mesh) keep the default threads.
 """
 
@@ -21,10 +26,15 @@ import sys
 from collections.abc import Callable
 from contextlib import contextmanager
 
-__all__ = ["blas_threads", "single_threaded", "limit_worker_threads", "THREAD_ENV", "POLICY_ENV"]
+__all__ = ["blas_threads", "single_threaded", "limit_worker_threads", "THREAD_ENV", "RENDER_THREAD_ENV",
+           "POLICY_ENV"]
 
 THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS")
 """Environment variables that fix the thread count of a process's BLAS/OpenMP at load time."""
+
+RENDER_THREAD_ENV = {"LP_NUM_THREADS": "0"}
+"""Environment of a render worker's GL: Mesa llvmpipe rasterizes in the calling thread (read when
+the first GL context is made; the images are the same bytes with any thread count)."""
 
 POLICY_ENV = "LIPGEN_THREAD_POLICY"
 """Set to ``off`` to make :func:`blas_threads` a no-op (to measure what the policy buys)."""
@@ -76,10 +86,13 @@ def limit_worker_threads(n: int = 1) -> None:
     """First call of a worker process: ``n`` BLAS/OpenMP threads for the rest of its life.
 
     Sets the environment (for libraries loaded later, and the worker's own children) and limits
-    the libraries already loaded.
+    the libraries already loaded; a worker's GL contexts made after this call rasterize in the
+    rendering thread (:data:`RENDER_THREAD_ENV`; not with ``LIPGEN_THREAD_POLICY=off``).
     """
     for var in THREAD_ENV:
         os.environ[var] = str(n)
+    if os.environ.get(POLICY_ENV) != "off":
+        os.environ.update(RENDER_THREAD_ENV)
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=n)

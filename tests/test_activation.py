@@ -5,6 +5,7 @@ import pytest
 
 from lipgen.subject.activation import (
     ACTIONS,
+    CLASSIC_ACTIONS,
     ONE_SIDED,
     VISEMES,
     head_motion,
@@ -20,9 +21,10 @@ def test_random_activations_are_seeded_smooth_and_bounded():
     assert a.tobytes() == random_activations(150, seed=4).tobytes()
     assert not np.array_equal(a, random_activations(150, seed=5))
     assert a.min() >= 0 and a.max() < 1
-    symmetric = [i for i, n in enumerate(ACTIONS) if n not in ONE_SIDED]
+    symmetric = [i for i, n in enumerate(CLASSIC_ACTIONS) if n not in ONE_SIDED]
     assert (a[:, symmetric].max(axis=0) > 0.05).all()  # every symmetric action is used
     assert (a.max(axis=0) > 0.05).sum() > len(symmetric)  # and some one-sided ones
+    assert not a[:, len(CLASSIC_ACTIONS):].any()  # the independent sources are not drawn here
     assert np.abs(np.diff(a, axis=0)).max() < 0.35  # no jumps between frames at 30 fps
 
 

@@ -132,6 +132,19 @@ def _reach_objective(tmp: Path):
     Physics(lips).reach(dofs(lips.markers[:2]), np.zeros(6), objective="strain")
 
 
+def _cycles(tmp: Path, case: str):
+    from test_renderer_choice import without_module
+
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
+
+    if case == "depth":
+        GenerateSettings(frames=1, size=(160, 120), renderer="cycles", depth=True)
+    with without_module("bpy"):
+        generate(tmp / "ds", GenerateSettings(frames=1, calib_frames=0, size=(160, 120), renderer="cycles"),
+                 progress=False)
+
+
 def _frame(i: int, key: str, value):
     return lambda m: m["frames"][i].__setitem__(key, value)
 
@@ -162,6 +175,8 @@ CASES = [
     ("mesh", "sidecar that is a JSON list", lambda t: _sidecar(t, "[1, 2]")),
     ("mesh", "a crack: a duplicated vertex used by faces", _cracked),
     ("physics", "unknown reach objective", _reach_objective),
+    ("generate", "`--renderer cycles` without the pip `bpy`", lambda t: _cycles(t, "no bpy")),
+    ("generate", "`--renderer cycles` with `--depth`", lambda t: _cycles(t, "depth")),
 ]
 
 

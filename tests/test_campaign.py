@@ -7,8 +7,8 @@ The datasets are tiny (160x120, a few frames); a campaign's dataset must be byte
 
 import json
 import os
-import threading
 import time
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 import numpy as np
@@ -165,6 +165,41 @@ def test_the_local_executor_reruns_a_task_whose_worker_died(tmp_path):
         ex.shutdown()
 
 
+def _crash_when(started: str, marker: str) -> int:
+    """Once ``started`` exists (a sibling task is running), die as under SIGKILL (first call)."""
+    while not os.path.exists(started):
+        time.sleep(0.01)
+    return _crash_once(marker)
+
+
+def _sibling(started: str, marker: str) -> int:
+    """Count its runs in ``started``; stay running until the crash happened and a while after."""
+    with open(started, "a") as fh:
+        fh.write("run\n")
+    while not os.path.exists(marker):
+        time.sleep(0.01)
+    time.sleep(1.0)  # still running when the driver learns of its sibling's death
+    return os.getpid()
+
+
+def test_a_dead_local_worker_loses_only_its_own_task(tmp_path):
+    started, marker = str(tmp_path / "started"), str(tmp_path / "marker")
+    ex = LocalExecutor(workers=2, retries=1)
+    try:
+        crash, sibling = ex.submit(_crash_when, started, marker), ex.submit(_sibling, started, marker)
+        pids = {ex.result(crash), ex.result(sibling)}
+        assert crash.attempts == 2 and sibling.attempts == 1 and ex.lost == 1
+        assert Path(started).read_text() == "run\n", "the sibling task was run again"
+        assert len(pids) == 2
+        # a task that kills its worker every time ends with the pool's error after its retries
+        doomed = ex.submit(os._exit, 3)
+        with pytest.raises(BrokenProcessPool):
+            ex.result(doomed)
+        assert doomed.attempts == 2 and ex.result(ex.submit(os.getenv, "LP_NUM_THREADS")) == "0"
+    finally:
+        ex.shutdown()
+
+
 # --- running: the local executor path (rendering) --------------------------------------------
 
 _GEN_NRSFM = {"base": BASE, "campaign": {"stages": ["generate", "nrsfm"], "chunk_frames": 3},
@@ -211,91 +246,22 @@ def test_a_local_campaign_matches_generate_fails_one_item_and_resumes(tmp_path):
     assert len(index["runs"]) == 2
 
 
-# --- running: Ray ----------------------------------------------------------------------------
-
-
-def _ours(pid: int) -> bool:
-    """Whether ``pid`` descends from this test process (only those are ever killed)."""
-    me = os.getpid()
-    while pid > 1:
-        if pid == me:
-            return True
-        try:
-            pid = int(Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[1])
-        except (OSError, ValueError, IndexError):
-            return False
-    return False
-
-
-def _kill_one_render_worker(runner) -> int | None:
-    """SIGKILL the first of our Ray workers seen rendering a chunk (its title is set by Ray)."""
-    import signal
-
-    while runner.is_alive():
-        for d in Path("/proc").glob("[0-9]*"):
-            try:
-                title = (d / "cmdline").read_bytes().split(b"\0")[0]
-            except OSError:
-                continue
-            if title.startswith(b"ray::render_chunk") and _ours(int(d.name)):
-                os.kill(int(d.name), signal.SIGKILL)
-                return int(d.name)
-        time.sleep(0.05)
-    return None
-
-
-@pytest.fixture(scope="module")
-def ray_executor():
-    pytest.importorskip("ray")
-    from lipgen.campaign import RayExecutor
-
-    try:
-        ex = RayExecutor(num_cpus=2, retries=1)
-    except ClusterError as exc:
-        if "timed out during startup" not in str(exc):
-            raise
-        # Ray gives its raylet a fixed 30 s to register, three times over: only an overloaded
-        # machine misses that, and it says nothing about lipgen
-        pytest.skip(f"the machine is too loaded for Ray to start: {exc}")
-    yield ex
-    ex.shutdown()
-
-
-@pytest.mark.slow  # Ray's own start-up (~20 s here, more under load)
-def test_ray_workers_rerun_a_killed_task_and_use_one_blas_thread(ray_executor, tmp_path):
-    def crash_once(marker: str) -> int:  # nested, so Ray ships it by value
-        if not os.path.exists(marker):
-            Path(marker).write_text("crashed")
-            os._exit(9)  # the worker dies mid-task, as under SIGKILL
-        return os.getpid()
-
-    h = ray_executor.submit(crash_once, str(tmp_path / "marker"))
-    assert isinstance(ray_executor.result(h), int) and (tmp_path / "marker").is_file()
-    assert ray_executor.result(ray_executor.submit(os.getenv, "OPENBLAS_NUM_THREADS")) == "1"
-
-
-@pytest.mark.slow
 @pytest.mark.render
-def test_a_ray_campaign_is_byte_identical_to_generate(ray_executor, tmp_path):
+def test_a_worker_reuses_its_renderer_for_the_next_dataset_with_the_same_bytes(tmp_path):
     pytest.importorskip("lipgen.rig.render")
-    from lipgen.dataset.generate import generate
+    from lipgen.campaign.stages import prepare, render_chunk
+    from lipgen.dataset import generate as gen
 
-    plan = parse_plan({"base": BASE, "campaign": {"stages": ["generate"], "chunk_frames": 4},
-                       "grid": {"seed": [3, 5]}})
-    result: dict = {}
-    runner = threading.Thread(target=lambda: result.update(
-        index=run_campaign(plan, tmp_path / "c", executor=ray_executor, progress=False)))
-    runner.start()
-    killed = _kill_one_render_worker(runner)  # SIGKILL a worker mid-chunk, when one is caught at it
-    print("killed render worker:", killed)
-    runner.join()
-    index = result["index"]
-    assert [e["status"] for e in index["items"]] == ["done", "done"], (killed, index)
-    assert index["runs"][0]["executor"] == "ray" and index["runs"][0]["workers"] == 2
-    for k, item in enumerate(plan.items):
-        ref = generate(tmp_path / f"ref{k}", item.settings, progress=False)
-        a, b = _files(ref), _files(tmp_path / "c" / "items" / item.name / "dataset")
-        assert a.keys() == b.keys() and all(a[n] == b[n] for n in a), f"item {k} differs from generate"
+    a, b = (GenerateSettings(frames=2, size=(160, 120), calib_frames=1, seed=k, noise=1.0) for k in (1, 2))
+    for name, s in (("a", a), ("b", b)):
+        ctx, jobs, _ = prepare(str(tmp_path / name), s.to_dict())
+        renderer = gen._WORKER.get("renderer")
+        render_chunk(ctx, jobs)
+    assert renderer is not None and gen._WORKER["renderer"] is renderer, "the renderer was not kept"
+    gen._close_worker()
+    ref = gen.generate(tmp_path / "ref", b, progress=False)
+    x, y = _files(ref), _files(tmp_path / "b")
+    assert x.keys() == y.keys() and all(x[k] == y[k] for k in x), "a reused renderer changed the bytes"
 
 
 # --- documentation that runs ------------------------------------------------------------------
@@ -387,3 +353,27 @@ def test_the_cluster_model_is_waves_of_slots_plus_serial_scheduling():
     # 1000 items on 100 x 2 slots: 5 waves of 10 s at efficiency 0.5, plus start and 1000 x 3 submits
     assert predict(1000, 100, 2, 10.0, 0.5, 20.0, 0.001, 3) == pytest.approx(20 + 5 * 20 + 3.0)
     assert predict(1, 100, 2, 10.0, 1.0, 0.0, 0.0, 1) == pytest.approx(10.0)  # one item: one wave
+
+
+def test_the_bench_reads_a_childs_cpu_time_from_proc():
+    import subprocess
+    import sys
+
+    from lipgen.bench.campaign import _cpu_split, _descendants_cpu
+
+    code = ("import time, sys\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass\n"
+            "print(time.process_time(), flush=True)\nsys.stdin.read()")
+    child = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)
+    try:
+        own = float(child.stdout.readline())  # the child's own count, once it has burnt 0.3 s
+        seen = _descendants_cpu()
+        assert child.pid in seen
+        assert seen[child.pid][1] == pytest.approx(own, abs=0.05)  # /proc ticks are 10 ms
+        split = _cpu_split("local", {}, {child.pid: seen[child.pid]}, 0.1)
+        assert split == {"workers_s": seen[child.pid][1], "ray_system_s": 0.0, "driver_s": 0.1}
+        ray = _cpu_split("ray", {}, {1: ("ray::render_chunk", 2.0), 2: ("raylet", 0.5),
+                                     3: ("ray::DashboardAgent", 0.25)}, 0.0)
+        assert ray["workers_s"] == 2.0 and ray["ray_system_s"] == 0.75
+    finally:
+        child.communicate("")

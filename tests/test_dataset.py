@@ -148,7 +148,7 @@ def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path, subject_s
         assert np.linalg.norm(rest - ds.mesh.vertices[ds.mesh.markers], axis=1).min() > 0.3
     else:
         assert "subject" not in ds.manifest and "subject_seed" not in ds.manifest["settings"]
-    errors = []
+    errors, eligible = [], 0
     for fr in ds:
         views = ds.rig.split_views(fr.image)
         for v in range(2):
@@ -158,11 +158,15 @@ def test_rendered_dots_found_by_thresholding_match_the_truth(tmp_path, subject_s
             gap = np.linalg.norm(uv[:, None] - uv[None], axis=2) + np.eye(len(uv)) * 1e9
             ok &= gap.min(axis=1) > 7
             d = np.linalg.norm(c[:, None] - uv[None], axis=2)
-            errors.append(c[d.argmin(axis=0)][ok] - uv[ok])
+            # a dot seen edge-on at the silhouette can be too faint for the fixed threshold: it is
+            # then not found (no blob within 3 px), which is the detector's miss, not a wrong truth
+            found = ok & (d.min(axis=0) < 3.0)
+            eligible += int(ok.sum())
+            errors.append(c[d.argmin(axis=0)][found] - uv[found])
     err = np.vstack(errors)
     rms = np.sqrt(np.mean(np.sum(err**2, axis=1)))
-    print(f"thresholded dot centroids: {rms:.3f} px RMS over {len(err)} dots")
-    assert len(err) >= 30 and rms < 0.5
+    print(f"thresholded dot centroids: {rms:.3f} px RMS over {len(err)} of {eligible} dots")
+    assert len(err) >= 30 and len(err) >= 0.95 * eligible and rms < 0.5
     assert np.abs(err.mean(axis=0)).max() < 0.2
 
 

@@ -76,13 +76,28 @@ def test_blender_tutorial_runs_in_blender(tmp_path):
     page = TUTORIALS / "blender.md"
     blocks = [code for lang, code in _blocks(page) if lang == "python"]
     assert blocks and all(code.startswith("# Blender") for code in blocks)
+    _speech_wav(tmp_path / "speech.wav")  # the recording the Animate from Audio block reads
     session = BlenderSession()
     try:
         out = session.run("bpy_checks_docs:run_console_blocks", blocks, str(tmp_path))
     finally:
         session.close()
     assert "reach solved on LipGen Reach" in out
+    assert "sound: [('speech', 1" in out
     assert (tmp_path / "lips_from_blender.usda").is_file()
+
+
+def _speech_wav(path: Path) -> None:
+    """The sentence of the tutorial's Animate from Audio block, spoken by eSpeak NG."""
+    pytest.importorskip("pocketsphinx", reason="the Blender tutorial animates from audio: pip install "
+                        "'lipgen[speech]'")
+    from lipgen.speech import espeak
+    from lipgen.speech.audio import write_wav
+
+    if not espeak.available():
+        pytest.skip("the Blender tutorial animates from a recording spoken by espeak-ng: apt-get install "
+                    "espeak-ng (or `make espeak`)")
+    write_wav(path, espeak.synthesize("The small pup gnawed a hole in the sock.")[0])
 
 
 def test_site_opens_in_headless_chromium(tmp_path):

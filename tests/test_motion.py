@@ -80,7 +80,7 @@ def test_one_sided_actions_mirror_each_other(subject, action):
 
 def test_random_activations_mix_one_sided_gestures():
     a = random_activations(300, seed=2)
-    sided = [ACTIONS.index(n) for n in ACTIONS if n.endswith(("_left", "_right"))]
+    sided = [ACTIONS.index(n) for n in ACTIONS[:16] if n.endswith(("_left", "_right"))]
     assert len(sided) == 8 and (a[:, sided].max(axis=0) > 0.05).all()
     # Appending actions kept the older columns' seeded draws (hash of the 8-action version's output).
     assert hashlib.sha256(np.ascontiguousarray(a[:, :8]).tobytes()).hexdigest()[:16] == "3b6fbc51f4f4ab2e"
@@ -94,7 +94,7 @@ def test_calibrated_magnitudes_in_mm(subject):
         a, k = ACTIONS.index(action), mesh.marker_index(marker)
         if action != "jaw_open":  # the elastic response is scaled to the target exactly
             assert np.isclose(np.linalg.norm(subject.responses[a, k]), mm)
-        if action == "lip_press":
+        if action.startswith("lip_press"):
             continue  # the lips meet first: contact stops the press short of its free response
         U = simulate(subject, _one(action)).displacements[0, k]
         # Contact and the arch wrap act after calibration, so allow a little slack.

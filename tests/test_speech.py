@@ -211,3 +211,27 @@ def test_artist_markers_matched_and_fitted():
     coef = rng.normal(size=(6, 4))
     targets = mean[markers] + np.einsum("fk,kmi->fmi", coef, comps[:, markers])
     assert np.allclose(marker_coefficients(comps, mean, markers, targets, ridge=1e-12), coef, atol=1e-8)
+
+
+def test_lexicon_lookup_equals_a_full_parse(tmp_path):
+    from lipgen.speech.phones import pronunciations
+
+    lines = ["'bout B AW T", "a AH", "a(2) EY", "a's EY Z", "abc EY B IY S IY", "zulu Z UW L UW",
+             "b-52 B IY F IH F T IY T UW", "mcdonald M AH K D AA N AH L D"]
+    path = tmp_path / "small.dict"
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    full = {k: tuple(v.split()) for k, v in (line.split(" ", 1) for line in lines)}
+    lex = pronunciations(path)
+    for word in [*full, "ab", "zul", "zulus", "a(3)", "", "a b", "AH", "mcdonald's"]:
+        assert (word in lex) == (word in full), word
+        if word in full:
+            assert lex[word] == full[word]
+        else:
+            with pytest.raises(KeyError):
+                lex[word]
+    assert dict(lex.items()) == full and len(lex) == len(full)
+    # a dictionary out of letter order is read right too
+    unordered = tmp_path / "unordered.dict"
+    unordered.write_text("bee B IY\nant AE N T\nbat B AE T\nape EY P\n", encoding="utf-8")
+    lex = pronunciations(unordered)
+    assert lex["bat"] == ("B", "AE", "T") and lex["ape"] == ("EY", "P") and "bo" not in lex

@@ -46,6 +46,54 @@ def test_forced_alignment_boundaries(spoken):
 
 
 @needs_espeak
+def test_lipsync_usdz_packages_the_audio(spoken, tmp_path, capsys):
+    import zipfile
+
+    pxr = pytest.importorskip("pxr", reason="pip install 'lipgen[usd]'")
+    text, audio, _ = spoken[1]
+    wav = tmp_path / "speech.wav"
+    write_wav(wav, audio)
+    for name in ("lips.usdz", "lips.usdc"):
+        assert main(["lipsync", str(wav), "--text", text, "--start", "3", "--out", str(tmp_path / name)]) == 0
+    with zipfile.ZipFile(tmp_path / "lips.usdz") as z:
+        inside = z.namelist()
+        assert inside[0].endswith(".usdc") and any(n.endswith(".wav") for n in inside)
+        packed = next(n for n in inside if n.endswith(".wav"))
+        assert z.read(packed) == wav.read_bytes()
+    zipped, plain = (pxr.Usd.Stage.Open(str(tmp_path / n)) for n in ("lips.usdz", "lips.usdc"))
+    sound = pxr.UsdMedia.SpatialAudio(zipped.GetPrimAtPath("/Lips/Speech"))
+    assert sound.GetStartTimeAttr().Get().GetValue() == 3
+    assert sound.GetFilePathAttr().Get().resolvedPath.endswith(f"lips.usdz[{packed}]")
+
+    def weights(stage):
+        anim = [p for p in stage.Traverse() if p.GetTypeName() == "SkelAnimation"][0]
+        attr = anim.GetAttribute("blendShapeWeights")
+        return np.array([attr.Get(t) for t in attr.GetTimeSamples()])
+
+    assert np.array_equal(weights(zipped), weights(plain))
+    # text alone: the package holds the stage only
+    assert main(["lipsync", "--text", text, "--out", str(tmp_path / "text.usdz")]) == 0
+    with zipfile.ZipFile(tmp_path / "text.usdz") as z:
+        assert z.namelist() == ["lipsync.usdc"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lips.usdc", "lips.usdz", "speech.wav", "text.usdz"]
+
+
+@needs_espeak
+def test_reused_decoders_give_a_fresh_decoders_results(spoken):
+    from lipgen.speech import decode
+
+    def key(track):
+        return track.labels, track.start.tolist(), track.end.tolist(), track.confidence
+
+    (text_a, audio_a, _), (text_b, audio_b, _) = spoken
+    decode._LOCAL.__dict__.pop("decoders", None)  # fresh decoders
+    first = key(align(audio_a, text_a)), key(recognize(audio_a))
+    align(audio_b, text_b), recognize(audio_b)  # other speech through the same decoders
+    assert (key(align(audio_a, text_a)), key(recognize(audio_a))) == first
+    assert (key(align(audio_a, text_a)), key(recognize(audio_a))) == first
+
+
+@needs_espeak
 def test_wrong_transcript_falls_back_to_recognition(spoken, caplog):
     _, audio, _ = spoken[0]
     with caplog.at_level(logging.WARNING, logger="lipgen.speech.decode"):

@@ -32,6 +32,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",
+    "lipgen.bench.cycles",
     "lipgen.bench.blender",
     "lipgen.bench.startup",
     "lipgen.bench.load",

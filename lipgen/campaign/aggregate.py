@@ -108,7 +108,7 @@ def _table51_md(items: list[dict]) -> list[str]:
 
     rows = [r for r in ROWS if r in tabs[0]] + [r for r in tabs[0] if r not in ROWS]
     cols = list(tabs[0][rows[0]])
-    L = [f"Mean [95% interval] over {len(tabs)} item(s), mm² per DOF.", "",
+    L = [f"Mean [95% interval] over {len(tabs)} item(s), mm² per hidden DOF.", "",
          "| constraints used | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for ref, label in (("vs_truth", "vs TRUE surface"), ("vs_reach", "vs reach fields (thesis's reference)")):
         L.append(f"| *{label}* |" + " |" * len(cols))
@@ -171,9 +171,30 @@ def _finite(obj):
     return obj
 
 
-def write_campaign_report(root, out=None, slowest: int = 5) -> Path:
+def write_campaign_report(root, out=None, slowest: int = 5) -> Path | str:
     """Write ``report.md``, ``report.json`` and the plots of campaign ``root`` into ``out``
-    (default ``root/report``); returns the path of ``report.md``."""
+    (default ``root/report``); returns the path of ``report.md``.
+
+    ``root`` may be a store URL (:mod:`lipgen.campaign.remote`): the index and the items'
+    scores are downloaded, and the report goes to ``out`` or else into the store's ``report/``
+    (then the URL of ``report.md`` is returned).
+    """
+    from lipgen.campaign.remote import Store, is_uri
+
+    if is_uri(root):
+        import tempfile
+
+        store = Store(root)
+        with tempfile.TemporaryDirectory(prefix="lipgen-report-") as tmp:
+            for f in sorted(store.files("")):
+                if f == "campaign.json" or f.endswith(("/report/report.json", "/nrsfm.json")):
+                    store.get_file(f, Path(tmp) / f)
+            md = write_campaign_report(tmp, out or Path(tmp) / "report", slowest)
+            if out is not None:
+                return md
+            for p in sorted(Path(md).parent.iterdir()):
+                store.put_file(p, f"report/{p.name}")
+        return f"{root.rstrip('/')}/report/report.md"
     root = Path(root)
     index = collect(root)
     out = root / "report" if out is None else Path(out)

@@ -3,27 +3,33 @@
 Both give the driver the same three calls: ``submit(fn, *args) -> handle``, ``wait(handles)``
 (the handles that finished, within a short timeout) and ``result(handle)`` (the value, or the
 task's exception). A task whose worker dies is run again (``retries`` times): Ray re-runs just
-that task; the local pool, which breaks as a whole when one of its processes dies, is rebuilt
-and every task it lost is submitted again.
+that task; so does the local executor (:mod:`lipgen.campaign.local`), whose workers are
+one-process pools given a task only when free.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-import multiprocessing
 import os
 import socket
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor
-from concurrent.futures import wait as futures_wait
-from concurrent.futures.process import BrokenProcessPool
+import time
 
+from lipgen.campaign.local import LocalExecutor
 from lipgen.errors import LipgenError
 
 __all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "make_executor"]
 
 log = logging.getLogger(__name__)
 
-_THREADS_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _worker_env() -> dict:
+    """Environment of every Ray worker: one BLAS thread, GL rasterizing in the rendering thread."""
+    from lipgen._threads import POLICY_ENV, RENDER_THREAD_ENV, THREAD_ENV
+
+    env = dict.fromkeys(THREAD_ENV, "1")
+    return env if os.environ.get(POLICY_ENV) == "off" else env | RENDER_THREAD_ENV
 
 
 class ClusterError(LipgenError, ConnectionError):
@@ -50,6 +56,79 @@ def check_address(address: str, timeout: float = 5.0) -> None:
                            "(ray status on the head node), and is the port open from here?") from None
 
 
+def _raylet_alive() -> bool | None:
+    """Whether a ``raylet`` child of this process runs (None where /proc cannot tell)."""
+    me = str(os.getpid())
+    try:
+        for d in os.scandir("/proc"):
+            if d.name.isdigit():
+                try:
+                    with open(f"/proc/{d.name}/stat") as fh:
+                        stat = fh.read()
+                except OSError:
+                    continue
+                name, rest = stat[stat.index("(") + 1:stat.rindex(")")], stat[stat.rindex(")") + 2:]
+                if name == "raylet" and rest.split()[1] == me:
+                    return True
+    except OSError:
+        return None
+    return False
+
+
+@contextlib.contextmanager
+def _environment(env: dict):
+    """Set ``env`` in this process's environment inside the block (then put it back)."""
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+_PATIENT = {"worker_register_timeout_seconds": 600, "agent_register_timeout_ms": 600_000}
+"""The embedded Ray's start-up limits (Ray 2.60's worker default is 60 s): a worker or agent that
+imports slowly on a loaded machine is waited for, not killed and started again."""
+
+
+@contextlib.contextmanager
+def _patient_node_start(ray, poll: float = 0.2, give_up_s: float = 1800.0):
+    """Let an embedded Ray node start however loaded the machine is.
+
+    ``ray.init`` gives the raylet a fixed 30 s (``raylet_start_wait_time_s`` in
+    ``ray/_private/node.py``, not configurable) to register with the GCS; the raylet registers
+    once its Python agents have imported, which on 2 cores shared with 20-30 busy processes takes
+    longer. Inside this block the node's registration check waits for as long as its raylet
+    process is alive (so a raylet that died still fails at once), instead of a wall-clock window.
+    It only touches the check Ray calls while a local node starts, and puts it back after.
+    """
+    services = getattr(getattr(ray, "_private", None), "services", None)
+    original = getattr(services, "get_node", None)
+    if original is None:  # another Ray layout: keep Ray's own window
+        yield
+        return
+
+    def get_node(gcs_address, node_id):
+        t0 = time.monotonic()
+        while True:
+            try:
+                return original(gcs_address, node_id)
+            except RuntimeError:
+                if _raylet_alive() is False or time.monotonic() - t0 > give_up_s:
+                    raise
+                time.sleep(poll)
+
+    services.get_node = get_node
+    try:
+        yield
+    finally:
+        services.get_node = original
+
+
 class RayExecutor:
     """Tasks as Ray remote functions; ``address=None`` starts an embedded local Ray."""
 
@@ -61,24 +140,21 @@ class RayExecutor:
 
         ray = require("ray", "lipgen campaign")
         self.ray, self.retries = ray, retries
-        env = {"env_vars": dict(_THREADS_ENV)}
+        env = {"env_vars": _worker_env()}
         if address is not None:
             check_address(address)
-        for attempt in range(3):  # Ray gives its raylet 30 s to start, which a loaded machine can miss
-            try:
-                if address is None:
+        try:
+            if address is None:  # the node's processes inherit the workers' environment from here:
+                # with a runtime_env instead, Ray's pre-started workers (default env) sit idle and
+                # a second set is started (measured: 14 % more worker CPU with 2 CPUs than with 1)
+                with _patient_node_start(ray), _environment(env["env_vars"]):
                     ray.init(address="local", num_cpus=num_cpus, include_dashboard=dashboard,
-                             runtime_env=env, log_to_driver=False, configure_logging=False)
-                else:
-                    ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
-                break
-            except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a slow start)
-                ray.shutdown()
-                if address is None and "timed out during startup" in str(exc) and attempt < 2:
-                    log.warning("Ray did not start in time (%s); trying again", exc)
-                    continue
-                where = address or "local"
-                raise ClusterError(f"could not start or join Ray (address {where}): {exc}") from exc
+                             log_to_driver=False, configure_logging=False, _system_config=_PATIENT)
+            else:
+                ray.init(address=address, runtime_env=env, log_to_driver=False, configure_logging=False)
+        except Exception as exc:  # noqa: BLE001  (Ray raises bare Exception on a failed start)
+            ray.shutdown()
+            raise ClusterError(f"could not start or join Ray (address {address or 'local'}): {exc}") from exc
         self._remote: dict = {}
         ctx = ray.get_runtime_context()
         self.dashboard_url = getattr(ctx, "dashboard_url", None) or None
@@ -117,88 +193,6 @@ class RayExecutor:
     def shutdown(self) -> None:
         """Disconnect (and stop the embedded Ray)."""
         self.ray.shutdown()
-
-
-class _Handle:
-    __slots__ = ("fn", "args", "future", "attempts")
-
-    def __init__(self, fn, args) -> None:
-        self.fn, self.args, self.future, self.attempts = fn, args, None, 0
-
-
-def _broke(h: _Handle) -> bool:
-    return h.future.done() and isinstance(h.future.exception(), BrokenProcessPool)
-
-
-def _init_local(parent_pid: int) -> None:
-    from lipgen._lifeline import die_with_parent
-    from lipgen.campaign.stages import limit_threads
-
-    die_with_parent(parent_pid)
-    limit_threads()
-
-
-class LocalExecutor:
-    """Tasks on ``workers`` local processes (spawned, one core and one BLAS thread each)."""
-
-    kind = "local"
-
-    def __init__(self, workers: int = 2, retries: int = 2) -> None:
-        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 256:
-            raise ValueError(f"workers must be a whole number in [1, 256], got {workers!r}")
-        self._n, self.retries, self.dashboard_url = workers, retries, None
-        self._pool = self._new_pool()
-        self._live: list[_Handle] = []
-
-    @property
-    def workers(self) -> int:
-        return self._n
-
-    def _new_pool(self) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(self._n, mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_init_local, initargs=(os.getpid(),))
-
-    def put(self, obj):
-        """``obj`` itself: it is pickled with each task."""
-        return obj
-
-    def _start(self, h: _Handle) -> None:
-        h.attempts += 1
-        h.future = self._pool.submit(h.fn, *h.args)
-
-    def submit(self, fn, *args) -> _Handle:
-        """Run ``fn(*args)`` on a local process; returns its handle."""
-        h = _Handle(fn, args)
-        self._start(h)
-        self._live.append(h)
-        return h
-
-    def wait(self, handles, timeout: float = 0.5) -> list:
-        """The ``handles`` that finished within ``timeout`` seconds; tasks lost with a dead worker
-        are submitted again (up to ``retries`` times) and are not finished."""
-        handles = list(handles)
-        if not handles:
-            return []
-        futures_wait([h.future for h in handles], timeout=timeout, return_when=FIRST_COMPLETED)
-        broken = [h for h in self._live if _broke(h)]
-        if broken:  # a worker died: every task the pool still held is lost with it
-            log.warning("a local worker died; %d task(s) are run again", len(broken))
-            self._pool.shutdown(wait=False, cancel_futures=True)
-            self._pool = self._new_pool()
-            for h in self._live:
-                if _broke(h) and h.attempts <= self.retries:
-                    self._start(h)
-        done = [h for h in handles if h.future.done()]
-        self._live = [h for h in self._live if not h.future.done()]
-        return done
-
-    def result(self, handle: _Handle):
-        """The task's value, or its exception raised here."""
-        return handle.future.result()
-
-    def shutdown(self) -> None:
-        """Stop the processes (pending tasks are cancelled)."""
-        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def make_executor(kind: str = "ray", address: str | None = None, workers: int | None = None, retries: int = 2,

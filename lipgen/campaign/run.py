@@ -15,22 +15,13 @@ import datetime as _dt
 import logging
 import time
 import traceback
-from pathlib import Path
 
 from lipgen import __version__
 from lipgen.campaign.executors import check_address, make_executor
+from lipgen.campaign.places import place_of
 from lipgen.campaign.plan import CampaignPlan
-from lipgen.campaign.stages import chunks, prepare, render_chunk, run_stage
-from lipgen.campaign.store import (
-    FORMAT,
-    SCHEMA,
-    campaign_lock,
-    item_dir,
-    prepare_folder,
-    read_index,
-    versions,
-    write_index,
-)
+from lipgen.campaign.stages import chunks
+from lipgen.campaign.store import FORMAT, SCHEMA, CampaignError, versions
 
 __all__ = ["run_campaign", "item_stages"]
 
@@ -60,8 +51,8 @@ def _new_index(plan: CampaignPlan) -> dict:
 class _Item:
     """The driver's view of one item while it runs."""
 
-    def __init__(self, entry: dict, plan: CampaignPlan, root: Path) -> None:
-        self.entry, self.dir = entry, item_dir(root, entry["name"])
+    def __init__(self, entry: dict, plan: CampaignPlan) -> None:
+        self.entry, self.name = entry, entry["name"]
         self.todo = [s for s in item_stages(plan) if entry["stages"][s]["status"] != "done"]
         self.chunks_left = 0
         self.t0 = self.prepare_s = 0.0
@@ -79,8 +70,10 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
     ----------
     plan : CampaignPlan
         From :func:`lipgen.campaign.load_plan`.
-    out : path
-        A new or empty folder, or (``resume``) this plan's earlier campaign.
+    out : path or str
+        A new or empty folder, or (``resume``) this plan's earlier campaign; or a store URL
+        (``s3://bucket/runs/x``, ``gs://...``, ``file:///...``: any fsspec URL, see
+        :mod:`lipgen.campaign.remote`), written object by object.
     executor : {"ray", "local"} or executor
         Ray tasks (embedded local Ray, or the cluster at ``address``), or local processes; or an
         executor already made (:func:`lipgen.campaign.make_executor`), which is left running.
@@ -94,32 +87,37 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
     Raises
     ------
     CampaignError
-        ``out`` is not this campaign's folder, or another campaign holds it.
+        ``out`` is not this campaign's folder, or another campaign holds it; a store URL that
+        fsspec does not know, or ``memory://`` (it lives in one process; the workers are others).
     ClusterError
         ``address`` does not answer, or Ray cannot start.
     """
     from tqdm import tqdm
 
-    out = Path(out)
+    place = place_of(out)
+    if getattr(getattr(place, "store", None), "in_process", False):
+        raise CampaignError(f"--out {out}: memory:// lives in this process only, and the campaign's tasks "
+                            "run in other processes (what they wrote would be lost); use a folder, file://, "
+                            "s3://, gs:// ...")
     if address is not None:
         check_address(address)  # before anything is written
-    prepare_folder(out, plan.fingerprint(), resume)
-    out.mkdir(parents=True, exist_ok=True)
-    with campaign_lock(out):
-        old = prepare_folder(out, plan.fingerprint(), resume)  # again, now that no one else can start
-        index = _new_index(plan) if old is None else read_index(out)
+    place.check(plan.fingerprint(), resume)
+    place.create()
+    with place.lock():
+        old = place.check(plan.fingerprint(), resume)  # again, now that no one else can start
+        index = _new_index(plan) if old is None else place.read_index()
         for entry in index["items"]:
             if entry["status"] != "done":
                 entry["status"] = "pending"
                 gen = entry["stages"].get("generate", {})
-                redo = gen.get("status") == "done" and _incomplete(item_dir(out, entry["name"]) / "dataset")
+                redo = gen.get("status") == "done" and place.incomplete(entry["name"], entry["settings"])
                 for st in entry["stages"].values():
                     if st["status"] != "done" or redo:  # a dataset that lost files: its stages again
                         st.update(status="pending", error=None)
         run = {"started": _now(), "executor": getattr(executor, "kind", executor), "address": address}
         index["runs"].append(run)
-        write_index(out, index)
-        items = [_Item(e, plan, out) for e in index["items"] if e["status"] != "done"]
+        place.write_index(index)
+        items = [_Item(e, plan) for e in index["items"] if e["status"] != "done"]
         total = plan.total_frames
         done_frames = total - sum(it.settings.frames + it.settings.calib_frames for it in plan.items
                                   if index["items"][it.index]["stages"].get("generate", {}).get("status")
@@ -132,7 +130,7 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
         bar = tqdm(total=total, initial=done_frames, desc=f"lipgen campaign {plan.name}", unit="frame",
                    disable=not progress)
         try:
-            _drive(ex, plan, items, index, out, bar)
+            _drive(ex, plan, items, index, place, bar)
         finally:
             bar.close()
             for entry in index["items"]:
@@ -140,23 +138,10 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
                     if st["status"] == "running":
                         st["status"] = "interrupted"
             run["finished"] = _now()
-            write_index(out, index)
+            place.write_index(index)
             if own:
                 ex.shutdown()
     return index
-
-
-def _incomplete(dataset: Path) -> bool:
-    """Whether a dataset folder lacks any frame or calibration file (cheap: no image is read)."""
-    from lipgen.dataset.layout import Dataset
-    from lipgen.errors import DatasetError
-
-    try:
-        ds = Dataset(dataset)
-    except DatasetError:
-        return True
-    calib = ds.manifest["calibration"]["frames"]
-    return bool(ds.missing()) or not all((dataset / f[k]).is_file() for f in calib for k in ("raw", "truth"))
 
 
 def _fail(item: _Item, stage: str, exc: BaseException) -> None:
@@ -172,7 +157,7 @@ def _fail(item: _Item, stage: str, exc: BaseException) -> None:
     log.warning("item %s failed at %s: %s", e["name"], stage, st["error"])
 
 
-def _submit_stage(ex, plan: CampaignPlan, item: _Item, pending: dict) -> None:
+def _submit_stage(ex, plan: CampaignPlan, item: _Item, place, pending: dict) -> None:
     stage = item.stage()
     if stage is None:
         item.entry["status"] = "done"
@@ -181,26 +166,25 @@ def _submit_stage(ex, plan: CampaignPlan, item: _Item, pending: dict) -> None:
     item.entry["status"] = "running"
     item.entry["stages"][stage].update(status="running", started=_now())
     if stage == "generate":
-        item.dir.mkdir(parents=True, exist_ok=True)
-        pending[ex.submit(prepare, str(item.dir / "dataset"), item.entry["settings"])] = (item, "prepare", 0)
+        pending[place.submit_prepare(ex, item.name, item.entry["settings"])] = (item, "prepare", 0)
     else:
         options = {"reconstruct": plan.reconstruct, "train": plan.train, "evaluate": plan.train,
                    "nrsfm": plan.nrsfm}[stage]
-        pending[ex.submit(run_stage, stage, str(item.dir), options)] = (item, stage, 0)
+        pending[place.submit_stage(ex, stage, item.name, options)] = (item, stage, 0)
 
 
-def _finish_stage(ex, plan, item: _Item, stage: str, summary: dict, index, out, pending) -> None:
+def _finish_stage(ex, plan, item: _Item, stage: str, summary: dict, index, place, pending) -> None:
     st = item.entry["stages"][stage]
     st.update(status="done", seconds=time.perf_counter() - item.t0, finished=_now(), error=None, **summary)
     item.todo.pop(0)
-    _submit_stage(ex, plan, item, pending)
-    write_index(out, index)
+    _submit_stage(ex, plan, item, place, pending)
+    place.write_index(index)
 
 
-def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, bar) -> None:
+def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, place, bar) -> None:
     pending: dict = {}
     for item in items:
-        _submit_stage(ex, plan, item, pending)
+        _submit_stage(ex, plan, item, place, pending)
     gen: dict = {}  # per item: chunk results of its generate stage
     while pending:
         for h in ex.wait(list(pending)):
@@ -211,7 +195,7 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, b
                 value = ex.result(h)
             except Exception as exc:  # the task's own error: this item fails, the others go on
                 _fail(item, "generate" if kind in ("prepare", "chunk") else kind, exc)
-                write_index(out, index)
+                place.write_index(index)
                 continue
             if kind == "prepare":
                 ctx, jobs, item.prepare_s = value
@@ -220,13 +204,13 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, b
                 gen[item.entry["name"]] = []
                 if not jobs:
                     _finish_stage(ex, plan, item, "generate", {"chunks": 0, "task_seconds": item.prepare_s},
-                                  index, out, pending)
+                                  index, place, pending)
                     continue
                 ref = ex.put(ctx)
                 parts = chunks([list(j) for j in jobs], plan.chunk_frames)
                 item.chunks_left = len(parts)
                 for part in parts:
-                    pending[ex.submit(render_chunk, ref, part)] = (item, "chunk", len(part))
+                    pending[place.submit_chunk(ex, item.name, ref, part)] = (item, "chunk", len(part))
             elif kind == "chunk":
                 bar.update(value["frames"])
                 gen[item.entry["name"]].append(value)
@@ -236,11 +220,12 @@ def _drive(ex, plan: CampaignPlan, items: list[_Item], index: dict, out: Path, b
                     peaks = [r["peak_rss_mib"] for r in res if r["peak_rss_mib"] is not None]
                     _finish_stage(ex, plan, item, "generate", {
                         "chunks": len(res), "render_seconds": sum(r["seconds"] for r in res),
+                        "render_cpu_seconds": sum(r.get("cpu_seconds", 0.0) for r in res),
                         "task_seconds": item.prepare_s + sum(r["seconds"] for r in res),
                         "workers": len({r["pid"] for r in res}),
-                        "peak_rss_mib": max(peaks) if peaks else None}, index, out, pending)
+                        "peak_rss_mib": max(peaks) if peaks else None}, index, place, pending)
             else:
-                _finish_stage(ex, plan, item, kind, value, index, out, pending)
+                _finish_stage(ex, plan, item, kind, value, index, place, pending)
             done = sum(e["status"] == "done" for e in index["items"])
             failed = sum(e["status"] == "failed" for e in index["items"])
             bar.set_postfix_str(f"items {done}/{len(index['items'])} done, {failed} failed", refresh=False)

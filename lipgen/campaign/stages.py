@@ -15,18 +15,12 @@ from pathlib import Path
 __all__ = ["limit_threads", "prepare", "render_chunk", "reconstruct", "train", "evaluate", "nrsfm",
            "chunks", "run_stage", "STAGE_FUNCTIONS"]
 
-THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
 def limit_threads() -> None:
-    """One BLAS thread per task: a worker is given one core; more threads would oversubscribe it."""
-    for var in THREAD_VARS:
-        os.environ[var] = "1"
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # BLAS started in this process before now keeps its threads
-        return
-    threadpool_limits(1)
+    """One BLAS thread per task, and GL rasterizing in the rendering thread: a worker is given one
+    core; more threads would oversubscribe it (``lipgen._threads.limit_worker_threads``)."""
+    from lipgen._threads import limit_worker_threads
+
+    limit_worker_threads(1)
 
 
 def chunks(jobs: list, size: int) -> list[list]:
@@ -47,13 +41,15 @@ def prepare(dataset: str, settings: dict):
 
 
 def render_chunk(ctx, jobs: list) -> dict:
-    """Render and write some frames of one dataset."""
+    """Render and write some frames of one dataset; returns frames, seconds, CPU seconds (all the
+    worker's threads), pid and peak resident MiB."""
     from lipgen.dataset.generate import render_jobs
 
     limit_threads()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     n = render_jobs(ctx, [tuple(j) for j in jobs])
-    return {"frames": n, "seconds": time.perf_counter() - t0, "pid": os.getpid(), "peak_rss_mib": _peak_mib()}
+    return {"frames": n, "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0,
+            "pid": os.getpid(), "peak_rss_mib": _peak_mib()}
 
 
 def _peak_mib() -> float | None:

@@ -29,12 +29,17 @@ DIR/items/NNNN/ hold each item's dataset (byte-identical to lipgen generate with
 settings), recon.npz, model.npz, report/ and nrsfm.json. A folder holding anything else is
 refused, and so is a second campaign into the same folder. Without --address an embedded Ray
 runs on this machine's cores; with one, the campaign runs on that cluster (every worker must
-see DIR at the same path).
+see DIR at the same path). DIR/campaign.parquet is the index as a table (pyarrow).
+
+--out may also be a store URL (fsspec): s3://bucket/x (s3fs), gs://bucket/x (gcsfs),
+file:///path/x. Tasks stage on their worker ($LIPGEN_STAGING, default the temp folder) and
+upload each file whole, a frame's truth last; --resume continues at the missing frames.
 
 examples:
   lipgen campaign plan.toml --out runs/noise
   lipgen campaign plan.toml --out runs/noise --resume
   lipgen campaign plan.toml --out /shared/runs/noise --address head-node:6379
+  lipgen campaign plan.toml --out s3://my-bucket/runs/noise --address auto
   lipgen campaign report runs/noise
 """
 
@@ -47,7 +52,8 @@ def add_parser(sub) -> None:
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("plan", metavar="PLAN.toml|report", help="the plan file, or 'report' to report on DIR")
     p.add_argument("dir", nargs="?", metavar="DIR", help="with 'report': the campaign folder")
-    p.add_argument("--out", help="campaign folder (new or empty; or this plan's campaign with --resume)")
+    p.add_argument("--out", help="campaign folder or store URL (s3://, gs://, file://): new or empty; "
+                   "or this plan's campaign with --resume")
     p.add_argument("--address", help="a running Ray cluster: HOST:PORT, ray://HOST:PORT or auto "
                    "(default: an embedded local Ray)")
     p.add_argument("--resume", action="store_true", help="continue a stopped campaign of the same plan")

@@ -25,12 +25,15 @@ examples:
   lipgen generate --speech-text "Glue the sheet to the dark blue background." --out data/s4
   lipgen generate --frames 150 --preset hard --out data/hard0
   lipgen generate --frames 150 --preset default --video h264 --video-crf 20 --out data/v0
+  lipgen generate --frames 10 --size 320x240 --renderer cycles --cycles-samples 16 --out data/c0
 
 presets (image conditions; lipgen.dataset.presets): easy = today's ideal frames (pinhole, fixed
 light, 1 grey level of noise, PNG; the default); default = a good laboratory recording; hard = an
 ordinary camera: lens distortion, defocus, motion blur, light/exposure/white balance varying per
 seed, a real mirror (tint, ghost, edge), shot and read noise, Bayer demosaicing, JPEG 85.
 --video also writes video.mp4 (H.264 of the raw frames, in order) beside the PNGs.
+--renderer cycles renders the same scene through the same cameras with Blender Cycles (the truth
+is identical), recorded in the manifest with its samples.
 """
 
 
@@ -84,6 +87,10 @@ def add_parser(sub) -> None:
     opt("--dot-diameter", type=float, default=None, help="ink dot diameter, mm (preset: 2)")
     opt("--depth", action="store_true", help="also write each frame's depth image (depth/NNNNNN.npz)")
     opt("--masks", action="store_true", help="also write each frame's label mask (masks/NNNNNN.png)")
+    opt("--renderer", default="pyrender", choices=("pyrender", "cycles"),
+        help="pyrender (OpenGL, default) or cycles (Blender Cycles on the CPU: path tracing, subsurface "
+        "scattering in skin and lips; needs pip bpy; much slower; no --depth/--masks). Same truth")
+    opt("--cycles-samples", type=int, default=16, help="Cycles samples per pixel, denoised (default 16)")
     opt("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -124,7 +131,7 @@ def _run(args) -> int:
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
         calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed,
-        **video)
+        renderer=args.renderer, cycles_samples=args.cycles_samples, **video)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")

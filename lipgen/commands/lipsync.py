@@ -1,4 +1,4 @@
-"""``lipgen lipsync``: animate the lips from speech (audio and/or text) to USD, npz or CSV."""
+"""``lipgen lipsync``: animate the lips from speech (audio and/or text) to USD(Z), npz or CSV."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ _EPILOG = """\
 examples:
   lipgen lipsync speech.wav --text "The birch canoe slid on the smooth planks." --out canoe.usda
   lipgen lipsync speech.wav --out speech.usdc                 (no transcript: phone recognition)
+  lipgen lipsync speech.wav --text-file words.txt --out lips.usdz       (one file, audio inside)
   lipgen lipsync speech.wav --text-file words.txt --model model.npz --fps 24 --out curves.csv
   lipgen lipsync --text "Glue the sheet to the dark blue background." --out glue.npz   (text alone)
 
@@ -27,8 +28,9 @@ procedural lips) or of the default lips (10 modes of lip_mesh(0)).
 
 Outputs: .usda/.usdc/.usd hold the blend-shape animation (as `lipgen export-usd` writes it) and,
 from audio, a UsdMedia.SpatialAudio prim playing the WAV from frame 0; .npz holds the
-coefficient and activation curves and the phones; .csv the coefficient curves. Nothing is
-written when the command fails, and an existing --out is kept unless --force.
+coefficient and activation curves and the phones; .csv the coefficient curves; .usdz packages
+the USD stage with the WAV inside, as one file. Nothing is written when the command fails, and
+an existing --out is kept unless --force.
 """
 
 
@@ -48,7 +50,7 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic subject (default 0)")
     p.add_argument("--weight-range", choices=("signed", "unit"), default="signed",
                    help="USD blend-shape weights in standard deviations (signed) or in [0, 1] (unit)")
-    p.add_argument("--out", required=True, help="output: .usda, .usdc, .usd, .npz or .csv")
+    p.add_argument("--out", required=True, help="output: .usda, .usdc, .usd, .usdz, .npz or .csv")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.set_defaults(func=_run)
 
@@ -66,23 +68,24 @@ def _text(args) -> str | None:
 
 
 def _run(args) -> int:
-    from lipgen.modes import ModeModel
     from lipgen.speech.audio import read_wav
-    from lipgen.speech.lipsync import lipsync, model_resolution
+    from lipgen.speech.lipsync import lipsync, model_mesh, model_resolution
     from lipgen.speech.outputs import check_output, write_lipsync
 
     out = check_output(args.out, args.force)  # before any work
     text = _text(args)
     if args.speech is None and text is None:
         raise ValueError("give a speech recording (SPEECH.wav), a transcript (--text / --text-file), or both")
-    model = ModeModel.load(args.model) if args.model else None
+    model = None
+    if args.model:
+        from lipgen.modes.model import ModeModel
+
+        model = ModeModel.load(args.model)
     audio = read_wav(args.speech) if args.speech else None
     result = lipsync(audio, text, model=model, fps=args.fps, seed=args.seed, rate=args.rate)
     mesh = None
-    if out.suffix.lower() in (".usda", ".usdc", ".usd"):
-        from lipgen.mesh.procedural import lip_mesh
-
-        mesh = lip_mesh(model_resolution(result.model))
+    if out.suffix.lower() in (".usda", ".usdc", ".usd", ".usdz"):
+        mesh = model_mesh(model_resolution(result.model))
     write_lipsync(out, result, mesh=mesh, wav=args.speech, start=args.start, force=args.force,
                   weight_range=args.weight_range)
     ph = result.phones

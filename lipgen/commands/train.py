@@ -48,8 +48,24 @@ def _run(args) -> int:
                          f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
     mesh = model_mesh(recon.info["mesh_source"])
     model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
+    model.provenance_ = _provenance(recon, args.recon, train)
     model.save(out)
     share = 100 * model.explained_variance_ratio_.sum()
     sys.stdout.write(f"trained {len(model.components_)} modes on {len(train)} frames ({share:.2f}% of the "
                      f"variance); {len(test)} test frames held out -> {out}\n")
     return 0
+
+
+def _provenance(recon, recon_path, train) -> dict:
+    """What the model is trained on: the dataset (path and manifest digest) and its frames."""
+    import os
+
+    from lipgen.dataset.manifest import dataset_digest
+
+    dataset = recon.info.get("dataset")
+    try:
+        digest = dataset_digest(dataset) if dataset else None
+    except OSError:  # the dataset has moved: the frames are still recorded
+        digest = None
+    return {"dataset": dataset, "dataset_id": digest, "recon": os.path.abspath(recon_path),
+            "frames": [int(f) for f in train]}

@@ -92,6 +92,12 @@ def _simulate(s: GenerateSettings, phones=None):
         from lipgen.subject.truth import with_layer
 
         subject = with_layer(subject)
+    if s.motion_sources == "independent":
+        from lipgen.subject.independent import simulate_independent
+
+        given = None if phones is None and not s.script else A  # else: its own speech and gestures
+        return simulate_independent(subject, s.frames, np.random.default_rng([s.seed, _ACT_STREAM]), head,
+                                    s.fps, activations=given, progress=s.truth_physics == "layer")
     return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
 
 
@@ -170,9 +176,9 @@ def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
     _init_worker(ctx)
 
 
-def _init_worker(ctx: _Context) -> None:
+def _init_worker(ctx: _Context, renderer=None) -> None:
     from lipgen.mesh.lipmesh import LipMesh
-    from lipgen.rig.render import RigRenderer
+    from lipgen.rig.backends import open_renderer
     from lipgen.rig.target import Chessboard
 
     s = GenerateSettings.from_dict(ctx.settings)
@@ -186,7 +192,7 @@ def _init_worker(ctx: _Context) -> None:
         dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
     face = FaceModel(mesh, face_look(s), dots=dots)
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
-                   renderer=RigRenderer(rig, c.mirror_reflectance, shadows=c.shadows))
+                   renderer=renderer or open_renderer(s.renderer, rig, c, s.cycles_samples, s.seed % 2**31))
     if not c.is_ideal:
         from lipgen.rig.imaging import FrameFormer
 
@@ -330,8 +336,10 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     """
     from lipgen.dataset.layout import build_manifest
     from lipgen.mesh.lipmesh import LipMesh
+    from lipgen.rig.backends import check_renderer
 
     out = Path(out)
+    check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     rig = rig_for(s.size, s.conditions, default_rig)
     phones, audio = _speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = _simulate(s, phones)
@@ -350,6 +358,12 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
         from lipgen.dataset.presets import get_preset
 
         subject = (subject or {}) | {"preset": get_preset(s.preset).to_dict()}
+    if s.motion_sources == "independent":
+        from lipgen.subject import independent as ind
+
+        record = {"sources": list(ind.INDEPENDENT_SOURCES), "jaw_gain": ind.JAW_GAIN,
+                  "residual_rms_mm": ind.RESIDUAL_MM}
+        subject = (subject or {}) | {"motion": record}
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not s.conditions.is_ideal:
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))
@@ -391,12 +405,21 @@ def render_jobs(ctx: _Context, jobs) -> int:
     """Render and write ``jobs`` (from :func:`prepare_dataset`) in this process; returns how many.
 
     The renderer is kept for the next call with the same context (a worker that renders many
-    chunks of one dataset opens one GL context), and replaced for another dataset.
+    chunks of one dataset opens one GL context), and for another dataset of the same size and
+    image conditions, cleared (making one costs about 3 frames' rendering).
     """
     if _WORKER.get("key") != (ctx.out, ctx.mesh_path):
+        rig_key = (tuple(ctx.settings["size"]), repr(ctx.settings.get("conditions")),
+                   ctx.settings.get("renderer", "pyrender"))
+        keep = _WORKER.pop("renderer", None) if _WORKER.get("rig_key") == rig_key else None
+        if keep is not None and not hasattr(keep, "clear"):  # Cycles: a new scene per dataset
+            keep.close()
+            keep = None
+        if keep is not None:
+            keep.clear()
         _close_worker()
-        _init_worker(ctx)
-        _WORKER["key"] = (ctx.out, ctx.mesh_path)
+        _init_worker(ctx, keep)
+        _WORKER.update(key=(ctx.out, ctx.mesh_path), rig_key=rig_key)
     _WORKER["ctx"] = ctx
     n = 0
     for job in jobs:

@@ -10,7 +10,7 @@ from lipgen.errors import DatasetError
 from lipgen.rig.camera import VIEWS, MirrorRig
 
 __all__ = ["TRUTH_FIELDS", "FRAME_KIND", "CALIB_KIND", "DEPTH_KIND", "build_manifest", "validate_manifest",
-           "frame_paths", "calib_paths", "extra_paths", "mask_labels"]
+           "dataset_digest", "frame_paths", "calib_paths", "extra_paths", "mask_labels"]
 
 FRAME_KIND, CALIB_KIND = "lipgen.dataset.frame", "lipgen.dataset.calibration"
 DEPTH_KIND = "lipgen.dataset.depth"
@@ -35,6 +35,14 @@ TRUTH_FIELDS: dict[str, str] = {
 """The arrays of a frame's truth file, with their shapes and units."""
 _REQUIRED = ("format", "schema_version", "units", "convention", "seed", "settings", "rig", "views", "mesh",
              "marks", "actions", "frames", "calibration", "lipgen_version")
+
+
+def dataset_digest(root) -> str:
+    """SHA-256 (hex) of the dataset's ``manifest.json`` bytes: which dataset, wherever it lies
+    (the manifest holds the settings, seed and version that determine its frames)."""
+    import hashlib
+
+    return hashlib.sha256((Path(root) / "manifest.json").read_bytes()).hexdigest()
 
 
 def frame_paths(root, i: int) -> tuple[Path, Path]:

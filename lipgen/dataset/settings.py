@@ -45,9 +45,18 @@ class GenerateSettings:
     truth_physics: str = "linear"
     """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
     :mod:`lipgen.subject.layer`; seconds per frame)."""
+    motion_sources: str = "gestures"
+    """``"gestures"`` (:func:`lipgen.subject.activation.random_activations`, the motion before
+    presets) or ``"independent"`` (:mod:`lipgen.subject.independent`: speech from independent
+    asymmetric sources plus a stochastic residual; a script or speech adds the residual only)."""
     preset: str | None = None
     """The preset these settings came from (:mod:`lipgen.dataset.presets`), recorded as such;
     None is ``easy`` (the data before presets, whose manifests name none)."""
+    renderer: str = "pyrender"
+    """``"pyrender"`` (OpenGL) or ``"cycles"`` (Blender Cycles on the CPU: path tracing, subsurface
+    scattering in skin and lips; colour only, no depth or masks); :mod:`lipgen.rig.backends`."""
+    cycles_samples: int = 16
+    """Cycles' path-tracing samples per pixel (denoised); used with ``renderer="cycles"``."""
 
     conditions: ImageConditions = ImageConditions()
     """Lens, mirror, light and sensor (:mod:`lipgen.rig.conditions`); the default is the ideal camera."""
@@ -63,6 +72,7 @@ class GenerateSettings:
                 "head_translation_mm": p.motion.head_translation_mm, "noise": p.image.noise,
                 "dot_diameter": p.image.dot_diameter, "conditions": p.image.conditions,
                 "truth_physics": "layer" if p.subject.nonlinear_physics else "linear",
+                "motion_sources": p.motion.sources,
                 "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
         given = {k: v for k, v in overrides.items() if v is not None}
         if not p.subject.own_shape and given.get("subject_seed") is not None:
@@ -82,12 +92,23 @@ class GenerateSettings:
         whole("subject_resolution", 1, 4)
         whole("calib_frames", 0, 1000)
         whole("png_compress_level", 0, 9)
+        whole("cycles_samples", 1, 4096)
+        from lipgen.rig.backends import RENDERERS
+
+        if self.renderer not in RENDERERS:
+            raise ValueError(f"unknown renderer {self.renderer!r}; choose one of {RENDERERS}")
+        if self.renderer == "cycles" and (self.depth or self.masks):
+            raise ValueError(f"the cycles renderer draws colour only (depth={self.depth}, "
+                             f"masks={self.masks}); write depth and masks with renderer 'pyrender'")
         if self.subject_seed is not None:
             from lipgen.subject.shape import MAX_SUBJECT_SEED
 
             whole("subject_seed", 0, MAX_SUBJECT_SEED)
         if self.truth_physics not in ("linear", "layer"):
             raise ValueError(f"truth_physics must be 'linear' or 'layer', got {self.truth_physics!r}")
+        if self.motion_sources not in ("gestures", "independent"):
+            raise ValueError(f"motion_sources must be 'gestures' or 'independent', got "
+                             f"{self.motion_sources!r}")
         if self.preset is not None:
             from lipgen.dataset.presets import get_preset
 
@@ -126,9 +147,12 @@ class GenerateSettings:
         for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
             if d[key] is None:
                 del d[key]
-        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("preset", None)):
+        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("motion_sources", "gestures"),
+                         ("preset", None), ("renderer", "pyrender")):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]
+        if self.renderer == "pyrender" and self.cycles_samples == 16:
+            del d["cycles_samples"]  # pyrender data: the manifest is as it always was
         d["conditions"] = self.conditions.to_dict()
         return d
 

@@ -209,6 +209,8 @@ def _conditions_picture(ds, frame: int, out: Path) -> str | None:
 
 def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None) -> Path:
     """Write ``report.md``, ``report.json`` and the pictures into folder ``out``."""
+    from lipgen.evaluate.metric import ERROR_DEFINITION
+
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     truth_fields = s["_true_fields"]
@@ -281,7 +283,8 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"the TRUE model-frame markers, the model's own floor, "
           f"{_fmt(fld['reach_from_true_markers_rms_mm'])} mm); "
           f"{fld['frames_without_field']} frame(s) without a field.", "",
-          "## Table 5.1 on these data (mean squared error per DOF over the test frames)", ""]
+          "## Table 5.1 on these data (mean squared error per hidden DOF over the test frames)", "",
+          f"Error: {ERROR_DEFINITION}.", ""]
     L += _table51_md(s["table51"], s["thesis_unit_mm"])
     if "combined_choice" in s:
         cc = s["combined_choice"]

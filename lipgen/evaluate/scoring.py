@@ -92,8 +92,11 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
 
     For each row (which observed DOFs) and column (prior), the LLSE (eq 4.7) estimates every
     DOF of each test frame from that frame's visible markers; the error is the mean squared
-    error per DOF against the frame's reach field (the thesis's reference) and against the true
-    surface. Columns: the first ``n_modes`` modes, the full sample covariance, the combined
+    error per hidden DOF (:mod:`lipgen.evaluate.metric`, the definition ``lipgen experiment
+    table51`` uses; each frame's hidden DOFs, averaged over the frames) against the frame's reach
+    field (the thesis's reference) and against the true surface, and relative to the true test
+    motion's own mean square on those DOFs (``vs_truth_relative``). Columns: the first
+    ``n_modes`` modes, the full sample covariance, the combined
     learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
 
     ``combined`` is True (the combined model with the default prior and no noise), False (no
@@ -114,6 +117,8 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
             columns["combined"] = comb.mixture
         except ImportError:
             log.warning("lipgen.modes.combined is not available: no combined-model column")
+    from lipgen.evaluate.metric import hidden_dofs, per_dof_error, relative_error
+
     markers = np.asarray(physics.mesh.markers)
     rest = physics.mesh.vertices[markers]
     out = {}
@@ -121,21 +126,38 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
         count, axes = AXES[row]
         use = np.arange(len(markers) if count is None else count)
         ax = np.array(["xyz".index(a) for a in axes])
-        cells = {name: {"vs_reach": [], "vs_truth": []} for name in (*columns, "physics (reach)")}
+        cells = {name: {"vs_reach": [], "vs_truth": [], "vs_truth_relative": []}
+                 for name in (*columns, "physics (reach)")}
         for f in test:
             seen = use[recon.visible[f, use]]
             if len(seen) == 0:
                 continue
             d = node_dofs(markers[seen], axes)
+            hid = hidden_dofs(physics.free_dofs, d)
             y = (recon.markers[f, seen] - rest[seen])[:, ax].ravel()
             ests = {name: build(d).estimate(y) for name, build in columns.items()}
             ests["physics (reach)"] = physics.reach(d, y)[0]
             for name, est in ests.items():
-                cells[name]["vs_reach"].append(np.mean((est - recon.fields[f]) ** 2))
-                cells[name]["vs_truth"].append(np.mean((est - true_fields[f]) ** 2))
+                cells[name]["vs_reach"].append(per_dof_error(est[None], recon.fields[f][None], hid))
+                cells[name]["vs_truth"].append(per_dof_error(est[None], true_fields[f][None], hid))
+                cells[name]["vs_truth_relative"].append(relative_error(est[None], true_fields[f][None], hid))
         out[row] = {name: {k: float(np.mean(v)) if v else float("nan") for k, v in c.items()}
                     for name, c in cells.items()}
     return out
+
+
+def _check_provenance(model, dataset_path, test) -> None:
+    """Refuse test frames the model was trained on (its :attr:`provenance_`, from lipgen train)."""
+    from lipgen.dataset.manifest import dataset_digest
+
+    prov = getattr(model, "provenance_", None)
+    if not prov or prov.get("dataset_id") is None or prov["dataset_id"] != dataset_digest(dataset_path):
+        return
+    seen = sorted(set(prov.get("frames", ())) & {int(f) for f in test})
+    if seen:
+        raise ValueError(f"the model was trained on frames {seen[:10]}{' ...' if len(seen) > 10 else ''} "
+                         f"of this dataset ({len(seen)} of the {len(test)} test frames); test on frames it "
+                         "has not seen: use the --test-frames given to lipgen train, or another dataset")
 
 
 def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
@@ -225,6 +247,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     true_fields = _true_fields(truth, mesh, ds.mesh.vertices)
     T = default_test_frames(F) if test_frames is None else int(test_frames)
     train, test = split_frames(recon.fields, T)
+    _check_provenance(model, ds.path, test)
     if model.n_frames_ > len(train):
         raise ValueError(f"the model was trained on {model.n_frames_} frames but this reconstruction has "
                          f"only {len(train)} training frames before its last {T}; use the same "

@@ -30,7 +30,7 @@ the marker rows are given the true marker-noise variance.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -120,8 +120,11 @@ class Observed:
     activations: np.ndarray
 
 
-def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None) -> Observed:
-    """Simulate ``activations`` and measure the markers as the thesis's pipeline would."""
+def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None,
+            residual=None) -> Observed:
+    """Simulate ``activations`` (plus a ``residual`` deformation (F, n, 3) in mm of the truth mesh,
+    :func:`lipgen.subject.independent.residual_motion`) and measure the markers as the thesis's
+    pipeline would."""
     mesh = physics.mesh
     n0 = mesh.n_nodes
     if subject.mesh.n_nodes < n0:
@@ -129,6 +132,8 @@ def observe(subject, physics: Physics, activations, head=None, noise_mm: float =
     # displacements are from the subject's own rest (its shape may differ from the model's)
     rest = subject.mesh.vertices[:n0]
     motion = simulate(subject, activations, head)
+    if residual is not None:
+        motion = replace(motion, vertices=motion.vertices + residual)
     world = motion.markers_world
     if noise_mm > 0:
         world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
@@ -186,15 +191,21 @@ def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_mode
 
 
 def row_errors(est: LLSE, d: np.ndarray, measured: np.ndarray, reference: np.ndarray,
-               hidden: np.ndarray) -> float:
-    """MSE per hidden DOF (mm²) of the estimate from ``measured[:, d]`` against ``reference``."""
+               hidden: np.ndarray, relative: bool = False) -> float:
+    """Error per hidden DOF (mm², :func:`lipgen.evaluate.metric.per_dof_error`, the definition
+    ``lipgen evaluate`` uses) of the estimate from ``measured[:, d]`` against ``reference``; with
+    ``relative``, over the reference's own mean square on those DOFs."""
+    from lipgen.evaluate.metric import per_dof_error, relative_error
+
     F = len(reference)
     X = est(measured.reshape(F, -1)[:, d]).reshape(F, -1)
-    return float(np.mean((X[:, hidden] - reference.reshape(F, -1)[:, hidden]) ** 2))
+    return (relative_error if relative else per_dof_error)(X, reference, hidden)
 
 
 def _hidden(physics: Physics, d: np.ndarray) -> np.ndarray:
-    return np.setdiff1d(physics.free_dofs, d)
+    from lipgen.evaluate.metric import hidden_dofs
+
+    return hidden_dofs(physics.free_dofs, d)
 
 
 def _score(model, physics, data: Observed, rows, noise_var, combined, columns=COLUMNS) -> dict:
@@ -211,6 +222,8 @@ def _score(model, physics, data: Observed, rows, noise_var, combined, columns=CO
                 reference = getattr(data, ref)
                 measured = data.reach if markers_only else reference  # markers are what was measured
                 scores[ref] = row_errors(ests[col], d, measured, reference, _hidden(physics, d))
+            scores["truth_relative"] = row_errors(ests[col], d, measured, data.truth, _hidden(physics, d),
+                                                  relative=True)
             out[name][col] = scores
     return out
 
@@ -230,18 +243,42 @@ def _modes_curve(model, physics, data: Observed, rows, noise_var, k_max) -> dict
     return curve
 
 
-def _without(acts: np.ndarray, names) -> np.ndarray:
+def _columns(names, sides: bool = False) -> list[int]:
+    """Columns of the actions ``names``, with ``sides`` also of their one-sided halves (which
+    replace a two-sided action in the independent motion)."""
+    from lipgen.subject.independent import BILATERAL
+
+    return [ACTIONS.index(b) for a in names for b in (a, *(BILATERAL.get(a, ()) if sides else ()))]
+
+
+def _without(acts: np.ndarray, names, sides: bool = False) -> np.ndarray:
     acts = acts.copy()
-    acts[:, [ACTIONS.index(a) for a in names]] = 0.0
+    acts[:, _columns(names, sides)] = 0.0
     return acts
 
 
-def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3) -> np.ndarray:
+def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3, sides: bool = False) -> np.ndarray:
     """The first ``n`` frames in which one of ``names`` is active above ``threshold``."""
-    keep = acts[:, [ACTIONS.index(a) for a in names]].max(axis=1) > threshold
+    keep = acts[:, _columns(names, sides)].max(axis=1) > threshold
     if keep.sum() < 3:
         raise ValueError(f"too few frames use {names} (found {int(keep.sum())}); simulate more frames")
     return acts[keep][:n]
+
+
+def _independent(s: Table51Settings) -> bool:
+    from lipgen.dataset.presets import get_preset
+
+    return get_preset(s.preset).motion.sources == "independent"
+
+
+def _motion(s: Table51Settings, subject, n: int, seed: int):
+    """Activations (n, A) and the residual deformation ((n, N, 3) or None) of the preset's motion."""
+    if not _independent(s):
+        return random_activations(n, seed), None
+    from lipgen.subject.independent import independent_activations, residual_motion
+
+    a_rng, r_rng = np.random.default_rng(seed).spawn(2)
+    return independent_activations(n, a_rng), residual_motion(subject, n, r_rng)
 
 
 def _selection(cm: CombinedModel) -> dict:
@@ -256,14 +293,19 @@ def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int
     rows = {k: v for k, v in observation_rows(physics.mesh).items() if "points" in k}
     T = s.held_out_test
 
-    def session(acts, sd):
+    def session(acts, residual, sd):
         head = head_motion(len(acts), sd) if s.head else None
-        return observe(subject, physics, acts, head, s.marker_noise_mm, rng)
+        return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
 
-    train = session(_without(random_activations(s.n_train, seed), T), seed)
+    sides = _independent(s)
+    acts, residual = _motion(s, subject, s.n_train, seed)
+    train = session(_without(acts, T, sides), residual, seed)
     model = ModeModel(s.n_modes).fit(train.reach, mesh=physics.mesh)
     combined = fit_combined(model, physics, train.reach)
-    test = session(_using(random_activations(400, seed + 1), T, s.oos_frames), seed + 1)
+    acts, residual = _motion(s, subject, 400, seed + 1)
+    keep = acts[:, _columns(T, sides)].max(axis=1) > 0.3
+    residual = None if residual is None else residual[keep][:s.oos_frames]
+    test = session(_using(acts, T, s.oos_frames, sides=sides), residual, seed + 1)
     return model, combined, test, rows
 
 
@@ -331,9 +373,9 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
     mesh = lip_mesh(0)
     physics = Physics(mesh)
     noise_var = s.marker_noise_mm ** 2
-    acts = random_activations(s.n_frames, s.seed)
+    acts, residual = _motion(s, subject, s.n_frames, s.seed)
     head = head_motion(s.n_frames, s.seed) if s.head else None
-    data = observe(subject, physics, acts, head, s.marker_noise_mm, rng)
+    data = observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
     model = ModeModel(s.n_modes).fit(data.reach[:s.n_train], mesh=mesh)
     test = Observed(*(a[s.n_train:] for a in (data.goals, data.reach, data.truth, data.activations)))
     rows = observation_rows(mesh)
@@ -348,6 +390,7 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
         "settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "subject_seed": subject.subject_seed,
         "subject_shape": None if subject.shape is None else subject.shape.to_dict(),
         "truth_physics": "linear" if subject.layer is None else "layer",
+        "motion_sources": "independent" if _independent(s) else "gestures",
         "n_nodes_model": mesh.n_nodes, "n_nodes_truth": subject.mesh.n_nodes,
         "variance_captured": float(np.sum(model.explained_variance_ratio_)),
         "cumulative_variance": np.cumsum(model.full_variance_ / model.total_variance_).tolist(),

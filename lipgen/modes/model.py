@@ -10,6 +10,7 @@ directly; both give the same modes. The model keeps the first ``n_modes`` and, f
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 
@@ -97,7 +98,13 @@ class ModeModel:
     n_frames_ : int
     topology_id_ : str
         The mesh's topology id if one was given to :meth:`fit`, else "".
+    provenance_ : dict or None
+        What the model was trained on, set by ``lipgen train`` and kept by :meth:`save`:
+        ``{"dataset": path, "dataset_id": manifest digest, "frames": [frame indices], ...}``;
+        ``lipgen evaluate`` refuses to test on those frames of that dataset. None if unknown.
     """
+
+    provenance_: dict | None = None
 
     def __init__(self, n_modes: int = 10, method: str = "auto"):
         if isinstance(n_modes, bool) or not isinstance(n_modes, int | np.integer) or n_modes < 1:
@@ -248,6 +255,7 @@ class ModeModel:
             "n_modes": np.int64(self.n_modes), "n_kept": np.int64(len(self.components_)),
             "n_frames": np.int64(self.n_frames_), "topology_id": np.array(self.topology_id_),
             "method": np.array(self.method),
+            **({} if self.provenance_ is None else {"provenance": np.array(json.dumps(self.provenance_))}),
         })
 
     @classmethod
@@ -278,6 +286,11 @@ class ModeModel:
         model.explained_variance_ratio_ = var[:k] / total if total > 0 else np.zeros(k)
         model.n_nodes_, model.n_frames_ = mean.size // 3, int(d["n_frames"])
         model.topology_id_ = str(d["topology_id"])
+        if "provenance" in d:  # (files written before provenance have none)
+            try:
+                model.provenance_ = json.loads(str(d["provenance"]))
+            except ValueError as exc:
+                raise ModelFileError(f"{path} holds an unreadable provenance record: {exc}") from exc
         return model
 
 

@@ -6,6 +6,8 @@
 * :mod:`~lipgen.rig.target`: the chessboard calibration target and its poses.
 * :mod:`~lipgen.rig.visibility`: which points the surface hides from a camera.
 * :mod:`~lipgen.rig.render`: the pyrender (EGL) renderer of a scene through the rig.
+* :mod:`~lipgen.rig.cycles`: the Blender Cycles (photoreal, CPU) renderer of the same scene and rig.
+* :mod:`~lipgen.rig.backends`: choosing between them by name (``generate --renderer``).
 """
 
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig

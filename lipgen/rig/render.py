@@ -242,6 +242,17 @@ class RigRenderer:
         return RenderedFrame(image, self.rig.compose(zv, zr) if depth else None,
                              self.rig.compose(lv, lr) if labels else None)
 
+    def clear(self) -> None:
+        """Drop every scene item, texture and light, keeping the OpenGL context and the views:
+        the renderer is then as new, for another subject seen by the same rig."""
+        for entry in self._items.values():
+            self._drop(entry)
+        self._items.clear()
+        self._textures.clear()
+        for node in self._light_nodes:
+            self._scene.remove_node(node)
+        self._light_nodes, self._lights = [], ()
+
     def close(self) -> None:
         """Release the OpenGL context."""
         if getattr(self, "_renderer", None) is not None:

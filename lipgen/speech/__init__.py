@@ -5,7 +5,9 @@
 - :mod:`~lipgen.speech.decode`: PocketSphinx forced alignment and phone recognition;
 - :mod:`~lipgen.speech.visemes`: phones to visemes, visemes to activations by dynamics;
 - :mod:`~lipgen.speech.lipsync`: the whole chain onto a model's modes;
-- :mod:`~lipgen.speech.outputs`: USD (with the audio), npz, csv;
+- :mod:`~lipgen.speech.defaults`: the default lips, shipped precomputed, and the subject's
+  motion on a model's nodes;
+- :mod:`~lipgen.speech.outputs`: USD or USDZ (with the audio), npz, csv;
 - :mod:`~lipgen.speech.score` and :mod:`~lipgen.speech.espeak`: accuracy against known timings.
 
 PocketSphinx is imported only when audio is decoded (``pip install 'lipgen[speech]'``).

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 
 import numpy as np
 
@@ -43,11 +44,22 @@ MIN_CONFIDENCE = 0.15
 Set on Harvard list 3 (espeak-ng, clean and at 10 dB SNR of white noise; lists 1-2 are the test
 set) as the midpoint, 0.0019 per frame below the phone loop, between the true transcripts
 (0.0005-0.0012) and those of another sentence (0.0025 and more). Re-measured with the final
-decoders (a fresh one per utterance): true transcripts 0.0004-0.0013 (all pass), one word
-swapped 0.0005-0.0017 (all pass), half the words wrong 0.0016-0.0024 or not alignable (two of
+decoders (a fresh one per utterance; the reused ones give the same): true transcripts
+0.0004-0.0013 (all pass), one word swapped 0.0005-0.0017 (all pass), half
+the words wrong 0.0016-0.0024 or not alignable (two of
 six that aligned pass), the words reversed 0.0021-0.0036 or not alignable (all refused),
 another sentence never alignable. (A first threshold of 0.25 was dropped after a true list-1
-transcript scored 0.23 under it.)"""
+transcript scored 0.23 under it.)
+
+One wrong word is not caught, by this score or by local ones. On list 3 (10 sentences, voices
+en-us and en-us+f2, clean and 10 dB speech-shaped noise; one word swapped for another
+dictionary word; 40 true and 34 alignable swapped), the worst word's gap to the phone loop over
+its own frames ranged -0.0055..-0.0012 per frame for true transcripts and -0.0100..-0.0024 with
+the swapped word; summed over the word's frames, -0.170..-0.028 against -0.268..-0.064; a per-
+word segment-wise phone loop and the alignment score alone overlap too. Any threshold either
+refuses true transcripts (which then lose their alignment for a far worse recognition) or
+passes some swapped words, so a one-word error is left to the alignment, which keeps the other
+words' timings."""
 _LOG_BASE = math.log(1.0001)  # PocketSphinx scores are in units of log base 1.0001
 
 
@@ -55,24 +67,48 @@ class AlignmentError(RuntimeError):
     """PocketSphinx found no path through the transcript (it does not fit the audio at all)."""
 
 
-def _decoder(kind: str, lexicon: dict[str, tuple[str, ...]] | None = None):
-    """A new PocketSphinx decoder: ``"align"`` (knowing only ``lexicon``'s words) or ``"phones"``.
+_LOCAL = threading.local()  # each thread its own decoders (a decoder is not thread-safe)
 
-    A decoder per utterance, because a reused one carries state from the utterances it decoded
-    (its results for the same audio change with what came before). Without the 134k-word
-    dictionary (words are added one by one) one is built in about 0.05 s.
+
+def _decoder(kind: str, lexicon: dict[str, tuple[str, ...]] | None = None):
+    """The PocketSphinx decoder ``kind`` of this thread: ``"align"`` (knowing ``lexicon``'s words,
+    added to those it knew) or ``"phones"``; built on first use, then reused.
+
+    A reused decoder carries state from the utterances it decoded: its front end's *live*
+    cepstral mean normalisation keeps the running mean (and the sums it is updated from) of
+    everything it heard, so the features, and the results, for the same audio changed with
+    what came before (restoring the mean with ``set_cmn`` is not enough, the sums stay).
+    ``reinit_feat`` before each utterance rebuilds the front end as a new decoder has it:
+    the results are then those of a fresh decoder, whatever ran before (tested). Without the
+    134k-word dictionary (words are added one by one) a decoder is built in about 0.01 s.
     """
+    cache = getattr(_LOCAL, "decoders", None)
+    if cache is None:
+        cache = _LOCAL.decoders = {}
+    if kind in cache:
+        dec, known = cache[kind]
+        dec.reinit_feat()
+    else:
+        dec, known = _new_decoder(kind), set()
+        cache[kind] = dec, known
+    for word, phones in (lexicon or {}).items():
+        if word not in known:
+            dec.add_word(word, " ".join(phones), False)
+            known.add(word)
+    return dec
+
+
+def _new_decoder(kind: str):
     import os
 
     from lipgen._optional import require
 
     ps = require("pocketsphinx", "lip sync from speech")
     if kind == "align":
-        dec = ps.Decoder(samprate=16000, lm=None, dict=os.devnull, bestpath=False, beam=1e-48,
-                         pbeam=1e-48, wbeam=1e-48, loglevel="FATAL")
-        for word, phones in (lexicon or {}).items():
-            dec.add_word(word, " ".join(phones), False)
-        return dec
+        return ps.Decoder(samprate=16000, lm=None, dict=os.devnull, bestpath=False, beam=1e-48,
+                          pbeam=1e-48, wbeam=1e-48, loglevel="FATAL")
+    if kind != "phones":
+        raise ValueError(f"decoder kind must be 'align' or 'phones', got {kind!r}")
     lm = f"{ps.get_model_path()}/en-us/en-us-phone.lm.bin"
     return ps.Decoder(samprate=16000, lm=None, dict=os.devnull, allphone=lm, backtrace=True, beam=1e-20,
                       pbeam=1e-20, lw=2.0, loglevel="FATAL")

@@ -21,7 +21,8 @@ from lipgen.speech.phones import PhoneTrack, text_phones
 from lipgen.speech.visemes import activations as viseme_dynamics
 from lipgen.subject.activation import ACTIONS
 
-__all__ = ["LipSync", "lipsync", "default_model", "model_resolution", "performer", "project_activations"]
+__all__ = ["LipSync", "lipsync", "default_model", "model_mesh", "model_resolution", "performer",
+           "project_activations"]
 
 log = logging.getLogger(__name__)
 
@@ -77,22 +78,41 @@ def performer(resolution: int = 1, seed: int = 0):
 @lru_cache(maxsize=1)
 def default_model():
     """Ten modes of ``lip_mesh(0)`` learned from 240 frames (8 s) of the synthetic subject's
-    random gestures (seed 0)."""
-    from lipgen.mesh.procedural import lip_mesh
-    from lipgen.modes import ModeModel
-    from lipgen.subject.activation import random_activations
+    random gestures (seed 0), shipped precomputed (:mod:`lipgen.speech.defaults`)."""
+    from lipgen.speech.defaults import load_default_lips
 
-    mesh = lip_mesh(0)
-    U = performer(1, 0).displacements(random_activations(240, seed=0, fps=30.0))[:, :mesh.n_nodes]
-    return ModeModel(n_modes=10).fit(U, mesh=mesh)
+    return load_default_lips()[0]
+
+
+@lru_cache(maxsize=8)
+def model_mesh(resolution: int):
+    """``lip_mesh(resolution)``; resolution 0 is read from the shipped default lips (the same
+    mesh, tested), which spares the command building it (and importing scipy)."""
+    if int(resolution) == 0:
+        from lipgen.speech.defaults import load_default_lips
+
+        return load_default_lips()[1]
+    from lipgen.mesh.procedural import lip_mesh
+
+    return lip_mesh(int(resolution))
 
 
 @lru_cache(maxsize=8)
 def _lips(resolution: int) -> tuple[int, str]:
-    from lipgen.mesh.procedural import lip_mesh
-
-    m = lip_mesh(resolution)
+    m = model_mesh(resolution)
     return m.n_nodes, m.topology_id
+
+
+@lru_cache(maxsize=4)
+def _node_motion(resolution: int, seed: int, n: int):
+    """The subject's motion on the model's ``n`` nodes (the seed-0 default lips' is shipped)."""
+    from lipgen.speech.defaults import load_default_lips, node_motion
+
+    if int(resolution) == 0 and int(seed) == 0:
+        motion = load_default_lips()[2]
+        if motion.n_out == n:
+            return motion
+    return node_motion(performer(resolution, seed), n)
 
 
 def model_resolution(model, max_resolution: int = 4) -> int:
@@ -150,10 +170,13 @@ def lipsync(audio: Audio | None = None, text: str | None = None, model=None, fps
 
 def project_activations(A: np.ndarray, model, resolution: int, seed: int = 0,
                         chunk: int = 512) -> np.ndarray:
-    """(F, k) mode coefficients of the subject's motion for activations ``A`` (F, A)."""
+    """(F, k) mode coefficients of the subject's motion for activations ``A`` (F, A).
+
+    The motion of the model's nodes comes from :class:`lipgen.speech.defaults.NodeMotion`
+    (equal to ``performer(resolution, seed).displacements(A)[:, :n]`` to round-off)."""
     if A.ndim != 2 or A.shape[1] != len(ACTIONS):
         raise ValueError(f"activations must have shape (F, {len(ACTIONS)}), got {A.shape}")
-    subject = performer(resolution, seed)
     n = np.asarray(model.mean_).size // 3
-    out = [model.project(subject.displacements(A[i:i + chunk])[:, :n]) for i in range(0, len(A), chunk)]
+    motion = _node_motion(int(resolution), int(seed), n)
+    out = [model.project(motion.displacements(A[i:i + chunk])) for i in range(0, len(A), chunk)]
     return np.concatenate(out)

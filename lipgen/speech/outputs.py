@@ -5,6 +5,8 @@
   ``UsdMedia.SpatialAudio`` prim that plays the WAV (``auralMode = nonSpatial``,
   ``playbackMode = onceFromStartToEnd``) from time code ``start``, so that audio time 0 is
   frame 0; its ``filePath`` is relative to the USD file when they share a folder tree.
+- **USDZ** (``.usdz``): the same stage packaged with the WAV inside (one file to hand on); the
+  prim's ``filePath`` names the WAV in the package.
 - **npz**: ``coefficients`` (F, k), ``activations`` (F, A), ``actions``, ``times`` (F,) s,
   ``fps``, ``phones`` / ``phone_start`` / ``phone_end`` (s), ``phone_source``,
   ``confidence``, ``text``.
@@ -26,7 +28,7 @@ from lipgen.subject.activation import ACTIONS
 
 __all__ = ["OUTPUT_EXTENSIONS", "check_output", "write_lipsync", "add_audio_prim"]
 
-OUTPUT_EXTENSIONS = (".usda", ".usdc", ".usd", ".npz", ".csv")
+OUTPUT_EXTENSIONS = (".usda", ".usdc", ".usd", ".usdz", ".npz", ".csv")
 """The file types a lip sync is written to (chosen by the extension)."""
 
 
@@ -108,12 +110,42 @@ def write_lipsync(path: str | os.PathLike, result: LipSync, mesh=None, wav: str 
 
     if mesh is None:
         raise ValueError("USD output needs the model's mesh")
+    duration = result.audio.duration if result.audio else result.n_frames / result.fps
+    if ext == ".usdz":
+        _write_usdz(dest, result, mesh, wav, int(start), duration, weight_range)
+        return dest
     with atomic_path(dest) as tmp:
         export_usd(tmp, mesh, result.model, result.coefficients, fps=result.fps, start=int(start),
                    weight_range=weight_range)
         if wav is not None:
             stage = Usd.Stage.Open(str(tmp))
-            add_audio_prim(stage, wav, start, result.audio.duration if result.audio else
-                           result.n_frames / result.fps, result.fps, dest)
+            add_audio_prim(stage, wav, start, duration, result.fps, dest)
             stage.GetRootLayer().Save()
     return dest
+
+
+def _write_usdz(dest: Path, result: LipSync, mesh, wav, start: int, duration: float,
+                weight_range: str) -> None:
+    """A ``.usdz`` package of the lip sync's stage (``lipsync.usdc``) and the WAV it plays, if any."""
+    import shutil
+    import tempfile
+
+    from pxr import Usd, UsdUtils
+
+    from lipgen.usd import export_usd
+
+    with atomic_path(dest) as tmp, tempfile.TemporaryDirectory(prefix=f"{tmp.name}-pkg-",
+                                                               dir=tmp.parent) as work:
+        root = Path(work) / "lipsync.usdc"
+        export_usd(root, mesh, result.model, result.coefficients, fps=result.fps, start=start,
+                   weight_range=weight_range)
+        if wav is not None:
+            sound = Path(work) / "speech.wav"
+            shutil.copyfile(wav, sound)
+            stage = Usd.Stage.Open(str(root))
+            add_audio_prim(stage, sound, start, duration, result.fps, root)
+            stage.GetRootLayer().Save()
+            del stage
+        tmp.unlink()  # the packager refuses to overwrite the empty placeholder
+        if not UsdUtils.CreateNewUsdzPackage(str(root), str(tmp)):
+            raise OSError(f"USD could not package {root} and {wav} into {tmp}")

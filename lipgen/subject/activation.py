@@ -15,7 +15,8 @@ import re
 
 import numpy as np
 
-__all__ = ["ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS", "parse_script",
+__all__ = ["ACTIONS", "CLASSIC_ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS",
+           "parse_script",
            "random_activations", "viseme_activations", "head_motion", "action_index"]
 
 DEFAULT_FPS = 30.0
@@ -39,12 +40,33 @@ ACTIONS: tuple[str, ...] = (
     "lip_corner_depressor_right",
     "jaw_shift_left",        # lateral jaw excursion toward the subject's left (a rigid shift)
     "jaw_shift_right",
+    # Independent sources of the speech-like motion (lipgen.subject.independent): the sphincter
+    # and the lower-lip muscles on one side each, and midline actions of each lip.
+    "pucker_left",                # orbicularis oris, one side: that half purses
+    "pucker_right",
+    "funneler_left",
+    "funneler_right",
+    "lip_press_left",
+    "lip_press_right",
+    "lower_lip_depressor_left",   # depressor labii inferioris: the lower lip down and everted
+    "lower_lip_depressor_right",
+    "lip_stretcher_left",         # risorius: the corner drawn straight out
+    "lip_stretcher_right",
+    "upper_lip_roll_in",          # the upper lip rolled in over the teeth (as for "p" in "apa")
+    "lower_lip_roll_in",
+    "upper_lip_protrusion",       # the upper lip pushed forward (rounded vowels)
 )
 """The named muscle-like actions, in the column order of every activation array.
 
 The first eight are symmetric; the ``_left``/``_right`` variants are the same muscles on one side
 only, and the jaw shifts move the jaw sideways. New actions are appended, so the columns (and the
-seeded random draws) of the older ones keep their place."""
+seeded random draws) of the older ones keep their place. :func:`random_activations` draws the
+first 16 (:data:`CLASSIC_ACTIONS`) only; the later ones are the independent sources of
+:mod:`lipgen.subject.independent`."""
+
+CLASSIC_ACTIONS: tuple[str, ...] = ACTIONS[:16]
+"""The actions :func:`random_activations` and the viseme scripts use (the motion before the
+independent sources; the other columns stay 0)."""
 
 ONE_SIDED: tuple[str, ...] = tuple(a for a in ACTIONS if a.endswith(("_left", "_right")))
 """The one-sided actions (drawn half as often as the others by :func:`random_activations`)."""
@@ -157,7 +179,8 @@ def viseme_activations(script: str, fps: float = DEFAULT_FPS, coarticulation: fl
 
 def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
                        gestures_per_second: float = 0.45) -> np.ndarray:
-    """Smooth random activations ``(F, A)`` in [0, 1]: seeded gestures of every action.
+    """Smooth random activations ``(F, A)`` in [0, 1]: seeded gestures of every action of
+    :data:`CLASSIC_ACTIONS` (the other columns are 0).
 
     Each action gets gestures at random times (``gestures_per_second`` per action on average, the
     jaw twice as often, as in speech, the one-sided actions of :data:`ONE_SIDED` half as often;
@@ -176,7 +199,7 @@ def random_activations(n_frames: int, seed=0, fps: float = DEFAULT_FPS,
     out = np.zeros((n_frames, len(ACTIONS)))
     if not np.isfinite(gestures_per_second) or gestures_per_second < 0:
         raise ValueError(f"gestures_per_second must be >= 0, got {gestures_per_second}")
-    for a, name in enumerate(ACTIONS):
+    for a, name in enumerate(CLASSIC_ACTIONS):
         rate = gestures_per_second * (2.0 if name == "jaw_open" else 0.5 if name in ONE_SIDED else 1.0)
         # Every symmetric action appears at least once; the one-sided ones are occasional.
         k = (0 if name in ONE_SIDED else 1) + rng.poisson(rate * span)

@@ -32,9 +32,30 @@ ACTION_TARGETS_MM: dict[str, tuple[str, float]] = {
     "lip_corner_puller_right": ("corner_right", 8.0),
     "lip_corner_depressor_left": ("corner_left", 5.0),
     "lip_corner_depressor_right": ("corner_right", 5.0),
+    "pucker_left": ("corner_left", 5.0),
+    "pucker_right": ("corner_right", 5.0),
+    "funneler_left": ("upper_left", 3.5),
+    "funneler_right": ("upper_right", 3.5),
+    "lip_press_left": ("upper_left", 2.5),
+    "lip_press_right": ("upper_right", 2.5),
+    "lower_lip_depressor_left": ("lower_left", 4.0),
+    "lower_lip_depressor_right": ("lower_right", 4.0),
+    "lip_stretcher_left": ("corner_left", 5.0),
+    "lip_stretcher_right": ("corner_right", 5.0),
+    "upper_lip_roll_in": ("upper_mid", 3.0),
+    "lower_lip_roll_in": ("lower_mid", 3.0),
+    "upper_lip_protrusion": ("upper_mid", 7.0),
 }
 """Action -> (marker, displacement in mm at activation 1 of the default subject). The jaw shifts
-are rigid motions of the jaw instead (:data:`JAW_SHIFT_MM`)."""
+are rigid motions of the jaw instead (:data:`JAW_SHIFT_MM`).
+
+The independent sources (from ``pucker_left`` on) are set from published lip kinematics: upper
+and lower lip protrusion for rounded vowels reach about 5-10 mm together (Fromkin, "Lip positions
+in American English vowels", Language and Speech 7, 1964; the upper lip's own share 7 mm here,
+with the pucker and the mentalis adding to it); lower-lip depression and corner retraction of
+3-6 mm in speech and expression (Weeden, Trotman & Faraway, "Three-dimensional analysis of facial
+movement in normal adults", Cleft Palate-Craniofacial Journal 38, 2001: commissure movements of
+about 5-10 mm for a maximal smile, less in speech); lip roll-in of a few mm for bilabial closure."""
 
 JAW_SHIFT_MM = 3.0
 """Sideways shift of the jaw (mm, along x) at ``jaw_shift_left`` = 1 (``_right``: the other way)."""
@@ -93,6 +114,7 @@ def _force_patterns(mesh: LipMesh) -> dict[str, np.ndarray]:
         one_sided[f"upper_lip_raiser_{s}"] = field(raiser[s], 0.0, 1.0, 0.35)
         one_sided[f"lip_corner_puller_{s}"] = field(corner[s], 0.75 * sx, 0.5, -0.45)
         one_sided[f"lip_corner_depressor_{s}"] = field(corner[s], 0.2 * sx, -1.0, 0.1)
+    one_sided.update(_independent_patterns(mesh, field, lips, up, lo, corner))
     return {
         **one_sided,
         "jaw_open": field(lips * lo * _gauss(X, M["lower_mid"], 12.0), 0.0, -1.0, 0.3),
@@ -106,6 +128,34 @@ def _force_patterns(mesh: LipMesh) -> dict[str, np.ndarray]:
                                                            + _gauss(X, M["lower_border_mid"], 10.0)),
                                       0.0, 0.45, 1.0),
     }
+
+
+def _independent_patterns(mesh: LipMesh, field, lips, up, lo, corner) -> dict[str, np.ndarray]:
+    """Force patterns of the independent sources (:mod:`lipgen.subject.independent`).
+
+    A one-sided sphincter action reaches past the midline and fades on the other side (a logistic
+    in x centred 3 mm across the midline), so the left and right halves are not complements of
+    each other, and each side pulls in its own direction.
+    """
+    X = mesh.vertices
+    x, y = X[:, 0], X[:, 1]
+    sx = np.sign(x)
+    M = {n: X[mesh.marker_index(n)] for n in mesh.marker_names}
+    mid = np.exp(-x**2 / (2 * 10.0**2))
+    out = {}
+    for s, sign in (("left", 1.0), ("right", -1.0)):
+        half = lips / (1.0 + np.exp(-(sign * x + 3.0) / 4.0))
+        side = lips * np.exp(-(x - sign * 9.0) ** 2 / (2 * 8.0**2))
+        out[f"pucker_{s}"] = field(half, -0.9 * x / 25.0 - 0.15 * sign, -0.3 * y / 10.0, 0.5)
+        out[f"funneler_{s}"] = field(side, -0.1 * sign, 0.7 * np.tanh(y / 2.0), 1.0)
+        out[f"lip_press_{s}"] = field(side, 0.0, -np.tanh(y / 2.0), -0.3)
+        out[f"lower_lip_depressor_{s}"] = field(lips * lo * _gauss(X, M[f"lower_{s}"], 8.0), 0.25 * sign,
+                                                -1.0, 0.45)
+        out[f"lip_stretcher_{s}"] = field(corner[s], 1.0 * sx, -0.15, -0.35)
+    out["upper_lip_roll_in"] = field(lips * up * mid, 0.0, -0.5, -1.0)
+    out["lower_lip_roll_in"] = field(lips * lo * mid, 0.0, 0.5, -1.0)
+    out["upper_lip_protrusion"] = field(lips * up * np.exp(-x**2 / (2 * 14.0**2)), 0.0, 0.25, 1.0)
+    return out
 
 
 def _rot_x(angle: np.ndarray) -> np.ndarray:
