@@ -66,7 +66,7 @@ def accepted_sightings(recon) -> np.ndarray:
     out[:, :P] = recon.visible
     for f, j in recon.info.get("normalisation", {}).get("outliers", []):
         out[f, j] = False
-    max_gap = recon.info.get("settings", {}).get("max_ray_gap", np.inf)
+    max_gap = recon.info.get("ray_gap_limit_mm", recon.info.get("settings", {}).get("max_ray_gap", np.inf))
     with np.errstate(invalid="ignore"):
         out[:, P:] = recon.ray_gap[:, P:] <= max_gap
     return out

@@ -263,7 +263,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()
-    points, gap, vis = triangulate_tracks(lab.views, tracks, settings.max_ray_gap)
+    # The views disagree beyond a limit measured from this sequence's own ray gaps (recon.raygap).
+    gap_limit = settings.ray_gap_limit(lab.views)
+    _, gap_all, _ = triangulate_tracks(lab.views, tracks)
+    gap_limit.add(gap_all[gap_all <= settings.max_ray_gap])
+    max_gap = gap_limit.limit()
+    points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
     nose_seen = vis[:, P]
@@ -285,7 +290,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         outliers = np.zeros((len(points), P), bool) if norm.outliers is None else norm.outliers
         fields = reach_fields(physics, norm.markers - mesh.vertices[mesh.markers], vis[:, :P] & ~outliers,
                               mesh.markers, settings.min_visible)
-    account = sighting_account(tracks, vis, gap, settings.max_ray_gap, outliers, names, expected,
+    account = sighting_account(tracks, vis, gap, max_gap, outliers, names, expected,
                                [(c.width, c.height) for c in lab.views], settings.tracker.twins)
     if account["never_tracked"]:
         log.warning("never tracked in a view (why: info['sightings']['never_tracked']): %s",
@@ -303,6 +308,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
+        "ray_gap_limit_mm": max_gap,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

@@ -31,6 +31,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.pointreg import match_to_expected
+from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
 from lipgen.recon.twins import resolve_twins
 from lipgen.rig.camera import VIEWS, MirrorRig
@@ -61,6 +62,12 @@ class ReconstructSettings:
     twin_model : bool
         Find markers whose dots merge in one view (twins) with a model of both dots on their
         epipolar lines from the other view (:mod:`lipgen.recon.twins`).
+    ray_gap_k : float or None
+        The views disagree when the rays pass farther apart than ``ray_gap_k`` times the median
+        gap of the sequence's agreeing sightings (:class:`lipgen.recon.raygap.RayGapLimit`),
+        within [``min_ray_gap_px``, ``max_ray_gap``]; None: ``max_ray_gap`` alone.
+    min_ray_gap_px : float
+        Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -68,6 +75,12 @@ class ReconstructSettings:
     max_ray_gap: float = 2.0
     min_visible: int = 4
     twin_model: bool = True
+    ray_gap_k: float | None = 8.0
+    min_ray_gap_px: float = 1.0
+
+    def ray_gap_limit(self, cameras) -> RayGapLimit:
+        """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
+        return RayGapLimit(self.max_ray_gap, self.ray_gap_k, self.min_ray_gap_px / px_per_mm(cameras))
 
 
 def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
@@ -108,6 +121,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     """
     exp = as_float_array(expected, "expected", (2, None, 2), finite=False)
     trackers: list[MarkerTracker] = []
+    gap_limit = None if cameras is None else settings.ray_gap_limit(cameras)
+    last3d = np.full((exp.shape[1], 3), np.nan)      # each marker's last accepted point (lab, mm)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
@@ -147,7 +162,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
-            _check_views(trackers, cameras, settings.max_ray_gap)
+            _check_views(trackers, cameras, gap_limit, last3d)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if progress is not None:
@@ -157,8 +172,14 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     return trackers[0].tracks(), trackers[1].tracks()
 
 
-def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None:
-    """Take back sightings whose two rays pass more than ``max_gap`` apart (a wrong dot in a view).
+def _check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit | float,
+                 last3d: np.ndarray | None = None) -> None:
+    """Take back sightings whose two rays pass farther apart than ``gap_limit`` (a wrong dot in a view).
+
+    ``gap_limit`` is a :class:`~lipgen.recon.raygap.RayGapLimit` (it learns from the gaps of the
+    sightings kept) or a fixed limit in mm. With ``last3d (P, 3)`` (each marker's last accepted
+    point, updated in place), sightings another marker's ray explains better are taken back too
+    (:func:`_reject_ambiguous`).
 
     A sighting that continues a track (seen in the previous image) beats one just re-acquired:
     only the latter is taken back. Otherwise both are, since a lost marker is far better than a
@@ -170,13 +191,56 @@ def _check_views(trackers: list[MarkerTracker], cameras, max_gap: float) -> None
         return
     gap = np.full(len(both), np.nan)
     gap[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[1]
+    if not isinstance(gap_limit, RayGapLimit):
+        gap_limit = RayGapLimit(float(gap_limit), k=None)
+    max_gap = gap_limit.limit()
+    gap_limit.add(gap[both & (gap <= max_gap)])
     bad = np.flatnonzero(both & (gap > max_gap))
-    if len(bad) == 0:
-        return
-    fresh = [tr.reacquired[bad] for tr in trackers]
-    only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
-    trackers[0].reject(bad[~only1])
-    trackers[1].reject(bad[~only0])
+    if len(bad):
+        fresh = [tr.reacquired[bad] for tr in trackers]
+        only0, only1 = fresh[0] & ~fresh[1], fresh[1] & ~fresh[0]
+        trackers[0].reject(bad[~only1])
+        trackers[1].reject(bad[~only0])
+    if last3d is not None:
+        _reject_ambiguous(trackers, cameras, max_gap, last3d)
+        (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
+        kept = (st0 != LOST) & (st1 != LOST)
+        if kept.any():
+            last3d[kept] = triangulate(cameras[1], uv1[kept], cameras[0], uv0[kept])[0]
+
+
+def _reject_ambiguous(trackers: list[MarkerTracker], cameras, max_gap: float, last3d: np.ndarray,
+                      margin: float = 3.0) -> None:
+    """Take back sightings that another, lost, marker explains better (an identity mix-up).
+
+    The ray-gap test sees nothing along an epipolar line, nor a dot both views give the wrong
+    marker. Let marker k be lost in view A, and j seen in both views. If k is seen in view B and
+    the dot A gives j also meets k's ray from B (within ``max_gap``), A's dot may be k's own (the
+    left bow peak on the right one's dot, both at one height in the mirror view); if k is lost in
+    both views, both may have given j k's dot (the lip corner's neighbour on the corner's dot).
+    Depth and place tell them apart: the dot, read as k's (paired with B's k, or as it is),
+    lands at some distance from k's last accepted 3-D point, and, read as j's, at another from
+    j's (``last3d (P, 3)``, lab mm; NaN where never accepted). Unless j's reading is ``margin``
+    times closer, j's sighting is taken back (in A; in both views when k is lost in both).
+    """
+    known = np.isfinite(last3d[:, 0])
+    for a in range(2):
+        (uv_a, st_a, _), (uv_b, st_b, _) = trackers[a]._out[-1], trackers[1 - a]._out[-1]
+        js = np.flatnonzero((st_a != LOST) & (st_b != LOST) & known)
+        ks = np.flatnonzero((st_a == LOST) & known & ((st_b != LOST) | (a == 0)))
+        if len(ks) == 0 or len(js) == 0:
+            continue
+        jj, kk = np.repeat(js, len(ks)), np.tile(ks, len(js))
+        cam_a, cam_b = cameras[a], cameras[1 - a]
+        x_own = triangulate(cam_b, uv_b[jj], cam_a, uv_a[jj])[0]
+        x_alt, g = x_own.copy(), np.zeros(len(jj))
+        seen_b = st_b[kk] != LOST
+        if seen_b.any():
+            x_alt[seen_b], g[seen_b] = triangulate(cam_b, uv_b[kk[seen_b]], cam_a, uv_a[jj[seen_b]])
+        mixed = ((g <= max_gap) & (jj != kk) & (np.linalg.norm(x_alt - last3d[kk], axis=1)
+                                                < margin * np.linalg.norm(x_own - last3d[jj], axis=1)))
+        trackers[a].reject(np.unique(jj[mixed]))
+        trackers[1 - a].reject(np.unique(jj[mixed & ~seen_b]))
 
 
 def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],
