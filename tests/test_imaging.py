@@ -148,6 +148,14 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
     picture = tmp_path / "p.png"
     assert main(["show", str(easy), "--beside", str(a), "--frame", "1", "--out", str(picture)]) == 0
     assert picture.stat().st_size > 10_000
+    # the scene of a real recording is recorded, and the report's picture beside the easy preset
+    from lipgen.dataset.pictures import easy_twin, save_beside_easy
+
+    scene = ds.manifest["scene"]
+    assert scene["head"]["fold_depth"] > 0 and "lower_teeth" in scene["mouth"] and scene["ink"]["smudge"] > 0
+    twin = easy_twin(ds, 1)
+    assert twin.shape == ds[1].image.shape and np.abs(twin.astype(int) - ds[1].image).mean() > 1
+    assert save_beside_easy(ds, 1, tmp_path / "b.png").stat().st_size > 10_000
 
 
 def test_video_round_trip_keeps_count_and_order(tmp_path):

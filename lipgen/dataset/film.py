@@ -61,7 +61,7 @@ def realize(conditions: ImageConditions, seed: int) -> dict:
                 "white_balance": tuple(conditions.white_balance)}
     rng = np.random.default_rng([seed, _LIGHT_STREAM])
     lights = tuple(Light(lt.kind, lt.color, float(lt.intensity * (1 + 0.5 * j * rng.uniform(-1, 1))),
-                         direction=_turn(lt.direction, 40.0 * j, rng)) for lt in base)
+                         direction=_turn(lt.direction, 40.0 * j, rng), shadows=lt.shadows) for lt in base)
     exposure = float(conditions.exposure * (1 + 0.3 * j * rng.uniform(-1, 1)))
     wb = tuple(float(g * (1 + 0.08 * j * rng.uniform(-1, 1))) for g in conditions.white_balance)
     return {"lights": lights, "exposure": exposure, "white_balance": wb}
@@ -70,7 +70,7 @@ def realize(conditions: ImageConditions, seed: int) -> dict:
 def lighting_record(real: dict) -> dict:
     """JSON-able form of :func:`realize`'s result (for the manifest)."""
     return {"lights": [{"kind": lt.kind, "color": list(lt.color), "intensity": lt.intensity,
-                        "direction": list(lt.direction)} for lt in real["lights"]],
+                        "direction": list(lt.direction), "shadows": lt.shadows} for lt in real["lights"]],
             "exposure": real["exposure"], "white_balance": list(real["white_balance"])}
 
 
@@ -124,8 +124,10 @@ def exposure_offsets(conditions: ImageConditions, span_px: float, step_px: float
 
 
 def film_frame(renderer, former, face, states: list, lights: tuple, rng: np.random.Generator,
-               depth: bool = False, labels: bool = False):
+               depth: bool = False, labels: bool = False, age: float = 0.0):
     """Render the sub-frame ``states`` [(vertices, pose), ...] and form the raw frame.
+
+    ``age`` (0..1) is how far through the clip the frame is (the ink's smudging).
 
     Returns ``(image (H, W, 3) uint8, depth or None, labels or None)``; depth and labels are
     those of the middle instant (the frame time), as the truth.
@@ -133,7 +135,7 @@ def film_frame(renderer, former, face, states: list, lights: tuple, rng: np.rand
     instants, mid = [], None
     centre = len(states) // 2
     for k, (V, P) in enumerate(states):
-        views = renderer.render_views(face.scene(V, P, lights=lights), depth and k == centre,
+        views = renderer.render_views(face.scene(V, P, lights=lights, age=age), depth and k == centre,
                                       labels and k == centre)
         instants.append((views[0][0], views[1][0]))
         if k == centre:

@@ -51,9 +51,9 @@ from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
 from lipgen.rig.render import RenderedFrame
 from lipgen.rig.visibility import occluded
-from lipgen.subject.face import FaceLook, FaceModel
+from lipgen.subject.face import FaceLook, FaceModel, look_record
 
-__all__ = ["generate", "frame_truth", "prepare_dataset", "render_jobs"]
+__all__ = ["generate", "frame_truth", "prepare_dataset", "render_jobs", "face_look"]
 
 log = logging.getLogger(__name__)
 
@@ -138,6 +138,18 @@ def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.
             "dot_visible_fraction": frac}
 
 
+def face_look(s: GenerateSettings) -> FaceLook:
+    """The subject's :class:`~lipgen.subject.face.FaceLook` under settings ``s`` (seeded by ``s.seed``)."""
+    c = s.conditions
+    return FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed, head=c.head,
+                    mouth=c.mouth, dot_irregularity=c.ink, dot_smudge=c.smudge)
+
+
+def _age(i: int, s: GenerateSettings) -> float:
+    """How far through the clip frame ``i`` is (0 first, 1 last)."""
+    return i / max(s.frames - 1, 1)
+
+
 @dataclass
 class _Context:
     """What a worker needs to render and write any frame."""
@@ -179,8 +191,7 @@ def _init_worker(ctx: _Context, renderer=None) -> None:
         from lipgen.subject.inkdots import SurfaceDots
 
         dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
-    face = FaceModel(mesh, FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed),
-                     dots=dots)
+    face = FaceModel(mesh, face_look(s), dots=dots)
     _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
                    renderer=renderer or open_renderer(s.renderer, rig, c, s.cycles_samples, s.seed % 2**31))
     if not c.is_ideal:
@@ -216,7 +227,8 @@ def _render_job(job: tuple[str, int]):
     if kind == "frame":
         V, P = ctx.vertices[i], ctx.poses[i]
         if c.is_ideal:
-            rendered = w["renderer"].render(w["face"].scene(V, P), depth=s.depth, labels=s.masks)
+            rendered = w["renderer"].render(w["face"].scene(V, P, age=_age(i, s)), depth=s.depth,
+                                            labels=s.masks)
         else:
             ends = sub_frame_states(ctx.vertices, ctx.poses, i, c.sub_frame_offsets[[0, -1]])
             uv_ends = [rig.project(w["face"].marks(Vs, Ps)[0])[0] for Vs, Ps in ends]
@@ -224,7 +236,7 @@ def _render_job(job: tuple[str, int]):
             offsets = exposure_offsets(c, float(span))
             states = sub_frame_states(ctx.vertices, ctx.poses, i, offsets)
             rendered = RenderedFrame(*film_frame(w["renderer"], w["former"], w["face"], states, w["lights"],
-                                                 rng, s.depth, s.masks))
+                                                 rng, s.depth, s.masks, age=_age(i, s)))
         image = _noisy(rendered.image, s.noise, rng)
         extras = _extras(rendered, *extra_paths(out, i), s.png_compress_level)
         truth = frame_truth(rig, w["face"], V, P, c.mirror_extent_mm)
@@ -349,6 +361,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     manifest = build_manifest(s, rig, mesh, list(motion.actions), __version__, subject)
     if not s.conditions.is_ideal:
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))
+        manifest["scene"] = look_record(face_look(s), len(mesh.markers) + 1)
     if s.conditions.video_codec:
         from lipgen.dataset.video import check_video_codec
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from lipgen.dataset.layout import Dataset
 
-__all__ = ["preset_of", "save_side_by_side"]
+__all__ = ["preset_of", "save_side_by_side", "easy_twin", "save_beside_easy"]
 
 
 def preset_of(ds: Dataset) -> str:
@@ -58,6 +58,59 @@ def save_side_by_side(datasets: list[Dataset], index: int, out, zoom: bool = Tru
                     ax.set_xlim(c[0] - 90, c[0] + 90)
                     ax.set_ylim(c[1] + 60, c[1] - 60)
                 ax.set_title("mouth, direct view (circles: truth)", fontsize=9)
+    fig.tight_layout()
+    out = Path(out)
+    with atomic_path(out) as tmp:
+        fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
+    plt.close(fig)
+    return out
+
+
+def easy_twin(ds: Dataset, index: int) -> np.ndarray:
+    """(H, W, 3) uint8: frame ``index`` of ``ds`` rendered again as the ``easy`` preset films it (the
+    ideal camera, plain face, fixed light, perfect dots, no noise), from the frame's true shape and
+    head pose: what the dataset's conditions changed. Needs pyrender."""
+    from lipgen.rig.camera import default_rig
+    from lipgen.rig.render import RigRenderer
+    from lipgen.subject.face import FaceLook, FaceModel
+
+    if not 0 <= index < len(ds):
+        raise ValueError(f"frame {index} is out of range: {ds.path} has frames 0..{len(ds) - 1}")
+    truth = ds[index].truth
+    face = FaceModel(ds.mesh, FaceLook(dot_diameter=ds.settings.dot_diameter), dots=ds.dots)
+    rig = default_rig(*ds.settings.size)
+    with RigRenderer(rig) as r:
+        return r.render(face.scene(truth["vertices"], truth["pose"])).image
+
+
+def save_beside_easy(ds: Dataset, index: int, out) -> Path:
+    """Save frame ``index`` of ``ds`` beside its :func:`easy_twin`, with close-ups of the mouth in the
+    direct view (where the head, teeth, ink, shadows, blur and noise show)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lipgen._io import atomic_path
+
+    easy = easy_twin(ds, index)
+    frame = ds[index]
+    uv, vis = frame.truth["uv_raw"], frame.truth["visible"]
+    real = uv[1, :-1][vis[1, :-1]]
+    fig, axes = plt.subplots(2, 2, figsize=(12.8, 9.6), squeeze=False)
+    for j, (img, title) in enumerate(((frame.image, f"{ds.path.name}: preset {preset_of(ds)}"),
+                                      (easy, "the same frame, preset easy"))):
+        for r in range(2):
+            ax = axes[r, j]
+            ax.imshow(img, interpolation="nearest")
+            ax.axis("off")
+            if r == 0:
+                ax.set_title(f"{title}, frame {frame.index}", fontsize=10)
+            elif len(real):
+                c = np.nanmean(real, axis=0)
+                ax.set_xlim(c[0] - 90, c[0] + 90)
+                ax.set_ylim(c[1] + 60, c[1] - 60)
+                ax.set_title("mouth, direct view", fontsize=9)
     fig.tight_layout()
     out = Path(out)
     with atomic_path(out) as tmp:

@@ -13,14 +13,16 @@ frames are formed (:class:`FrameConditions`, whose lens, mirror, light and senso
   speech from independent asymmetric sources with a stochastic residual
   (:mod:`lipgen.subject.independent`: 10 learned modes hold about 99.2 % of it), filmed like
   a good laboratory recording: a mild lens, slight defocus and motion blur, light varying per
-  dataset, a real mirror, a low-noise sensor, high-quality JPEG.
+  dataset, a real mirror, a low-noise sensor, high-quality JPEG; the subject has a head (cheeks,
+  chin, nasolabial folds, a nose with nostrils), teeth and a tongue, and hand-drawn ink dots.
 - ``hard``: as ``default``, moved by the nonlinear truth physics (:mod:`lipgen.subject.layer`:
   large deformation, near-incompressible, lip contact; slow: seconds per frame), with more head
   motion, filmed by an ordinary camera: a wide lens with visible radial and tangential
   distortion, defocus (the mirror view is farther than the focus), 1/120 s exposure at 30
   frames/s (motion blur), light, exposure and white balance varying per dataset, a
   back-silvered mirror with tint, ghost and edge, shot and read noise of a small sensor, Bayer
-  demosaicing and JPEG at quality 85.
+  demosaicing and JPEG at quality 85; the lights cast shadows, and the ink dots are irregular and
+  smudge over the clip.
 
 Image values follow published camera figures: phone and webcam lenses have k1 of -0.1 to -0.3
 and tangential terms around 1e-3 (decentring); small sensors hold 5,000 to 10,000 electrons per
@@ -97,7 +99,7 @@ PRESETS: dict[str, Preset] = {
             distortion=(-0.08, 0.03, 0.0005, -0.0003, 0.0), focus_mm=330.0, aperture_px=6.0,
             shutter=0.15, blur_samples=3, light_jitter=0.3, mirror_reflectance=0.88,
             mirror_tint=(0.96, 1.0, 0.97), ghost=0.02, glass_mm=2.0, full_well=20000.0, read_noise=1.0,
-            codec="jpeg", jpeg_quality=95, texture=0.6))),
+            codec="jpeg", jpeg_quality=95, texture=0.6, head=True, mouth=True, ink=0.5, smudge=0.2))),
     "hard": Preset(
         "hard", SubjectConditions(own_shape=True, nonlinear_physics=True),
         MotionConditions(head_rotation_deg=8.0, head_translation_mm=6.0, sources="independent"),
@@ -105,7 +107,8 @@ PRESETS: dict[str, Preset] = {
             distortion=(-0.15, 0.10, 0.0012, -0.0008, 0.0), focus_mm=340.0, aperture_px=12.0,
             shutter=0.25, blur_samples=5, light_jitter=1.0, mirror_reflectance=0.85,
             mirror_tint=(0.93, 1.0, 0.95), ghost=0.04, glass_mm=3.0, mirror_extent_mm=(90.0, 110.0),
-            full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85, texture=1.0))),
+            full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85, texture=1.0,
+            shadows=True, head=True, mouth=True, ink=1.0, smudge=0.5))),
 }
 """The presets by name."""
 

@@ -192,6 +192,21 @@ def nrsfm_section(ds, recon=None, view: str = "real", min_frames: int = 3) -> st
     return "\n\n".join(parts)
 
 
+def _conditions_picture(ds, frame: int, out: Path) -> str | None:
+    """The report's frame beside the same frame as the ``easy`` preset films it, when the dataset
+    was made otherwise (None for an easy dataset, or without pyrender: logged)."""
+    from lipgen.dataset.pictures import preset_of, save_beside_easy
+    from lipgen.errors import LipgenError
+
+    if preset_of(ds) == "easy" or "vertices" not in ds[frame].truth:
+        return None
+    try:
+        return save_beside_easy(ds, frame, out / "conditions.png").name
+    except (ImportError, LipgenError) as exc:  # no pyrender / no OpenGL: the report goes on without it
+        log.warning("no picture beside the easy preset: %s", exc)
+        return None
+
+
 def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None) -> Path:
     """Write ``report.md``, ``report.json`` and the pictures into folder ``out``."""
     from lipgen.evaluate.metric import ERROR_DEFINITION
@@ -204,6 +219,9 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
             "frame": _frame_picture(ds, recon, test[0] if test else 0, out)}
     if test:
         pics["overlay"] = _overlay_picture(model, mesh, recon, truth_fields, test[0], out)
+    beside = _conditions_picture(ds, test[0] if test else 0, out)
+    if beside:
+        pics["conditions"] = beside
     cal = s["calibration"]
     tri, nrm, fld = s["triangulation"], s["normalisation"], s["fields"]
     L = ["# lipgen end-to-end report", "",
@@ -288,6 +306,10 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"![mean and first modes]({pics['modes']})", "", f"![raw frame]({pics['frame']})", ""]
     if "overlay" in pics:
         L += [f"![reconstruction vs truth]({pics['overlay']})", ""]
+    if "conditions" in pics:
+        L += ["The same frame as filmed here (left) and as the `easy` preset films it (right): the "
+              "difference is what this dataset's conditions (head, mouth, ink, light, lens, sensor) add.",
+              "", f"![this dataset beside the easy preset]({pics['conditions']})", ""]
     for title, body in (extra or {}).items():
         L += [f"## {title}", "", body, ""]
     atomic_write_bytes(out / "report.md", ("\n".join(L) + "\n").encode())

@@ -86,6 +86,15 @@ class ImageConditions:
         ``""`` (no video) or ``"h264"``: the frames are also delivered as one video, ``video.mp4``.
     video_crf : int
         x264's constant rate factor, 0 (lossless) .. 51; 18 is visually lossless.
+    head : bool
+        Draw a head round the lips: cheeks, chin, nasolabial folds, a nose with nostrils
+        (:mod:`lipgen.subject.head`), shaped per subject.
+    mouth : bool
+        Draw teeth, tongue and a deep oral cavity (:mod:`lipgen.subject.mouth`).
+    ink : float
+        0..1: how irregular the ink dots are, in size and edge (:mod:`lipgen.subject.ink`).
+    smudge : float
+        0..1: how far the ink smudges over the clip (opacity of its halo at the last frame).
     """
 
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -110,6 +119,10 @@ class ImageConditions:
     texture: float = 0.0
     video_codec: str = ""
     video_crf: int = 18
+    head: bool = False
+    mouth: bool = False
+    ink: float = 0.0
+    smudge: float = 0.0
 
     def __post_init__(self) -> None:
         def vec(name, n, lo, hi):
@@ -126,7 +139,7 @@ class ImageConditions:
         for name, lo, hi in (("focus_mm", 0, 1e5), ("aperture_px", 0, 50), ("shutter", 0, 1),
                              ("exposure", 0.05, 20), ("light_jitter", 0, 1), ("mirror_reflectance", 0.05, 1),
                              ("ghost", 0, 0.5), ("glass_mm", 0, 20), ("full_well", 0, 1e7),
-                             ("read_noise", 0, 50), ("texture", 0, 1)):
+                             ("read_noise", 0, 50), ("texture", 0, 1), ("ink", 0, 1), ("smudge", 0, 1)):
             object.__setattr__(self, name, _check_range(name, getattr(self, name), lo, hi))
         if self.aperture_px > 0 and self.focus_mm <= 0:
             raise ValueError(f"ImageConditions.aperture_px = {self.aperture_px} needs focus_mm > 0 "
@@ -139,7 +152,7 @@ class ImageConditions:
         if self.shutter > 0 and self.blur_samples < 2:
             raise ValueError(f"ImageConditions.shutter = {self.shutter} needs blur_samples >= 2 (sub-frame "
                              "instants across the exposure)")
-        for name in ("shadows", "bayer"):
+        for name in ("shadows", "bayer", "head", "mouth"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"ImageConditions.{name} must be True or False, got {getattr(self, name)!r}")
         if self.codec not in CODECS:

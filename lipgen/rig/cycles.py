@@ -305,7 +305,7 @@ class CyclesRenderer:
             pose = np.eye(4)
             pose[:3, 3] = lt.position
         data.color = tuple(float(c) for c in srgb_to_linear(lt.color))
-        data.use_shadow = self.shadows
+        data.use_shadow = self.shadows and lt.shadows  # fill lights cast none (as in pyrender)
         obj = bpy.data.objects.new(data.name, data)
         self._scene.collection.objects.link(obj)
         obj.matrix_world = _matrix(pose)

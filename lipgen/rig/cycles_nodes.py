@@ -67,6 +67,7 @@ def _principled(bpy, mat: Material, image, sss_radius):
     bsdf.inputs["Base Color"].default_value = color
     bsdf.inputs["Roughness"].default_value = float(mat.roughness)
     bsdf.inputs["Metallic"].default_value = 0.0
+    bsdf.inputs["Alpha"].default_value = float(getattr(mat, "opacity", 1.0))  # faint ink (smudge halos)
     if image is not None:
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = image

@@ -51,6 +51,8 @@ class Material:
     texture : (h, w, 3) uint8, optional
         sRGB image multiplied with ``color``, mapped by the mesh item's ``uv`` (read-only; compared
         by identity, so share one array between frames).
+    opacity : float
+        Coverage in (0, 1]: below 1 the surface is blended over what lies behind it (faint ink).
     """
 
     name: str
@@ -59,6 +61,7 @@ class Material:
     double_sided: bool = False
     label: int = 1
     texture: np.ndarray | None = field(default=None, compare=False, repr=False)
+    opacity: float = 1.0
 
     def __post_init__(self) -> None:
         c = as_float_array(self.color, f"material {self.name!r} color", (3,))
@@ -68,6 +71,8 @@ class Material:
             raise ValueError(f"material {self.name!r} roughness must be in [0, 1], got {self.roughness}")
         if not 1 <= int(self.label) <= 255:
             raise ValueError(f"material {self.name!r} label must be in [1, 255], got {self.label}")
+        if not 0 < self.opacity <= 1:
+            raise ValueError(f"material {self.name!r} opacity must be in (0, 1], got {self.opacity}")
         object.__setattr__(self, "color", tuple(float(x) for x in c))
         t = self.texture
         if t is not None and (not isinstance(t, np.ndarray) or t.dtype != np.uint8 or t.ndim != 3
@@ -79,7 +84,7 @@ class Material:
     def key(self) -> tuple:
         """What a renderer needs to tell two materials apart (the texture by identity)."""
         return (self.color, self.roughness, self.double_sided, self.label,
-                None if self.texture is None else id(self.texture))
+                None if self.texture is None else id(self.texture), self.opacity)
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,6 +157,8 @@ class Light:
         Directional lights: the direction the light travels (world).
     position : (3,) float
         Point lights: position, mm.
+    shadows : bool
+        The light casts shadows when the renderer draws shadows (fill lights usually do not).
     """
 
     kind: str
@@ -159,6 +166,7 @@ class Light:
     intensity: float = 3.0
     direction: tuple[float, float, float] = (0.0, 0.0, -1.0)
     position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    shadows: bool = True
 
     def __post_init__(self) -> None:
         if self.kind not in ("directional", "point"):

@@ -10,7 +10,7 @@ along the surface normal so that the depth test draws it over the skin.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,29 +31,42 @@ class Decal:
         The decal's own triangles (into its k vertices).
     rim : (r,) int
         Decal vertices on its outer edge (for partial-visibility tests).
+    halo : (h, 3) int
+        Triangles of a faint ring round the disc (ink spreading into the skin); empty unless
+        laid with a ``halo``.
     """
 
     face: np.ndarray
     bary: np.ndarray
     faces: np.ndarray
     rim: np.ndarray
+    halo: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
 
 
-def _disc(radius: float, rings: int, sectors: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Polar disc in its plane: points (k, 2), faces (f, 3) counter-clockwise, rim indices."""
+def _disc(radius: float, rings: int, sectors: int, outline=None,
+          halo: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Polar disc in its plane: points (k, 2), faces (f, 3) counter-clockwise, rim indices, and the
+    faces of a halo ring ``halo * radius`` wider (none when 0). ``outline`` (sectors,) scales the
+    radius per sector (an irregular edge)."""
     ang = 2 * np.pi * np.arange(sectors) / sectors
     r = radius * np.arange(1, rings + 1) / rings
+    if halo > 0:
+        r = np.append(r, radius * (1 + halo))
     unit = np.stack([np.cos(ang), np.sin(ang)], -1)
+    if outline is not None:
+        unit = unit * np.asarray(outline, float).reshape(sectors, 1)
     pts = np.vstack([[0.0, 0.0], (r[:, None, None] * unit[None]).reshape(-1, 2)])
     s = np.arange(sectors)
     s1 = (s + 1) % sectors
     faces = [np.stack([np.zeros(sectors, np.int64), 1 + s, 1 + s1], 1)]
-    for k in range(rings - 1):
+    for k in range(len(r) - 1):
         a, b = 1 + k * sectors + s, 1 + k * sectors + s1
         c, d = a + sectors, b + sectors
         faces += [np.stack([a, c, d], 1), np.stack([a, d, b], 1)]
+    faces = np.vstack(faces)
+    n_ink = sectors * (2 * rings - 1)
     rim = 1 + (rings - 1) * sectors + s
-    return pts, np.vstack(faces), rim
+    return pts, faces[:n_ink], rim, faces[n_ink:]
 
 
 def _line_hits(q: np.ndarray, n: np.ndarray, tri: np.ndarray):
@@ -72,7 +85,7 @@ def _line_hits(q: np.ndarray, n: np.ndarray, tri: np.ndarray):
 
 
 def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, center: int,
-               radius: float, rings: int = 3, sectors: int = 16) -> Decal:
+               radius: float, rings: int = 3, sectors: int = 16, outline=None, halo: float = 0.0) -> Decal:
     """Lay a disc of ``radius`` mm centred on vertex ``center`` of a rest surface.
 
     Parameters
@@ -85,6 +98,10 @@ def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, cen
         The marked vertex; the decal's centre maps exactly onto it.
     radius : float
         Disc radius, mm.
+    outline : (sectors,) float, optional
+        Radius factor per sector (an irregular edge); a circle by default.
+    halo : float
+        Width of a halo ring round the disc, as a fraction of ``radius`` (0: none).
 
     Raises
     ------
@@ -93,11 +110,11 @@ def make_decal(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, cen
     """
     home = np.isin(faces, center).any(axis=1)
     return _lay(vertices, faces, vertices[center], normals[center], home, radius, rings, sectors,
-                f"vertex {center}")
+                f"vertex {center}", outline=outline, halo=halo)
 
 
 def make_decal_at(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, face: int, bary,
-                  radius: float, rings: int = 3, sectors: int = 16) -> Decal:
+                  radius: float, rings: int = 3, sectors: int = 16, outline=None, halo: float = 0.0) -> Decal:
     """Lay a disc of ``radius`` mm centred on the surface point ``bary`` (3,) of triangle ``face``.
 
     As :func:`make_decal`, for a dot that is not at a vertex: its centre maps exactly onto that
@@ -110,20 +127,23 @@ def make_decal_at(vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray, 
     n = n / np.linalg.norm(n)
     home = np.zeros(len(faces), bool)
     home[int(face)] = True
-    return _lay(vertices, faces, p, n, home, radius, rings, sectors, f"face {int(face)}", force_home=True)
+    return _lay(vertices, faces, p, n, home, radius, rings, sectors, f"face {int(face)}", force_home=True,
+                outline=outline, halo=halo)
 
 
-def _lay(vertices, faces, p, n, home, radius, rings, sectors, where, force_home=False) -> Decal:
+def _lay(vertices, faces, p, n, home, radius, rings, sectors, where, force_home=False, outline=None,
+         halo=0.0) -> Decal:
     e1 = np.cross(n, [1.0, 0, 0] if abs(n[0]) < 0.9 else [0, 1.0, 0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
-    pts2, dfaces, rim = _disc(radius, rings, sectors)
+    pts2, dfaces, rim, hfaces = _disc(radius, rings, sectors, outline, halo)
+    reach = radius * (1 + halo) * (1.0 if outline is None else max(1.0, float(np.max(outline))))
     q = p + pts2[:, :1] * e1 + pts2[:, 1:] * e2
     # candidate triangles: near the centre and facing the same way (not the opposite lip)
     tri = vertices[faces]
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-300)
-    near = np.linalg.norm(tri - p, axis=2).min(axis=1) <= 2 * radius + 1.0
+    near = np.linalg.norm(tri - p, axis=2).min(axis=1) <= 2 * reach + 1.0
     facing = near & (fn @ n > 0.3)
     cand = np.flatnonzero(facing | (home if force_home else False))
     has_center = home[cand]
@@ -131,7 +151,7 @@ def _lay(vertices, faces, p, n, home, radius, rings, sectors, where, force_home=
         raise ValueError(f"no surface triangle around {where} faces its normal; cannot place a dot")
     lam, u, v = _line_hits(q, n, tri[cand])
     eps = 1e-9
-    inside = (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (np.abs(lam) <= radius)
+    inside = (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (np.abs(lam) <= reach)
     score = np.where(inside, np.abs(lam), np.inf)
     score[0] = np.where(has_center, score[0], np.inf)  # the centre lies on its own triangle
     best = np.argmin(score, axis=1)
@@ -144,7 +164,9 @@ def _lay(vertices, faces, p, n, home, radius, rings, sectors, where, force_home=
     face = cand[best]
     keep_faces = found[dfaces].all(axis=1)
     new_index = np.cumsum(found) - 1
-    return Decal(face[found], bary[found], new_index[dfaces[keep_faces]], new_index[rim[found[rim]]])
+    keep_halo = found[hfaces].all(axis=1)
+    return Decal(face[found], bary[found], new_index[dfaces[keep_faces]], new_index[rim[found[rim]]],
+                 new_index[hfaces[keep_halo]].reshape(-1, 3))
 
 
 def place_decal(decal: Decal, vertices: np.ndarray, faces: np.ndarray, normals: np.ndarray,

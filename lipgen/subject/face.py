@@ -12,11 +12,18 @@ The lip mesh alone looks odd in a picture, so :class:`FaceModel` adds cheap surr
 Sixteen ink dots sit on the lip markers and one on the nose (see :mod:`lipgen.subject.decal`). All of
 it is rigid with the head pose except the lips and the proxy's stretch. Colours: skin, the
 vermilion (regions ``lip`` and ``ridge``) and mucosa (``strip``).
+
+A :class:`FaceLook` can ask for more of a real recording: a head (``head``: cheeks, chin,
+nasolabial folds and a nose with nostrils, :mod:`lipgen.subject.head`), the inside of the mouth
+(``mouth``: teeth, tongue, a deep cavity, :mod:`lipgen.subject.mouth`) and ink that looks like
+ink (``dot_irregularity``, ``dot_smudge``: :mod:`lipgen.subject.ink`). All of it is drawn from the
+look's seed and listed by :meth:`FaceModel.record`; off by default, so the plain face draws as it
+always did.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -24,21 +31,18 @@ from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.rig.scene import Light, Material, MeshItem, Scene, vertex_normals
 from lipgen.subject.decal import make_decal, make_decal_at, place_decal
+from lipgen.subject.head import PROXY, build_proxy, ellipsoid, face_depth, head_shape, nose_mesh
 
-__all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops"]
+__all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops", "look_record"]
 
-LABELS = {0: "background", 1: "skin", 2: "vermilion", 3: "mouth"}
+LABELS = {0: "background", 1: "skin", 2: "vermilion", 3: "mouth", 4: "teeth", 5: "tongue"}
 """Label ids of label renders; ink dots are ``10 + k`` for marker k and ``10 + n_markers`` for the nose."""
 
 DOT_LABEL0 = 10
 """Label id of marker 0's ink dot in label renders (marker k is ``DOT_LABEL0 + k``)."""
-# face profile: depth of the face surface at the midline against height (mm, model frame)
-_PROFILE_Y = np.array([-95, -80, -68, -50, -30, 0, 20, 35, 55, 75, 100, 130.0])
-_PROFILE_Z = np.array([-60, -30, -14, -10, -9, -4, -5, -8, -24, -26, -20, -30.0])
-_CHEEK_RADIUS = 80.0  # mm, curvature of the face across x
 _OUTER = np.array([78.0, 110.0])  # semi-axes of the proxy's outer oval (x, y)
 _OUTER_Y0 = 15.0
-_RINGS, _FADE = 10, 0.5
+_HEAD_STREAM, _INK_STREAM = 8, 9
 
 
 @dataclass(frozen=True)
@@ -61,11 +65,22 @@ class FaceLook:
     """Strength of the procedural skin and lip textures (:mod:`lipgen.subject.skin`), 0 for none;
     with textures the skin tone is drawn per subject too."""
     texture_seed: int = 0
-    """Seed of the subject's textures and skin tone."""
+    """Seed of the subject's textures, skin tone, head shape and ink."""
+    head: bool = False
+    """A head round the lips: cheeks, chin, nasolabial folds, a nose with nostrils."""
+    mouth: bool = False
+    """Teeth, tongue and a deep oral cavity (else a shallow dark bowl)."""
+    dot_irregularity: float = 0.0
+    """0..1: how irregular the ink dots are (edges, sizes); 0 for perfect discs."""
+    dot_smudge: float = 0.0
+    """0..1: opacity of the smudge halo round each dot at the end of the clip."""
 
     def __post_init__(self) -> None:
         if not 0.2 <= self.dot_diameter <= 20:
             raise ValueError(f"dot_diameter must be in [0.2, 20] mm, got {self.dot_diameter}")
+        for name in ("dot_irregularity", "dot_smudge"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"FaceLook.{name} must be in [0, 1], got {getattr(self, name)!r}")
 
 
 def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
@@ -93,40 +108,6 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     return loops
 
 
-def _face_depth(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Depth of the proxy face surface at (x, y): midline profile, wrapped round the cheeks."""
-    z0 = np.interp(y, _PROFILE_Y, _PROFILE_Z)
-    return z0 - _CHEEK_RADIUS + np.sqrt(np.clip(_CHEEK_RADIUS**2 - x**2, 0.0, None))
-
-
-def _ellipsoid(center, axes, n_rings: int = 12, n_sectors: int = 24, cap: float = np.pi):
-    """Vertices, faces and normals of an ellipsoid whose pole ``center + a0`` is vertex 0.
-
-    ``axes`` (3, 3) rows are the semi-axis vectors: the first points to the pole.
-    """
-    a0, a1, a2 = axes
-    theta = cap * np.arange(1, n_rings + 1) / n_rings
-    phi = 2 * np.pi * np.arange(n_sectors) / n_sectors
-    ct, st = np.cos(theta)[:, None, None], np.sin(theta)[:, None, None]
-    ring = ct * a0 + st * (np.cos(phi)[None, :, None] * a1 + np.sin(phi)[None, :, None] * a2)
-    V = np.vstack([center + a0, center + ring.reshape(-1, 3)])
-    s = np.arange(n_sectors)
-    s1 = (s + 1) % n_sectors
-    F = [np.stack([np.zeros(n_sectors, np.int64), 1 + s1, 1 + s], 1)]
-    for k in range(n_rings - 1):
-        a, b = 1 + k * n_sectors + s, 1 + k * n_sectors + s1
-        F += [np.stack([a, b + n_sectors, a + n_sectors], 1), np.stack([a, b, b + n_sectors], 1)]
-    F = np.vstack(F)
-    M = np.linalg.inv(np.stack([a0, a1, a2], 1))
-    N = (V - center) @ M.T @ M  # gradient of the quadric: the outward normal
-    N /= np.linalg.norm(N, axis=1, keepdims=True)
-    tri = V[F]
-    fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    if np.sum(fn * N[F].sum(axis=1)) < 0:  # wind the faces counter-clockwise seen from outside
-        F = F[:, ::-1]
-    return V, F, N
-
-
 class FaceModel:
     """The rendered subject around a :class:`~lipgen.mesh.LipMesh`, built once at rest.
 
@@ -135,7 +116,7 @@ class FaceModel:
     mesh : LipMesh
         The lips (model frame, mm); any mesh with one outer boundary loop around the mouth.
     look : FaceLook
-        Colours, dot size, whether to draw the surroundings.
+        Colours, dot size, whether to draw the surroundings, head, mouth and ink.
     dots : lipgen.subject.inkdots.SurfaceDots, optional
         The ink dots as surface points of ``mesh`` (one per marker, in marker order); by default
         each dot sits on its marker's node.
@@ -165,6 +146,23 @@ class FaceModel:
         self.ink = tuple(Material(f"ink_{k}", look.ink, 0.8, label=DOT_LABEL0 + k)
                          for k in range(len(mesh.markers) + 1))
         self.cavity_material = Material("cavity", look.cavity, 0.9, double_sided=True, label=3)
+        self.head = head_shape([look.texture_seed, _HEAD_STREAM]) if look.head and look.surroundings else None
+        self.interior = None
+        if look.mouth and look.surroundings:
+            from lipgen.subject.mouth import MouthInterior
+
+            self.interior = MouthInterior(mesh)
+            self.interior_materials = {
+                "upper_teeth": (Material("teeth", (0.93, 0.9, 0.82), 0.35, label=4),),
+                "lower_teeth": (Material("teeth", (0.93, 0.9, 0.82), 0.35, label=4),),
+                "tongue": (Material("tongue", (0.72, 0.36, 0.38), 0.45, label=5),),
+                "cavity": (self.cavity_material, Material("throat", (0.05, 0.01, 0.015), 1.0, True, label=3))}
+        self.style = None
+        if look.dot_irregularity > 0 or look.dot_smudge > 0:
+            from lipgen.subject.ink import ink_style
+
+            self.style = ink_style([look.texture_seed, _INK_STREAM], len(mesh.markers) + 1,
+                                   look.dot_irregularity, look.dot_smudge)
         if look.surroundings:
             self._build_proxy(mesh)
         else:
@@ -172,6 +170,7 @@ class FaceModel:
             self.proxy_rest = np.zeros((0, 3))
             self.proxy_faces = np.zeros((0, 3), np.int64)
             self.fade = np.zeros(0)
+            self._col = np.zeros(0, np.int64)
         self.faces = np.vstack([mesh.faces, self.proxy_faces])
         self.face_material = np.concatenate([lip_mat, np.zeros(len(self.proxy_faces), np.int64)])
         self._build_nose(mesh.nose)
@@ -182,15 +181,23 @@ class FaceModel:
             from lipgen.subject.skin import uv_of
 
             self.uv, self.nose_uv = uv_of(V0), uv_of(self.nose_vertices)
-        radius = look.dot_diameter / 2
-        if dots is None:
-            self.marker_decals = [make_decal(V0, self.faces, N0, int(i), radius) for i in mesh.markers]
-        else:
-            self.marker_decals = [make_decal_at(V0, self.faces, N0, int(f), b, radius)
-                                  for f, b in zip(dots.face, dots.bary, strict=True)]
-        self.nose_decal = make_decal(self.nose_vertices, self.nose_faces, self.nose_normals, 0, radius)
+        self._lay_dots(V0, N0)
 
     # ---- construction ---------------------------------------------------------------------
+    def _lay_dots(self, V0: np.ndarray, N0: np.ndarray) -> None:
+        radius, st, mesh = self.look.dot_diameter / 2, self.style, self.mesh
+        kw = [{} if st is None else {"sectors": 24, "outline": st.outline(k), "halo": st.halo}
+              for k in range(len(mesh.markers) + 1)]
+        if self.dots is None:
+            self.marker_decals = [make_decal(V0, self.faces, N0, int(i), radius, **kw[k])
+                                  for k, i in enumerate(mesh.markers)]
+        else:
+            pts = zip(self.dots.face, self.dots.bary, strict=True)
+            self.marker_decals = [make_decal_at(V0, self.faces, N0, int(f), b, radius, **kw[k])
+                                  for k, (f, b) in enumerate(pts)]
+        self.nose_decal = make_decal(self.nose_vertices, self.nose_faces, self.nose_normals, 0, radius,
+                                     **kw[-1])
+
     def _build_proxy(self, mesh: LipMesh) -> None:
         loops = boundary_loops(mesh.faces)
         if not loops:
@@ -204,41 +211,35 @@ class FaceModel:
         loop = max(loops, key=lambda lp: abs(area(lp)))
         if area(loop) < 0:
             loop = loop[::-1]  # counter-clockwise seen from the front (+z)
-        b = V[loop]
-        # rays from the border's centre out to the oval (centre (0, _OUTER_Y0), semi-axes scale)
-        c = b[:, :2].mean(axis=0)
-        d = b[:, :2] - c
-        if (np.linalg.norm(d, axis=1) == 0).any():
-            raise ValueError("the lip mesh border passes through its own centre; cannot build a face proxy")
-        scale = np.maximum(_OUTER, 1.6 * np.abs(b[:, :2] - [0.0, _OUTER_Y0]).max(axis=0))
-        q = (c - [0.0, _OUTER_Y0]) / scale
-        dd = d / scale
-        qa, qb, qc = np.sum(dd * dd, axis=1), 2 * dd @ q, q @ q - 1.0
-        lam = (-qb + np.sqrt(qb * qb - 4 * qa * qc)) / (2 * qa)
-        outer = c + lam[:, None] * d
-        s = (np.arange(1, _RINGS + 1) / _RINGS) ** 1.6
-        xy = b[None, :, :2] + s[:, None, None] * (outer - b[:, :2])[None]
-        resid = b[:, 2] - _face_depth(b[:, 0], b[:, 1])
-        z = _face_depth(xy[..., 0], xy[..., 1]) + resid[None] * ((1 - s) ** 3)[:, None]
-        self.loop = loop
-        self.proxy_rest = np.concatenate([xy, z[..., None]], axis=-1).reshape(-1, 3)
-        self.fade = np.clip(1 - s / _FADE, 0, None) ** 2
-        k, n = len(loop), mesh.n_nodes
-        ids = np.vstack([loop[None], n + np.arange(_RINGS * k).reshape(_RINGS, k)])
-        i = np.arange(k)
-        i1 = (i + 1) % k
+        rings, subdiv = PROXY["plain" if self.head is None else "head"]
+        head = self.head
+        p = build_proxy(V[loop], _OUTER, _OUTER_Y0, rings, subdiv, lambda x, y: face_depth(x, y, head))
+        self.loop, self.proxy_rest, self.fade, self._col = loop, p["rest"], p["fade"], p["col"]
+        self._weights = None if subdiv == 1 else p["weights"]
+        n = mesh.n_nodes
+        ids = np.where(p["ids"] < 0, loop[-1 - np.minimum(p["ids"], -1)], n + p["ids"])
+        K = ids.shape[1]
+        i = np.arange(K)
+        i1 = (i + 1) % K
         a, b_, c_, d_ = ids[:-1][:, i], ids[:-1][:, i1], ids[1:][:, i], ids[1:][:, i1]
         self.proxy_faces = np.concatenate([np.stack([a, d_, b_], -1).reshape(-1, 3),
                                            np.stack([a, c_, d_], -1).reshape(-1, 3)])
 
     def _build_nose(self, nose: np.ndarray) -> None:
-        d = np.array([0.0, -0.25, 1.0])
-        d /= np.linalg.norm(d)
-        dorsum = np.array([0.0, 0.94, -0.34])  # the bridge runs up and back into the face
-        axes = np.stack([13.0 * d, 22.0 * dorsum, 11.0 * np.array([1.0, 0, 0])])
-        self.nose_vertices, self.nose_faces, self.nose_normals = _ellipsoid(nose - 13.0 * d, axes)
+        self.nose_material = np.zeros(0, np.int64)
+        if self.head is None:
+            d = np.array([0.0, -0.25, 1.0])
+            d /= np.linalg.norm(d)
+            dorsum = np.array([0.0, 0.94, -0.34])  # the bridge runs up and back into the face
+            axes = np.stack([13.0 * d, 22.0 * dorsum, 11.0 * np.array([1.0, 0, 0])])
+            self.nose_vertices, self.nose_faces, self.nose_normals = ellipsoid(nose - 13.0 * d, axes)
+        else:
+            self.nose_vertices, self.nose_faces, nostril = nose_mesh(nose, self.head)
+            self.nose_normals = vertex_normals(self.nose_vertices, self.nose_faces)
+            self.nose_material = nostril.astype(np.int64)
+            self.nostril_material = Material("nostril", (0.12, 0.05, 0.05), 0.9, label=3)
         cav = np.stack([[0, 0, -20.0], [0, 24.0, 0], [26.0, 0, 0]])
-        cv, cf, cn = _ellipsoid(np.array([0.0, -8.0, -18.0]), cav, 8, 24, np.pi / 2)
+        cv, cf, cn = ellipsoid(np.array([0.0, -8.0, -18.0]), cav, 8, 24, np.pi / 2)
         self.cavity_vertices, self.cavity_faces, self.cavity_normals = cv, cf[:, ::-1], -cn
 
     # ---- per frame ------------------------------------------------------------------------
@@ -246,9 +247,10 @@ class FaceModel:
         if not len(self.proxy_rest):
             return lips
         moved = lips[self.loop] - self.mesh.vertices[self.loop]
-        k = len(self.loop)
-        proxy = self.proxy_rest.reshape(_RINGS, k, 3) + self.fade[:, None, None] * moved[None]
-        return np.vstack([lips, proxy.reshape(-1, 3)])
+        if self._weights is not None:
+            moved = self._weights @ moved
+        proxy = self.proxy_rest + self.fade[:, None] * moved[self._col]
+        return np.vstack([lips, proxy])
 
     def surfaces(self, vertices, pose=None) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """World geometry of every surface: name -> (vertices, faces, normals).
@@ -266,7 +268,12 @@ class FaceModel:
         out = {"face": (Vf, self.faces, vertex_normals(Vf, self.faces))}
         if self.look.surroundings:
             out["nose"] = (self.nose_vertices @ R.T + t, self.nose_faces, self.nose_normals @ R.T)
-            out["cavity"] = (self.cavity_vertices @ R.T + t, self.cavity_faces, self.cavity_normals @ R.T)
+            if self.interior is None:
+                out["cavity"] = (self.cavity_vertices @ R.T + t, self.cavity_faces, self.cavity_normals @ R.T)
+            else:
+                for name, (Vi, Fi, _) in self.interior.surfaces(V).items():
+                    Vw = Vi @ R.T + t
+                    out[name] = (Vw, Fi, vertex_normals(Vw, Fi))
         return out
 
     def marks(self, vertices, pose=None) -> tuple[np.ndarray, np.ndarray]:
@@ -294,19 +301,31 @@ class FaceModel:
             rims.append(place_decal(self.nose_decal, Vn, Fn, Nn, 0.0)[self.nose_decal.rim])
         return rims
 
-    def scene(self, vertices, pose=None, lights: tuple[Light, ...] | None = None) -> Scene:
-        """The renderer-independent :class:`~lipgen.rig.scene.Scene` of one frame."""
+    def scene(self, vertices, pose=None, lights: tuple[Light, ...] | None = None, age: float = 0.0) -> Scene:
+        """The renderer-independent :class:`~lipgen.rig.scene.Scene` of one frame.
+
+        ``age`` (0..1) is how far through the clip the frame is (the ink's smudging).
+        """
         surf = self.surfaces(vertices, pose)
         Vf, F, N = surf["face"]
         items = [MeshItem("face", Vf, F, self.materials, self.face_material, N, self.uv)]
         dots = [(d, Vf, F, N) for d in self.marker_decals]
         if self.look.surroundings:
             Vn, Fn, Nn = surf["nose"]
-            items.append(MeshItem("nose", Vn, Fn, self.materials[:1], None, Nn, self.nose_uv))
+            if self.head is None:
+                items.append(MeshItem("nose", Vn, Fn, self.materials[:1], None, Nn, self.nose_uv))
+            else:
+                items.append(MeshItem("nose", Vn, Fn, (self.materials[0], self.nostril_material),
+                                      self.nose_material, Nn, self.nose_uv))
             dots.append((self.nose_decal, Vn, Fn, Nn))
-            Vc, Fc, Nc = surf["cavity"]
-            items.append(MeshItem("cavity", Vc, Fc, (self.cavity_material,), None, Nc))
-        items.append(_dots_item(dots, self.ink, self.look.dot_lift))
+            if self.interior is None:
+                Vc, Fc, Nc = surf["cavity"]
+                items.append(MeshItem("cavity", Vc, Fc, (self.cavity_material,), None, Nc))
+            else:
+                for name, (_, _, fp) in self.interior.parts.items():
+                    Vi, Fi, Ni = surf[name]
+                    items.append(MeshItem(name, Vi, Fi, self.interior_materials[name], fp, Ni))
+        items += _dots_items(dots, self.ink, self.look.dot_lift, self.style, age)
         labels = dict(LABELS)
         labels.update({DOT_LABEL0 + k: f"dot:{name}" for k, name in enumerate(self.mesh.marker_names)})
         labels[DOT_LABEL0 + len(self.mesh.markers)] = "dot:nose"
@@ -317,8 +336,42 @@ class FaceModel:
         """(T, 3, 3) world triangles that can hide a dot (all surfaces)."""
         return np.vstack([V[F] for V, F, _ in surfaces.values()])
 
+    def record(self) -> dict:
+        """What was drawn beyond the plain face, as a JSON-ready dict (see :func:`look_record`)."""
+        return look_record(self.look, len(self.mesh.markers) + 1)
 
-def _dots_item(dots: list, ink: tuple[Material, ...], lift: float) -> MeshItem:
+
+def look_record(look: FaceLook, n_dots: int) -> dict:
+    """What a :class:`FaceModel` with ``look`` and ``n_dots`` dots draws beyond the plain face: the
+    head shape, the mouth's parts and the ink style (each ``None`` when off), as a JSON-ready dict
+    (for the manifest); computed from the look alone, without building the face."""
+    on = look.surroundings
+    style = None
+    if look.dot_irregularity > 0 or look.dot_smudge > 0:
+        from lipgen.subject.ink import ink_style
+
+        style = ink_style([look.texture_seed, _INK_STREAM], n_dots, look.dot_irregularity, look.dot_smudge)
+    return {"head": head_shape([look.texture_seed, _HEAD_STREAM]).to_dict() if look.head and on else None,
+            "mouth": ["cavity", "lower_teeth", "tongue", "upper_teeth"] if look.mouth and on else None,
+            "ink": None if style is None else style.to_dict(), "seed": look.texture_seed,
+            "units": "mm; ink scale and edge amplitudes relative to the dot's radius"}
+
+
+def _dots_items(dots: list, ink: tuple[Material, ...], lift: float, style, age: float) -> list[MeshItem]:
+    """The ink dots as one mesh (one draw call), dot k with material ``ink[k]``; with a smudging
+    ``style``, their halos as a second, translucent one."""
+    if style is not None:
+        ink = tuple(replace(m, color=style.ink_color(m.color, age)) for m in ink)
+    items = [_dots_item(dots, ink, lift)]
+    opacity = 0.0 if style is None else style.halo_opacity(age)
+    if opacity > 0:
+        halo = [(replace(d, faces=d.halo), V, F, N) for d, V, F, N in dots]
+        mats = tuple(replace(m, name=f"smudge_{k}", opacity=opacity) for k, m in enumerate(ink))
+        items.append(_dots_item(halo, mats, lift * 0.8, name="smudge"))
+    return items
+
+
+def _dots_item(dots: list, ink: tuple[Material, ...], lift: float, name: str = "dots") -> MeshItem:
     """All ink dots as one mesh (one draw call), dot k with material ``ink[k]``."""
     P, Fs, Ns, mats, offset = [], [], [], [], 0
     for k, (decal, V, F, N) in enumerate(dots):
@@ -328,7 +381,7 @@ def _dots_item(dots: list, ink: tuple[Material, ...], lift: float) -> MeshItem:
         Fs.append(decal.faces + offset)
         mats.append(np.full(len(decal.faces), k))
         offset += len(P[-1])
-    return MeshItem("dots", np.vstack(P), np.vstack(Fs), ink[:len(dots)], np.concatenate(mats), np.vstack(Ns))
+    return MeshItem(name, np.vstack(P), np.vstack(Fs), ink[:len(dots)], np.concatenate(mats), np.vstack(Ns))
 
 
 def _pose(pose) -> tuple[np.ndarray, np.ndarray]:
@@ -342,7 +395,8 @@ def _pose(pose) -> tuple[np.ndarray, np.ndarray]:
 
 
 def default_lights() -> tuple[Light, ...]:
-    """A key light from above the camera side, a dimmer fill from the mirror side, and a top light."""
+    """A key light from above the camera side (the one that casts shadows), a dimmer fill from the
+    mirror side, and a top light."""
     return (Light("directional", (1.0, 0.97, 0.92), 3.2, direction=(-0.3, -0.45, -1.0)),
-            Light("directional", (0.9, 0.95, 1.0), 1.4, direction=(0.7, -0.1, -0.8)),
-            Light("directional", (1.0, 1.0, 1.0), 0.8, direction=(0.0, -1.0, -0.2)))
+            Light("directional", (0.9, 0.95, 1.0), 1.4, direction=(0.7, -0.1, -0.8), shadows=False),
+            Light("directional", (1.0, 1.0, 1.0), 0.8, direction=(0.0, -1.0, -0.2), shadows=False))
