@@ -11,6 +11,7 @@ import pytest
 pytest.importorskip("pocketsphinx", reason="pip install 'lipgen[speech]' (pocketsphinx)")
 
 from lipgen.cli import main  # noqa: E402
+from lipgen.subject.activation import ACTIONS  # noqa: E402
 from lipgen.speech import espeak  # noqa: E402
 from lipgen.speech.audio import NoSpeechError, as_audio, write_wav  # noqa: E402
 from lipgen.speech.decode import align, phones_from_audio, recognize  # noqa: E402
@@ -149,7 +150,7 @@ def test_lipsync_text_only_npz_and_csv(tmp_path):
         coef, A, fps = z["coefficients"], z["activations"], float(z["fps"])
         phones, start = list(z["phones"]), z["phone_start"]
         assert str(z["phone_source"]) == "text"
-    assert fps == 24 and coef.shape == (len(A), 10) and A.shape[1] == 16
+    assert fps == 24 and coef.shape == (len(A), 10) and A.shape[1] == len(ACTIONS)
     assert phones[:4] == ["SIL", "G", "L", "UW"] and np.all(np.diff(start) > 0)
     assert np.ptp(coef, axis=0).max() > 1.0  # the lips move
     csv = tmp_path / "glue.csv"
