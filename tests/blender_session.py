@@ -29,6 +29,9 @@ def _init_worker(env: dict[str, str]) -> None:
     os.environ.update(env)
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
+    # a spawned child inherits the parent's sys.path: where the parent imported bpy in-process (the
+    # Cycles renderer does), that holds bpy's scripts/modules folder, whose bpy/ shadows the package
+    sys.path[:] = [p for p in sys.path if not Path(p, "bpy", "ops.py").is_file()]
     import bpy  # noqa: F401  (import once, up front, so the first check is not slowed by it)
 
 

@@ -11,11 +11,11 @@ import pytest
 pytest.importorskip("pocketsphinx", reason="pip install 'lipgen[speech]' (pocketsphinx)")
 
 from lipgen.cli import main  # noqa: E402
-from lipgen.subject.activation import ACTIONS  # noqa: E402
 from lipgen.speech import espeak  # noqa: E402
 from lipgen.speech.audio import NoSpeechError, as_audio, write_wav  # noqa: E402
 from lipgen.speech.decode import align, phones_from_audio, recognize  # noqa: E402
 from lipgen.speech.score import boundary_errors, viseme_agreement  # noqa: E402
+from lipgen.subject.activation import ACTIONS  # noqa: E402
 
 needs_espeak = pytest.mark.skipif(not espeak.available(), reason="espeak-ng is not installed "
                                   "(apt-get install espeak-ng, or `make espeak`)")
