@@ -7,8 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from lipgen._threads import single_threaded
 from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_from_triple
-from lipgen.nrsfm._threads import single_blas_thread
 from lipgen.nrsfm._tracks import check_k, check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
@@ -169,7 +169,8 @@ def _tidy(R, C, B, t):
     return R, C, B - centre[:, :, None], t
 
 
-@single_blas_thread
+# one thread always: the result, not only the speed, depends on it (see lipgen._threads.blas_threads)
+@single_threaded(always=True)
 def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: int = 0,
                 n_starts: int = 4, shape_starts: int = 8, refine_iter: int = 100,
                 em_iter: int = 500) -> Reconstruction:
