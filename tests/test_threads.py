@@ -53,21 +53,22 @@ def test_always_limits_even_with_the_policy_off(monkeypatch):
 
 def test_nrsfm_runs_on_one_thread_with_the_policy_off(monkeypatch):
     """reconstruct's determinism needs one thread: the policy switch does not lift it."""
-    import lipgen.nrsfm.core as core
+    import lipgen.nrsfm.engine as engine
+    from lipgen.nrsfm import reconstruct
 
     monkeypatch.setenv(_threads.POLICY_ENV, "off")
     inside = []
-    real = core.check_tracks
+    real = engine.check_tracks
 
     def spy(*args, **kwargs):
         inside.append(_blas_threads())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(core, "check_tracks", spy)
+    monkeypatch.setattr(engine, "check_tracks", spy)
     from lipgen.nrsfm.synthetic import articulated_sequence
 
     W, _, _ = articulated_sequence(20, np.random.default_rng(1), n_bones=4, markers_per_bone=3)
-    core.reconstruct(W, 2)
+    reconstruct(W, 2)
     assert inside and set(inside[0]) == {1}
 
 
