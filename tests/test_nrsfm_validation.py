@@ -79,7 +79,8 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     from lipgen.experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
 
     settings = NrsfmBenchSettings(methods=("dai",), sequences=(), validation_seeds=(104,),
-                                  validation_ks=(2,), validation_frames=40)
+                                  validation_ks=(2,), validation_frames=40, check_seeds=(300,),
+                                  check_frames=(30,))
     result = run_nrsfm_benchmarks(tmp_path, settings)
     (entry,) = result["validation"]
     assert [r["auto"] for r in entry["runs"]] == [False, True]
@@ -87,3 +88,5 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     text = (tmp_path / "benchmarks.md").read_text()
     assert "human-walk-104" in text and f"{entry['flat_e3d']:.3f}" in text
     assert "worse than the flat baseline" in text
+    (check,) = result["check"]
+    assert check["name"] in text and np.isfinite(check["e3d"]) and check["k"] >= 1

@@ -74,6 +74,10 @@ def _tidy(R, C, B, t):
     return R, C, B - centre[:, :, None], t
 
 
+_EXACT_COMPLETION = 1e-6
+"""Relative misfit of the rank-3K completion below which incomplete tracks may be exactly K shapes
+(ALS creeps towards an exact fit, so the numerical rank of the completed tracks may not show it)."""
+
 _TINY = float(np.finfo(np.float64).tiny) * 2.0**20
 """Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""
 
@@ -112,7 +116,7 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         R, C, B, t, info = em_ppca(tracks, k, max_iter=em_iter, n_starts=n_starts, seed=seed)
         return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                               reprojection_rms=_reprojection_rms(tracks, R, C, B, t), info=info)
-    full = complete_tracks(tracks, 3 * k)
+    full, misfit = complete_tracks(tracks, 3 * k, return_residual=True)
     t = full.mean(axis=1)
     Wc = full - t[:, None]
     rank, sv = numerical_rank(Wc)
@@ -124,7 +128,7 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         log.info("tracks have numerical rank %d < 3K = %d (degenerate basis shapes); the factor keeps "
                  "rank %d", rank, 3 * k, r)
     t = t.reshape(F, 2)
-    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist()}
+    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist(), "completion_misfit": misfit}
     if method == "bregler":
         R, C, B = bregler_factorization(Wc, k)
     else:
@@ -142,7 +146,9 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         C, B = rank_k_shapes(shapes, k)
         fit = {"shape_exact": False}
         fitted = (R, C, B, t)
-        if method == "dai-ba" or rank <= 3 * k or not tracks.complete:
+        # with points missing, an exact K-shape fit needs the rank-3K completion to fit the observed
+        # points (nearly) exactly; else (real tracks) the fit could only be discarded: skipped
+        if method == "dai-ba" or rank <= 3 * k or (not tracks.complete and misfit <= _EXACT_COMPLETION):
             C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
                                           seed=seed)
             info.update(fit)
