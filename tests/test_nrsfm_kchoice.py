@@ -40,8 +40,10 @@ def test_smooth_k_prefers_exact_fits_then_the_smoothest_then_the_smallest():
     k, record = smooth_k([_rec(4, jitter), _rec(5, slightly), _rec(6, smooth)])
     assert k == 5 and record["chosen"] == 5 and len(record["rotation_roughness"]) == 3
     assert smooth_k([_rec(4, jitter), _rec(5, slightly), _rec(6, smooth)], tol=0.0)[0] == 6
-    # an exact K-shape fit wins, the smallest one
-    assert smooth_k([_rec(1, smooth), _rec(2, jitter, True), _rec(3, smooth, True)])[0] == 2
+    # among the smoothest, an exact K-shape fit wins, the smallest one; an exact fit that jitters does not
+    assert smooth_k([_rec(1, smooth), _rec(2, smooth, True), _rec(3, smooth, True)])[0] == 2
+    assert smooth_k([_rec(1, smooth), _rec(2, jitter, True), _rec(3, smooth, True)])[0] == 3
+    assert smooth_k([_rec(1, smooth), _rec(2, jitter, True)])[0] == 1
     with pytest.raises(ValueError, match="at least one"):
         smooth_k([])
 

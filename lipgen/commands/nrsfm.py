@@ -33,9 +33,10 @@ Methods:
            size of dai --k 3), and --k 0 is rigid; weights are F x (K+1), basis (K+1) x 3 x P.
   bregler  Bregler, Hertzmann & Biermann 1999 as written (3x3 metric upgrade).
 
---k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: the smallest K that
-explains noise-free tracks exactly with K shapes, else the K whose rotations are smoothest in
-time (within 5%, the smallest such K); the rotation roughness per K is printed and plotted.
+--k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
+rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
+noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
+plotted.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
 the centred tracks (else where the curve flattens); the curve is plotted (Bregler et al. Fig 2).
 """

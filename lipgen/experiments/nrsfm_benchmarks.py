@@ -175,7 +175,7 @@ def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
              "Times are wall-clock seconds on a shared 2-core machine "
              f"(load average {result['load_before'][0]:.1f} before, {result['load_after'][0]:.1f} after); "
              "compare them as ratios. *auto* marks the K the method chooses itself: for `dai` and `dai-ba` "
-             "the smallest K fitted exactly by K shapes, else the K with the smoothest rotations "
+             "the K with the smoothest rotations (among them the smallest fitted exactly by K shapes) "
              "(`lipgen.nrsfm.kchoice`); for `bregler` the reprojection-curve rule. `em-ppca` counts K as "
              "deformation modes beyond the mean shape, so it has "
              "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
