@@ -57,26 +57,41 @@ def _controller():
 
 
 @contextmanager
-def blas_threads(n: int | None = 1):
+def blas_threads(n: int | None = 1, *, always: bool = False):
     """Limit BLAS and OpenMP to ``n`` threads inside the ``with`` block (``None``: no change).
 
     Cheap enough (~0.1 ms) to wrap a per-frame call; nests (the inner limit wins until it ends).
+
+    Parameters
+    ----------
+    n : int or None
+        Thread count (>= 1), or ``None`` for no change.
+    always : bool
+        Limit even when ``LIPGEN_THREAD_POLICY=off``: for work whose *result*, not only its speed,
+        depends on the thread count (NRSfM: a BLAS reduction split across threads adds in another
+        order, and its nonlinear steps amplify the last-bit differences).
     """
     if n is not None and (isinstance(n, bool) or int(n) != n or n < 1):
         raise ValueError(f"thread count must be a whole number >= 1 or None, got {n!r}")
-    if n is None or os.environ.get(POLICY_ENV) == "off":
+    if n is None or (os.environ.get(POLICY_ENV) == "off" and not always):
         yield
         return
     with _controller().limit(limits=int(n)):
         yield
 
 
-def single_threaded(fn: Callable) -> Callable:
-    """Decorator: run ``fn`` with one BLAS/OpenMP thread (for functions of many tiny calls)."""
+def single_threaded(fn: Callable | None = None, *, always: bool = False) -> Callable:
+    """Decorator: run ``fn`` with one BLAS/OpenMP thread (for functions of many tiny calls).
+
+    Use it bare (``@single_threaded``) or with ``always=True`` (``@single_threaded(always=True)``:
+    one thread even when ``LIPGEN_THREAD_POLICY=off``, see :func:`blas_threads`).
+    """
+    if fn is None:
+        return functools.partial(single_threaded, always=always)
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        with blas_threads(1):
+        with blas_threads(1, always=always):
             return fn(*args, **kwargs)
 
     return wrapper

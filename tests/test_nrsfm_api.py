@@ -31,7 +31,7 @@ def test_few_frames_with_missing_points():
 def test_k_auto_in_the_api():
     W, S, _ = low_rank_sequence(40, 12, 2, np.random.default_rng(1))
     rec = reconstruct(W, "auto")
-    assert rec.k == 2 and rec.info["k_curve"]["chosen"] == 2
+    assert rec.k == 2 and rec.info["k_choice"]["chosen"] == 2  # the smallest K fitted exactly
     assert e3d(S_est=rec.S, S_true=S) < 1e-6
     assert reconstruct(W, "AUTO", method="em-ppca", em_iter=50).k == 1  # em-ppca: modes beyond the mean
     with pytest.raises(ValueError, match="integer .* or 'auto', got 'two'"):

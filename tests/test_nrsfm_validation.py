@@ -4,7 +4,7 @@ refinement that inflates depth."""
 import numpy as np
 import pytest
 
-import lipgen.nrsfm.core as core
+import lipgen.nrsfm.engine as engine
 from lipgen.experiments.nrsfm_benchmarks import flat_e3d
 from lipgen.nrsfm import e3d, reconstruct
 from lipgen.nrsfm.plausibility import depth_ratio, plausible, roughness, shape_figures
@@ -59,7 +59,7 @@ def test_plausibility_figures():
 def test_dai_ba_returns_its_start_when_the_refinement_shakes_depth(monkeypatch):
     s = human_sequence(102, 40)
     start = reconstruct(s.W, 2, method="dai")
-    real = core.bundle_adjust
+    real = engine.bundle_adjust
 
     def shaking(W, R, C, B, t, mask, max_iter):
         # the same images with every other frame's depth mirrored: (R, C) -> (diag(-1, -1, 1) R, -C)
@@ -69,7 +69,7 @@ def test_dai_ba_returns_its_start_when_the_refinement_shakes_depth(monkeypatch):
         C[::2] = -C[::2]
         return R, C, B, t, history
 
-    monkeypatch.setattr(core, "bundle_adjust", shaking)
+    monkeypatch.setattr(engine, "bundle_adjust", shaking)
     rec = reconstruct(s.W, 2, method="dai-ba")
     assert rec.info["ba_kept"] is False
     assert np.array_equal(rec.S, start.S)
@@ -79,7 +79,8 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     from lipgen.experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
 
     settings = NrsfmBenchSettings(methods=("dai",), sequences=(), validation_seeds=(104,),
-                                  validation_ks=(2,), validation_frames=40)
+                                  validation_ks=(2,), validation_frames=40, check_seeds=(300,),
+                                  check_frames=(30,))
     result = run_nrsfm_benchmarks(tmp_path, settings)
     (entry,) = result["validation"]
     assert [r["auto"] for r in entry["runs"]] == [False, True]
@@ -87,3 +88,5 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     text = (tmp_path / "benchmarks.md").read_text()
     assert "human-walk-104" in text and f"{entry['flat_e3d']:.3f}" in text
     assert "worse than the flat baseline" in text
+    (check,) = result["check"]
+    assert check["name"] in text and np.isfinite(check["e3d"]) and check["k"] >= 1

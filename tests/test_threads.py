@@ -36,6 +36,42 @@ def test_policy_off_changes_nothing(monkeypatch):
         assert _blas_threads() == before
 
 
+def test_always_limits_even_with_the_policy_off(monkeypatch):
+    """always=True (work whose result depends on the thread count) ignores LIPGEN_THREAD_POLICY=off."""
+    monkeypatch.setenv(_threads.POLICY_ENV, "off")
+    before = _blas_threads()
+    with blas_threads(1, always=True):
+        assert _blas_threads() == [1] * len(before)
+    assert _blas_threads() == before
+
+    @single_threaded(always=True)
+    def seen():
+        return _blas_threads()
+
+    assert set(seen()) == {1}
+
+
+def test_nrsfm_runs_on_one_thread_with_the_policy_off(monkeypatch):
+    """reconstruct's determinism needs one thread: the policy switch does not lift it."""
+    import lipgen.nrsfm.engine as engine
+    from lipgen.nrsfm import reconstruct
+
+    monkeypatch.setenv(_threads.POLICY_ENV, "off")
+    inside = []
+    real = engine.check_tracks
+
+    def spy(*args, **kwargs):
+        inside.append(_blas_threads())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(engine, "check_tracks", spy)
+    from lipgen.nrsfm.synthetic import articulated_sequence
+
+    W, _, _ = articulated_sequence(20, np.random.default_rng(1), n_bones=4, markers_per_bone=3)
+    reconstruct(W, 2)
+    assert inside and set(inside[0]) == {1}
+
+
 @pytest.mark.parametrize("n", [0, -1, 1.5, True, "2"])
 def test_bad_thread_counts(n):
     with pytest.raises((ValueError, TypeError), match="thread count|invalid literal"):

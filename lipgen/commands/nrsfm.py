@@ -33,9 +33,12 @@ Methods:
            size of dai --k 3), and --k 0 is rigid; weights are F x (K+1), basis (K+1) x 3 x P.
   bregler  Bregler, Hertzmann & Biermann 1999 as written (3x3 metric upgrade).
 
---k auto reconstructs for K = 1, 2, ... and picks the smallest K whose RMS reprojection error
-is at most --rtol of the RMS of the centred tracks (else where the curve flattens); the curve is
-plotted (Bregler et al. Fig 2).
+--k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
+rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
+noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
+plotted.
+bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
+the centred tracks (else where the curve flattens); the curve is plotted (Bregler et al. Fig 2).
 """
 
 
@@ -51,12 +54,13 @@ def add_parser(sub) -> None:
     p.add_argument("tracks", metavar="TRACKS.npz", help="tracks file (W, optional visible, optional S)")
     p.add_argument("--k", required=True, metavar="K",
                    help="number of basis shapes (em-ppca: deformation modes beyond the mean), or 'auto' "
-                   "to choose it from the reprojection curve")
+                   "(see below)")
     p.add_argument("--method", default=DEFAULT_METHOD, choices=METHOD_NAMES,
                    help=f"reconstruction method (default {DEFAULT_METHOD})")
     p.add_argument("--out", required=True, metavar="SHAPES.npz", help="output file")
     p.add_argument("--plot", metavar="CURVE.png",
-                   help="write the reprojection curve here (default with --k auto: OUT stem + _curve.png)")
+                   help="write the reprojection curve here (default with --k auto: OUT stem + _curve.png; "
+                   "for dai and dai-ba with --k auto: the rotation roughness per K)")
     p.add_argument("--kmax", type=int, default=None, help="largest K of the curve (default: what the "
                    "data allow, at most 15)")
     p.add_argument("--rtol", type=float, default=0.01,
@@ -111,6 +115,8 @@ def _run(args) -> int:
         reprojection_curve,
         save_shapes,
     )
+    from lipgen.nrsfm.kchoice import SMOOTH_METHODS, reconstruct_auto
+    from lipgen.nrsfm.metrics import plot_k_choice
 
     out = check_file_output(args.out, args.force)
     k = _parse_k(args.k)
@@ -126,7 +132,19 @@ def _run(args) -> int:
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
     if plot:
         check_file_output(plot, args.force, "--plot")
-    if k == "auto" or plot:
+    rec = None
+    if k == "auto" and args.method in SMOOTH_METHODS:
+        t0 = time.perf_counter()
+        rec = reconstruct_auto(W, args.method, visible, kmax=args.kmax or 15, seed=args.seed)
+        seconds = time.perf_counter() - t0
+        choice = rec.info["k_choice"]
+        write("K   rotation roughness   exact K-shape fit\n")
+        for kk, rough, exact in zip(choice["ks"], choice["rotation_roughness"], choice["exact"], strict=True):
+            write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}\n")
+        write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
+        plot_k_choice(choice, plot)
+        write(f"wrote {plot}\n")
+    elif k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
         ks = range(first, args.kmax + 1) if args.kmax is not None else None
         with blas_threads(1):
@@ -141,10 +159,11 @@ def _run(args) -> int:
             write(f"chosen K = {k}\n")
         plot_curve(curve, plot)
         write(f"wrote {plot}\n")
-    t0 = time.perf_counter()
-    with blas_threads(1):  # tracks are small: threads only wait on each other (lipgen._threads)
-        rec = reconstruct(W, k, method=args.method, visible=visible, seed=args.seed)
-    seconds = time.perf_counter() - t0
+    if rec is None:
+        t0 = time.perf_counter()
+        with blas_threads(1):  # tracks are small: threads only wait on each other (lipgen._threads)
+            rec = reconstruct(W, k, method=args.method, visible=visible, seed=args.seed)
+        seconds = time.perf_counter() - t0
     save_shapes(out, rec)
     write(f"method {rec.method}, K = {rec.k}: RMS reprojection {rec.reprojection_rms:.4g} "
           f"({seconds:.2f} s)\n")

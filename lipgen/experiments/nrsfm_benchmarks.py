@@ -64,6 +64,8 @@ class NrsfmBenchSettings:
     validation_seeds: tuple[int, ...] = tuple(range(100, 108))
     validation_ks: tuple[int, ...] = (4, 8)
     validation_frames: int = 300
+    check_seeds: tuple[int, ...] = tuple(range(300, 308))
+    check_frames: tuple[int, ...] = (300, 80)
     kmax: int = 13
     rtol: float = 0.01
     long_em_iter: int = 2000
@@ -107,6 +109,7 @@ def _run_one(W, S, k, method, **options) -> dict:
 def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings()) -> dict:
     """Run everything, write the report into folder ``out``, return the figures."""
     from lipgen.nrsfm import MEAN_PLUS_MODES, plot_curve, reprojection_curve
+    from lipgen.nrsfm.kchoice import SMOOTH_METHODS
     from lipgen.nrsfm.validation import human_sequence
 
     out = Path(out)
@@ -124,7 +127,9 @@ def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings(
         ks = sorted(set(SEQUENCE_KS.get(name, ())) | {curve.chosen})
         runs = [_run_one(W, S, k, m) for k in ks for m in settings.methods if m not in MEAN_PLUS_MODES]
         for r in runs:
-            r["auto"] = r["k"] == curve.chosen
+            r["auto"] = r["k"] == curve.chosen and r["method"] not in SMOOTH_METHODS
+        # dai and dai-ba choose their own K by the smoothest rotations (lipgen.nrsfm.kchoice)
+        runs += [dict(_run_one(W, S, "auto", m), auto=True) for m in settings.methods if m in SMOOTH_METHODS]
         for m in (m for m in settings.methods if m in MEAN_PLUS_MODES):
             runs += [dict(_run_one(W, S, k, m), auto=False) for k in MODE_KS.get(name, ())]
             # EM converges slowly: the same Ks with 4x the default iteration cap
@@ -148,6 +153,15 @@ def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings(
                 entry["runs"].append(r)
                 log.info("%s %s K=%s e3D %.4f (flat %.4f)", seq.name, m, r["k"], r["e3d"], entry["flat_e3d"])
         result["validation"].append(entry)
+    # fresh seeds, never looked at while choosing the rule: dai's automatic K against the flat baseline
+    result["check"] = []
+    for seed in settings.check_seeds:
+        for frames in settings.check_frames:
+            seq = human_sequence(seed, frames)
+            r = _run_one(seq.W, seq.S, "auto", "dai")
+            result["check"].append({"name": f"{seq.name} ({frames} frames)",
+                                    "flat_e3d": flat_e3d(seq.W, seq.S), "k": r["k"], "e3d": r["e3d"],
+                                    "cpu_seconds": r["cpu_seconds"]})
     result["load_after"] = os.getloadavg()
     atomic_write_json(out / "benchmarks.json", result)
     atomic_write_bytes(out / "benchmarks.md", _markdown(result, settings).encode())
@@ -160,8 +174,10 @@ def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
              "orthogonal 3x3 with reflection over all frames, mean per-frame mean point distance). "
              "Times are wall-clock seconds on a shared 2-core machine "
              f"(load average {result['load_before'][0]:.1f} before, {result['load_after'][0]:.1f} after); "
-             "compare them as ratios. *auto* marks the K chosen by the reprojection-curve rule, with "
-             "method `dai`. `em-ppca` counts K as deformation modes beyond the mean shape, so it has "
+             "compare them as ratios. *auto* marks the K the method chooses itself: for `dai` and `dai-ba` "
+             "the K with the smoothest rotations (among them the smallest fitted exactly by K shapes) "
+             "(`lipgen.nrsfm.kchoice`); for `bregler` the reprojection-curve rule. `em-ppca` counts K as "
+             "deformation modes beyond the mean shape, so it has "
              "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
              ""]
     for name, seq in result["sequences"].items():
@@ -191,7 +207,8 @@ def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
         lines += ["## Held-out validation: synthetic human bodies (`lipgen.nrsfm.validation`)", "",
                   f"{settings.validation_frames} frames each, orthographic, no noise; never used to tune a "
                   "method. e3D (CPU seconds); K counts basis shapes (em-ppca: K - 1 modes + the mean); "
-                  "*auto*: the method's own reprojection-curve K.", "",
+                  "*auto*: the method's own K (`dai`, `dai-ba`: the smoothest rotations; the others: the "
+                  "reprojection curve). These seeds were used to choose the automatic-K rule.", "",
                   "| sequence | P | deg/frame | flat | " + " | ".join(f"{m} K={k}" for m in settings.methods
                                                                for k in ks) + " |",
                   "|---" * (4 + len(settings.methods) * len(ks)) + "|"]
@@ -204,6 +221,13 @@ def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
                  if r["e3d"] > e["flat_e3d"]]
         listed = ", ".join(f"{n} {m} K={k}" for n, m, k in worse) if worse else "none"
         lines += ["", f"Runs worse than the flat baseline: {listed}.", ""]
+    if result.get("check"):
+        worse = [c["name"] for c in result["check"] if c["e3d"] > c["flat_e3d"]]
+        lines += ["## Fresh check: `dai` with K = auto on seeds not used to choose the rule", "",
+                  "| sequence | flat | dai K=auto | K | CPU (s) |", "|---|---|---|---|---|"]
+        lines += [f"| {c['name']} | {c['flat_e3d']:.3f} | {c['e3d']:.3f} | {c['k']} | "
+                  f"{c['cpu_seconds']:.1f} |" for c in result["check"]]
+        lines += ["", f"Worse than the flat baseline: {', '.join(worse) if worse else 'none'}.", ""]
     if any(r.get("label", r["method"]) != r["method"] for seq in result["sequences"].values()
            for r in seq["runs"]):
         lines += ["Rows labelled `(em_iter=N)` rerun em-ppca with N EM iterations instead of the default "

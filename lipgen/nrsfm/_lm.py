@@ -4,7 +4,7 @@ scipy's MINPACK ``method="lm"`` gave different corrective triples for the same i
 work had run in the process (measured on drink: the first call and later calls differ in the
 last bits, and the difference grows through the rest of the pipeline). This solver has no
 state: the same input gives the same bytes, given the same BLAS thread count (see
-:mod:`._threads`).
+:func:`lipgen._threads.blas_threads`, ``always=True``).
 """
 
 from __future__ import annotations

@@ -15,32 +15,15 @@ import logging
 
 import numpy as np
 
+from lipgen._rotation import rotation_matrix as expm_so3
+from lipgen._rotation import skew
+
 from ._lm import levenberg_marquardt
 
 __all__ = ["complete_rotations", "nearest_orthonormal_rows", "expm_so3", "skew",
            "corrective_triple", "rotations_from_triple", "orient_frames"]
 
 log = logging.getLogger(__name__)
-
-
-def skew(x: np.ndarray) -> np.ndarray:
-    """Cross-product matrices ``[x]_x`` of ``x (..., 3)``, shape ``(..., 3, 3)``."""
-    Z = np.zeros(x.shape[:-1] + (3, 3))
-    Z[..., 0, 1], Z[..., 0, 2] = -x[..., 2], x[..., 1]
-    Z[..., 1, 0], Z[..., 1, 2] = x[..., 2], -x[..., 0]
-    Z[..., 2, 0], Z[..., 2, 1] = -x[..., 1], x[..., 0]
-    return Z
-
-
-def expm_so3(w: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``exp([w]_x)`` (Rodrigues) of axis-angle vectors ``w (..., 3)``."""
-    theta = np.linalg.norm(w, axis=-1)[..., None, None]
-    K = skew(w)
-    small = theta < 1e-8
-    th = np.where(small, 1.0, theta)
-    a = np.where(small, 1.0 - theta**2 / 6, np.sin(th) / th)
-    b = np.where(small, 0.5 - theta**2 / 24, (1 - np.cos(th)) / th**2)
-    return np.eye(3) + a * K + b * (K @ K)
 
 
 def complete_rotations(R2: np.ndarray) -> np.ndarray:

@@ -196,7 +196,8 @@ def check_k(k, n_frames: int, n_points: int, n_observed: int | None = None,
     return k
 
 
-def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float = 1e-12) -> np.ndarray:
+def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float = 1e-12,
+                    return_residual: bool = False):
     """Tracks with unobserved entries filled from the best rank-``rank`` model plus translation.
 
     Fits ``W ~ M B + t 1^T`` (M: 2F x rank, B: rank x P, t: per-row translation) to the observed
@@ -209,10 +210,14 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float =
     Returns
     -------
     (2F, P) float
+        The completed tracks.
+    residual : float
+        Only with ``return_residual``: RMS misfit of the model on the observed entries over their
+        RMS about each row's mean (0 for complete tracks, ~1e-15 for exact low-rank ones).
     """
     W = tracks.W
     if tracks.complete:
-        return W.copy()
+        return (W.copy(), 0.0) if return_residual else W.copy()
     seen = np.repeat(tracks.mask, 2, axis=0).astype(float)
     row_mean = (W * seen).sum(1) / seen.sum(1)
     filled = np.where(seen > 0, W, row_mean[:, None])
@@ -225,16 +230,19 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float =
     it = 0
     F, P = tracks.mask.shape
     scale = np.linalg.norm(W * seen)
-    # Normal matrices = all rows (points) minus the few unobserved ones: sparse products, so an
-    # iteration costs O(missing r^2), not O(F P r^2)
-    hidden_rows = scipy.sparse.csr_matrix((seen == 0).T.astype(float))       # (P, 2F)
+    # Normal matrices = all rows (points) minus the few unobserved ones, so an iteration costs
+    # O(missing r^2), not O(F P r^2): per point, the Gram matrix of its hidden rows of M
+    hidden_rows = [np.flatnonzero(seen[:, p] == 0) for p in range(P)]
     hidden_pts = scipy.sparse.csr_matrix((~tracks.mask).astype(float))       # (F, P)
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
         # B given (M, t): one rank x rank system per point
-        MM = (M[:, :, None] * M[:, None, :]).reshape(2 * F, rank * rank)
-        N = (M.T @ M).ravel() - hidden_rows @ MM
+        N = np.broadcast_to(M.T @ M + ridge * eye_b, (P, rank, rank)).copy()
+        for p, rows in enumerate(hidden_rows):
+            if rows.size:
+                Mh = M[rows]
+                N[p] -= Mh.T @ Mh
         rhs = (seen * (W - t[:, None])).T @ M
-        B = np.linalg.solve(N.reshape(P, rank, rank) + ridge * eye_b, rhs[..., None])[..., 0].T
+        B = np.linalg.solve(N, rhs[..., None])[..., 0].T
         # (M, t) given B: one (rank + 1) system per frame, shared by its u and v rows
         B1 = np.vstack([B, np.ones((1, P))])
         BB = (B1.T[:, :, None] * B1.T[:, None, :]).reshape(P, -1)
@@ -249,7 +257,9 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float =
         prev = res
     log.debug("completion: %d missing entries, %d iterations, residual %.3e", int((seen == 0).sum()),
               it, res)
-    return np.where(seen > 0, W, M @ B + t[:, None])
+    full = np.where(seen > 0, W, M @ B + t[:, None])
+    spread = float(np.linalg.norm((W - row_mean[:, None]) * seen))
+    return (full, res / max(spread, 1e-300)) if return_residual else full
 
 
 def factor(Wc: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -35,6 +35,7 @@ import logging
 
 import numpy as np
 
+from lipgen._rotation import rotation_vector as _log_so3
 from lipgen.nrsfm._rotation import (
     complete_rotations,
     corrective_triple,
@@ -200,16 +201,6 @@ def _m_step(data, theta, post, ridge, floor):
     fit = (Wt - G @ mean) * m[:, None, :]
     spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
     return Q, c, sbar, V, t, max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
-
-
-def _log_so3(R):
-    """Axis-angle vectors (..., 3) of rotations R (..., 3, 3) with angles below pi."""
-    vee = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0],
-                          R[..., 1, 0] - R[..., 0, 1]], axis=-1)
-    s = np.linalg.norm(vee, axis=-1, keepdims=True)
-    cos = 0.5 * (np.trace(R, axis1=-2, axis2=-1)[..., None] - 1.0)
-    angle = np.arctan2(s, cos)
-    return vee * np.where(s > 1e-12, angle / np.maximum(s, 1e-300), 1.0)
 
 
 def _extrapolate(theta0, theta1, eta, floor):

@@ -8,9 +8,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.nrsfm.core import DEFAULT_METHOD, MEAN_PLUS_MODES, choose_k, curve_values
+from lipgen.nrsfm.kchoice import choose_k, curve_values
+from lipgen.nrsfm.record import DEFAULT_METHOD, MEAN_PLUS_MODES
 
-__all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve"]
+__all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve", "plot_k_choice"]
 
 log = logging.getLogger(__name__)
 
@@ -146,6 +147,47 @@ def plot_curve(curve: KCurve, path) -> None:
                   else "number of basis shapes K")
     ax.set_ylabel("RMS reprojection error (% of track RMS)")
     ax.set_title("Reprojection error against K (Bregler et al. Fig 2)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp)
+    finally:
+        plt.close(fig)
+
+
+def plot_k_choice(choice: dict, path) -> None:
+    """Write the rotation roughness per K (``info["k_choice"]`` of ``reconstruct(W, "auto")``),
+    log scale, the chosen K marked and exact K-shape fits ringed, atomically (Agg).
+
+    Parameters
+    ----------
+    choice : dict
+        ``ks``, ``rotation_roughness``, ``exact``, ``chosen`` (lists per K and the chosen K).
+    path : str or Path
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lipgen._io import atomic_path
+
+    ks = np.asarray(choice["ks"])
+    rough = np.maximum(np.asarray(choice["rotation_roughness"], float), 1e-300)
+    exact = np.asarray(choice["exact"], bool)
+    fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
+    ax.semilogy(ks, rough, "o-", color="tab:blue", label="dai")
+    if exact.any():
+        ax.semilogy(ks[exact], rough[exact], "o", ms=9, mfc="none", color="tab:green",
+                    label="exact K-shape fit")
+    i = int(np.flatnonzero(ks == choice["chosen"])[0])
+    ax.semilogy([ks[i]], [rough[i]], "s", ms=11, mfc="none", color="tab:red",
+                label=f"chosen K = {choice['chosen']}")
+    ax.set_xlabel("number of basis shapes K")
+    ax.set_ylabel("rotation roughness (mean |R''|^2)")
+    ax.set_title("Smoothness of the recovered rotations against K", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -17,8 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["depth_ratio", "roughness", "shape_figures", "plausible", "ROUGHNESS_LIMIT",
-           "DEPTH_LIMIT"]
+__all__ = ["depth_ratio", "roughness", "rotation_roughness", "shape_figures", "plausible",
+           "ROUGHNESS_LIMIT", "DEPTH_LIMIT"]
 
 
 def depth_ratio(shapes: np.ndarray) -> float:
@@ -37,6 +37,32 @@ def roughness(shapes: np.ndarray, axis: slice = slice(None)) -> float:
         return 0.0
     d2 = c[2:, axis] - 2 * c[1:-1, axis] + c[:-2, axis]
     return float(np.mean(d2**2)) / max(float(np.mean(c**2)), 1e-300)
+
+
+def rotation_roughness(R: np.ndarray) -> float:
+    """Mean squared second time difference of the camera rotations (Frobenius norm per frame).
+
+    Cameras (and bodies turning before them) move smoothly, so rotations that jitter from frame to
+    frame - a corrective transform that fits the tracks but not a real motion, or per-frame sign
+    flips resolved inconsistently - show as a large value. Compared between reconstructions of one
+    sequence only (it grows with the speed of rotation).
+
+    Parameters
+    ----------
+    R : (F, 3, 3) float
+        Object-to-camera rotations in frame order.
+
+    Returns
+    -------
+    float
+        0 with fewer than 3 frames; ``8 (1 - cos a)^2`` (about ``2 a^4``) for uniform rotation by
+        ``a`` rad per frame about a fixed axis.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape[0] < 3:
+        return 0.0
+    d2 = R[2:] - 2 * R[1:-1] + R[:-2]
+    return float(np.mean(np.sum(d2**2, axis=(1, 2))))
 
 
 ROUGHNESS_LIMIT = 5.0

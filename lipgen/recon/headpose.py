@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lipgen._rotation import rotation_matrix, rotation_vector
+from lipgen._rotation import skew as _skew
 from lipgen._validate import as_float_array
 from lipgen.recon.similarity import Normalization, Similarity, most_neutral_frame, umeyama
 
@@ -89,34 +91,6 @@ class MarkerMetric:
         G = self.gram[np.ix_(v, v)]
         # W = G⁻¹ = L Lᵀ with L = chol(G)⁻ᵀ; the residual Lᵀ y = solve(chol(G), y).
         return np.linalg.inv(np.linalg.cholesky(G)).T
-
-
-def rotation_matrix(w) -> np.ndarray:
-    """Rodrigues: (..., 3) rotation vectors (rad) -> (..., 3, 3) rotations."""
-    w = np.asarray(w, dtype=np.float64)
-    th = np.linalg.norm(w, axis=-1)[..., None, None]
-    K = _skew(w)
-    small = th < 1e-8
-    safe = np.where(small, 1.0, th)
-    a = np.where(small, 1.0 - th**2 / 6, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - th**2 / 24, (1 - np.cos(safe)) / safe**2)
-    return np.eye(3) + a * K + b * K @ K
-
-
-def rotation_vector(R) -> np.ndarray:
-    """(..., 3, 3) rotations -> (..., 3) rotation vectors (rad), angles below pi."""
-    R = np.asarray(R, dtype=np.float64)
-    v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
-    c = np.clip((np.trace(R, axis1=-2, axis2=-1) - 1) / 2, -1.0, 1.0)
-    th = np.arccos(c)[..., None]
-    s = np.sin(th)
-    return np.where(th < 1e-8, 0.5 * v, v * th / (2 * np.where(s == 0, 1.0, s)))
-
-
-def _skew(a: np.ndarray) -> np.ndarray:
-    Z = np.zeros((*a.shape[:-1], 3, 3))
-    Z[..., 0, 1], Z[..., 0, 2], Z[..., 1, 2] = -a[..., 2], a[..., 1], -a[..., 0]
-    return Z - np.swapaxes(Z, -1, -2)
 
 
 def least_cost_rotations(points, targets, metric: MarkerMetric, visible, start, iterations: int = 30,

@@ -1,0 +1,179 @@
+"""The engine of :func:`lipgen.nrsfm.reconstruct` at one given K: scale, rotations, shapes, refinement."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_from_triple
+from lipgen.nrsfm._tracks import check_tracks, complete_tracks, factor, numerical_rank
+from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
+from lipgen.nrsfm.bregler import bregler_factorization
+from lipgen.nrsfm.emppca import em_ppca
+from lipgen.nrsfm.lowrank import fit_rank_k
+from lipgen.nrsfm.plausibility import plausible, shape_figures
+from lipgen.nrsfm.record import Reconstruction, check_method_k
+from lipgen.nrsfm.refine import bundle_adjust
+
+__all__ = ["reconstruct_k"]
+
+log = logging.getLogger(__name__)
+
+
+def reconstruct_k(W, k: int, method: str, visible=None, *, seed: int = 0, n_starts: int = 4,
+                  shape_starts: int = 8, refine_iter: int = 100, em_iter: int = 500) -> Reconstruction:
+    """:func:`lipgen.nrsfm.reconstruct` at a given integer K (the caller limits the BLAS threads).
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+    k : int
+    method : str
+    visible : (F, P) array_like of bool, optional
+    seed, n_starts, shape_starts, refine_iter, em_iter
+        As :func:`lipgen.nrsfm.reconstruct`.
+
+    Returns
+    -------
+    Reconstruction
+    """
+    options = {"seed": seed, "n_starts": n_starts, "shape_starts": shape_starts, "refine_iter": refine_iter,
+               "em_iter": em_iter}
+    W, unit = _normalise_scale(W, visible)
+    rec = _reconstruct(W, k, method, visible, **options)
+    if unit == 1.0:
+        return rec
+    return Reconstruction(rotations=rec.rotations, weights=rec.weights, basis=rec.basis * unit,
+                          translation=rec.translation * unit, method=rec.method, k=rec.k,
+                          reprojection_rms=rec.reprojection_rms * unit, info=rec.info | {"scale": unit})
+
+
+def _reprojection_rms(tracks, R, C, B, t) -> float:
+    pred = (R @ np.einsum("fk,kip->fip", C, B))[:, :2] + t[:, :, None]
+    F, P = tracks.mask.shape
+    res = (tracks.W.reshape(F, 2, P) - pred) * tracks.mask[:, None, :]
+    return float(np.sqrt((res**2).sum() / (2 * tracks.n_observed)))
+
+
+def _as_basis(shapes: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    """Shapes (F, 3, P) as weights (F, r) and basis (r, 3, P), r their numerical rank (exact)."""
+    F, _, P = shapes.shape
+    U, s, Vt = np.linalg.svd(shapes.reshape(F, -1), full_matrices=False)
+    r = max(int((s > rtol * s[0]).sum()), 1)
+    return U[:, :r] * s[:r], Vt[:r].reshape(r, 3, P)
+
+
+def _tidy(R, C, B, t):
+    """Orient the frames (per-frame sign, see :func:`orient_frames`) and centre the basis shapes,
+    moving their mean into the image translations."""
+    R, _, sign = orient_frames(R, np.einsum("fk,kip->fip", C, B))
+    C = C * sign[:, None]
+    centre = B.mean(axis=2)                                    # (K, 3)
+    t = t + np.einsum("fia,fa->fi", R[:, :2], C @ centre)
+    return R, C, B - centre[:, :, None], t
+
+
+_EXACT_COMPLETION = 1e-6
+"""Relative misfit of the rank-3K completion below which incomplete tracks may be exactly K shapes
+(ALS creeps towards an exact fit, so the numerical rank of the completed tracks may not show it)."""
+
+_TINY = float(np.finfo(np.float64).tiny) * 2.0**20
+"""Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""
+
+
+def _normalise_scale(W, visible):
+    """W divided by a power of two near its largest observed magnitude (an exact rescale: the
+    result scales back without rounding), and that power. Nothing is checked here beyond what
+    the scale needs; :func:`check_tracks` does the rest."""
+    from .._validate import as_float_array
+
+    W = as_float_array(W, "W", finite=False)
+    if W.ndim != 2:
+        return W, 1.0
+    seen = np.isfinite(W)
+    if visible is not None and np.shape(visible) == (W.shape[0] // 2, W.shape[1]) and W.shape[0] % 2 == 0:
+        seen &= np.repeat(np.asarray(visible, dtype=bool), 2, axis=0)
+    if not seen.any():
+        return W, 1.0
+    top = float(np.abs(W[seen]).max())
+    if top == 0.0:
+        return W, 1.0
+    if top < _TINY:
+        raise ValueError(f"W of shape {W.shape} has coordinates no larger than {top:.3g}: at this scale "
+                         f"(below {_TINY:.3g}) doubles turn subnormal and lose digits; multiply W by a "
+                         "large power of ten (the shapes scale with it)")
+    unit = float(2.0 ** np.round(np.log2(top)))
+    return W / unit, unit
+
+
+def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_starts: int,
+                 refine_iter: int, em_iter: int) -> Reconstruction:
+    tracks = check_tracks(W, visible)
+    F, P = tracks.mask.shape
+    k = check_method_k(k, method, F, P, tracks.n_observed)
+    if method == "em-ppca":
+        R, C, B, t, info = em_ppca(tracks, k, max_iter=em_iter, n_starts=n_starts, seed=seed)
+        return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
+                              reprojection_rms=_reprojection_rms(tracks, R, C, B, t), info=info)
+    full, misfit = complete_tracks(tracks, 3 * k, return_residual=True)
+    t = full.mean(axis=1)
+    Wc = full - t[:, None]
+    rank, sv = numerical_rank(Wc)
+    if rank < 3:
+        raise ValueError(f"the centred (completed) tracks have numerical rank {rank} < 3 (singular values "
+                         f"{np.array2string(sv[:4], precision=3)}): not even a rigid structure is defined")
+    r = min(3 * k, rank)
+    if r < 3 * k:
+        log.info("tracks have numerical rank %d < 3K = %d (degenerate basis shapes); the factor keeps "
+                 "rank %d", rank, 3 * k, r)
+    t = t.reshape(F, 2)
+    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist(), "completion_misfit": misfit}
+    if method == "bregler":
+        R, C, B = bregler_factorization(Wc, k)
+    else:
+        M, _, _ = factor(Wc, r)
+        g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
+        R, _ = rotations_from_triple(M, g)
+        shapes = min_trace_norm_shapes(Wc, R, None if tracks.complete else tracks.mask)
+        R, shapes, _ = orient_frames(R, shapes)
+        mask = None if tracks.complete else tracks.mask
+        ref = shape_figures(R, shapes)
+        info.update(rotation_cost=cost, trace_norm_shapes=ref)
+        # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
+        # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start.
+        # Complete tracks of numerical rank > 3K cannot be explained exactly: no fit for dai then.
+        C, B = rank_k_shapes(shapes, k)
+        fit = {"shape_exact": False}
+        fitted = (R, C, B, t)
+        # with points missing, an exact K-shape fit needs the rank-3K completion to fit the observed
+        # points (nearly) exactly; else (real tracks) the fit could only be discarded: skipped
+        if method == "dai-ba" or rank <= 3 * k or (not tracks.complete and misfit <= _EXACT_COMPLETION):
+            C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
+                                          seed=seed)
+            info.update(fit)
+            fitted = (R, C, B, t + shift)
+        info["rank_k_reprojection_rms"] = _reprojection_rms(tracks, *_tidy(*fitted))
+        if fit["shape_exact"]:
+            info["shapes"] = "rank-K fit"
+            R, C, B, t = _tidy(*fitted)
+        else:  # Dai's trace-norm shapes (the block matrix method as published): on held-out bodies the
+            # rank-K fit inflated depth (e3D up to 19 where these gave 0.16; see lipgen.nrsfm.plausibility)
+            info["shapes"] = "trace norm"
+            C, B = _as_basis(shapes)
+            R, C, B, t = _tidy(R, C, B, t)
+        if method == "dai-ba":
+            Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *_tidy(*fitted), mask, max_iter=refine_iter)
+            ba = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
+            keep = plausible(ba, ref)
+            info.update(ba_cost=[history[0], history[-1]], ba_steps=len(history) - 1, ba_shapes=ba,
+                        ba_kept=bool(keep))
+            if keep:
+                R, C, B, t = Rb, Cb, Bb, tb
+            else:
+                log.info("bundle adjustment rejected (depth ratio %.3g, depth roughness %.3g against the "
+                         "trace-norm shapes' %.3g, %.3g): returning its start", ba["depth_ratio"],
+                         ba["depth_roughness"], ref["depth_ratio"], ref["depth_roughness"])
+    rms = _reprojection_rms(tracks, R, C, B, t)
+    return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
+                          reprojection_rms=rms, info=info)
