@@ -377,3 +377,15 @@ def test_the_bench_reads_a_childs_cpu_time_from_proc():
         assert ray["workers_s"] == 2.0 and ray["ray_system_s"] == 0.75
     finally:
         child.communicate("")
+
+
+def test_the_embedded_ray_node_skips_its_bookkeeping_unless_the_dashboard_is_asked_for(monkeypatch):
+    from lipgen.campaign.executors import _QUIET_NODE, _node_env
+
+    monkeypatch.delenv("RAY_event_stats", raising=False)
+    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "1")  # the user's own choice is kept
+    quiet, full = _node_env(False), _node_env(True)
+    assert quiet["RAY_enable_metrics_collection"] == "0" and quiet["RAY_event_stats"] == "0"
+    assert quiet["RAY_USAGE_STATS_ENABLED"] == "1"
+    assert not set(_QUIET_NODE) & set(full)
+    assert quiet["OMP_NUM_THREADS"] == full["OMP_NUM_THREADS"] == "1"
