@@ -4,6 +4,7 @@
 * :mod:`~lipgen.dataset.settings`: :class:`GenerateSettings`, everything that fixes a dataset's bytes.
 * :mod:`~lipgen.dataset.manifest`: the manifest, its checks and the files' paths.
 * :mod:`~lipgen.dataset.presets`: ``--preset easy|default|hard``.
+* :mod:`~lipgen.dataset.simulation`: the subject's motion and each frame's truth, before rendering.
 * :mod:`~lipgen.dataset.generate`: ``lipgen generate``: simulate, render and write a dataset
   (:mod:`~lipgen.dataset.folder`: the folder it writes into; :mod:`~lipgen.dataset.film`: image
   conditions per frame).

@@ -47,102 +47,17 @@ from lipgen.dataset.layout import (
     frame_paths,
     intact,
 )
+from lipgen.dataset.simulation import face_look, frame_truth, simulate_motion, speech_phones
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
 from lipgen.rig.render import RenderedFrame
-from lipgen.rig.visibility import occluded
-from lipgen.subject.face import FaceLook, FaceModel, look_record
+from lipgen.subject.face import FaceModel, look_record
 
-__all__ = ["generate", "frame_truth", "prepare_dataset", "render_jobs", "face_look"]
+__all__ = ["generate", "prepare_dataset", "render_jobs"]
 
 log = logging.getLogger(__name__)
 
-_NOISE_STREAM, _ACT_STREAM, _HEAD_STREAM, _CALIB_STREAM = 3, 1, 2, 4
-
-
-def _speech_phones(s: GenerateSettings):
-    """The phones that time the motion (:class:`lipgen.speech.PhoneTrack`) and the 16 kHz audio."""
-    from lipgen.speech.audio import read_wav
-    from lipgen.speech.decode import phones_from_audio
-    from lipgen.speech.phones import text_phones
-
-    if s.speech:
-        audio = read_wav(s.speech)
-        return phones_from_audio(audio, s.speech_text), audio
-    return text_phones(s.speech_text), None
-
-
-def _simulate(s: GenerateSettings, phones=None):
-    """The subject's motion for ``s`` (a :class:`lipgen.subject.motion.Motion`)."""
-    from lipgen.subject import motion
-
-    if phones is not None:
-        from lipgen.speech.visemes import activations
-
-        A = activations(phones, fps=s.fps, n_frames=s.frames)  # after the speech: back to rest
-    elif s.script:
-        A = motion.viseme_activations(s.script, fps=s.fps)
-        A = A[np.arange(s.frames) % len(A)]  # the phrase is repeated to fill the frames
-    else:
-        A = motion.random_activations(s.frames, seed=np.random.default_rng([s.seed, _ACT_STREAM]), fps=s.fps)
-    head = motion.head_motion(s.frames, seed=np.random.default_rng([s.seed, _HEAD_STREAM]), fps=s.fps,
-                              max_rotation_deg=s.head_rotation_deg, max_translation_mm=s.head_translation_mm)
-    subject = motion.default_subject(seed=s.seed, resolution=s.subject_resolution,
-                                     subject_seed=s.subject_seed)
-    if s.truth_physics == "layer":
-        from lipgen.subject.truth import with_layer
-
-        subject = with_layer(subject)
-    if s.motion_sources == "independent":
-        from lipgen.subject.independent import simulate_independent
-
-        given = None if phones is None and not s.script else A  # else: its own speech and gestures
-        return simulate_independent(subject, s.frames, np.random.default_rng([s.seed, _ACT_STREAM]), head,
-                                    s.fps, activations=given, progress=s.truth_physics == "layer")
-    return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
-
-
-def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray,
-                mirror_extent=(0.0, 0.0)) -> dict:
-    """Per-frame truth of the marks (16 markers then the nose) in both views.
-
-    ``mirror_extent`` (half width, half height, mm; 0 for infinite): marks whose reflection the
-    mirror's rectangle does not hold are not in the virtual view.
-
-    Returns a dict of arrays named as :data:`lipgen.dataset.TRUTH_FIELDS` (views first).
-    """
-    X, N = face.marks(vertices, pose)
-    surf = face.surfaces(vertices, pose)
-    tris = face.occluders(surf)
-    rims = face.dot_rims(surf)
-    uv, depth, inside = rig.project(X)
-    inside[0] &= on_mirror(rig, mirror_extent, X)
-    k = len(X)
-    occ, facing, frac = np.zeros((2, k), bool), np.zeros((2, k), bool), np.zeros((2, k))
-    rim_pts = np.vstack([r[::2] for r in rims])  # every other rim point is plenty
-    owner = np.repeat(np.arange(len(rims)), [len(r[::2]) for r in rims])
-    queries = np.vstack([X, rim_pts])
-    for v, cam in enumerate(rig.views):
-        hidden = occluded(cam, queries, tris)  # one culling grid for the marks and their rims
-        occ[v] = hidden[:k]
-        facing[v] = np.sum((cam.center - X) * N, axis=1) > 0
-        seen = cam.in_view(rim_pts) & ~hidden[k:]
-        if v == 0:
-            seen &= (rig.mirror_distance(rim_pts) > 0) & on_mirror(rig, mirror_extent, rim_pts)
-        frac[v, : len(rims)] = np.bincount(owner, seen, len(rims)) / np.bincount(owner, minlength=len(rims))
-        frac[v] *= facing[v]
-    visible = inside & ~occ & facing
-    uv_raw = np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])
-    return {"marks_world": X, "normals_world": N, "uv": uv, "uv_raw": uv_raw, "depth": depth,
-            "in_image": inside, "occluded": occ, "facing": facing, "visible": visible,
-            "dot_visible_fraction": frac}
-
-
-def face_look(s: GenerateSettings) -> FaceLook:
-    """The subject's :class:`~lipgen.subject.face.FaceLook` under settings ``s`` (seeded by ``s.seed``)."""
-    c = s.conditions
-    return FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed, head=c.head,
-                    mouth=c.mouth, dot_irregularity=c.ink, dot_smudge=c.smudge)
+_NOISE_STREAM, _CALIB_STREAM = 3, 4
 
 
 def _age(i: int, s: GenerateSettings) -> float:
@@ -335,8 +250,8 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     rig = rig_for(s.size, s.conditions, default_rig)
-    phones, audio = _speech_phones(s) if (s.speech or s.speech_text) else (None, None)
-    motion = _simulate(s, phones)
+    phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
+    motion = simulate_motion(s, phones)
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
     rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
     mesh: LipMesh = motion.mesh

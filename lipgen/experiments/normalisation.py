@@ -26,8 +26,8 @@ def _rms(x) -> float:
 def compare_normalisations(seeds=(0, 1, 2, 3, 4), frames: int = 150, methods=None) -> dict:
     """``{method: {"norm_mm": [...], "fields_mm": [...], "pose_deg_rms": [...], "pose_deg_max": [...]}}``
     with one entry per seed; ``"floor"`` holds the reach from the true markers."""
-    from lipgen.dataset.generate import _simulate
     from lipgen.dataset.layout import GenerateSettings
+    from lipgen.dataset.simulation import simulate_motion as _simulate
     from lipgen.fem import Physics
     from lipgen.mesh.procedural import lip_mesh
     from lipgen.recon.headpose import rotation_vector
