@@ -10,9 +10,12 @@ the same bytes.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
+import signal
+import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
@@ -344,6 +347,25 @@ def _close_worker() -> None:
     _WORKER.clear()
 
 
+@contextlib.contextmanager
+def _deferred_sigint():
+    """Ctrl-C sets a flag (the yielded list) instead of raising wherever the main thread is.
+
+    A KeyboardInterrupt raised inside ``concurrent.futures.wait`` can leave some futures' locks
+    held (it takes them all on entry), and the pool's manager thread, blocked on one, never lets
+    the pool shut down: generate then hung instead of ending. The loop raises at a safe point.
+    """
+    flag: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+    old = signal.signal(signal.SIGINT, lambda signum, frame: flag.append(signum))
+    try:
+        yield flag
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
 def generate(out, settings: GenerateSettings | None = None, workers: int = 1, resume: bool = False,
              progress: bool = True) -> Path:
     """Write a dataset to folder ``out`` (layout: :mod:`lipgen.dataset`).
@@ -402,12 +424,14 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
             spawn = multiprocessing.get_context("spawn")  # a fresh process per GL context
             pool = ProcessPoolExecutor(workers, mp_context=spawn, initializer=_init_pool_worker,
                                        initargs=(ctx, os.getpid()))
-            with pool as ex:
+            with pool as ex, _deferred_sigint() as interrupted:
                 futures = [ex.submit(_run_job, job) for job in jobs]
                 pending = set(futures)
                 try:
                     while pending:
-                        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                        if interrupted:
+                            raise KeyboardInterrupt
+                        finished, pending = wait(pending, timeout=0.25, return_when=FIRST_COMPLETED)
                         for fut in finished:
                             fut.result()  # re-raise a worker's error here
                             bar.update()
