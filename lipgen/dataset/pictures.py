@@ -32,7 +32,6 @@ def save_side_by_side(datasets: list[Dataset], index: int, out, zoom: bool = Tru
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lipgen._io import atomic_path
 
     for ds in datasets:
         if not 0 <= index < len(ds):
@@ -52,18 +51,9 @@ def save_side_by_side(datasets: list[Dataset], index: int, out, zoom: bool = Tru
             if r == 0:
                 ax.set_title(f"{ds.path.name}: preset {preset_of(ds)}, frame {frame.index}", fontsize=10)
             else:  # the mouth in the direct view
-                real = uv[1, :-1][vis[1, :-1]]
-                if len(real):
-                    c = np.nanmean(real, axis=0)
-                    ax.set_xlim(c[0] - 90, c[0] + 90)
-                    ax.set_ylim(c[1] + 60, c[1] - 60)
+                _zoom_on(ax, uv[1, :-1][vis[1, :-1]])
                 ax.set_title("mouth, direct view (circles: truth)", fontsize=9)
-    fig.tight_layout()
-    out = Path(out)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
-    plt.close(fig)
-    return out
+    return _save(fig, out)
 
 
 def easy_twin(ds: Dataset, index: int) -> np.ndarray:
@@ -91,7 +81,6 @@ def save_beside_easy(ds: Dataset, index: int, out) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lipgen._io import atomic_path
 
     easy = easy_twin(ds, index)
     frame = ds[index]
@@ -107,10 +96,25 @@ def save_beside_easy(ds: Dataset, index: int, out) -> Path:
             if r == 0:
                 ax.set_title(f"{title}, frame {frame.index}", fontsize=10)
             elif len(real):
-                c = np.nanmean(real, axis=0)
-                ax.set_xlim(c[0] - 90, c[0] + 90)
-                ax.set_ylim(c[1] + 60, c[1] - 60)
+                _zoom_on(ax, real)
                 ax.set_title("mouth, direct view", fontsize=9)
+    return _save(fig, out)
+
+
+def _zoom_on(ax, points: np.ndarray) -> None:
+    """Frame ``ax`` on the mean of ``points`` ((k, 2) px; nothing when empty): the mouth close-up."""
+    if len(points):
+        c = np.nanmean(points, axis=0)
+        ax.set_xlim(c[0] - 90, c[0] + 90)
+        ax.set_ylim(c[1] + 60, c[1] - 60)
+
+
+def _save(fig, out) -> Path:
+    """Write ``fig`` to ``out`` atomically (format from the suffix, png by default) and close it."""
+    import matplotlib.pyplot as plt
+
+    from lipgen._io import atomic_path
+
     fig.tight_layout()
     out = Path(out)
     with atomic_path(out) as tmp:

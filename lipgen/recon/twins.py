@@ -84,14 +84,10 @@ def fit_pair(gray: np.ndarray, lines, init, sigma0: float, gate: float):
     t0 = np.einsum("ij,ij->i", np.asarray(init, float) - pts, dirs)
     c = pts + t0[:, None] * dirs
     r = int(np.ceil(3 * sigma0 + gate))
-    lo = np.floor(c.min(0) - r).astype(int)
-    hi = np.ceil(c.max(0) + r).astype(int) + 1
-    h, w = gray.shape
-    if lo.min() < 0 or hi[0] > w or hi[1] > h:
+    cut = _patch_around(gray, c, r)
+    if cut is None:
         return None
-    patch = gray[lo[1]:hi[1], lo[0]:hi[0]]
-    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
-    X = np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
+    patch, X = cut
     bg0 = float(np.percentile(patch, 75))
     depth0 = max(bg0 - float(patch.min()), 1e-3)
 
@@ -149,15 +145,12 @@ def fit_pair_two_views(grays, cameras, centre, half, sigma0: float, gate: float)
     for gray, cam in zip(grays, cameras, strict=True):
         c = cam.project(np.array([m0 + h0, m0 - h0]))
         r = int(np.ceil(3 * sigma0)) + 2
-        lo = np.floor(c.min(0) - r).astype(int)
-        hi = np.ceil(c.max(0) + r).astype(int) + 1
-        h, w = gray.shape
-        if lo.min() < 0 or hi[0] > w or hi[1] > h:
+        cut = _patch_around(gray, c, r)
+        if cut is None:
             return None
-        patch = gray[lo[1]:hi[1], lo[0]:hi[0]]
-        yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+        patch, X = cut
         patches.append(patch.ravel())
-        grids.append(np.stack([xx.ravel(), yy.ravel()], 1).astype(float))
+        grids.append(X)
         d = grids[-1] - c.mean(0)
         bgs.append(np.column_stack([np.ones(len(d)), d, d * d, d[:, 0] * d[:, 1]]))  # quadratic background
         depths.append(max(float(np.percentile(patch, 75) - patch.min()), 1e-3))
@@ -284,3 +277,15 @@ def _resolve_merged_in_both(trackers, views, cameras, sigma: float, gate: float 
             uv[pair], status[pair] = cameras[v].project(got), RECOVERED
         done += 4
     return done
+
+
+def _patch_around(gray: np.ndarray, c: np.ndarray, r: int):
+    """The patch of ``gray`` holding the points ``c`` ((k, 2) px) with a margin ``r`` px, and its
+    pixel centres ((n, 2) float, x then y, in the patch's ravel order); None where it leaves the image."""
+    lo = np.floor(c.min(0) - r).astype(int)
+    hi = np.ceil(c.max(0) + r).astype(int) + 1
+    h, w = gray.shape
+    if lo.min() < 0 or hi[0] > w or hi[1] > h:
+        return None
+    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+    return gray[lo[1]:hi[1], lo[0]:hi[0]], np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
