@@ -30,7 +30,6 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import fftconvolve
 
 from lipgen._validate import as_float_array
 from lipgen.recon.association import (
@@ -45,6 +44,7 @@ from lipgen.recon.association import (
     predict,
     shift_group,
 )
+from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import DotSettings, _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
 
@@ -141,32 +141,6 @@ class Tracks:
         return self.uv.shape[1]
 
 
-def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarray:
-    """Zero-mean normalised cross-correlation of ``template`` at every placement in ``search``.
-
-    Parameters
-    ----------
-    search : (H, W) float
-    template : (h, w) float, h <= H, w <= W
-
-    Returns
-    -------
-    (H - h + 1, W - w + 1) float in [-1, 1]
-        Entry (i, j) compares ``template`` with ``search[i:i+h, j:j+w]``; 0 where either is flat.
-    """
-    t = template - template.mean()
-    tn = np.sqrt((t * t).sum())
-    h, w = template.shape
-    num = fftconvolve(search, t[::-1, ::-1], mode="valid")   # sum((win - mean) t) = sum(win t)
-    # Window sums of the search and its square from integral images.
-    def box(a):
-        c = np.pad(a, ((1, 0), (1, 0))).cumsum(0).cumsum(1)
-        return c[h:, w:] - c[:-h, w:] - c[h:, :-w] + c[:-h, :-w]
-    mean = box(search) / t.size
-    var = box(search * search) - mean * mean * t.size
-    den = np.sqrt(np.maximum(var, 0.0)) * tn
-    return np.where(den > 1e-9 * max(tn, 1e-300), num / np.maximum(den, 1e-300), 0.0)
-
 
 def twin_partners(reference, threshold: float) -> tuple[np.ndarray, np.ndarray]:
     """Markers too close to a neighbour in the layout to be told apart (their dots merge).
@@ -193,41 +167,6 @@ def twin_partners(reference, threshold: float) -> tuple[np.ndarray, np.ndarray]:
         twin = d.min(1) < threshold
         partner[twin], dist[twin] = d.argmin(1)[twin], d.min(1)[twin]
     return partner, dist
-
-
-def _parabola_offset(left: float, mid: float, right: float) -> float:
-    den = left - 2.0 * mid + right
-    return 0.0 if den >= 0 else float(np.clip(0.5 * (left - right) / den, -0.5, 0.5))
-
-
-def _patch(gray: np.ndarray, center: np.ndarray, radius: int) -> np.ndarray:
-    """Square patch of side 2*radius+1 around the rounded centre, edge-padded."""
-    c, r = np.round(center).astype(np.int64)
-    h, w = gray.shape
-    rows = np.clip(np.arange(r - radius, r + radius + 1), 0, h - 1)
-    cols = np.clip(np.arange(c - radius, c + radius + 1), 0, w - 1)
-    return gray[np.ix_(rows, cols)]
-
-
-def _correlate(gray: np.ndarray, template: np.ndarray, center: np.ndarray, radius: int,
-               penalty: float) -> tuple[np.ndarray, float]:
-    """Best placement of ``template`` within ``radius`` of ``center``: (uv, peak score).
-
-    Every ink dot looks like every other, so the peak is chosen on the correlation minus
-    ``penalty * (distance / radius)^2``: of two equally good matches, the one nearer the
-    prediction wins. The score returned is the plain correlation there.
-    """
-    t_rad = template.shape[0] // 2
-    search = _patch(gray, center, radius + t_rad)
-    ncc = normalized_correlation(search, template)
-    off = (np.arange(ncc.shape[0]) - radius) / max(radius, 1)
-    prior = penalty * (off[:, None] ** 2 + off[None, :] ** 2)
-    i, j = np.unravel_index(int(np.argmax(ncc - prior)), ncc.shape)
-    di = _parabola_offset(ncc[i - 1, j], ncc[i, j], ncc[i + 1, j]) if 0 < i < ncc.shape[0] - 1 else 0.0
-    dj = _parabola_offset(ncc[i, j - 1], ncc[i, j], ncc[i, j + 1]) if 0 < j < ncc.shape[1] - 1 else 0.0
-    base = np.round(center)
-    uv = np.array([base[0] - radius + j + dj, base[1] - radius + i + di])
-    return uv, float(ncc[i, j])
 
 
 class MarkerTracker:
@@ -345,7 +284,7 @@ class MarkerTracker:
                     continue
                 patch, offset = self.templates[i]
                 radius = cfg.search_radius + int(np.ceil(cfg.gate * min(gap[i], 3)))
-                peak, score[i] = _correlate(gray, patch, pred[i], radius, cfg.motion_penalty)
+                peak, score[i] = correlate_near(gray, patch, pred[i], radius, cfg.motion_penalty)
                 peak = peak + offset
                 if score[i] >= cfg.min_correlation and np.linalg.norm(peak - pred[i]) <= cfg.max_jump:
                     cand[i], corr_ok[i], gates[i] = peak, True, cfg.gate
@@ -395,7 +334,8 @@ class MarkerTracker:
             else:
                 self.vel[i] = 0.0
             if status[i] != CORRELATION_ONLY:
-                self.templates[i] = (_patch(gray, uv[i], cfg.template_radius).copy(), uv[i] - np.round(uv[i]))
+                tpl = patch_around(gray, uv[i], cfg.template_radius).copy()
+                self.templates[i] = (tpl, uv[i] - np.round(uv[i]))
         self.last[visible] = uv[visible]
         self.gap[visible] = 0
         self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
