@@ -9,16 +9,14 @@ from __future__ import annotations
 
 import logging
 from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
 
-from lipgen._threads import blas_threads
 from lipgen._validate import as_float_array, as_index_array
-from lipgen.errors import SingularStiffnessError
 from lipgen.fem.assembly import assemble_stiffness, check_grounding, face_stiffness
 from lipgen.fem.element import OUT_OF_PLANE
+from lipgen.fem.reach import EnergyPlan, ForcePlan, energy_plan, force_plan
 from lipgen.fem.solver import factorize
 from lipgen.mesh.lipmesh import LipMesh
 
@@ -56,26 +54,6 @@ def dofs(nodes, axes: str = "xyz", n_nodes: int | None = None) -> np.ndarray:
     return (3 * nodes[:, None] + ax).ravel()
 
 
-@dataclass(frozen=True)
-class _ReachPlan:
-    """Precomputed pieces of eq 4.3 for one set of goal DOFs.
-
-    With S = K_s⁻¹ restricted to the goal columns (3n x d) = Q R, eq 4.3's
-    F = S (SᵀS)⁻¹ U_g = Q R⁻ᵀ U_g, and U = K_s⁻¹ F = Z R⁻ᵀ U_g with Z = K_s⁻¹ Q.
-    """
-
-    Q: np.ndarray  # (3n, d)
-    R: np.ndarray  # (d, d) upper triangular
-    Z: np.ndarray  # (3n, d)
-
-
-@dataclass(frozen=True)
-class _EnergyPlan:
-    """The least-strain-energy reach for one set of goal DOFs: S = K_s⁻¹ P (3n x d) and the
-    Cholesky factor L of C = S[d] = P K_s⁻¹ P; U = S C⁻¹ U_g."""
-
-    S: np.ndarray  # (3n, d)
-    L: np.ndarray  # (d, d) lower triangular
 
 
 class Physics:
@@ -136,7 +114,7 @@ class Physics:
         Ks = self.K[self.free_dofs][:, self.free_dofs]
         self._factor = factorize(Ks, solver)
         self.solver = self._factor.method
-        self._plans: OrderedDict[tuple, _ReachPlan | _EnergyPlan] = OrderedDict()
+        self._plans: OrderedDict[tuple, ForcePlan | EnergyPlan] = OrderedDict()
         log.info("physics for %r: %d nodes, %d faces, %d free DOFs, solver %s", mesh.name,
                  mesh.n_nodes, mesh.n_faces, len(self.free_dofs), self.solver)
 
@@ -244,29 +222,13 @@ class Physics:
         unit[np.searchsorted(self.free_dofs, d), np.arange(len(d))] = 1.0
         return self._factor.solve(unit)
 
-    def _plan(self, d: np.ndarray) -> _ReachPlan:
+    def _plan(self, d: np.ndarray) -> ForcePlan:
         key = tuple(int(i) for i in d)
         plan = self._plans.get(key)
         if plan is not None:
             self._plans.move_to_end(key)
             return plan
-        S = self._free_compliance(d)
-        W = self._factor.solve(S)  # K_s⁻¹ S: both block solves before the QR, Z = W R⁻¹
-        with blas_threads(1):  # tall-skinny BLAS-3: 2 threads cost 5-40x the wall time under load
-            qr = _cholesky_qr2(S)
-            Qf, R = qr if qr is not None else np.linalg.qr(S)
-            Zf = sla.blas.dtrsm(1.0, R, W, side=1, overwrite_b=1)  # W R⁻¹ = K_s⁻¹ Q
-        diag = np.abs(np.diag(R))
-        if diag.min() <= 1e-12 * diag.max():
-            raise SingularStiffnessError(
-                f"the goal DOFs are (numerically) redundant: their compliance columns are dependent "
-                f"(smallest/largest |R_ii| = {diag.min() / diag.max():.1e}); drop duplicate or "
-                f"coincident goal nodes")
-        Q = np.zeros((self.n_dofs, len(d)))
-        Z = np.zeros((self.n_dofs, len(d)))
-        Q[self.free_dofs] = Qf
-        Z[self.free_dofs] = Zf
-        plan = _ReachPlan(Q, R, Z)
+        plan = force_plan(self._factor, self._free_compliance(d), self.free_dofs, self.n_dofs)
         self._plans[key] = plan
         if len(self._plans) > _REACH_CACHE:
             self._plans.popitem(last=False)
@@ -325,13 +287,7 @@ class Physics:
         key = ("energy", *(int(i) for i in d))
         plan = self._plans.get(key)
         if plan is None:
-            S = self.compliance_columns(d)  # K_s⁻¹ P, (3n, d)
-            try:
-                L = np.linalg.cholesky(S[d])  # C = K_s⁻¹[d, d], symmetric positive definite
-            except np.linalg.LinAlgError as exc:
-                raise SingularStiffnessError("the goal DOFs are (numerically) redundant: their compliance "
-                                             "block is singular; drop duplicate goal nodes") from exc
-            plan = _EnergyPlan(S, L)
+            plan = energy_plan(self.compliance_columns(d), d)
             self._plans[key] = plan
             if len(self._plans) > _REACH_CACHE:
                 self._plans.popitem(last=False)
@@ -379,30 +335,6 @@ class Physics:
     def __repr__(self) -> str:
         return (f"Physics(mesh={self.mesh.name!r}, n_nodes={self.n_nodes}, n_faces={self.mesh.n_faces}, "
                 f"free_dofs={len(self.free_dofs)}, solver={self.solver!r})")
-
-
-def _cholesky_qr2(S: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """Thin QR of a tall (m, d) matrix by Cholesky QR applied twice (level-3 BLAS only).
-
-    S = Q₁R₁ from the Cholesky factor of SᵀS, then Q₁ = Q R₂ again; R = R₂R₁. Orthogonal to
-    round-off when cond(S) is below ~1e8 (Yamamoto et al. 2015); on one thread, 0.06-0.07 s of CPU
-    for 135,000 x 48 against 0.30-0.56 s for numpy's Householder QR (measured at load 15-25).
-    Returns None (the caller takes Householder) when SᵀS is not numerically positive definite or
-    cond(S) may exceed ~1e6.
-    """
-    try:
-        R1 = sla.cholesky(S.T @ S)
-    except np.linalg.LinAlgError:
-        return None
-    diag = np.abs(np.diag(R1))
-    if not np.isfinite(diag).all() or diag.min() <= 1e-6 * diag.max():
-        return None
-    Q1 = sla.blas.dtrsm(1.0, R1, S, side=1)  # S R₁⁻¹
-    try:
-        R2 = sla.cholesky(Q1.T @ Q1)
-    except np.linalg.LinAlgError:
-        return None
-    return sla.blas.dtrsm(1.0, R2, Q1, side=1, overwrite_b=1), R2 @ R1
 
 
 def _rebuild(mesh: LipMesh, E: np.ndarray, poisson: float, out_of_plane: str) -> Physics:
