@@ -103,9 +103,11 @@ class Subject:
         The ink dots as surface points (None: on the marker nodes).
     subject_seed : int or None
         The seed the shape and dots were drawn from.
-    layer, layer_forces, layer_info
+    layer, layer_forces, layer_info, layer_active
         The nonlinear truth physics (:func:`lipgen.subject.truth.with_layer`), if any: then
-        :func:`simulate` solves it instead of the linear responses.
+        :func:`simulate` solves it instead of the linear responses. ``layer_active`` is (fibres
+        (T, 3), contraction (A, T)): the muscle fibre direction of each tetrahedron and its
+        logarithmic shortening per unit activation of each action.
     """
 
     mesh: LipMesh
@@ -125,6 +127,7 @@ class Subject:
     layer: object = None
     layer_forces: np.ndarray = None
     layer_info: dict = None
+    layer_active: tuple = None
 
     @property
     def n_nodes(self) -> int:
