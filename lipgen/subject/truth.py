@@ -14,7 +14,10 @@ at activation 1), and the dead-load part of the action supplies the rest of its 
 displacement (the lips pushed forward). A surface pull alone stretched the layer over the teeth
 and thinned it (lip layer -6 % at a full pucker, volume -7 %); the contraction with the
 near-incompressible tissue (:func:`with_layer`'s volume penalty) thickens it instead
-(``tests/test_truth_layer.py`` measures both).
+(``tests/test_truth_layer.py`` measures both). Ultrasound shows the lips' muscle layer thickening
+as it contracts, the upper lip's more than the lower's (Vinkka-Puhakka, Kean & Heap, "Ultrasonic
+investigation of the circumoral musculature", J. Anat. 166, 1989); no published figure for the
+thickness change of a whole lip under a pucker was found, so nothing here is set from one.
 """
 
 from __future__ import annotations
