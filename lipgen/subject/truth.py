@@ -155,6 +155,9 @@ def with_layer(subject, rng=None):
         # the force's share: |s u_f + u_a| = target at the marker (s >= 0)
         p, q = float(u_f @ u_f), float(u_f @ u_a)
         s = (-q + np.sqrt(max(q * q - p * (float(u_a @ u_a) - target**2), 0.0))) / p
+        if s <= 0:
+            log.warning("truth layer: %s's contraction alone moves %s by %.2f mm, beyond its %.2f mm",
+                        name, marker, np.linalg.norm(u_a), target)
         forces[a] = patterns[name] * max(s, 0.0)
     forces.setflags(write=False)
     contraction.setflags(write=False)
