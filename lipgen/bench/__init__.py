@@ -39,6 +39,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.load",
     "lipgen.bench.campaign",
     "lipgen.bench.speech",
+    "lipgen.bench.variance",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 

@@ -15,6 +15,8 @@ import re
 
 import numpy as np
 
+from lipgen._validate import as_float_array
+
 __all__ = ["ACTIONS", "CLASSIC_ACTIONS", "ONE_SIDED", "VISEMES", "VISEME_ALIASES", "DEFAULT_FPS",
            "parse_script",
            "random_activations", "viseme_activations", "head_motion", "action_index"]
@@ -252,3 +254,30 @@ def head_motion(n_frames: int, seed=0, fps: float = DEFAULT_FPS, max_rotation_de
         poses[f, :3, :3] = R
         poses[f, :3, 3] = p - R @ p + shifts[f]
     return poses
+
+
+def _activation_array(activations) -> np.ndarray:
+    """(F, A) activations from an array or a mapping ``{action: (F,) curve}``."""
+    if isinstance(activations, dict):
+        for name in activations:
+            action_index(name)
+        curves = {k: np.atleast_1d(np.asarray(v, float)) for k, v in activations.items()}
+        lengths = {len(v) for v in curves.values()}
+        if len(lengths) != 1:
+            raise ValueError(f"activation curves must all have the same length, got {sorted(lengths)}")
+        n = lengths.pop()
+        A = np.zeros((n, len(ACTIONS)))
+        for k, v in curves.items():
+            A[:, action_index(k)] = v
+    else:
+        A = as_float_array(activations, "activations")
+        if A.ndim == 1 and len(A) == len(ACTIONS):
+            A = A[None]
+        if A.ndim != 2 or A.shape[1] != len(ACTIONS):
+            raise ValueError(f"activations must have shape (F, {len(ACTIONS)}) with columns {ACTIONS}, "
+                             f"or be a mapping action -> curve; got shape {A.shape}")
+    as_float_array(A, "activations")
+    if (A < 0).any() or (A > 2).any():
+        raise ValueError(f"activations must lie in [0, 2] (1 is the calibrated full action), got range "
+                         f"[{A.min():.3g}, {A.max():.3g}]")
+    return A

@@ -5,14 +5,17 @@ the surface normal onto a triangle and stored by barycentric coordinates. On eve
 rebuilt from the deformed triangles, so the ink stretches with the skin, hugs the surface and
 its centre stays exactly on the marked vertex (or surface point, :func:`make_decal_at`).
 It is lifted by a few hundredths of a millimetre
-along the surface normal so that the depth test draws it over the skin.
+along the surface normal so that the depth test draws it over the skin. All of a frame's dots
+are drawn as one mesh (one draw call), their smudge halos as a second.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from lipgen.rig.scene import Material, MeshItem
 
 __all__ = ["Decal", "make_decal", "make_decal_at", "place_decal"]
 
@@ -177,3 +180,30 @@ def place_decal(decal: Decal, vertices: np.ndarray, faces: np.ndarray, normals: 
     nrm = np.einsum("kj,kjd->kd", decal.bary, normals[idx])
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
     return pos + lift * nrm
+
+
+def _dots_items(dots: list, ink: tuple[Material, ...], lift: float, style, age: float) -> list[MeshItem]:
+    """The ink dots as one mesh (one draw call), dot k with material ``ink[k]``; with a smudging
+    ``style``, their halos as a second, translucent one."""
+    if style is not None:
+        ink = tuple(replace(m, color=style.ink_color(m.color, age)) for m in ink)
+    items = [_dots_item(dots, ink, lift)]
+    opacity = 0.0 if style is None else style.halo_opacity(age)
+    if opacity > 0:
+        halo = [(replace(d, faces=d.halo), V, F, N) for d, V, F, N in dots]
+        mats = tuple(replace(m, name=f"smudge_{k}", opacity=opacity) for k, m in enumerate(ink))
+        items.append(_dots_item(halo, mats, lift * 0.8, name="smudge"))
+    return items
+
+
+def _dots_item(dots: list, ink: tuple[Material, ...], lift: float, name: str = "dots") -> MeshItem:
+    """All ink dots as one mesh (one draw call), dot k with material ``ink[k]``."""
+    P, Fs, Ns, mats, offset = [], [], [], [], 0
+    for k, (decal, V, F, N) in enumerate(dots):
+        P.append(place_decal(decal, V, F, N, lift))
+        nrm = np.einsum("kj,kjd->kd", decal.bary, N[F[decal.face]])
+        Ns.append(nrm / np.linalg.norm(nrm, axis=1, keepdims=True))
+        Fs.append(decal.faces + offset)
+        mats.append(np.full(len(decal.faces), k))
+        offset += len(P[-1])
+    return MeshItem(name, np.vstack(P), np.vstack(Fs), ink[:len(dots)], np.concatenate(mats), np.vstack(Ns))

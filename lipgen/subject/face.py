@@ -23,14 +23,14 @@ always did.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.rig.scene import Light, Material, MeshItem, Scene, vertex_normals
-from lipgen.subject.decal import make_decal, make_decal_at, place_decal
+from lipgen.subject.decal import _dots_items, make_decal, make_decal_at, place_decal
 from lipgen.subject.head import PROXY, build_proxy, ellipsoid, face_depth, head_shape, nose_mesh
 
 __all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops", "look_record"]
@@ -355,33 +355,6 @@ def look_record(look: FaceLook, n_dots: int) -> dict:
             "mouth": ["cavity", "lower_teeth", "tongue", "upper_teeth"] if look.mouth and on else None,
             "ink": None if style is None else style.to_dict(), "seed": look.texture_seed,
             "units": "mm; ink scale and edge amplitudes relative to the dot's radius"}
-
-
-def _dots_items(dots: list, ink: tuple[Material, ...], lift: float, style, age: float) -> list[MeshItem]:
-    """The ink dots as one mesh (one draw call), dot k with material ``ink[k]``; with a smudging
-    ``style``, their halos as a second, translucent one."""
-    if style is not None:
-        ink = tuple(replace(m, color=style.ink_color(m.color, age)) for m in ink)
-    items = [_dots_item(dots, ink, lift)]
-    opacity = 0.0 if style is None else style.halo_opacity(age)
-    if opacity > 0:
-        halo = [(replace(d, faces=d.halo), V, F, N) for d, V, F, N in dots]
-        mats = tuple(replace(m, name=f"smudge_{k}", opacity=opacity) for k, m in enumerate(ink))
-        items.append(_dots_item(halo, mats, lift * 0.8, name="smudge"))
-    return items
-
-
-def _dots_item(dots: list, ink: tuple[Material, ...], lift: float, name: str = "dots") -> MeshItem:
-    """All ink dots as one mesh (one draw call), dot k with material ``ink[k]``."""
-    P, Fs, Ns, mats, offset = [], [], [], [], 0
-    for k, (decal, V, F, N) in enumerate(dots):
-        P.append(place_decal(decal, V, F, N, lift))
-        nrm = np.einsum("kj,kjd->kd", decal.bary, N[F[decal.face]])
-        Ns.append(nrm / np.linalg.norm(nrm, axis=1, keepdims=True))
-        Fs.append(decal.faces + offset)
-        mats.append(np.full(len(decal.faces), k))
-        offset += len(P[-1])
-    return MeshItem(name, np.vstack(P), np.vstack(Fs), ink[:len(dots)], np.concatenate(mats), np.vstack(Ns))
 
 
 def _pose(pose) -> tuple[np.ndarray, np.ndarray]:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Layer", "build_layer", "stvk_energy_density"]
+__all__ = ["Layer", "build_layer", "stvk_energy_density", "active_strain"]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +39,28 @@ def stvk_energy_density(F: np.ndarray, mu, lam) -> np.ndarray:
     E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
     trE = np.trace(E, axis1=-2, axis2=-1)
     return mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * lam * trE**2
+
+
+def active_strain(fibres: np.ndarray, contraction: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) inverse isochoric active strains: fibres shortened by ``exp(-contraction)``.
+
+    The active strain ``Fa = s f f^T + s^-1/2 (I - f f^T)``, ``s = exp(-contraction)``, shortens a
+    muscle along its unit fibre direction ``f`` and widens it equally across, at constant volume
+    (``det Fa = 1``; the active-strain approach of Nardinocchi & Teresi 2007, Ambrosi et al. 2011).
+    The tissue's energy measures the elastic part ``F Fa^-1``, so a contracting, near-incompressible
+    muscle shortens and thickens where it can.
+
+    Parameters
+    ----------
+    fibres : (T, 3) float
+        Unit fibre direction per tetrahedron.
+    contraction : (T,) float
+        Logarithmic fibre shortening (0: none; 0.22: the fibres at 80 % of their length).
+    """
+    f = np.asarray(fibres, float)
+    c = np.asarray(contraction, float)[:, None, None]
+    ff = f[:, :, None] * f[:, None, :]
+    return np.exp(c) * ff + np.exp(-0.5 * c) * (np.eye(3) - ff)
 
 
 def _vertex_normals(V: np.ndarray, F: np.ndarray) -> np.ndarray:
@@ -108,16 +130,24 @@ class Layer:
     def n_surface(self) -> int:
         return len(self.rest) // 2
 
-    def energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None = None):
+    def _dm_inv(self, active: np.ndarray | None) -> np.ndarray:
+        """Inverse rest edge matrices, composed with an active strain's inverse ``active`` (T, 3, 3)."""
+        return self.Dm_inv if active is None else self.Dm_inv @ active
+
+    def energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None = None,
+                    active: np.ndarray | None = None):
         """Total energy and its gradient (2n, 3) at positions ``x`` (2n, 3) under nodal ``force``.
 
         ``force`` (2n, 3) is a dead load (potential ``-f . (x - rest)``); ``gum_target`` (2n, 3) the
-        positions the gum springs pull toward (their rest by default).
+        positions the gum springs pull toward (their rest by default); ``active`` (T, 3, 3) the
+        inverse of each tetrahedron's isochoric active strain (:func:`active_strain`), whose
+        elastic part ``F Fa^-1`` the energy measures (a contracting muscle), or None.
         """
         t = self.tets
+        Dm_inv = self._dm_inv(active)
         P0 = x[t[:, 0]]
         Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
-        F = Ds @ self.Dm_inv
+        F = Ds @ Dm_inv
         E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
         trE = np.trace(E, axis1=-2, axis2=-1)
         W = self.mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * self.lam * trE**2
@@ -128,7 +158,7 @@ class Layer:
         J = np.sum(f0 * cof[..., 0], axis=-1)
         Wv = 0.5 * self.kappa * (J - 1.0) ** 2
         stress = Pk + (self.kappa * (J - 1.0))[:, None, None] * cof
-        H = self.volume[:, None, None] * stress @ np.swapaxes(self.Dm_inv, -1, -2)  # dE/dDs
+        H = self.volume[:, None, None] * stress @ np.swapaxes(Dm_inv, -1, -2)  # dE/dDs
         per_node = np.concatenate([-H.sum(axis=-1), H[..., 0], H[..., 1], H[..., 2]])  # (4T, 3)
         g = self.scatter @ per_node
         energy = float(np.sum(self.volume * (W + Wv)))
@@ -148,15 +178,17 @@ class Layer:
             g[:, 1] += np.bincount(up, push, len(x)) - np.bincount(lo, push, len(x))
         return energy, g
 
-    def tangent(self, x: np.ndarray, clip: bool = True):
+    def tangent(self, x: np.ndarray, clip: bool = True, active: np.ndarray | None = None):
         """(6n, 6n) sparse stiffness at ``x``: each tet's Hessian with its negative eigenvalues
-        clipped (positive semi-definite, for a descent direction), plus the springs as in K0."""
+        clipped (positive semi-definite, for a descent direction), plus the springs as in K0;
+        ``active`` as in :meth:`energy_grad`."""
         from scipy.sparse import coo_matrix, diags
 
         t = self.tets
+        Dm_inv = self._dm_inv(active)
         P0 = x[t[:, 0]]
         Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
-        F = Ds @ self.Dm_inv
+        F = Ds @ Dm_inv
         E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
         trE = np.trace(E, axis1=-2, axis2=-1)
         S = 2 * self.mu[:, None, None] * E + (self.lam * trE)[:, None, None] * np.eye(3)
@@ -179,7 +211,7 @@ class Layer:
             dJ = cof.reshape(len(t), 9)[:, q]
             dP = dP + self.kappa[:, None, None] * (dJ[:, None, None] * cof + (J - 1.0)[:, None, None] * dcof)
             C[:, :, q] = dP.reshape(len(t), 9)
-        gN = np.concatenate([-self.Dm_inv.sum(axis=1, keepdims=True), self.Dm_inv], axis=1)  # (T, 4, 3)
+        gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
         G = np.zeros((len(t), 9, 12))  # dF_ij (row-major) per node dof (a, i)
         for i in range(3):
             for a in range(4):
@@ -203,7 +235,7 @@ class Layer:
 
     def solve(self, force: np.ndarray, prescribed: np.ndarray, x0: np.ndarray | None = None,
               gum_target: np.ndarray | None = None, tol: float = 1e-4, maxiter: int = 100,
-              callback=None) -> np.ndarray:
+              callback=None, active: np.ndarray | None = None) -> np.ndarray:
         """Equilibrium positions (2n, 3): minimise the energy over the free nodes.
 
         A Newton-like descent preconditioned by the rest stiffness :attr:`K0` (factorised once):
@@ -220,12 +252,14 @@ class Layer:
             Start (warm start: the previous frame); the rest by default.
         callback : callable, optional
             Called with the energy after each accepted step.
+        active : (T, 3, 3) float, optional
+            Inverse active strains (:func:`active_strain`): muscle contraction in the tissue.
         """
         free = ~self.fixed
         x = (self.rest if x0 is None else np.asarray(x0, float)).copy()
         x[self.fixed] = prescribed[self.fixed]
         solve = self.cache.get("last", self._factor())  # the latest tangent: frames are alike
-        e, g = self.energy_grad(x, force, gum_target)
+        e, g = self.energy_grad(x, force, gum_target, active)
         fresh = False
         for it in range(maxiter):
             step = -solve(g[free].ravel()).reshape(-1, 3)
@@ -233,7 +267,7 @@ class Layer:
             alpha, trial = 1.0, x.copy()
             while True:
                 trial[free] = x[free] + alpha * step
-                e_new, g_new = self.energy_grad(trial, force, gum_target)
+                e_new, g_new = self.energy_grad(trial, force, gum_target, active)
                 if e_new <= e + 1e-4 * alpha * slope or alpha < 1e-6:
                     break
                 alpha *= 0.5
@@ -245,7 +279,7 @@ class Layer:
             if alpha * np.abs(step).max() < tol:
                 break
             if (alpha < 1.0 or it % 5 == 4) and not (fresh and alpha == 1.0):  # a new tangent
-                solve, fresh = self._factor(x), True
+                solve, fresh = self._factor(x, active), True
                 self.cache["last"] = solve
         else:
             log.warning("truth layer: no equilibrium after %d steps (last step %.2g mm)", maxiter,
@@ -253,13 +287,13 @@ class Layer:
         self.iterations.append(it + 1)
         return x
 
-    def _factor(self, x: np.ndarray | None = None):
+    def _factor(self, x: np.ndarray | None = None, active: np.ndarray | None = None):
         """A solver with the free block of K0 (``x`` None, cached) or of the tangent at ``x``."""
         from scipy.sparse.linalg import factorized
 
         dof_free = np.repeat(~self.fixed, 3)
         if x is not None:
-            K = self.tangent(x)[dof_free][:, dof_free]
+            K = self.tangent(x, active=active)[dof_free][:, dof_free]
             return factorized((K + 1e-9 * self.cache["diag"]).tocsc())
         if "solve" not in self.cache:
             self.cache["solve"] = factorized(self.K0[dof_free][:, dof_free].tocsc())

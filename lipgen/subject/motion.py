@@ -43,6 +43,7 @@ from lipgen.subject.activation import (
     ACTIONS,
     DEFAULT_FPS,
     VISEMES,
+    _activation_array,
     action_index,
     head_motion,
     parse_script,
@@ -50,11 +51,12 @@ from lipgen.subject.activation import (
     viseme_activations,
 )
 from lipgen.subject.sources import (
-    _CARRY,
     ACTION_TARGETS_MM,
     JAW_SHIFT_MM,
     TRUTH_STIFFNESS,
     _border_nodes,
+    _calibrate_jaw,
+    _contact_pairs,
     _force_patterns,
     _jaw_rigid,
     _region_nodes,
@@ -101,9 +103,11 @@ class Subject:
         The ink dots as surface points (None: on the marker nodes).
     subject_seed : int or None
         The seed the shape and dots were drawn from.
-    layer, layer_forces, layer_info
+    layer, layer_forces, layer_info, layer_active
         The nonlinear truth physics (:func:`lipgen.subject.truth.with_layer`), if any: then
-        :func:`simulate` solves it instead of the linear responses.
+        :func:`simulate` solves it instead of the linear responses. ``layer_active`` is (fibres
+        (T, 3), contraction (A, T)): the muscle fibre direction of each tetrahedron and its
+        logarithmic shortening per unit activation of each action.
     """
 
     mesh: LipMesh
@@ -123,6 +127,7 @@ class Subject:
     layer: object = None
     layer_forces: np.ndarray = None
     layer_info: dict = None
+    layer_active: tuple = None
 
     @property
     def n_nodes(self) -> int:
@@ -175,33 +180,6 @@ class Subject:
                 active = (active & ~neg) | pen
             lam[f] = np.maximum(x, 0.0)
         return lam
-
-
-def _activation_array(activations) -> np.ndarray:
-    """(F, A) activations from an array or a mapping ``{action: (F,) curve}``."""
-    if isinstance(activations, dict):
-        for name in activations:
-            action_index(name)
-        curves = {k: np.atleast_1d(np.asarray(v, float)) for k, v in activations.items()}
-        lengths = {len(v) for v in curves.values()}
-        if len(lengths) != 1:
-            raise ValueError(f"activation curves must all have the same length, got {sorted(lengths)}")
-        n = lengths.pop()
-        A = np.zeros((n, len(ACTIONS)))
-        for k, v in curves.items():
-            A[:, action_index(k)] = v
-    else:
-        A = as_float_array(activations, "activations")
-        if A.ndim == 1 and len(A) == len(ACTIONS):
-            A = A[None]
-        if A.ndim != 2 or A.shape[1] != len(ACTIONS):
-            raise ValueError(f"activations must have shape (F, {len(ACTIONS)}) with columns {ACTIONS}, "
-                             f"or be a mapping action -> curve; got shape {A.shape}")
-    as_float_array(A, "activations")
-    if (A < 0).any() or (A > 2).any():
-        raise ValueError(f"activations must lie in [0, 2] (1 is the calibrated full action), got range "
-                         f"[{A.min():.3g}, {A.max():.3g}]")
-    return A
 
 
 def default_subject(seed: int = 0, resolution: int = 1, shape=None,
@@ -275,43 +253,6 @@ def default_subject(seed: int = 0, resolution: int = 1, shape=None,
                 subject.contact_pairs, subject.contact_response):
         arr.setflags(write=False)
     return subject
-
-
-def _contact_pairs(mesh: LipMesh) -> np.ndarray:
-    """(p, 2) [upper, lower] node pairs of the inner contour: ridge nodes that mirror each other
-    under y -> -y (the rest contour is a lens symmetric about the mouth line), corners excluded."""
-    from scipy.spatial import cKDTree
-
-    ridge = np.flatnonzero(_region_nodes(mesh, ("ridge",)))
-    V = mesh.vertices[ridge]
-    dist, j = cKDTree(V).query(V * np.array([1.0, -1.0, 1.0]))
-    ok = (dist < 1e-6) & (V[:, 1] > 1e-6)
-    return np.stack([ridge[ok], ridge[j[ok]]], axis=1)
-
-
-def _calibrate_jaw(subject: Subject, lower_lip: np.ndarray, target_mm: float) -> Subject:
-    """Set the gum's carry so the lower lip follows the jaw by ``_CARRY``, then the opening angle
-    so that ``jaw_open = 1`` moves the lower-lip marker by ``target_mm``."""
-    mesh = subject.mesh
-    ref = mesh.marker_index("lower_mid")
-    probe = np.deg2rad(10.0)
-    rigid = _jaw_rigid(mesh.vertices, np.array([probe]), probe)[0]
-    base = replace(subject, jaw_max_angle=probe)
-    no_carry = base.jaw_displacement([probe])[0, ref]
-    unit = replace(base, carry=lower_lip[:, None] * np.ones(3)).jaw_displacement([probe])[0, ref] - no_carry
-    # least-squares gain so that no_carry + gain * unit ~= _CARRY * rigid at the marker
-    gain = float(np.dot(unit, _CARRY * rigid[ref] - no_carry) / np.dot(unit, unit))
-    carry = gain * lower_lip[:, None] * np.ones(3)
-    jaw_col = action_index("jaw_open")
-    lo, hi = np.deg2rad(1.0), np.deg2rad(35.0)
-    for _ in range(40):  # bisection: the response is monotone in the angle
-        mid = 0.5 * (lo + hi)
-        trial = replace(subject, carry=carry, jaw_max_angle=mid)
-        act = np.zeros((1, len(ACTIONS)))
-        act[0, jaw_col] = 1.0
-        moved = np.linalg.norm(trial.displacements(act)[0, ref])
-        lo, hi = (mid, hi) if moved < target_mm else (lo, mid)
-    return replace(subject, carry=carry, jaw_max_angle=0.5 * (lo + hi))
 
 
 @dataclass(frozen=True, eq=False)

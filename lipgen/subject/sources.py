@@ -1,5 +1,6 @@
 """The truth subject's muscle-like sources: where each action pulls (force patterns on the
-mesh), the jaw's rigid motion about its hinge, and the regions' stiffness.
+mesh), the jaw's rigid motion about its hinge, the regions' stiffness, the lips' contact pairs and
+the jaw's calibration.
 
 Shared by the linear truth subject (:mod:`lipgen.subject.motion`) and the nonlinear tissue layer
 (:mod:`lipgen.subject.truth`), so neither imports the other's internals.
@@ -7,9 +8,12 @@ Shared by the linear truth subject (:mod:`lipgen.subject.motion`) and the nonlin
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from lipgen.mesh.lipmesh import LipMesh
+from lipgen.subject.activation import ACTIONS, action_index
 
 __all__ = ["TRUTH_STIFFNESS", "ACTION_TARGETS_MM", "JAW_SHIFT_MM"]
 
@@ -189,3 +193,41 @@ def _wrap(X: np.ndarray, U: np.ndarray, radius: float = _ARCH_RADIUS) -> np.ndar
     u_phi, u_rho = np.einsum("...ni,ni->...n", U, e_phi), np.einsum("...ni,ni->...n", U, e_rho)
     phi, rho = phi0 + u_phi / rho0, rho0 + u_rho
     return np.stack([rho * np.sin(phi), X[:, 1] + U[..., 1], rho * np.cos(phi) - radius], axis=-1)
+
+
+def _contact_pairs(mesh: LipMesh) -> np.ndarray:
+    """(p, 2) [upper, lower] node pairs of the inner contour: ridge nodes that mirror each other
+    under y -> -y (the rest contour is a lens symmetric about the mouth line), corners excluded."""
+    from scipy.spatial import cKDTree
+
+    ridge = np.flatnonzero(_region_nodes(mesh, ("ridge",)))
+    V = mesh.vertices[ridge]
+    dist, j = cKDTree(V).query(V * np.array([1.0, -1.0, 1.0]))
+    ok = (dist < 1e-6) & (V[:, 1] > 1e-6)
+    return np.stack([ridge[ok], ridge[j[ok]]], axis=1)
+
+
+def _calibrate_jaw(subject, lower_lip: np.ndarray, target_mm: float):
+    """``subject`` (a :class:`~lipgen.subject.motion.Subject`) with the gum's carry set so the lower
+    lip follows the jaw by ``_CARRY``, then the opening angle so that ``jaw_open = 1`` moves the
+    lower-lip marker by ``target_mm``."""
+    mesh = subject.mesh
+    ref = mesh.marker_index("lower_mid")
+    probe = np.deg2rad(10.0)
+    rigid = _jaw_rigid(mesh.vertices, np.array([probe]), probe)[0]
+    base = replace(subject, jaw_max_angle=probe)
+    no_carry = base.jaw_displacement([probe])[0, ref]
+    unit = replace(base, carry=lower_lip[:, None] * np.ones(3)).jaw_displacement([probe])[0, ref] - no_carry
+    # least-squares gain so that no_carry + gain * unit ~= _CARRY * rigid at the marker
+    gain = float(np.dot(unit, _CARRY * rigid[ref] - no_carry) / np.dot(unit, unit))
+    carry = gain * lower_lip[:, None] * np.ones(3)
+    jaw_col = action_index("jaw_open")
+    lo, hi = np.deg2rad(1.0), np.deg2rad(35.0)
+    for _ in range(40):  # bisection: the response is monotone in the angle
+        mid = 0.5 * (lo + hi)
+        trial = replace(subject, carry=carry, jaw_max_angle=mid)
+        act = np.zeros((1, len(ACTIONS)))
+        act[0, jaw_col] = 1.0
+        moved = np.linalg.norm(trial.displacements(act)[0, ref])
+        lo, hi = (mid, hi) if moved < target_mm else (lo, mid)
+    return replace(subject, carry=carry, jaw_max_angle=0.5 * (lo + hi))
