@@ -82,7 +82,7 @@ def _tidy(R, C, B, t):
 
 _EXACT_COMPLETION = 1e-6
 """Relative misfit of the rank-3K completion below which incomplete tracks may be exactly K shapes
-(ALS creeps towards an exact fit, so the numerical rank of the completed tracks may not show it)."""
+(exact low-rank tracks complete to a misfit of ~1e-15; drink with 10 % hidden, K = 12, to 3e-5)."""
 
 _TINY = float(np.finfo(np.float64).tiny) * 2.0**20
 """Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""
