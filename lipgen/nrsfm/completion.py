@@ -151,15 +151,24 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
     misfit : float
         RMS of the model's residual on the observed entries over their RMS about each row's mean.
     info : dict
-        ``steps``, ``cost`` (first, last: half the squared residual).
+        ``steps``, ``cost`` (first, last: half the squared residual of W / ``scale``), ``scale`` (the
+        power of two W was divided by, so that any magnitude is solved alike).
     """
-    F, P = mask.shape
     seen = np.repeat(mask, 2, axis=0)
     W0 = np.where(seen, W, 0.0)
+    top = float(np.abs(W0).max())
+    unit = 2.0 ** np.round(np.log2(top)) if top > 0 else 1.0    # exact rescale: squares stay in range
+    full, misfit, info = _complete(W0 / unit, mask, rank, max_iter, tol)
+    return full * unit, misfit, info | {"scale": unit}
+
+
+def _complete(W0, mask, rank, max_iter, tol):
+    F, P = mask.shape
+    seen = np.repeat(mask, 2, axis=0)
     prior = interpolate_in_time(W0, mask)
     d = P - 1 - rank
     row_mean = W0.sum(1) / seen.sum(1)
-    spread = float(np.linalg.norm(np.where(seen, W - row_mean[:, None], 0.0)))
+    spread = float(np.linalg.norm(np.where(seen, W0 - row_mean[:, None], 0.0)))
     if d <= 0:  # every row fits exactly: the model says nothing about the hidden entries
         return prior, 0.0, {"steps": 0, "cost": [0.0, 0.0]}
     _, _, Vt = np.linalg.svd(prior - prior.mean(1, keepdims=True), full_matrices=False)
@@ -191,7 +200,7 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
             break
     hidden = (~mask).sum(1)
     dof = 2 * int(np.maximum(d - hidden, 0).sum()) - Y.shape[1] * d
-    noise = max(2 * cost / max(dof, 1), 1e-30 * float((W0**2).mean()), 1e-300)
+    noise = max(2 * cost / max(dof, 1), 1e-24 * float((W0**2).mean()), 1e-300)
     full = _fill(W0, prior, mask, N, noise)
     misfit = float(np.sqrt(2 * max(cost, 0.0))) / max(spread, 1e-300)
     log.debug("completion (subspace Gauss-Newton): %d hidden entries, %d steps, cost %.3e -> %.3e",
@@ -245,7 +254,8 @@ def _fill(W0: np.ndarray, prior: np.ndarray, mask: np.ndarray, N: np.ndarray, no
     F, P = mask.shape
     full = W0.reshape(F, 2, P).copy()
     x0 = prior.reshape(F, 2, P)
-    weight = 1.0 / np.maximum(prior_variance(W0, mask)[::2], 1e-300)     # (F, P)
+    floor = 1e-24 * max(float(np.mean(W0**2)), 1e-300)              # exact priors, without overflow
+    weight = 1.0 / np.maximum(prior_variance(W0, mask)[::2], floor)      # (F, P)
     hidden = (~mask).sum(1)
     for h in np.unique(hidden[hidden > 0]):
         frames = np.flatnonzero(hidden == h)
