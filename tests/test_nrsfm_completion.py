@@ -120,3 +120,13 @@ def test_time_prior_and_its_measured_error():
               if mask[g - m, p] and mask[g, p] and mask[g + m, p]]
         quad = sum(1 for g, p in ok if p == 2)
         assert var[f, 2] == pytest.approx(quad * (m**2 / 2) ** 2 / len(ok) / 2, rel=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e200])
+def test_any_magnitude_completes_alike(scale):
+    F, P, r = 50, 12, 4
+    W = _low_rank(F, P, r, seed=7)
+    mask = _mask(F, P, 0.15, 8)
+    full, misfit, info = complete_subspace(W * scale, mask, r)
+    assert misfit < 1e-10 and np.isfinite(full).all()
+    assert np.abs(full / scale - W).max() < 1e-6 * np.abs(W).max()
