@@ -70,7 +70,7 @@ def add_parser(sub) -> None:
         "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
         "and on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation), beside "
         "the flat zero-depth baseline; write benchmarks.md, benchmarks.json and the "
-        "curves to --out. Takes minutes (four development bodies at 80 frames, fresh seeds 400-410); "
+        "curves to --out. Takes minutes (two development bodies at 80 frames, fresh seeds 400-410); "
         "--full runs eight bodies at 300 frames and fresh seeds 300-310 and 400-410 at 300 and 80 frames "
         "(about an hour of CPU).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
