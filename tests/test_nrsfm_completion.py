@@ -130,3 +130,18 @@ def test_any_magnitude_completes_alike(scale):
     full, misfit, info = complete_subspace(W * scale, mask, r)
     assert misfit < 1e-10 and np.isfinite(full).all()
     assert np.abs(full / scale - W).max() < 1e-6 * np.abs(W).max()
+
+
+def test_hide_points_hides_the_fraction_asked_at_random_or_in_runs():
+    from lipgen.experiments.nrsfm_benchmarks import hide_points
+
+    random = hide_points(500, 40, "random", 0.1, seed=1)
+    assert random.shape == (500, 40) and abs((~random).mean() - 0.1) < 0.01
+    gaps = hide_points(500, 40, "gaps", 0.1, seed=1)
+    assert 0.1 <= (~gaps).mean() < 0.1 + 60 / (500 * 40)
+    # hidden in runs: a hidden entry's neighbour in time is mostly hidden too
+    def run_share(hidden):
+        return (hidden[1:] & hidden[:-1]).sum() / hidden.sum()
+
+    assert run_share(~gaps) > 0.9 and run_share(~random) < 0.2
+    assert np.array_equal(gaps, hide_points(500, 40, "gaps", 0.1, seed=1))
