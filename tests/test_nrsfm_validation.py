@@ -75,6 +75,29 @@ def test_dai_ba_returns_its_start_when_the_refinement_shakes_depth(monkeypatch):
     assert np.array_equal(rec.S, start.S)
 
 
+@pytest.mark.parametrize("seed,k,hidden", [(100, 2, 0.0), (101, 3, 0.0), (103, 2, 0.1)])
+def test_dai_ba_keeps_only_a_plausible_lower_cost_refinement_else_returns_dai(seed, k, hidden):
+    """The refinement's contract, whatever the body: either it is kept, and then its depth figures stay
+    within the plausibility limits of Dai's trace-norm shapes and its reprojection error is not above
+    its start's (the rank-K fit); or it is dropped, and the answer is `dai`'s, bit for bit."""
+    s = human_sequence(seed, 40)
+    F, P = s.W.shape[0] // 2, s.W.shape[1]
+    visible = None if hidden == 0 else np.random.default_rng(seed).random((F, P)) > hidden
+    W = s.W if visible is None else np.where(np.repeat(visible, 2, axis=0), s.W, np.nan)
+    rec = reconstruct(W, k, method="dai-ba", visible=visible, refine_iter=20)
+    dai = reconstruct(W, k, method="dai", visible=visible)
+    info = rec.info
+    assert info["ba_cost"][1] <= info["ba_cost"][0]
+    if info["ba_kept"]:
+        assert plausible(info["ba_shapes"], info["trace_norm_shapes"])
+        kept = shape_figures(rec.rotations, np.einsum("fk,kip->fip", rec.weights, rec.basis))
+        assert kept == pytest.approx(info["ba_shapes"], rel=1e-9)
+        assert rec.reprojection_rms <= info["rank_k_reprojection_rms"] * (1 + 1e-9)
+    else:
+        assert not plausible(info["ba_shapes"], info["trace_norm_shapes"])
+        assert np.array_equal(rec.S, dai.S) and np.array_equal(rec.rotations, dai.rotations)
+
+
 def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     from lipgen.experiments.nrsfm_benchmarks import NrsfmBenchSettings, run_nrsfm_benchmarks
 

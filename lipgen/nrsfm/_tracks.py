@@ -11,7 +11,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse
 
 from lipgen._validate import as_float_array
 
@@ -196,16 +195,15 @@ def check_k(k, n_frames: int, n_points: int, n_observed: int | None = None,
     return k
 
 
-def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float = 1e-12,
+def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 100, tol: float = 1e-9,
                     return_residual: bool = False):
     """Tracks with unobserved entries filled from the best rank-``rank`` model plus translation.
 
     Fits ``W ~ M B + t 1^T`` (M: 2F x rank, B: rank x P, t: per-row translation) to the observed
-    entries by alternating least squares, started from a truncated SVD of the tracks with
-    each row's observed mean filled in; unobserved entries are then read off the model.
-    Complete tracks are returned unchanged. Exact low-rank tracks need the tight ``tol`` (their
-    numerical rank then tells that K shapes explain them exactly); on real tracks with a rank 3K
-    close to P, ALS creeps to ``max_iter`` (drink, 10% hidden, K = 12: 0.06 s of CPU per iteration).
+    entries by Gauss-Newton on the model's row space (:func:`lipgen.nrsfm.completion.complete_subspace`);
+    each hidden entry is then the least-squares combination of what the model says and of the
+    point's track interpolated in time (weighted by their measured errors). Complete tracks are
+    returned unchanged.
 
     Returns
     -------
@@ -215,51 +213,13 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 500, tol: float =
         Only with ``return_residual``: RMS misfit of the model on the observed entries over their
         RMS about each row's mean (0 for complete tracks, ~1e-15 for exact low-rank ones).
     """
+    from lipgen.nrsfm.completion import complete_subspace
+
     W = tracks.W
     if tracks.complete:
         return (W.copy(), 0.0) if return_residual else W.copy()
-    seen = np.repeat(tracks.mask, 2, axis=0).astype(float)
-    row_mean = (W * seen).sum(1) / seen.sum(1)
-    filled = np.where(seen > 0, W, row_mean[:, None])
-    t = filled.mean(1)
-    U, s, Vt = np.linalg.svd(filled - t[:, None], full_matrices=False)
-    M, B = U[:, :rank] * s[:rank], Vt[:rank]
-    ridge = 1e-12 * s[0] ** 2 if s[0] > 0 else 1e-12
-    eye_b, eye_m = np.eye(rank), np.eye(rank + 1)
-    prev = np.inf
-    it = 0
-    F, P = tracks.mask.shape
-    scale = np.linalg.norm(W * seen)
-    # Normal matrices = all rows (points) minus the few unobserved ones, so an iteration costs
-    # O(missing r^2), not O(F P r^2): per point, the Gram matrix of its hidden rows of M
-    hidden_rows = [np.flatnonzero(seen[:, p] == 0) for p in range(P)]
-    hidden_pts = scipy.sparse.csr_matrix((~tracks.mask).astype(float))       # (F, P)
-    for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        # B given (M, t): one rank x rank system per point
-        N = np.broadcast_to(M.T @ M + ridge * eye_b, (P, rank, rank)).copy()
-        for p, rows in enumerate(hidden_rows):
-            if rows.size:
-                Mh = M[rows]
-                N[p] -= Mh.T @ Mh
-        rhs = (seen * (W - t[:, None])).T @ M
-        B = np.linalg.solve(N, rhs[..., None])[..., 0].T
-        # (M, t) given B: one (rank + 1) system per frame, shared by its u and v rows
-        B1 = np.vstack([B, np.ones((1, P))])
-        BB = (B1.T[:, :, None] * B1.T[:, None, :]).reshape(P, -1)
-        N = (B1 @ B1.T).ravel() - hidden_pts @ BB
-        rhs = ((W * seen) @ B1.T).reshape(F, 2, rank + 1).transpose(0, 2, 1)
-        Mt = np.linalg.solve(N.reshape(F, rank + 1, rank + 1) + ridge * eye_m, rhs)
-        Mt = Mt.transpose(0, 2, 1).reshape(2 * F, rank + 1)
-        M, t = Mt[:, :rank], Mt[:, rank]
-        res = float(np.sqrt((((M @ B + t[:, None]) - W) ** 2 * seen).sum()))
-        if (np.isfinite(prev) and prev - res <= tol * prev) or res <= 1e-14 * scale:
-            break
-        prev = res
-    log.debug("completion: %d missing entries, %d iterations, residual %.3e", int((seen == 0).sum()),
-              it, res)
-    full = np.where(seen > 0, W, M @ B + t[:, None])
-    spread = float(np.linalg.norm((W - row_mean[:, None]) * seen))
-    return (full, res / max(spread, 1e-300)) if return_residual else full
+    full, misfit, _ = complete_subspace(W, tracks.mask, rank, max_iter=max_iter, tol=tol)
+    return (full, misfit) if return_residual else full
 
 
 def factor(Wc: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -44,9 +44,15 @@ def reconstruct_k(W, k: int, method: str, visible=None, *, seed: int = 0, n_star
     rec = _reconstruct(W, k, method, visible, **options)
     if unit == 1.0:
         return rec
+    info = rec.info | {"scale": unit}
+    # figures in track units scale back too (the curve of K compares them with the tracks' own RMS)
+    if "rank_k_reprojection_rms" in info:
+        info["rank_k_reprojection_rms"] *= unit
+    if "ba_cost" in info:
+        info["ba_cost"] = [c * unit**2 for c in info["ba_cost"]]
     return Reconstruction(rotations=rec.rotations, weights=rec.weights, basis=rec.basis * unit,
                           translation=rec.translation * unit, method=rec.method, k=rec.k,
-                          reprojection_rms=rec.reprojection_rms * unit, info=rec.info | {"scale": unit})
+                          reprojection_rms=rec.reprojection_rms * unit, info=info)
 
 
 def _reprojection_rms(tracks, R, C, B, t) -> float:
@@ -76,7 +82,7 @@ def _tidy(R, C, B, t):
 
 _EXACT_COMPLETION = 1e-6
 """Relative misfit of the rank-3K completion below which incomplete tracks may be exactly K shapes
-(ALS creeps towards an exact fit, so the numerical rank of the completed tracks may not show it)."""
+(exact low-rank tracks complete to a misfit of ~1e-15; drink with 10 % hidden, K = 12, to 3e-5)."""
 
 _TINY = float(np.finfo(np.float64).tiny) * 2.0**20
 """Below this largest magnitude, coordinates a millionth of it would be subnormal (lost digits)."""

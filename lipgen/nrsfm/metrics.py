@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from dataclasses import dataclass
 
@@ -129,8 +130,10 @@ def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, r
     return KCurve(ks=ks, rms=rms, relative=relative, chosen=chosen, rule=rule, method=method)
 
 
-def plot_curve(curve: KCurve, path) -> None:
-    """Write the reprojection curve (log scale) with the chosen K marked, atomically (Agg)."""
+@contextlib.contextmanager
+def _figure(path, title: str, xlabel: str, ylabel: str):
+    """A (5.5 x 3.6 in) Agg figure's axes; on leaving, grid, legend and labels are set and the figure
+    is written to ``path`` atomically, then closed (also on error)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -139,22 +142,30 @@ def plot_curve(curve: KCurve, path) -> None:
     from lipgen._io import atomic_path
 
     fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
-    ax.semilogy(curve.ks, 100 * curve.relative, "o-", color="tab:blue", label=curve.method)
-    i = int(np.flatnonzero(curve.ks == curve.chosen)[0])
-    ax.semilogy([curve.chosen], [100 * curve.relative[i]], "s", ms=11, mfc="none", color="tab:red",
-                label=f"chosen K = {curve.chosen}")
-    ax.set_xlabel("deformation modes K (beyond the mean shape)" if curve.method in MEAN_PLUS_MODES
-                  else "number of basis shapes K")
-    ax.set_ylabel("RMS reprojection error (% of track RMS)")
-    ax.set_title("Reprojection error against K (Bregler et al. Fig 2)", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
     try:
+        yield ax
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
         with atomic_path(path) as tmp:
             fig.savefig(tmp)
     finally:
         plt.close(fig)
+
+
+def plot_curve(curve: KCurve, path) -> None:
+    """Write the reprojection curve (log scale) with the chosen K marked, atomically (Agg)."""
+    xlabel = ("deformation modes K (beyond the mean shape)" if curve.method in MEAN_PLUS_MODES
+              else "number of basis shapes K")
+    with _figure(path, "Reprojection error against K (Bregler et al. Fig 2)", xlabel,
+                 "RMS reprojection error (% of track RMS)") as ax:
+        ax.semilogy(curve.ks, 100 * curve.relative, "o-", color="tab:blue", label=curve.method)
+        i = int(np.flatnonzero(curve.ks == curve.chosen)[0])
+        ax.semilogy([curve.chosen], [100 * curve.relative[i]], "s", ms=11, mfc="none", color="tab:red",
+                    label=f"chosen K = {curve.chosen}")
 
 
 def plot_k_choice(choice: dict, path) -> None:
@@ -167,32 +178,15 @@ def plot_k_choice(choice: dict, path) -> None:
         ``ks``, ``rotation_roughness``, ``exact``, ``chosen`` (lists per K and the chosen K).
     path : str or Path
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from lipgen._io import atomic_path
-
     ks = np.asarray(choice["ks"])
     rough = np.maximum(np.asarray(choice["rotation_roughness"], float), 1e-300)
     exact = np.asarray(choice["exact"], bool)
-    fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
-    ax.semilogy(ks, rough, "o-", color="tab:blue", label="dai")
-    if exact.any():
-        ax.semilogy(ks[exact], rough[exact], "o", ms=9, mfc="none", color="tab:green",
-                    label="exact K-shape fit")
-    i = int(np.flatnonzero(ks == choice["chosen"])[0])
-    ax.semilogy([ks[i]], [rough[i]], "s", ms=11, mfc="none", color="tab:red",
-                label=f"chosen K = {choice['chosen']}")
-    ax.set_xlabel("number of basis shapes K")
-    ax.set_ylabel("rotation roughness (mean |R''|^2)")
-    ax.set_title("Smoothness of the recovered rotations against K", fontsize=9)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp)
-    finally:
-        plt.close(fig)
+    with _figure(path, "Smoothness of the recovered rotations against K", "number of basis shapes K",
+                 "rotation roughness (mean |R''|^2)") as ax:
+        ax.semilogy(ks, rough, "o-", color="tab:blue", label="dai")
+        if exact.any():
+            ax.semilogy(ks[exact], rough[exact], "o", ms=9, mfc="none", color="tab:green",
+                        label="exact K-shape fit")
+        i = int(np.flatnonzero(ks == choice["chosen"])[0])
+        ax.semilogy([ks[i]], [rough[i]], "s", ms=11, mfc="none", color="tab:red",
+                    label=f"chosen K = {choice['chosen']}")

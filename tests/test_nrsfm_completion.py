@@ -1,0 +1,147 @@
+"""Low-rank completion of tracks (lipgen.nrsfm.completion): the Gauss-Newton model against finite
+differences, exact recovery of low-rank tracks, the time prior and its measured error."""
+
+import numpy as np
+import pytest
+
+from lipgen.nrsfm.completion import (
+    _bases,
+    _Frames,
+    complete_subspace,
+    interpolate_in_time,
+    prior_variance,
+)
+
+
+def _low_rank(F=60, P=14, r=6, seed=0):
+    rng = np.random.default_rng(seed)
+    # smooth coefficients in time, so that the time prior is informative but not exact
+    t = np.linspace(0, 1, F)[:, None]
+    M = np.sin(2 * np.pi * t * rng.uniform(0.5, 2.0, (1, 2 * r)) + rng.uniform(0, 6, (1, 2 * r)))
+    M = M.reshape(F, 2, r).reshape(2 * F, r)
+    B = rng.standard_normal((r, P))
+    return M @ B + rng.standard_normal((2 * F, 1))
+
+
+def _mask(F, P, frac, seed):
+    rng = np.random.default_rng(seed)
+    mask = rng.random((F, P)) > frac
+    mask[:, 0] = True
+    return mask
+
+
+def test_gauss_newton_model_matches_finite_differences():
+    F, P, r = 40, 12, 5
+    W = _low_rank(F, P, r) + 0.05 * np.random.default_rng(1).standard_normal((2 * F, P))
+    mask = _mask(F, P, 0.12, 2)
+    W0 = np.where(np.repeat(mask, 2, axis=0), W, 0.0)
+    d = P - 1 - r
+    rng = np.random.default_rng(3)
+    N, Y = _bases(rng.standard_normal((P, d)))
+    frames = _Frames(W0, mask, d)
+    cost, JtJ, g = frames.evaluate(N, Y)
+    # cost against the direct least-squares fit of every row in span(1, Y)
+    U = np.column_stack([np.ones(P), Y])
+    direct = 0.0
+    for f in range(F):
+        o = mask[f]
+        for row in (2 * f, 2 * f + 1):
+            coef = np.linalg.lstsq(U[o], W[row, o], rcond=None)[0]
+            direct += 0.5 * float(((W[row, o] - U[o] @ coef) ** 2).sum())
+    assert cost == pytest.approx(direct, rel=1e-9)
+
+    # gradient and Gauss-Newton matrix against central differences of the residual map
+    def residuals(X):
+        Nn = np.linalg.qr(N + Y @ X.reshape(r, d))[0]
+        out = []
+        for idx, rows in frames.groups:
+            a = rows @ Nn
+            if idx.shape[1]:
+                NH = Nn[idx]
+                Pi = np.eye(d) - NH.transpose(0, 2, 1) @ np.linalg.inv(NH @ NH.transpose(0, 2, 1)) @ NH
+                a = np.einsum("nij,nkj->nki", Pi, a)
+            out.append(a.ravel())
+        return np.concatenate(out)
+
+    # the residual vectors depend on the basis N chosen within span(N) only by a rotation, which QR of
+    # N + Y dX fixes to first order; compare J^T r and J^T J built from a finite-difference J
+    h = 1e-6
+    J = np.stack([(residuals(h * e) - residuals(-h * e)) / (2 * h) for e in np.eye(r * d)], axis=1)
+    res = residuals(np.zeros(r * d))
+    assert 0.5 * float(res @ res) == pytest.approx(cost, rel=1e-9)
+    assert np.allclose(J.T @ res, g, rtol=1e-5, atol=1e-7 * np.abs(g).max())
+    assert np.allclose(J.T @ J, JtJ, rtol=1e-5, atol=1e-6 * np.abs(JtJ).max())
+
+
+@pytest.mark.parametrize("frac", [0.1, 0.3])
+def test_exact_low_rank_tracks_are_recovered(frac):
+    F, P, r = 80, 16, 6
+    W = _low_rank(F, P, r, seed=4)
+    mask = _mask(F, P, frac, 5)
+    Wn = np.where(np.repeat(mask, 2, axis=0), W, np.nan)
+    full, misfit, info = complete_subspace(Wn, mask, r)
+    assert misfit < 1e-10
+    assert np.abs(full - W).max() < 1e-6 * np.abs(W).max()
+    seen = np.repeat(mask, 2, axis=0)
+    assert np.array_equal(full[seen], W[seen])     # observed entries untouched
+
+
+def test_long_gaps_are_filled_by_the_model_not_the_time_prior():
+    F, P, r = 120, 20, 4
+    W = _low_rank(F, P, r, seed=6)
+    mask = np.ones((F, P), dtype=bool)
+    for p, start in zip(range(1, 8), (5, 20, 40, 60, 70, 85, 90), strict=True):
+        mask[start:start + 25, p] = False
+    full, misfit, _ = complete_subspace(W, mask, r)
+    hidden = ~np.repeat(mask, 2, axis=0)
+    prior_error = np.abs(interpolate_in_time(np.where(hidden, 0.0, W), mask) - W)[hidden].max()
+    assert prior_error > 0.05 * np.abs(W).max()       # the prior alone is far off on these gaps
+    assert np.abs(full - W)[hidden].max() < 1e-6 * np.abs(W).max()
+
+
+def test_time_prior_and_its_measured_error():
+    F, P = 50, 5
+    frames = np.arange(F, dtype=float)
+    W = np.zeros((2 * F, P))
+    W[0::2] = frames[:, None] * np.arange(1, P + 1)        # linear in time: interpolation is exact
+    W[1::2] = 3.0 - 0.5 * frames[:, None]
+    mask = np.ones((F, P), dtype=bool)
+    mask[10:13, 2] = False
+    mask[30, 4] = False
+    filled = interpolate_in_time(np.where(np.repeat(mask, 2, axis=0), W, -99.0), mask)
+    assert np.allclose(filled, W)
+    assert np.allclose(prior_variance(W, mask), 0.0)
+    # a quadratic track: the midpoint rule errs by m^2 / 2 on its u coordinate, nothing elsewhere;
+    # the variance per coordinate is the mean over the (frame, point) pairs seen at f - m, f, f + m
+    W[0::2, 2] = 0.5 * frames**2
+    var = prior_variance(W, mask)[0::2]
+    for f, m in ((10, 1), (11, 2)):
+        ok = [(g, p) for g in range(m, F - m) for p in range(P)
+              if mask[g - m, p] and mask[g, p] and mask[g + m, p]]
+        quad = sum(1 for g, p in ok if p == 2)
+        assert var[f, 2] == pytest.approx(quad * (m**2 / 2) ** 2 / len(ok) / 2, rel=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e200])
+def test_any_magnitude_completes_alike(scale):
+    F, P, r = 50, 12, 4
+    W = _low_rank(F, P, r, seed=7)
+    mask = _mask(F, P, 0.15, 8)
+    full, misfit, info = complete_subspace(W * scale, mask, r)
+    assert misfit < 1e-10 and np.isfinite(full).all()
+    assert np.abs(full / scale - W).max() < 1e-6 * np.abs(W).max()
+
+
+def test_hide_points_hides_the_fraction_asked_at_random_or_in_runs():
+    from lipgen.experiments.nrsfm_benchmarks import hide_points
+
+    random = hide_points(500, 40, "random", 0.1, seed=1)
+    assert random.shape == (500, 40) and abs((~random).mean() - 0.1) < 0.01
+    gaps = hide_points(500, 40, "gaps", 0.1, seed=1)
+    assert 0.1 <= (~gaps).mean() < 0.1 + 60 / (500 * 40)
+    # hidden in runs: a hidden entry's neighbour in time is mostly hidden too
+    def run_share(hidden):
+        return (hidden[1:] & hidden[:-1]).sum() / hidden.sum()
+
+    assert run_share(~gaps) > 0.9 and run_share(~random) < 0.2
+    assert np.array_equal(gaps, hide_points(500, 40, "gaps", 0.1, seed=1))
