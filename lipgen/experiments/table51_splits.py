@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from lipgen.experiments.table51 import (
+from lipgen.experiments.table51_protocol import (
     Table51Settings,
     _motion,
     _score,
@@ -114,7 +114,7 @@ def _clip(s: SplitSettings, t51: Table51Settings, subject, physics, n: int, moti
 
 
 def _window(data, start: int, n: int):
-    from lipgen.experiments.table51 import Observed
+    from lipgen.experiments.table51_protocol import Observed
 
     return Observed(*(a[start:start + n] for a in (data.goals, data.reach, data.truth, data.activations)))
 
