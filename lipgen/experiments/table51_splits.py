@@ -16,6 +16,12 @@ and against the least-strain field, and the true-surface error relative to the t
 own mean square. Over the seeds: the mean and a 95 % Student-t interval
 (:func:`mean_interval`). The figure :func:`order` reports the thesis's qualitative finding
 (x-y worse than y-z from 16 points with learned modes) per seed.
+
+The estimators are also compared **paired**: every estimator is scored on the same seeds and test
+frames, so the seed-to-seed spread (some subjects and utterances are harder for every method)
+cancels in the per-seed ratio of two estimators' errors. :func:`paired_interval` gives the
+geometric mean of that ratio over the seeds and its 95 % t-interval (a paired t-test on the
+log errors); a pair is told apart when the interval excludes 1.
 """
 
 from __future__ import annotations
@@ -35,8 +41,8 @@ from lipgen.experiments.table51_protocol import (
     observe,
 )
 
-__all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "order", "ESTIMATORS",
-           "SPLITS"]
+__all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "paired_interval", "order",
+           "ESTIMATORS", "SPLITS"]
 
 log = logging.getLogger(__name__)
 
@@ -90,6 +96,41 @@ def mean_interval(values, level: float = 0.95) -> tuple[float, float, float]:
     m = float(v.mean())
     half = float(stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
     return m, m - half, m + half
+
+
+def paired_interval(a, b, level: float = 0.95) -> tuple[float, float, float]:
+    """(ratio, low, high): the geometric mean over seeds of ``a / b`` and its Student-t interval.
+
+    Parameters
+    ----------
+    a, b : (k,) float
+        Two estimators' errors (> 0) on the same k seeds (and the same test frames), k >= 2.
+    level : float
+        Confidence level of the interval.
+
+    Returns
+    -------
+    tuple of float
+        ``exp`` of the mean of ``log(a / b)`` and of its t-interval: the paired t-test on the log
+        errors; an interval that excludes 1 tells the two estimators apart at ``level``.
+    """
+    x, y = np.asarray(a, float), np.asarray(b, float)
+    if x.shape != y.shape or x.ndim != 1:
+        raise ValueError(f"a and b must be two (k,) arrays of the same seeds, got shapes {x.shape} and "
+                         f"{y.shape}")
+    if not (np.all(x > 0) and np.all(y > 0)):
+        raise ValueError("paired errors must be > 0 (a ratio of errors is compared)")
+    return tuple(float(np.exp(v)) for v in mean_interval(np.log(x / y), level))
+
+
+def _pairs() -> list[tuple[str, str]]:
+    return [(a, b) for i, a in enumerate(ESTIMATORS) for b in ESTIMATORS[i + 1:]]
+
+
+def _paired(per_seed: list, split: str, row: str, ref: str = "truth") -> dict:
+    """{"a/b": (ratio, low, high)} for every pair of :data:`ESTIMATORS`."""
+    return {f"{a}/{b}": paired_interval([r[split][row][a][ref] for r in per_seed],
+                                        [r[split][row][b][ref] for r in per_seed]) for a, b in _pairs()}
 
 
 def order(table: dict, ref: str = "truth", column: str = "modes") -> float:
@@ -161,8 +202,12 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
                                 for col in ESTIMATORS} for row in rows}
     orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed])
                       for ref in ("truth", "reach")} for split in SPLITS}
+    paired = {split: {row: _paired(per_seed, split, row) for row in rows} for split in SPLITS}
     return {"settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "per_seed": per_seed,
-            "summary": summary, "order_xy_over_yz": orders,
+            "summary": summary, "order_xy_over_yz": orders, "paired": paired,
+            "distinguished": {split: {row: any(not lo <= 1 <= hi for _, lo, hi in paired[split][row].values())
+                                      for row in rows}
+                              for split in SPLITS},
             "variance_captured": mean_interval([r["variance_captured"] for r in per_seed]),
             "separated": {split: {ref: {row: _separated(summary[split][row], ref) for row in rows}
                                   for ref in ("truth", "truth_relative")} for split in SPLITS}}
@@ -220,6 +265,15 @@ def write_splits_report(result: dict, out) -> str:
             sep = result["separated"][split]
             lines.append(f"| {row} | " + " | ".join(cells) + f" | {'yes' if sep['truth'][row] else 'no'} "
                          f"(relative: {'yes' if sep['truth_relative'][row] else 'no'}) |")
+        lines += ["", "Paired (the same seeds and frames): geometric mean over the seeds of the ratio of two "
+                  "estimators' errors vs the true surface, and its 95 % interval; **bold** where it "
+                  "excludes 1.", "",
+                  "| observed | " + " | ".join(f"{_NAMES[a]} / {_NAMES[b]}" for a, b in _pairs())
+                  + " | told apart |", "|---|" + "---|" * (len(_pairs()) + 1)]
+        for row, pairs in result["paired"][split].items():
+            cells = [(f"**{_cell(v)}**" if not v[1] <= 1.0 <= v[2] else _cell(v)) for v in pairs.values()]
+            lines.append(f"| {row} | " + " | ".join(cells)
+                         + f" | {'yes' if result['distinguished'][split][row] else 'no'} |")
         o = result["order_xy_over_yz"][split]
         lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
                   f"{_cell(o['reach'])} vs the least-strain field (thesis: "
