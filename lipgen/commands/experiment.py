@@ -60,6 +60,8 @@ def add_parser(sub) -> None:
     sp.add_argument("--preset", default="default", choices=("easy", "default", "hard"),
                     help="subject and motion conditions (lipgen.dataset.presets)")
     sp.add_argument("--noise-mm", type=float, default=0.0, help="marker noise (std per coordinate, mm)")
+    sp.add_argument("--noise-px", type=float, default=0.0,
+                    help="marker pixel noise in both views of the camera-mirror rig, triangulated (std, px)")
     sp.add_argument("--windows", type=int, default=3,
                     help="test windows (10 consecutive frames, each its own utterance) per split and seed")
     add_force(sp, "the report files in --out")
@@ -135,7 +137,7 @@ def _splits(args) -> int:
     from lipgen.experiments.table51_splits import SplitSettings, run_splits, write_splits_report
 
     settings = SplitSettings(seeds=tuple(args.seeds), preset=args.preset, marker_noise_mm=args.noise_mm,
-                             n_windows=args.windows)
+                             n_windows=args.windows, marker_noise_px=args.noise_px)
     check_folder_output(args.out, args.force, ("splits.md", "splits.json"))
     sys.stdout.write(f"wrote {write_splits_report(run_splits(settings), args.out)}\n")
     return 0

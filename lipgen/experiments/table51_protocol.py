@@ -19,7 +19,7 @@ from lipgen.modes.model import ModeModel
 from lipgen.subject.motion import ACTIONS, default_subject, random_activations, simulate
 
 __all__ = ["Table51Settings", "Observed", "observe", "observation_rows", "estimators", "fit_combined",
-           "row_errors", "make_subject", "COLUMNS", "SHARES"]
+           "row_errors", "make_subject", "measure_through_rig", "COLUMNS", "SHARES"]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +45,10 @@ class Table51Settings:
     seed: int = 0
     truth_resolution: int = 1
     marker_noise_mm: float = 0.0
+    marker_noise_px: float = 0.0
+    """Pixel noise (std per image coordinate) of the markers in both views of the default
+    camera-mirror rig, triangulated (:func:`measure_through_rig`): the rig's own, anisotropic
+    measurement error (depth worst), as the thesis's measured data had."""
     head: bool = True
     max_modes_curve: int = 40
     held_out_test: tuple[str, ...] = ("lip_corner_puller", "funneler")
@@ -71,6 +75,8 @@ class Table51Settings:
             raise ValueError(f"oos_realisations must be >= 1, got {self.oos_realisations}")
         if self.marker_noise_mm < 0:
             raise ValueError(f"marker_noise_mm must be >= 0, got {self.marker_noise_mm}")
+        if self.marker_noise_px < 0:
+            raise ValueError(f"marker_noise_px must be >= 0, got {self.marker_noise_px}")
         for name in self.held_out_test:
             if name not in ACTIONS:
                 raise ValueError(f"unknown action {name!r}; the known actions are {', '.join(ACTIONS)}")
@@ -89,19 +95,56 @@ class Observed:
     truth : (F, n0, 3) float
         The true displacement of the model's nodes.
     activations : (F, A) float
+    error : (F, 16, 3) float or None
+        The measurement error of the markers (measured minus true, model frame, mm).
     """
 
     goals: np.ndarray
     reach: np.ndarray
     truth: np.ndarray
     activations: np.ndarray
+    error: np.ndarray | None = None
+
+
+def measure_through_rig(world, noise_px: float, rng=None, rig=None) -> np.ndarray:
+    """World points as the camera-mirror rig measures them: projected into both views, Gaussian
+    pixel noise added, triangulated by ray midpoints (thesis §3).
+
+    The rig's two views meet at an angle (44 degrees for :func:`~lipgen.rig.camera.default_rig`),
+    so the error is anisotropic: depth along the views' bisector is measured worst.
+
+    Parameters
+    ----------
+    world : (..., 3) float
+        True world points, mm.
+    noise_px : float
+        Standard deviation of the pixel noise per image coordinate in each view (>= 0).
+    rng : int or numpy.random.Generator, optional
+    rig : lipgen.rig.camera.MirrorRig, optional
+        Defaults to :func:`~lipgen.rig.camera.default_rig`.
+
+    Returns
+    -------
+    (..., 3) float
+        The triangulated points, mm.
+    """
+    from lipgen.rig.camera import default_rig
+
+    if noise_px < 0:
+        raise ValueError(f"noise_px must be >= 0, got {noise_px}")
+    rig = default_rig() if rig is None else rig
+    uv, _, _ = rig.project(np.asarray(world, float))
+    uv = uv + np.random.default_rng(rng).normal(scale=noise_px, size=uv.shape)
+    points, _ = rig.triangulate(uv[1], uv[0])  # views: (virtual, real)
+    return points
 
 
 def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None,
-            residual=None) -> Observed:
+            residual=None, noise_px: float = 0.0) -> Observed:
     """Simulate ``activations`` (plus a ``residual`` deformation (F, n, 3) in mm of the truth mesh,
     :func:`lipgen.subject.independent.residual_motion`) and measure the markers as the thesis's
-    pipeline would."""
+    pipeline would: with isotropic world noise ``noise_mm`` (mm), or pixel noise ``noise_px`` in
+    the rig's views, triangulated (:func:`measure_through_rig`)."""
     mesh = physics.mesh
     n0 = mesh.n_nodes
     if subject.mesh.n_nodes < n0:
@@ -111,14 +154,18 @@ def observe(subject, physics: Physics, activations, head=None, noise_mm: float =
     motion = simulate(subject, activations, head)
     if residual is not None:
         motion = replace(motion, vertices=motion.vertices + residual)
-    world = motion.markers_world
+    true_world = motion.markers_world
+    world = true_world
     if noise_mm > 0:
         world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
+    if noise_px > 0:
+        world = measure_through_rig(world, noise_px, rng)
     R, t = motion.poses[:, :3, :3], motion.poses[:, :3, 3]
     model = np.einsum("fji,fkj->fki", R, world - t[:, None])  # known head pose: R^T (X - t)
     goals = model - motion.rest_markers
     reach, _ = physics.reach(dofs(mesh.markers), goals.reshape(len(goals), -1))
-    return Observed(goals, reach, motion.vertices[:, :n0] - rest, motion.activations)
+    error = np.einsum("fji,fkj->fki", R, world - true_world)
+    return Observed(goals, reach, motion.vertices[:, :n0] - rest, motion.activations, error)
 
 
 def observation_rows(mesh) -> dict[str, np.ndarray]:

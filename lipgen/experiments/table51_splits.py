@@ -67,6 +67,8 @@ class SplitSettings:
     a seed's figure is their mean."""
     n_modes: int = 10
     marker_noise_mm: float = 0.0
+    marker_noise_px: float = 0.0
+    """Pixel noise in both views of the rig, triangulated (``Table51Settings.marker_noise_px``)."""
     head: bool = True
     truth_resolution: int = 1
 
@@ -83,7 +85,8 @@ class SplitSettings:
             raise ValueError(f"n_windows must be >= 1, got {self.n_windows}")
         if self.lead_in < 0:
             raise ValueError(f"lead_in must be >= 0 frames, got {self.lead_in}")
-        Table51Settings(preset=self.preset, marker_noise_mm=self.marker_noise_mm)  # checks the rest
+        Table51Settings(preset=self.preset, marker_noise_mm=self.marker_noise_mm,
+                        marker_noise_px=self.marker_noise_px)  # checks the rest
 
 
 def mean_interval(values, level: float = 0.95) -> tuple[float, float, float]:
@@ -142,7 +145,7 @@ def order(table: dict, ref: str = "truth", column: str = "modes") -> float:
 def _settings(s: SplitSettings, subject_seed: int) -> Table51Settings:
     own = s.preset != "easy"
     return Table51Settings(seed=subject_seed, preset=s.preset, subject_seed=subject_seed if own else None,
-                           marker_noise_mm=s.marker_noise_mm, head=s.head,
+                           marker_noise_mm=s.marker_noise_mm, marker_noise_px=s.marker_noise_px, head=s.head,
                            truth_resolution=s.truth_resolution, n_modes=s.n_modes)
 
 
@@ -151,7 +154,7 @@ def _clip(s: SplitSettings, t51: Table51Settings, subject, physics, n: int, moti
 
     acts, residual = _motion(t51, subject, n, motion_seed)
     head = head_motion(n, motion_seed) if s.head else None
-    return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
+    return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual, s.marker_noise_px)
 
 
 def _window(data, start: int, n: int):
@@ -170,7 +173,6 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
     mesh = lip_mesh(0)
     physics = Physics(mesh)
     rows = {k: v for k, v in observation_rows(mesh).items() if "points" in k}
-    noise_var = s.marker_noise_mm**2
     per_seed = []
     for seed in s.seeds:
         log.info("splits: subject seed %d", seed)
@@ -178,20 +180,24 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
         t51 = _settings(s, seed)
         subject = make_subject(t51)
         train = _clip(s, t51, subject, physics, s.n_train, 1000 * seed, rng)
+        # the estimators are given the measurement-noise variance (per coordinate, mm²)
+        noise_var = s.marker_noise_mm**2 if s.marker_noise_px == 0 else float(np.mean(train.error**2))
         model = ModeModel(s.n_modes).fit(train.reach, mesh=mesh)
         combined = fit_combined(model, physics, train.reach)
         n = s.lead_in + s.n_test
         other = _settings(s, seed + 1000)
         tests = {"utterance": (t51, subject), "subject": (other, make_subject(other))}
         record = {"seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
-                  "test_mean_square_mm2": {}}
+                  "test_mean_square_mm2": {}, "noise_variance_mm2": noise_var, "windows": {}}
         for k, (split, (ts, sub)) in enumerate(tests.items()):
-            tables, ms = [], []
+            tables, ms, wins = [], [], []
             for w in range(s.n_windows):
                 data = _window(_clip(s, ts, sub, physics, n, 1000 * seed + 10 * (k + 1) + w, rng), s.lead_in,
                                s.n_test)
                 tables.append(_score(model, physics, data, rows, noise_var, combined, ESTIMATORS))
                 ms.append(float(np.mean(data.truth**2)))
+                wins.append(_window_figures(tables[-1], data.truth[:, mesh.markers]))
+            record["windows"][split] = wins
             record[split] = _mean_tables(tables)
             record["test_mean_square_mm2"][split] = float(np.mean(ms))
         per_seed.append(record)
@@ -211,6 +217,14 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
             "variance_captured": mean_interval([r["variance_captured"] for r in per_seed]),
             "separated": {split: {ref: {row: _separated(summary[split][row], ref) for row in rows}
                                   for ref in ("truth", "truth_relative")} for split in SPLITS}}
+
+
+def _window_figures(table: dict, markers) -> dict:
+    """One test window's x-y / y-z order and its depth-over-lateral motion: the summed variance
+    over the window's frames of the true marker displacements (F, 16, 3) in z over that in x."""
+    var = np.var(np.asarray(markers), axis=0).sum(axis=0)
+    return {"order_truth": order(table, "truth"), "order_reach": order(table, "reach"),
+            "z_over_x": float(var[2] / var[0])}
 
 
 def _mean_tables(tables: list) -> dict:
@@ -251,7 +265,8 @@ def write_splits_report(result: dict, out) -> str:
              f"Preset `{s['preset']}`, subject seeds {list(s['seeds'])}; trained on {s['n_train']} "
              f"frames of one utterance; tested on {s['n_windows']} windows of {s['n_test']} consecutive "
              f"frames of other utterances (frames {s['lead_in']}-{s['lead_in'] + s['n_test'] - 1}) of the "
-             f"same subject and of another subject (seed + 1000); marker noise {s['marker_noise_mm']} mm.",
+             f"same subject and of another subject (seed + 1000); marker noise {s['marker_noise_mm']} mm"
+             f" (world) and {s['marker_noise_px']} px (in both views of the rig, triangulated).",
              "",
              f"Error: {ERROR_DEFINITION}. Mean over the seeds and 95 % Student-t interval.", "",
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the training "
