@@ -66,6 +66,9 @@ def test_splits_on_two_small_subjects(tmp_path):
     assert "Utterance split" in text and "Subject split" in text and "(thesis: 9.4)" in text
     assert "Paired" in text
     for split in SPLITS:
+        assert all(len(p["windows"][split]) == 1 and p["windows"][split][0]["z_over_x"] > 0
+                   for p in r["per_seed"])
+    for split in SPLITS:
         for row, pairs in r["paired"][split].items():
             assert len(pairs) == len(ESTIMATORS) * (len(ESTIMATORS) - 1) // 2
             g, lo, hi = pairs["modes/physics_force"]
@@ -92,3 +95,19 @@ def test_bad_settings(kwargs, message):
 def test_paired_interval_bad_input(a, b, message):
     with pytest.raises(ValueError, match=message):
         paired_interval(a, b)
+
+
+def test_window_orders_on_known_windows():
+    """Windows whose order grows with their depth motion: rank correlation 1, counts and the top
+    quartile's median read back."""
+    from lipgen.experiments.table51_splits import window_orders
+
+    z = np.array([0.5, 1.0, 2.0, 4.0, 3.0, 0.8, 6.0, 5.0])
+    wins = [{"order_truth": 0.5 * v, "order_reach": -v, "z_over_x": v} for v in z]
+    result = {"per_seed": [{"windows": {"utterance": wins[:4]}}, {"windows": {"utterance": wins[4:]}}]}
+    w = window_orders(result, "utterance")
+    assert w["n"] == 8 and w["above_1"] == {"truth": 4, "reach": 0}  # 0.5 z > 1: z in 3, 4, 5, 6
+    assert w["spearman"]["truth"] == pytest.approx(1.0) and w["spearman"]["reach"] == pytest.approx(-1.0)
+    assert w["top_quartile"]["truth"] == pytest.approx(0.5 * np.median([5.0, 6.0]))
+    with pytest.raises(ValueError, match="need 4 or more test windows"):
+        window_orders({"per_seed": [{"windows": {"utterance": wins[:3]}}]}, "utterance")

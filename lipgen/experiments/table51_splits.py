@@ -42,7 +42,7 @@ from lipgen.experiments.table51_protocol import (
 )
 
 __all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "paired_interval", "order",
-           "ESTIMATORS", "SPLITS"]
+           "window_orders", "ESTIMATORS", "SPLITS"]
 
 log = logging.getLogger(__name__)
 
@@ -227,6 +227,51 @@ def _window_figures(table: dict, markers) -> dict:
             "z_over_x": float(var[2] / var[0])}
 
 
+def window_orders(result: dict, split: str) -> dict:
+    """Each test window's x-y / y-z order against its depth-over-lateral motion.
+
+    Parameters
+    ----------
+    result : dict
+        :func:`run_splits`'s result.
+    split : str
+        One of :data:`SPLITS`.
+
+    Returns
+    -------
+    dict
+        ``"n"``: windows; ``"above_1"``: {ref: windows with the thesis's order}; ``"spearman"``:
+        {ref: rank correlation of the order with ``z_over_x``}; ``"top_quartile"``: {ref: median
+        order of the quarter of windows with the most depth motion}; refs ``"truth"``, ``"reach"``.
+    """
+    from scipy import stats
+
+    wins = [w for r in result["per_seed"] for w in r.get("windows", {}).get(split, [])]
+    if len(wins) < 4:
+        raise ValueError(f"need 4 or more test windows with their figures, got {len(wins)}")
+    z = np.array([w["z_over_x"] for w in wins])
+    top = z >= np.quantile(z, 0.75)
+    out = {"n": len(wins), "above_1": {}, "spearman": {}, "top_quartile": {}}
+    for ref in ("truth", "reach"):
+        o = np.array([w[f"order_{ref}"] for w in wins])
+        out["above_1"][ref] = int(np.sum(o > 1))
+        out["spearman"][ref] = float(stats.spearmanr(o, z).statistic)
+        out["top_quartile"][ref] = float(np.median(o[top]))
+    return out
+
+
+def _window_lines(result: dict, split: str) -> list[str]:
+    try:
+        w = window_orders(result, split)
+    except ValueError:
+        return []
+    return [f"Per test window ({w['n']}): x-y over y-z is above 1 in {w['above_1']['truth']} vs the true "
+            f"surface and {w['above_1']['reach']} vs the least-strain field; its rank correlation with the "
+            f"window's depth-over-lateral marker motion (z over x variance) is {w['spearman']['truth']:.2f} "
+            f"and {w['spearman']['reach']:.2f}; in the quarter of windows with the most depth motion its "
+            f"median is {w['top_quartile']['truth']:.2f} and {w['top_quartile']['reach']:.2f}.", ""]
+
+
 def _mean_tables(tables: list) -> dict:
     """The cell-by-cell mean of tables ``{row: {column: {ref: value}}}``."""
     first = tables[0]
@@ -266,7 +311,7 @@ def write_splits_report(result: dict, out) -> str:
              f"frames of one utterance; tested on {s['n_windows']} windows of {s['n_test']} consecutive "
              f"frames of other utterances (frames {s['lead_in']}-{s['lead_in'] + s['n_test'] - 1}) of the "
              f"same subject and of another subject (seed + 1000); marker noise {s['marker_noise_mm']} mm"
-             f" (world) and {s['marker_noise_px']} px (in both views of the rig, triangulated).",
+             f" (world) and {s.get('marker_noise_px', 0.0)} px (in both views of the rig, triangulated).",
              "",
              f"Error: {ERROR_DEFINITION}. Mean over the seeds and 95 % Student-t interval.", "",
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the training "
@@ -293,6 +338,7 @@ def write_splits_report(result: dict, out) -> str:
         lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
                   f"{_cell(o['reach'])} vs the least-strain field (thesis: "
                   f"{THESIS_TABLE['xy (16 points)'][0] / THESIS_TABLE['yz (16 points)'][0]:.1f}).", "",
+                  *_window_lines(result, split),
                   "In the thesis's terms (vs the least-strain field, units², 10 modes / full cov.):", "",
                   "| observed | thesis | ours |", "|---|---|---|"]
         for row, (a, b) in THESIS_TABLE.items():
