@@ -22,6 +22,12 @@ frames, so the seed-to-seed spread (some subjects and utterances are harder for 
 cancels in the per-seed ratio of two estimators' errors. :func:`paired_interval` gives the
 geometric mean of that ratio over the seeds and its 95 % t-interval (a paired t-test on the
 log errors); a pair is told apart when the interval excludes 1.
+
+Each test window also records its own x-y / y-z order and its depth-over-lateral motion (the
+variance of the true marker displacements in z over that in x); :func:`window_orders` relates the
+two. ``marker_noise_px`` measures the markers through the camera-mirror rig
+(:func:`~lipgen.experiments.table51_protocol.measure_through_rig`): pixel noise in both views,
+triangulated, so depth is measured worst, as in the thesis's data.
 """
 
 from __future__ import annotations
