@@ -64,9 +64,10 @@ def test_splits_on_two_small_subjects(tmp_path):
     md = write_splits_report(r, tmp_path)
     text = open(md).read()
     assert "Utterance split" in text and "Subject split" in text and "(thesis: 9.4)" in text
-    assert "Paired" in text
+    assert "Paired" in text and "at the hidden marker coordinates vs the measured markers" in text
     for split in SPLITS:
         assert all(len(p["windows"][split]) == 1 and p["windows"][split][0]["z_over_x"] > 0
+                   and p["order_markers"][split] == p["windows"][split][0]["order_markers"] > 0
                    for p in r["per_seed"])
     for split in SPLITS:
         for row, pairs in r["paired"][split].items():
@@ -111,3 +112,21 @@ def test_window_orders_on_known_windows():
     assert w["top_quartile"]["truth"] == pytest.approx(0.5 * np.median([5.0, 6.0]))
     with pytest.raises(ValueError, match="need 4 or more test windows"):
         window_orders({"per_seed": [{"windows": {"utterance": wins[:3]}}]}, "utterance")
+
+
+def test_marker_order_scores_only_the_hidden_marker_coordinates():
+    """With an estimate of no motion, the x-y row's error is the mean square of the markers' z and
+    the y-z row's that of their x; every other DOF is ignored."""
+    from lipgen.experiments.table51_splits import _marker_order
+    from lipgen.fem import dofs
+
+    rng = np.random.default_rng(1)
+    markers = np.array([3, 7, 11])
+    U = rng.normal(size=(5, 20, 3))
+    U[:, markers, 2] *= 3.0
+    U[:, 15:] *= 100.0  # not markers: must not count
+    zero = lambda y: np.zeros((len(y), 60))  # noqa: E731
+    at = {"xy": (dofs(markers, "xy"), zero, dofs(markers, "z")),
+          "yz": (dofs(markers, "yz"), zero, dofs(markers, "x"))}
+    expect = np.mean(U[:, markers, 2] ** 2) / np.mean(U[:, markers, 0] ** 2)
+    assert _marker_order(at, U) == pytest.approx(expect)
