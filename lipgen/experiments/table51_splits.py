@@ -359,10 +359,10 @@ def write_splits_report(result: dict, out) -> str:
             lines.append(f"| {row} | " + " | ".join(cells)
                          + f" | {'yes' if result['distinguished'][split][row] else 'no'} |")
         o = result["order_xy_over_yz"][split]
-        mk = (f"{_cell(o['markers'])} at the hidden marker coordinates vs the measured markers "
+        mk = (f", {_cell(o['markers'])} at the hidden marker coordinates vs the measured markers"
               if "markers" in o else "")
         lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
-                  f"{_cell(o['reach'])} vs the least-strain field, {mk}(thesis: "
+                  f"{_cell(o['reach'])} vs the least-strain field{mk} (thesis: "
                   f"{THESIS_TABLE['xy (16 points)'][0] / THESIS_TABLE['yz (16 points)'][0]:.1f}).", "",
                   *_window_lines(result, split),
                   "In the thesis's terms (vs the least-strain field, units², 10 modes / full cov.):", "",
