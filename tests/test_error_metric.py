@@ -22,7 +22,7 @@ def test_error_per_hidden_dof_by_hand():
 def test_table51_and_evaluate_share_the_definition():
     """The experiment's row error equals the metric computed from its own estimate."""
     from lipgen import Physics, lip_mesh
-    from lipgen.experiments.table51 import _hidden, row_errors
+    from lipgen.experiments.table51_protocol import _hidden, row_errors
     from lipgen.fem import dofs
 
     physics = Physics(lip_mesh(0))

@@ -35,7 +35,7 @@ def test_default_and_hard_settings_and_overrides():
 
 def test_easy_reproduces_the_figures_before_presets():
     """Figures measured with the code before this change (main at the restructure commit)."""
-    from lipgen.experiments.table51 import Table51Settings, make_subject, observe
+    from lipgen.experiments.table51_protocol import Table51Settings, make_subject, observe
     from lipgen.fem import Physics
     from lipgen.mesh.procedural import lip_mesh
     from lipgen.subject.motion import head_motion, random_activations
@@ -58,7 +58,7 @@ def test_unknown_presets_and_misused_subject_seeds_are_refused():
         GenerateSettings(truth_physics="quadratic")
     with pytest.raises(ValueError, match=r"subject_seed must be a whole number in \[0, 4294967295\]"):
         GenerateSettings(subject_seed=-2)
-    from lipgen.experiments.table51 import Table51Settings
+    from lipgen.experiments.table51_protocol import Table51Settings
 
     with pytest.raises(ValueError, match="unknown preset"):
         Table51Settings(preset="impossible")

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from lipgen.cli import main
-from lipgen.experiments.table51 import COLUMNS, Table51Settings, observation_rows, run_table51
+from lipgen.experiments.table51 import run_table51
+from lipgen.experiments.table51_protocol import COLUMNS, Table51Settings, observation_rows
 from lipgen.experiments.table51_report import write_report
 
 
@@ -66,7 +67,8 @@ def test_combined_beats_both_outside_the_span_with_marker_noise():
     weighing σ² per frame (``CombinedModel.mixture``), it beats the best learned-only and the best
     physics-only estimate on geometric average in every row."""
     from lipgen import Physics, lip_mesh
-    from lipgen.experiments.table51 import _realisation, _score, _versus
+    from lipgen.experiments.table51_protocol import _score
+    from lipgen.experiments.table51_span import _realisation, _versus
     from lipgen.subject.motion import default_subject
 
     s = Table51Settings(marker_noise_mm=0.3)

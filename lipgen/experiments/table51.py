@@ -17,7 +17,8 @@ Protocol (:func:`run_table51`)
 3. On the test frames, each observation row is reconstructed by each estimator; the error is the
    mean squared error per hidden DOF (the DOFs neither observed nor anchored), in mm² and in the
    thesis's normalised units².
-4. Outside the training span: actions held out of training test the combined model.
+4. Outside the training span: actions held out of training test the combined model
+   (:mod:`lipgen.experiments.table51_span`).
 
 The combined model's prior kind and noise variance τ² are chosen from the training fields only,
 by cross-validated marginal likelihood of their markers
@@ -30,203 +31,32 @@ the marker rows are given the true marker-noise variance.
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict
 
 import numpy as np
 
-from lipgen.fem import Physics, dofs
+from lipgen.experiments.table51_protocol import (
+    Observed,
+    Table51Settings,
+    _hidden,
+    _independent,
+    _motion,
+    _score,
+    _selection,
+    fit_combined,
+    make_subject,
+    observation_rows,
+    observe,
+    row_errors,
+)
+from lipgen.fem import Physics
 from lipgen.mesh.procedural import lip_mesh, thesis_unit_mm
-from lipgen.modes.combined import CombinedModel, default_residual_variance
-from lipgen.modes.llse import LLSE, PhysicsCovariance
 from lipgen.modes.model import ModeModel
-from lipgen.subject.motion import ACTIONS, default_subject, head_motion, random_activations, simulate
+from lipgen.subject.motion import head_motion
 
-__all__ = ["Table51Settings", "Observed", "observe", "observation_rows", "estimators", "fit_combined",
-           "row_errors", "run_table51", "COLUMNS", "SHARES"]
+__all__ = ["run_table51"]
 
 log = logging.getLogger(__name__)
-
-SHARES = (0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
-"""Residual shares of the test-set sensitivity sweep (reported, never used for the choice)."""
-
-COLUMNS = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_fixed",
-           "combined_energy")
-"""Estimators: the first k modes; the full sample covariance; the physics alone with the thesis's
-K_s⁻² (min-norm force, = ``Physics.reach``) and with K_s⁻¹ (least strain energy); the combined
-model (k modes + physical residual; kind and τ² chosen by :meth:`CombinedModel.fit`, σ² unknown
-per frame: :meth:`CombinedModel.mixture`); the same with the one σ² of :meth:`CombinedModel.fit`
-(linear, :meth:`CombinedModel.llse`); and that with the K_s⁻¹ prior imposed."""
-
-
-@dataclass(frozen=True)
-class Table51Settings:
-    """Settings of the experiment (the defaults are the thesis's)."""
-
-    n_frames: int = 150
-    n_train: int = 140
-    n_modes: int = 10
-    seed: int = 0
-    truth_resolution: int = 1
-    marker_noise_mm: float = 0.0
-    head: bool = True
-    max_modes_curve: int = 40
-    held_out_test: tuple[str, ...] = ("lip_corner_puller", "funneler")
-    oos_frames: int = 40
-    oos_realisations: int = 8
-    preset: str = "easy"
-    """Subject conditions (:mod:`lipgen.dataset.presets`): ``easy`` is the model's shape, dots on
-    its nodes and the linear truth; ``default`` the subject's own shape and dots; ``hard`` adds
-    the nonlinear tissue layer (slow)."""
-    subject_seed: int | None = None
-    """The subject's shape and dots (presets ``default``/``hard``; their default seed if None)."""
-
-    def __post_init__(self) -> None:
-        from lipgen.dataset.presets import get_preset
-
-        p = get_preset(self.preset)
-        if self.subject_seed is not None and not p.subject.own_shape:
-            raise ValueError(f"preset {self.preset!r} uses the model's own shape; a subject seed needs "
-                             "preset 'default' or 'hard'")
-        if not 1 <= self.n_modes < self.n_train < self.n_frames:
-            raise ValueError(f"need 1 <= n_modes < n_train < n_frames, got {self.n_modes}, "
-                             f"{self.n_train}, {self.n_frames}")
-        if self.oos_realisations < 1:
-            raise ValueError(f"oos_realisations must be >= 1, got {self.oos_realisations}")
-        if self.marker_noise_mm < 0:
-            raise ValueError(f"marker_noise_mm must be >= 0, got {self.marker_noise_mm}")
-        for name in self.held_out_test:
-            if name not in ACTIONS:
-                raise ValueError(f"unknown action {name!r}; the known actions are {', '.join(ACTIONS)}")
-
-
-@dataclass(frozen=True)
-class Observed:
-    """Model-frame data of a run of frames, on the reconstruction mesh (n0 nodes).
-
-    Attributes
-    ----------
-    goals : (F, 16, 3) float
-        Measured marker displacements from rest (mm), as the thesis's training data.
-    reach : (F, n0, 3) float
-        Least-strain fields reaching the goals (the thesis's "truth").
-    truth : (F, n0, 3) float
-        The true displacement of the model's nodes.
-    activations : (F, A) float
-    """
-
-    goals: np.ndarray
-    reach: np.ndarray
-    truth: np.ndarray
-    activations: np.ndarray
-
-
-def observe(subject, physics: Physics, activations, head=None, noise_mm: float = 0.0, rng=None,
-            residual=None) -> Observed:
-    """Simulate ``activations`` (plus a ``residual`` deformation (F, n, 3) in mm of the truth mesh,
-    :func:`lipgen.subject.independent.residual_motion`) and measure the markers as the thesis's
-    pipeline would."""
-    mesh = physics.mesh
-    n0 = mesh.n_nodes
-    if subject.mesh.n_nodes < n0:
-        raise ValueError("the truth mesh does not nest the model mesh (it has fewer nodes)")
-    # displacements are from the subject's own rest (its shape may differ from the model's)
-    rest = subject.mesh.vertices[:n0]
-    motion = simulate(subject, activations, head)
-    if residual is not None:
-        motion = replace(motion, vertices=motion.vertices + residual)
-    world = motion.markers_world
-    if noise_mm > 0:
-        world = world + np.random.default_rng(rng).normal(scale=noise_mm, size=world.shape)
-    R, t = motion.poses[:, :3, :3], motion.poses[:, :3, 3]
-    model = np.einsum("fji,fkj->fki", R, world - t[:, None])  # known head pose: R^T (X - t)
-    goals = model - motion.rest_markers
-    reach, _ = physics.reach(dofs(mesh.markers), goals.reshape(len(goals), -1))
-    return Observed(goals, reach, motion.vertices[:, :n0] - rest, motion.activations)
-
-
-def observation_rows(mesh) -> dict[str, np.ndarray]:
-    """Observed DOFs of each row: Table 5.1's three, plus its "all points" read as all free nodes."""
-    free = np.setdiff1d(np.arange(mesh.n_nodes), mesh.anchors)
-    return {
-        "xyz (8 points)": dofs(mesh.markers[:8]),
-        "yz (16 points)": dofs(mesh.markers, "yz"),
-        "xy (16 points)": dofs(mesh.markers, "xy"),
-        "yz (all nodes)": dofs(free, "yz"),
-        "xy (all nodes)": dofs(free, "xy"),
-    }
-
-
-def fit_combined(model: ModeModel, physics: Physics, train_fields, n_modes: int | None = None) -> dict:
-    """The two combined columns, chosen from the training fields (:meth:`CombinedModel.fit`):
-    ``"combined"`` picks the prior kind, ``"combined_energy"`` is held to K_s⁻¹."""
-    k = len(model.components_) if n_modes is None else n_modes
-    return {"combined": CombinedModel(model, physics, n_modes=k).fit(train_fields),
-            "combined_energy": CombinedModel(model, physics, n_modes=k).fit(train_fields, kinds=("energy",))}
-
-
-def estimators(model: ModeModel, physics: Physics, d, noise: float = 0.0, n_modes: int | None = None,
-               combined: dict | None = None, combined_noise=None) -> dict:
-    """The estimator of each column of :data:`COLUMNS` for observed DOFs ``d`` (an
-    :class:`~lipgen.modes.llse.LLSE`, or a :class:`~lipgen.modes.mixture.ScaleMixtureLLSE` for "combined").
-
-    ``noise`` (mm²) is given to the learned and physics-only columns; ``combined`` is
-    :func:`fit_combined`'s result (without it the combined columns use the default share and no
-    noise), and ``combined_noise`` their noise variance (their own estimate by default).
-    """
-    k = len(model.components_) if n_modes is None else n_modes
-    phys = {kind: PhysicsCovariance(physics, default_residual_variance(model, physics, 1.0, kind=kind), kind)
-            for kind in ("force", "energy")}
-    if combined is None:
-        combined = {"combined": CombinedModel(model, physics, n_modes=k),
-                    "combined_energy": CombinedModel(model, physics, n_modes=k, kind="energy")}
-    return {
-        "modes": model.llse(d, k, noise=noise),
-        "full": model.llse(d, "full", noise=noise),
-        "physics_force": LLSE.build(phys["force"], d, noise=noise),
-        "physics_energy": LLSE.build(phys["energy"], d, noise=noise),
-        "combined": combined["combined"].mixture(d, noise=combined_noise),
-        "combined_fixed": combined["combined"].llse(d, noise=combined_noise),
-        "combined_energy": combined["combined_energy"].llse(d, noise=combined_noise),
-    }
-
-
-def row_errors(est: LLSE, d: np.ndarray, measured: np.ndarray, reference: np.ndarray,
-               hidden: np.ndarray, relative: bool = False) -> float:
-    """Error per hidden DOF (mm², :func:`lipgen.evaluate.metric.per_dof_error`, the definition
-    ``lipgen evaluate`` uses) of the estimate from ``measured[:, d]`` against ``reference``; with
-    ``relative``, over the reference's own mean square on those DOFs."""
-    from lipgen.evaluate.metric import per_dof_error, relative_error
-
-    F = len(reference)
-    X = est(measured.reshape(F, -1)[:, d]).reshape(F, -1)
-    return (relative_error if relative else per_dof_error)(X, reference, hidden)
-
-
-def _hidden(physics: Physics, d: np.ndarray) -> np.ndarray:
-    from lipgen.evaluate.metric import hidden_dofs
-
-    return hidden_dofs(physics.free_dofs, d)
-
-
-def _score(model, physics, data: Observed, rows, noise_var, combined, columns=COLUMNS) -> dict:
-    """{row: {column: {"reach": mse, "truth": mse}}} for the frames of ``data``."""
-    out = {}
-    for name, d in rows.items():
-        markers_only = "points" in name  # the "(all nodes)" rows observe noise-free fields
-        ests = estimators(model, physics, d, noise_var if markers_only else 0.0, combined=combined,
-                          combined_noise=None if markers_only else 0.0)
-        out[name] = {}
-        for col in columns:
-            scores = {}
-            for ref in ("reach", "truth"):
-                reference = getattr(data, ref)
-                measured = data.reach if markers_only else reference  # markers are what was measured
-                scores[ref] = row_errors(ests[col], d, measured, reference, _hidden(physics, d))
-            scores["truth_relative"] = row_errors(ests[col], d, measured, data.truth, _hidden(physics, d),
-                                                  relative=True)
-            out[name][col] = scores
-    return out
-
 
 def _modes_curve(model, physics, data: Observed, rows, noise_var, k_max) -> dict:
     ks = list(range(1, min(k_max, len(model.full_variance_)) + 1))
@@ -241,128 +71,6 @@ def _modes_curve(model, physics, data: Observed, rows, noise_var, k_max) -> dict
             curve[name][ref] = [row_errors(model.llse(d, k, noise=noise_var if markers_only else 0.0), d,
                                            measured, reference, hid) for k in ks]
     return curve
-
-
-def _columns(names, sides: bool = False) -> list[int]:
-    """Columns of the actions ``names``, with ``sides`` also of their one-sided halves (which
-    replace a two-sided action in the independent motion)."""
-    from lipgen.subject.independent import BILATERAL
-
-    return [ACTIONS.index(b) for a in names for b in (a, *(BILATERAL.get(a, ()) if sides else ()))]
-
-
-def _without(acts: np.ndarray, names, sides: bool = False) -> np.ndarray:
-    acts = acts.copy()
-    acts[:, _columns(names, sides)] = 0.0
-    return acts
-
-
-def _using(acts: np.ndarray, names, n: int, threshold: float = 0.3, sides: bool = False) -> np.ndarray:
-    """The first ``n`` frames in which one of ``names`` is active above ``threshold``."""
-    keep = acts[:, _columns(names, sides)].max(axis=1) > threshold
-    if keep.sum() < 3:
-        raise ValueError(f"too few frames use {names} (found {int(keep.sum())}); simulate more frames")
-    return acts[keep][:n]
-
-
-def _independent(s: Table51Settings) -> bool:
-    from lipgen.dataset.presets import get_preset
-
-    return get_preset(s.preset).motion.sources == "independent"
-
-
-def _motion(s: Table51Settings, subject, n: int, seed: int):
-    """Activations (n, A) and the residual deformation ((n, N, 3) or None) of the preset's motion."""
-    if not _independent(s):
-        return random_activations(n, seed), None
-    from lipgen.subject.independent import independent_activations, residual_motion
-
-    a_rng, r_rng = np.random.default_rng(seed).spawn(2)
-    return independent_activations(n, a_rng), residual_motion(subject, n, r_rng)
-
-
-def _selection(cm: CombinedModel) -> dict:
-    sel = cm.selection_
-    keys = ("kind", "residual_share", "residual_variance", "noise_variance", "log_likelihood", "by_kind",
-            "n_folds")
-    return {k: getattr(sel, k) for k in keys}
-
-
-def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int):
-    """One held-out-action realisation: (model, combined models, test data, rows)."""
-    rows = {k: v for k, v in observation_rows(physics.mesh).items() if "points" in k}
-    T = s.held_out_test
-
-    def session(acts, residual, sd):
-        head = head_motion(len(acts), sd) if s.head else None
-        return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
-
-    sides = _independent(s)
-    acts, residual = _motion(s, subject, s.n_train, seed)
-    train = session(_without(acts, T, sides), residual, seed)
-    model = ModeModel(s.n_modes).fit(train.reach, mesh=physics.mesh)
-    combined = fit_combined(model, physics, train.reach)
-    acts, residual = _motion(s, subject, 400, seed + 1)
-    keep = acts[:, _columns(T, sides)].max(axis=1) > 0.3
-    residual = None if residual is None else residual[keep][:s.oos_frames]
-    test = session(_using(acts, T, s.oos_frames, sides=sides), residual, seed + 1)
-    return model, combined, test, rows
-
-
-def _versus(table: dict, column: str = "combined") -> dict:
-    """{row: (column / best learned-only, column / best physics-only)} against the truth."""
-    out = {}
-    for row, v in table.items():
-        c = v[column]["truth"]
-        out[row] = (c / min(v["modes"]["truth"], v["full"]["truth"]),
-                    c / min(v["physics_force"]["truth"], v["physics_energy"]["truth"]))
-    return out
-
-
-def _outside_span(s: Table51Settings, subject, physics, noise_var, rng) -> dict:
-    """The combined model on motions outside the training span: train without the held-out
-    actions, test on frames that use them; the first realisation in full, then the ratios of
-    ``s.oos_realisations`` realisations (other seeds)."""
-    model, combined, test, rows = _realisation(s, subject, physics, noise_var, rng, s.seed + 13)
-    table = _score(model, physics, test, rows, noise_var, combined)
-    cm = combined["combined"]
-    unit = default_residual_variance(model, physics, 1.0, kind=cm.kind)
-    sweep = {name: [row_errors(CombinedModel(model, physics, residual_variance=sh * unit, kind=cm.kind,
-                                             noise_variance=cm.noise_variance_).llse(d), d,
-                               test.reach, test.truth, _hidden(physics, d)) for sh in SHARES]
-             for name, d in rows.items()}
-    ratios = {row: {"learned": [], "physics": [], "learned_fixed": [], "physics_fixed": []} for row in rows}
-
-    def add(tab):
-        for suffix, col in (("", "combined"), ("_fixed", "combined_fixed")):
-            for row, r in _versus(tab, col).items():
-                ratios[row]["learned" + suffix].append(r[0])
-                ratios[row]["physics" + suffix].append(r[1])
-
-    add(table)
-    for k in range(1, s.oos_realisations):
-        log.info("outside the span: realisation %d of %d", k + 1, s.oos_realisations)
-        m, c, t, _ = _realisation(s, subject, physics, noise_var, rng, s.seed + 13 + 1000 * k)
-        cols = ("modes", "full", "physics_force", "physics_energy", "combined", "combined_fixed")
-        add(_score(m, physics, t, rows, noise_var, c, cols))
-    return {"held_out_test": list(s.held_out_test), "n_test_frames": len(test.goals),
-            "selection": _selection(cm), "shares": list(SHARES), "table": table, "test_share_sweep": sweep,
-            "variance_captured": float(np.sum(model.explained_variance_ratio_)),
-            "realisations": ratios}
-
-
-def make_subject(s: Table51Settings):
-    """The truth subject of the settings' preset."""
-    from lipgen.dataset.presets import get_preset
-
-    p = get_preset(s.preset).subject
-    sseed = (p.default_subject_seed if s.subject_seed is None else s.subject_seed) if p.own_shape else None
-    subject = default_subject(s.seed, s.truth_resolution, subject_seed=sseed)
-    if p.nonlinear_physics:
-        from lipgen.subject.truth import with_layer
-
-        subject = with_layer(subject)
-    return subject
 
 
 def run_table51(settings: Table51Settings | None = None) -> dict:
@@ -380,7 +88,9 @@ def run_table51(settings: Table51Settings | None = None) -> dict:
     test = Observed(*(a[s.n_train:] for a in (data.goals, data.reach, data.truth, data.activations)))
     rows = observation_rows(mesh)
     combined = fit_combined(model, physics, data.reach[:s.n_train])
-    oos = _outside_span(s, subject, physics, noise_var, rng)
+    from lipgen.experiments.table51_span import outside_span
+
+    oos = outside_span(s, subject, physics, noise_var, rng)
     log.info("table 5.1: scoring %d rows", len(rows))
     table = _score(model, physics, test, rows, noise_var, combined)
     curve = _modes_curve(model, physics, test, rows, noise_var, s.max_modes_curve)

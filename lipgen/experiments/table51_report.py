@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
-from lipgen.experiments.table51 import COLUMNS, SHARES
+from lipgen.experiments.table51_protocol import COLUMNS, SHARES
 
 __all__ = ["write_report", "THESIS_TABLE"]
 
