@@ -20,9 +20,9 @@ board this small against the field of view: apart from a camera turn and a princ
 shift (absorbed exactly), what p2 adds across one board is a curvature of a few thousandths of a
 pixel, which each board's pose absorbs. Measured on the hard preset's lens (-0.15, 0.10, 0.0012,
 -0.0008) with exact corners plus 0.1 px noise, 10-30 board poses: k1 within 2 %, k2 within
-15 %, but p1 and p2 off by 10-50 %; the pixels are right all the same (0.1-0.2 px over the face
-volume). Ten times larger tangential terms are recovered within 5 % from rendered frames
-(``tests/test_calib_tangential.py``).
+15 %, but p1 and p2 anywhere from 1 % to 50 % off, by the poses; the pixels are right all the
+same (0.1-0.2 px over the face volume). Ten times larger tangential terms are recovered within
+5 % from rendered frames (``tests/test_calib_tangential.py``).
 
 OpenCV (``opencv-python-headless``) is imported when a calibration runs.
 """
