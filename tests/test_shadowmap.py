@@ -1,9 +1,9 @@
-"""The 16-read shadow filter (lipgen.rig._shadowmap) draws the same pixels as pyrender's own.
+"""The summed-out shadow filters (lipgen.rig._shadowmap) draw the same pixels as pyrender's own.
 
-pyrender's 3 x 3 bilinear PCF and lipgen's 4 x 4 weighted sum are the same filter summed in
-another order, so a shadowed frame of the hard preset's scene (head, mouth, ink, a turned head,
-the key light casting shadows) must come out byte for byte as with pyrender's shader, and with
-visible shadows (else the comparison would prove nothing).
+pyrender's 3 x 3 bilinear PCF and lipgen's 4 x 4 weighted sum (four gathers, or 16 reads) are
+the same filter summed in another order, so a shadowed frame of the hard preset's scene (head,
+mouth, ink, a turned head, the key light casting shadows) must come out byte for byte as with
+pyrender's shader, and with visible shadows (else the comparison would prove nothing).
 """
 
 import numpy as np
@@ -39,15 +39,19 @@ def test_the_16_read_shadow_filter_draws_pyrenders_pixels():
     scenes = [face.scene(mesh.vertices, _pose(d), lights=lights, age=0.5) for d in (-6.0, 9.0)]
     rig = default_rig(320, 240)
     out = {}
-    for name in ("lipgen", "pyrender", "none"):
+    for name in ("gather", "fetch", "pyrender", "none"):
         with render.RigRenderer(rig, shadows=name != "none") as r:  # one GL context at a time
+            cache = r._renderer._renderer._program_cache
+            if name == "gather":
+                assert type(cache) is not ShaderProgramCache, "the gathered filter was not installed"
+            if name == "fetch":
+                assert _shadowmap.install(r._renderer, gather=False)
             if name == "pyrender":
-                r._renderer._renderer._program_cache.clear()
+                cache.clear()
                 r._renderer._renderer._program_cache = ShaderProgramCache()
-            else:
-                assert isinstance(r._renderer._renderer._program_cache, ShaderProgramCache)
             out[name] = [r.render(s).image for s in scenes]
-    for a, b, c in zip(out["lipgen"], out["pyrender"], out["none"], strict=True):
+    for a, f, b, c in zip(out["gather"], out["fetch"], out["pyrender"], out["none"], strict=True):
         assert np.array_equal(a, b), np.abs(a.astype(int) - b).max()
+        assert np.array_equal(f, b), np.abs(f.astype(int) - b).max()
         shadowed = (a.astype(int).sum(axis=2) < c.astype(int).sum(axis=2) - 30).mean()
         assert shadowed > 0.002, shadowed  # the nose and the folds cast shadows in these frames
