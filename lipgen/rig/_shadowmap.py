@@ -169,7 +169,11 @@ def install(offscreen, gather: bool | None = None) -> bool:
     the expected one. ``gather`` forces one or the other (None: gathers where OpenGL has them)."""
     from pyrender.shader_program import ShaderProgramCache
 
-    shader = patched_mesh_shader(_has_gather(offscreen) if gather is None else bool(gather))
+    gather = _has_gather(offscreen) if gather is None else bool(gather)
+    shader = patched_mesh_shader(gather)
+    if shader is not None and not os.path.exists(shader):  # e.g. removed by a forked child's exit
+        patched_mesh_shader.cache_clear()
+        shader = patched_mesh_shader(gather)
     if shader is None:
         return False
 
