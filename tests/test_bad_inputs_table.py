@@ -138,8 +138,6 @@ def _cycles(tmp: Path, case: str):
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
 
-    if case == "depth":
-        GenerateSettings(frames=1, size=(160, 120), renderer="cycles", depth=True)
     with without_module("bpy"):
         generate(tmp / "ds", GenerateSettings(frames=1, calib_frames=0, size=(160, 120), renderer="cycles"),
                  progress=False)
@@ -176,7 +174,6 @@ CASES = [
     ("mesh", "a crack: a duplicated vertex used by faces", _cracked),
     ("physics", "unknown reach objective", _reach_objective),
     ("generate", "`--renderer cycles` without the pip `bpy`", lambda t: _cycles(t, "no bpy")),
-    ("generate", "`--renderer cycles` with `--depth`", lambda t: _cycles(t, "depth")),
 ]
 
 

@@ -49,8 +49,6 @@ def test_the_renderer_is_recorded_and_pyrender_manifests_are_unchanged():
 
 @pytest.mark.parametrize("kw, match", [
     ({"renderer": "mitsuba"}, r"unknown renderer 'mitsuba'; choose one of \('pyrender', 'cycles'\)"),
-    ({"renderer": "cycles", "depth": True}, "cycles renderer draws colour only .*depth=True"),
-    ({"renderer": "cycles", "masks": True}, "masks=True.*renderer 'pyrender'"),
     ({"cycles_samples": 0}, r"cycles_samples must be a whole number in \[1, 4096\], got 0"),
 ])
 def test_bad_renderer_settings_are_refused(kw, match):

@@ -33,6 +33,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.modes",
     "lipgen.bench.mesh",
     "lipgen.bench.render",
+    "lipgen.bench.preset_frames",
     "lipgen.bench.cycles",
     "lipgen.bench.blender",
     "lipgen.bench.startup",

@@ -10,10 +10,8 @@ same against a renderer that draws one view at a time, in its own interleaved bl
 encoding the PNG and writing it and a truth file.
 ``generate_fps`` is the whole ``lipgen generate`` (subject simulation, rendering, sensor noise,
 visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up included;
-``preset_frame_fps`` is what generate spends per frame once started (render, form, truth, PNG
-and npz; one worker) with ``--preset easy`` (today's default frames) and ``--preset hard`` (lens,
-motion blur, defocus, mirror, sensor, JPEG), in alternating blocks of the same moving subject;
-``hard_to_default`` is their ratio.
+The hard preset's frames against easy's are suite ``presets``
+(:mod:`lipgen.bench.preset_frames`).
 """
 
 from __future__ import annotations
@@ -33,37 +31,6 @@ def _frames(mesh, n: int) -> list[np.ndarray]:
     """n different lip shapes (a jaw drop growing frame by frame), so every frame uploads anew."""
     V0 = mesh.vertices
     return [V0 + np.outer(np.clip(-V0[:, 1], 0, 25) * (0.02 * k), [0.0, -1.0, 0.0]) for k in range(n)]
-
-
-def _preset_frame_fps(n: int, preset_settings) -> dict:
-    """Frames/s of generate's per-frame work under the easy and hard presets (two rounds each)."""
-    from lipgen.dataset import generate as gen
-
-    s0 = preset_settings("easy", frames=n + 1, calib_frames=0)
-    motion = gen._simulate(s0)  # the same subject and motion for both presets
-    times = {"easy": [], "hard": []}
-    with tempfile.TemporaryDirectory() as tmp:
-        mesh_path = Path(tmp) / "mesh.npz"
-        motion.mesh.save(mesh_path)
-        for _ in range(2):
-            for name in times:
-                out = Path(tmp) / name
-                for sub in ("raw", "truth"):
-                    (out / sub).mkdir(parents=True, exist_ok=True)
-                s = preset_settings(name, frames=n + 1, calib_frames=0)
-                ctx = gen._Context(str(out), s.to_dict(), np.asarray(motion.vertices),
-                                   np.asarray(motion.poses), np.asarray(motion.activations), str(mesh_path))
-                gen._init_worker(ctx)
-                try:
-                    gen._write(*gen._render_job(("frame", 0)))  # warm-up
-                    t0 = time.perf_counter()
-                    for i in range(1, n + 1):
-                        gen._write(*gen._render_job(("frame", i)))
-                    times[name].append((time.perf_counter() - t0) / n)
-                finally:
-                    gen._WORKER.pop("renderer").close()
-                    gen._WORKER.clear()
-    return {name: 1.0 / float(np.mean(t)) for name, t in times.items()}
 
 
 def _two_pass_ratio(rig, face, shapes, reps: int) -> dict:
@@ -158,7 +125,6 @@ def run(quick: bool = False) -> dict:
             generate(Path(tmp) / "ds", GenerateSettings(frames=n_gen, calib_frames=0), workers=workers,
                      progress=False)
             gen[f"workers_{workers}"] = n_gen / (time.perf_counter() - t0)
-    preset_fps = _preset_frame_fps(4 if quick else 12, GenerateSettings.from_preset)
     med = {name: float(np.median(v)) for name, v in
            (("raw", t_raw), ("single", t_single), ("e2e", t_e2e), ("cpu_raw", cpu_raw))}
     return {
@@ -177,9 +143,7 @@ def run(quick: bool = False) -> dict:
         "end_to_end_fps": 1.0 / med["e2e"],
         "generate_frames": n_gen,
         "generate_fps": gen,
-        "preset_frame_fps": preset_fps,
-        "hard_to_default": preset_fps["hard"] / preset_fps["easy"],
-        "targets": {"ratio_to_limit": 0.5, "end_to_end_fps": 8.0, "hard_to_default": 0.5},
+        "targets": {"ratio_to_limit": 0.5, "end_to_end_fps": 8.0},
         "loadavg_before": list(load_before),
         "loadavg_after": list(os.getloadavg()),
         "cpu_count": os.cpu_count(),

@@ -89,7 +89,7 @@ def add_parser(sub) -> None:
     opt("--masks", action="store_true", help="also write each frame's label mask (masks/NNNNNN.png)")
     opt("--renderer", default="pyrender", choices=("pyrender", "cycles"),
         help="pyrender (OpenGL, default) or cycles (Blender Cycles on the CPU: path tracing, subsurface "
-        "scattering in skin and lips; needs pip bpy; much slower; no --depth/--masks). Same truth")
+        "scattering in skin and lips; needs pip bpy; much slower; --depth/--masks by pyrender). Same truth")
     opt("--cycles-samples", type=int, default=16, help="Cycles samples per pixel, denoised (default 16)")
     opt("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)

@@ -54,7 +54,8 @@ class GenerateSettings:
     None is ``easy`` (the data before presets, whose manifests name none)."""
     renderer: str = "pyrender"
     """``"pyrender"`` (OpenGL) or ``"cycles"`` (Blender Cycles on the CPU: path tracing, subsurface
-    scattering in skin and lips; colour only, no depth or masks); :mod:`lipgen.rig.backends`."""
+    scattering in skin and lips; depth and masks rasterised from the same scene by pyrender);
+    :mod:`lipgen.rig.backends`."""
     cycles_samples: int = 16
     """Cycles' path-tracing samples per pixel (denoised); used with ``renderer="cycles"``."""
 
@@ -97,9 +98,6 @@ class GenerateSettings:
 
         if self.renderer not in RENDERERS:
             raise ValueError(f"unknown renderer {self.renderer!r}; choose one of {RENDERERS}")
-        if self.renderer == "cycles" and (self.depth or self.masks):
-            raise ValueError(f"the cycles renderer draws colour only (depth={self.depth}, "
-                             f"masks={self.masks}); write depth and masks with renderer 'pyrender'")
         if self.subject_seed is not None:
             from lipgen.subject.shape import MAX_SUBJECT_SEED
 

@@ -15,6 +15,15 @@ The world frame of the result is the board's frame in the ``reference`` image (o
 inner corner 0, x along the corner rows, y along the columns, z = x × y), so a board placed at
 a known pose there gives cameras in that known frame.
 
+Tangential distortion (p1, p2) of a real lens's size (about 1e-3) is nearly unidentifiable from a
+board this small against the field of view: apart from a camera turn and a principal-point
+shift (absorbed exactly), what p2 adds across one board is a curvature of a few thousandths of a
+pixel, which each board's pose absorbs. Measured on the hard preset's lens (-0.15, 0.10, 0.0012,
+-0.0008) with exact corners plus 0.1 px noise, 10-30 board poses: k1 within 2 %, k2 within
+15 %, but p1 and p2 anywhere from 1 % to 50 % off, by the poses; the pixels are right all the
+same (0.1-0.2 px over the face volume). Ten times larger tangential terms are recovered within
+5 % from rendered frames (``tests/test_calib_tangential.py``).
+
 OpenCV (``opencv-python-headless``) is imported when a calibration runs.
 """
 

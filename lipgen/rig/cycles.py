@@ -7,6 +7,12 @@ camera reflected in the mirror plane), so its pixels agree with :meth:`MirrorRig
 as pyrender's do, and :meth:`MirrorRig.compose` flips the mirror half into place. Lens
 distortion is applied as in pyrender, by resampling a wider pinhole render.
 
+Depth and label masks are geometry: which surface each pixel's line of sight meets first, and
+how far along the view camera's axis. They do not depend on the light transport, so they are
+rasterised by pyrender (:class:`~lipgen.rig.render.RigRenderer`, opened when first asked for)
+from the same :class:`~lipgen.rig.scene.Scene` through the same view cameras and lens resampling:
+the same bytes as a pyrender dataset's depth and masks of that scene.
+
 What Cycles adds: path-traced light (soft shadows from the world light in folds and the mouth,
 inter-reflection), and subsurface scattering in skin and lips. The scene description carries no
 subsurface parameters; tissue materials are recognised by name (:data:`SUBSURFACE`).
@@ -186,6 +192,8 @@ class CyclesRenderer:
         self._lights: tuple | None = None
         self._light_objs: list = []
         self._env: tuple | None = None
+        self._clip = (znear, zfar)
+        self._geometry = None  # pyrender, for depth and labels
 
     def _open(self, samples, denoise, threads, seed, znear, zfar) -> None:
         bpy = self.bpy
@@ -333,26 +341,38 @@ class CyclesRenderer:
     def render_views(self, scene: Scene, depth: bool = False, labels: bool = False):
         """The corrected (virtual, real) view images, as :meth:`MirrorRig.split_views` returns them.
 
-        Returns a list of ``(color (h, w, 3) uint8, None, None)`` per view, in
-        :data:`~lipgen.rig.camera.VIEWS` order (no mirror dimming). Depth and labels are not
-        rendered by this backend (``ValueError``): use the pyrender renderer for them.
+        Returns a list of ``(color (h, w, 3) uint8, depth (h, w) float32 or None, labels (h, w)
+        uint8 or None)`` per view, in :data:`~lipgen.rig.camera.VIEWS` order (no mirror dimming).
+        Depth (view-camera z, mm; 0 where nothing was drawn) and labels are rasterised by pyrender
+        from the same scene (see the module docstring).
         """
-        if depth or labels:
-            raise ValueError(f"the Cycles renderer draws colour only (depth={depth}, labels={labels}); "
-                             "render depth and label masks with the pyrender renderer")
         if not isinstance(scene, Scene):
             raise TypeError(f"scene must be a lipgen.rig.scene.Scene, got {type(scene).__name__}")
         self._sync(scene)
-        return [[srgb_encode(self._render_linear(v)), None, None] for v in self._views]
+        out = [[srgb_encode(self._render_linear(v)), None, None] for v in self._views]
+        if depth or labels:
+            if self._geometry is None:
+                from lipgen.rig.render import RigRenderer
+
+                self._geometry = RigRenderer(self.rig, self.reflectance, *self._clip)
+            for view, (_, z, lab) in zip(out, self._geometry.render_views(scene, depth, labels), strict=True):
+                view[1], view[2] = z, lab
+        return out
 
     def render(self, scene: Scene, depth: bool = False, labels: bool = False) -> RenderedFrame:
-        """One raw frame of ``scene`` as the rig's real camera sees it (colour only)."""
-        (cv, _, _), (cr, _, _) = self.render_views(scene, depth, labels)
+        """One raw frame of ``scene`` as the rig's real camera sees it (depth and labels as
+        :meth:`render_views`)."""
+        (cv, zv, lv), (cr, zr, lr) = self.render_views(scene, depth, labels)
         dimmed = np.round(cv.astype(np.float32) * self.reflectance).astype(np.uint8)
-        return RenderedFrame(self.rig.compose(dimmed, cr))
+        compose = self.rig.compose
+        return RenderedFrame(compose(dimmed, cr), compose(zv, zr) if depth else None,
+                             compose(lv, lr) if labels else None)
 
     def close(self) -> None:
         """Empty the Blender session and remove the temporary folder."""
+        if getattr(self, "_geometry", None) is not None:
+            self._geometry.close()
+            self._geometry = None
         if getattr(self, "_tmp", None) is not None:
             with _quiet():
                 self.bpy.ops.wm.read_factory_settings(use_empty=True)

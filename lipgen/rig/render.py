@@ -24,7 +24,7 @@ import numpy as np
 from lipgen._optional import require
 from lipgen._threads import single_threaded
 from lipgen.errors import MissingDependencyError, RenderBackendError
-from lipgen.rig import _onepass
+from lipgen.rig import _onepass, _shadowmap
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.scene import MeshItem, Scene, srgb_to_linear
@@ -147,6 +147,8 @@ class RigRenderer:
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
         self._one_pass = bool(one_pass) and _onepass.install(self._renderer, pr)
+        if shadows:  # pyrender's shadow filter in 16 depth reads, not 36: the same pixels
+            _shadowmap.install(self._renderer)
         self._scene = _ordered_scene(pr)()
         for v in self._views:
             self._scene.add_node(v.node)

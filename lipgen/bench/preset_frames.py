@@ -1,0 +1,144 @@
+"""Benchmark suite ``presets``: generate's per-frame work under ``--preset hard`` against ``easy``.
+
+Issue 15's speed target: ``hard`` frames at no less than half of ``easy``'s (today's default)
+frames per second with pyrender. Both presets film the same moving subject: the hard preset's
+motion (its head motion and independent speech sources), simulated once with the linear truth
+physics, since the nonlinear tissue layer of ``hard`` is a one-off simulation before any frame is
+rendered (seconds per frame, not part of the frame pipeline). Each worker is set up as
+``generate`` sets up its own (one BLAS thread, one GL context per preset), and the frames are
+interleaved: easy frame i, hard frame i, easy frame i + 1, ... Each frame is the whole per-frame
+job: render (every sub-frame instant of the exposure), form (lens, mirror, sensor, JPEG),
+truth, PNG and npz writing.
+
+Figures: ``hard_over_easy_fps``, the median over frames of ``cpu(easy) / cpu(hard)`` (CPU time
+of this process: the GL rasterizer runs in it), with the wall-clock ratio beside it; the CPU
+seconds per frame of each; the renders per hard frame (motion blur instants); and
+``shadow_filter``: one shadowed render of the hard scene with lipgen's 16-read shadow filter
+(:mod:`lipgen.rig._shadowmap`) over pyrender's own 36-read one, interleaved, CPU.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from lipgen.bench.compare import load_average
+
+NAME = "presets"
+
+
+def _contexts(tmp: Path, n: int) -> tuple[dict, object]:
+    from lipgen.dataset import generate as gen
+    from lipgen.dataset.settings import GenerateSettings
+    from lipgen.dataset.simulation import simulate_motion
+
+    hard = GenerateSettings.from_preset("hard", frames=n + 1, calib_frames=0)
+    motion = simulate_motion(dataclasses.replace(hard, truth_physics="linear"))
+    mesh_path = tmp / "mesh.npz"
+    motion.mesh.save(mesh_path)
+    workers = {}
+    for name, s in (("easy", GenerateSettings.from_preset("easy", frames=n + 1, calib_frames=0)),
+                    ("hard", hard)):
+        out = tmp / name
+        for sub in ("raw", "truth"):
+            (out / sub).mkdir(parents=True, exist_ok=True)
+        dots = None if name == "easy" else motion.dots.to_dict()
+        ctx = gen._Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
+                           np.asarray(motion.activations), str(mesh_path), dots)
+        gen._WORKER.clear()
+        gen._init_worker(ctx)
+        gen._write(*gen._render_job(("frame", 0)))  # warm-up: shaders compiled, textures uploaded
+        workers[name] = dict(gen._WORKER)
+    gen._WORKER.clear()
+    return workers, motion
+
+
+def _shadow_filter(worker: dict, motion, reps: int) -> dict:
+    """CPU of one shadowed render of the hard scene, lipgen's shadow filter over pyrender's: the
+    hard worker's renderer with its shader cache swapped round by round (one GL context: pyrender
+    ends the process's EGL display when any of its contexts is deleted)."""
+    from pyrender.shader_program import ShaderProgramCache
+
+    scenes = [worker["face"].scene(motion.vertices[i], motion.poses[i], lights=worker["lights"])
+              for i in range(len(motion.vertices))]
+    r = worker["renderer"]
+    gl = r._renderer._renderer
+    caches = {"lipgen": gl._program_cache, "pyrender": ShaderProgramCache()}
+    cpu = {name: [] for name in caches}
+    try:
+        for k in range(reps + 1):
+            for name, cache in caches.items():
+                gl._program_cache = cache
+                c0 = time.process_time()
+                r.render_views(scenes[k % len(scenes)])
+                if k:  # the first round compiles the shaders
+                    cpu[name].append(time.process_time() - c0)
+    finally:
+        gl._program_cache = caches["lipgen"]
+        caches["pyrender"].clear()
+    ratio = np.asarray(cpu["lipgen"]) / np.maximum(cpu["pyrender"], 1e-9)
+    return {"lipgen_over_pyrender_cpu": float(np.median(ratio)), "repeats": reps,
+            "lipgen_filter_installed": type(caches["lipgen"]) is not ShaderProgramCache}
+
+
+def run(quick: bool = False) -> dict:
+    from lipgen._threads import limit_worker_threads
+    from lipgen.dataset import generate as gen
+    from lipgen.rig import render
+
+    n = 4 if quick else 16
+    limit_worker_threads(1)  # as in every generate worker
+    calls = [0]
+    original = render.RigRenderer.render_views
+
+    def counted(self, *args, **kwargs):
+        calls[0] += 1
+        return original(self, *args, **kwargs)
+
+    load_before = load_average()
+    cpu = {"easy": [], "hard": []}
+    wall = {"easy": [], "hard": []}
+    renders = 0
+    with tempfile.TemporaryDirectory() as tmp:
+        workers, motion = _contexts(Path(tmp), n)
+        render.RigRenderer.render_views = counted
+        try:
+            for i in range(1, n + 1):
+                for name in ("easy", "hard"):
+                    gen._WORKER.clear()
+                    gen._WORKER.update(workers[name])
+                    k0 = calls[0]
+                    c0, t0 = time.process_time(), time.perf_counter()
+                    gen._write(*gen._render_job(("frame", i)))
+                    cpu[name].append(time.process_time() - c0)
+                    wall[name].append(time.perf_counter() - t0)
+                    if name == "hard":
+                        renders += calls[0] - k0
+        finally:
+            render.RigRenderer.render_views = original
+            gen._WORKER.clear()
+        shadow = _shadow_filter(workers["hard"], motion, 3 if quick else 8)
+        for w in workers.values():
+            with contextlib.suppress(Exception):  # the first close ends the process's EGL display
+                w["renderer"].close()
+    ce, ch = np.asarray(cpu["easy"]), np.asarray(cpu["hard"])
+    we, wh = np.asarray(wall["easy"]), np.asarray(wall["hard"])
+    return {
+        "frames": n,
+        "size": "640x480",
+        "hard_over_easy_fps": float(np.median(ce / ch)),
+        "hard_over_easy_fps_wall": float(np.median(we / wh)),
+        "cpu_per_frame_s": {"easy": float(np.median(ce)), "hard": float(np.median(ch))},
+        "hard_renders_per_frame": renders / n,
+        "shadow_filter": shadow,
+        "target": {"hard_over_easy_fps": 0.5},
+        "loadavg_before": load_before,
+        "loadavg_after": load_average(),
+        "cpu_count": os.cpu_count(),
+    }
