@@ -13,7 +13,9 @@ visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up i
 ``preset_frame_fps`` is what generate spends per frame once started (render, form, truth, PNG
 and npz; one worker) with ``--preset easy`` (today's default frames) and ``--preset hard`` (lens,
 motion blur, defocus, mirror, sensor, JPEG), in alternating blocks of the same moving subject;
-``hard_to_default`` is their ratio.
+``hard_to_default`` is their ratio. ``coverage`` and ``frame_parts`` (:mod:`lipgen.bench.frame_parts`):
+the pixels a raw frame covers against one pass (the bound they set on ``ratio_to_limit``), and the
+per-frame sensor noise and visibility truth against their baselines.
 """
 
 from __future__ import annotations
@@ -38,9 +40,10 @@ def _frames(mesh, n: int) -> list[np.ndarray]:
 def _preset_frame_fps(n: int, preset_settings) -> dict:
     """Frames/s of generate's per-frame work under the easy and hard presets (two rounds each)."""
     from lipgen.dataset import generate as gen
+    from lipgen.dataset.simulation import simulate_motion
 
     s0 = preset_settings("easy", frames=n + 1, calib_frames=0)
-    motion = gen._simulate(s0)  # the same subject and motion for both presets
+    motion = simulate_motion(s0, None)  # the same subject and motion for both presets
     times = {"easy": [], "hard": []}
     with tempfile.TemporaryDirectory() as tmp:
         mesh_path = Path(tmp) / "mesh.npz"
@@ -98,6 +101,7 @@ def run(quick: bool = False) -> dict:
     from PIL import Image
 
     from lipgen._io import atomic_write_bytes, save_npz
+    from lipgen.bench.frame_parts import coverage, frame_parts
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
     from lipgen.mesh.procedural import lip_mesh
@@ -149,15 +153,19 @@ def run(quick: bool = False) -> dict:
             t0 = time.perf_counter()
             end_to_end(k + 1)
             t_e2e.append(time.perf_counter() - t0)
+        parts = frame_parts(rig, face, shapes[3], r.render, max(3, reps // 3))
+        cov = coverage(r, single, max(3, reps // 3))
     two_pass = _two_pass_ratio(rig, face, shapes, reps)  # after the first context is closed
     gen = {}
     n_gen = 8 if quick else 40
     for workers in (1, 2):
         with tempfile.TemporaryDirectory() as tmp:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             generate(Path(tmp) / "ds", GenerateSettings(frames=n_gen, calib_frames=0), workers=workers,
                      progress=False)
             gen[f"workers_{workers}"] = n_gen / (time.perf_counter() - t0)
+            if workers == 1:  # in this process (its writer thread included)
+                gen["workers_1_frames_per_cpu_s"] = n_gen / (time.process_time() - c0)
     preset_fps = _preset_frame_fps(4 if quick else 12, GenerateSettings.from_preset)
     med = {name: float(np.median(v)) for name, v in
            (("raw", t_raw), ("single", t_single), ("e2e", t_e2e), ("cpu_raw", cpu_raw))}
@@ -174,6 +182,8 @@ def run(quick: bool = False) -> dict:
         "raw_over_single_wall": float(np.median(np.asarray(t_raw) / np.asarray(t_single))),
         "raw_over_single_cpu": float(np.median(np.asarray(cpu_raw) / np.maximum(cpu_single, 1e-9))),
         "two_pass": two_pass,
+        "coverage": cov,
+        "frame_parts": parts,
         "end_to_end_fps": 1.0 / med["e2e"],
         "generate_frames": n_gen,
         "generate_fps": gen,

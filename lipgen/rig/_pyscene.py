@@ -51,14 +51,50 @@ def _ordered_scene(pr):
     return OrderedScene
 
 
-def _fingerprint(item: MeshItem) -> str:
-    h = hashlib.blake2b(digest_size=16)
-    for a in (item.vertices, item.faces, item.normals, item.face_material):
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr([m.key for m in item.materials]).encode())
-    if item.uv is not None:
-        h.update(np.ascontiguousarray(item.uv).tobytes())
-    return h.hexdigest()
+def _fingerprint(item: MeshItem) -> tuple[str, str]:
+    """``(layout, geometry)`` hashes of ``item``: its faces, materials and uv, and its vertices and
+    normals. An item whose layout is unchanged keeps its meshes; only their vertex data change."""
+    keys = []
+    for arrays in ((item.faces, item.face_material, item.uv), (item.vertices, item.normals)):
+        h = hashlib.blake2b(digest_size=16)
+        for a in arrays:
+            if a is not None:
+                h.update(np.ascontiguousarray(a).tobytes())
+        keys.append(h)
+    keys[0].update(repr([m.key for m in item.materials]).encode())
+    return keys[0].hexdigest(), keys[1].hexdigest()
+
+
+_ATTRIBUTES = ("positions", "normals", "tangents", "texcoord_0", "texcoord_1", "color_0")  # pyrender's order
+
+
+def _vertex_data(prim) -> np.ndarray:
+    """The interleaved float32 vertex buffer pyrender 0.1.45 uploads for ``prim``
+    (``Primitive._add_to_context``): its attributes side by side, in ``_ATTRIBUTES`` order."""
+    parts = [a for a in (getattr(prim, name) for name in _ATTRIBUTES) if a is not None]
+    return np.ascontiguousarray(np.hstack(parts).flatten().astype(np.float32))
+
+
+def _set_vertices(mesh, item: MeshItem) -> bool:
+    """Give ``mesh`` (made by :func:`_pyrender_mesh` from an item of the same layout) ``item``'s
+    vertices and normals. Returns True when its vertex buffer on the GPU must be written again."""
+    prim = mesh.primitives[0]
+    used = mesh._lipgen_used
+    prim.positions = item.vertices[used].astype(np.float32)
+    prim.normals = item.normals[used].astype(np.float32)
+    mesh._bounds = None  # pyrender caches them (shadow cameras and the scene scale use them)
+    return prim._vaid is not None
+
+
+def _upload_vertices(prims) -> None:
+    """Write each primitive's vertex data into its vertex buffer in place (the GL context is current)."""
+    from OpenGL import GL
+
+    for prim in prims:
+        data = _vertex_data(prim)
+        GL.glBindBuffer(GL.GL_ARRAY_BUFFER, prim._buffers[0])
+        GL.glBufferSubData(GL.GL_ARRAY_BUFFER, 0, data.nbytes, data)
+    GL.glBindBuffer(GL.GL_ARRAY_BUFFER, 0)
 
 
 def _groups(item: MeshItem, key) -> list[tuple[np.ndarray, object]]:
@@ -93,7 +129,9 @@ def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | 
                         normals=item.normals[used].astype(np.float32),
                         texcoord_0=item.uv[used].astype(np.float32) if textured else None,
                         indices=inv.reshape(-1, 3).astype(np.uint32), material=material)
-    return pr.Mesh([prim], name=f"{item.name}:{mat.name}")
+    mesh = pr.Mesh([prim], name=f"{item.name}:{mat.name}")
+    mesh._lipgen_used = used  # the item's vertices this mesh holds, in order (see _set_vertices)
+    return mesh
 
 
 _FAR = 1e5  # mm: a point light this far stands in for a directional light that casts no shadow

@@ -32,6 +32,8 @@ from lipgen.rig._pyscene import (
     _ordered_scene,
     _pyrender_light,
     _pyrender_mesh,
+    _set_vertices,
+    _upload_vertices,
 )
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
@@ -106,7 +108,7 @@ class RigRenderer:
     """Renders :class:`~lipgen.rig.scene.Scene` s through a :class:`~lipgen.rig.camera.MirrorRig`.
 
     Holds one offscreen OpenGL context (EGL) for its lifetime; make one per process and reuse
-    it. Geometry is uploaded again only for items whose arrays changed.
+    it. Geometry is uploaded again only for items whose arrays changed (vertex buffers in place).
 
     Parameters
     ----------
@@ -152,6 +154,10 @@ class RigRenderer:
     def _sync(self, scene: Scene, labels: bool) -> None:
         """Bring the pyrender scene up to date; upload only items whose arrays changed.
 
+        An item whose faces, materials and uv are unchanged keeps its pyrender meshes, and only
+        their vertex buffers are written again (in place): a moving subject builds no new
+        meshes, vertex arrays or programs frame after frame.
+
         Colour nodes group faces by appearance (few draw calls); label nodes group them by
         label and exist only once labels are asked for, hidden except in the label pass.
         """
@@ -162,10 +168,16 @@ class RigRenderer:
         for name in list(self._items):
             if name not in wanted:
                 self._drop(self._items.pop(name))
+        moved = []
         for name, item in wanted.items():
-            key = _fingerprint(item)
+            key, geometry = _fingerprint(item)
             old = self._items.get(name)
-            if old is not None and old["key"] == key:
+            if old is not None and old["key"] == key:  # the same meshes, perhaps moved
+                if old["geometry"] != geometry:
+                    nodes = old["colour"] + [node for node, _ in old["label"] or ()]
+                    moved += [n.mesh.primitives[0] for n in nodes if _set_vertices(n.mesh, item)]
+                    old["geometry"] = geometry
+                    self._scene._bounds = None
                 if labels and old["label"] is None:
                     old["label"] = self._add_label_nodes(item)
                 continue
@@ -175,8 +187,14 @@ class RigRenderer:
                                               None if m.texture is None else id(m.texture), m.opacity))
             meshes = [_pyrender_mesh(pr, item, faces, mat, self._textures) for faces, mat in groups]
             colour = [self._scene.add(m, name=m.name) for m in meshes]
-            self._items[name] = {"key": key, "colour": colour,
+            self._items[name] = {"key": key, "geometry": geometry, "colour": colour,
                                  "label": self._add_label_nodes(item) if labels else None}
+        if moved:
+            self._renderer._platform.make_current()
+            try:
+                _upload_vertices(moved)
+            finally:
+                self._renderer._platform.make_uncurrent()
         if scene.lights != self._lights:
             for node in self._light_nodes:
                 self._scene.remove_node(node)
