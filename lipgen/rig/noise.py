@@ -9,9 +9,10 @@ this equals ``clip(image + k, 0, 255)`` with ``k = round(sigma * z)``: an intege
 (the rounded Gaussian). :func:`add_rounded_gaussian` draws ``k`` directly, by the inverse of that
 distribution's CDF on 32-bit uniform integers: a table on the top 16 bits settles all but the
 few draws whose 16-bit bucket holds a step of the CDF, which are looked up exactly. The result
-has the same distribution as the float path (to 2^-32 in probability) at about a third of its
-cost: one 32-bit draw and a table look-up per value instead of a float32 normal draw, a
-multiply, an add, a rounding and a clip over a float image.
+has the same distribution as the float path (to 2^-32 in probability) at 0.3-0.6x its CPU
+(``lipgen bench --suite render``: ``frame_parts.noise_over_float``): one 32-bit draw and a table
+look-up per value instead of a float32 normal draw, a multiply, an add, a rounding and a clip
+over a float image. The draws differ from the float path's, so the frames' bytes do too.
 """
 
 from __future__ import annotations
