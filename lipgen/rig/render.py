@@ -9,7 +9,9 @@ as many pixels as one full frame.
 
 OpenGL conventions stay in this module: pyrender's cameras look down -z with y up, and its
 principal point is measured from the pixel corner (OpenCV's from the pixel centre, hence +0.5).
-Radial distortion, which OpenGL cannot draw, is applied by resampling a wider pinhole render.
+Radial distortion, which OpenGL cannot draw, is applied by resampling a wider pinhole render
+(:class:`~lipgen.rig.resample.PinholeWindow`, shared with the Cycles renderer). How a scene becomes
+pyrender meshes and lights is in :mod:`lipgen.rig._pyscene`.
 """
 
 from __future__ import annotations
