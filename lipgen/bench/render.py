@@ -12,6 +12,9 @@ encoding the PNG and writing it and a truth file.
 visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up included;
 The hard preset's frames against easy's are suite ``presets``
 (:mod:`lipgen.bench.preset_frames`).
+``coverage`` and ``frame_parts`` (:mod:`lipgen.bench.frame_parts`):
+the pixels a raw frame covers against one pass (the bound they set on ``ratio_to_limit``), and the
+per-frame sensor noise and visibility truth against their baselines.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ def run(quick: bool = False) -> dict:
     from PIL import Image
 
     from lipgen._io import atomic_write_bytes, save_npz
+    from lipgen.bench.frame_parts import coverage, frame_parts
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
     from lipgen.mesh.procedural import lip_mesh
@@ -116,15 +120,19 @@ def run(quick: bool = False) -> dict:
             t0 = time.perf_counter()
             end_to_end(k + 1)
             t_e2e.append(time.perf_counter() - t0)
+        parts = frame_parts(rig, face, shapes[3], r.render, max(3, reps // 3))
+        cov = coverage(r, single, max(3, reps // 3))
     two_pass = _two_pass_ratio(rig, face, shapes, reps)  # after the first context is closed
     gen = {}
     n_gen = 8 if quick else 40
     for workers in (1, 2):
         with tempfile.TemporaryDirectory() as tmp:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             generate(Path(tmp) / "ds", GenerateSettings(frames=n_gen, calib_frames=0), workers=workers,
                      progress=False)
             gen[f"workers_{workers}"] = n_gen / (time.perf_counter() - t0)
+            if workers == 1:  # in this process (its writer thread included)
+                gen["workers_1_frames_per_cpu_s"] = n_gen / (time.process_time() - c0)
     med = {name: float(np.median(v)) for name, v in
            (("raw", t_raw), ("single", t_single), ("e2e", t_e2e), ("cpu_raw", cpu_raw))}
     return {
@@ -140,6 +148,8 @@ def run(quick: bool = False) -> dict:
         "raw_over_single_wall": float(np.median(np.asarray(t_raw) / np.asarray(t_single))),
         "raw_over_single_cpu": float(np.median(np.asarray(cpu_raw) / np.maximum(cpu_single, 1e-9))),
         "two_pass": two_pass,
+        "coverage": cov,
+        "frame_parts": parts,
         "end_to_end_fps": 1.0 / med["e2e"],
         "generate_frames": n_gen,
         "generate_fps": gen,

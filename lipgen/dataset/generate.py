@@ -53,6 +53,7 @@ from lipgen.dataset.layout import (
 from lipgen.dataset.simulation import face_look, frame_truth, simulate_motion, speech_phones
 from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
 from lipgen.rig.imaging import on_mirror
+from lipgen.rig.noise import add_rounded_gaussian
 from lipgen.rig.render import RenderedFrame
 from lipgen.subject.face import FaceModel, look_record
 
@@ -121,10 +122,8 @@ def _init_worker(ctx: _Context, renderer=None) -> None:
 
 
 def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    if sigma <= 0:
-        return image
-    noise = rng.standard_normal(image.shape, dtype=np.float32) * np.float32(sigma)
-    return np.clip(np.round(image + noise), 0, 255).astype(np.uint8)
+    """``clip(round(image + sigma * z), 0, 255)``, drawn as integers (:mod:`lipgen.rig.noise`)."""
+    return add_rounded_gaussian(image, sigma, rng)
 
 
 def _run_job(job: tuple[str, int]) -> tuple[str, int]:

@@ -44,6 +44,7 @@ from lipgen.rig.cycles_nodes import _image, _matrix, _principled, _set_geometry,
 from lipgen.rig.imaging import srgb_encode
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.render import RenderedFrame
+from lipgen.rig.resample import PinholeWindow
 from lipgen.rig.scene import Material, MeshItem, Scene, srgb_to_linear
 
 __all__ = ["CyclesRenderer", "SUBSURFACE", "import_bpy"]
@@ -105,18 +106,9 @@ class _View:
             raise ValueError(f"{cam.name}: the Cycles renderer needs square pixels (fx = fy), got "
                              f"fx={K[0, 0]}, fy={K[1, 1]}")
         self.cam = cam
-        x0 = y0 = 0.0
-        w, h = cam.width, cam.height
-        self.map = None
-        if cam.dist is not None:  # as pyrender's view: a wider pinhole render, resampled
-            uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-            src = cam.normalized(np.stack([uu, vv], -1)) * np.diag(K)[:2] + K[:2, 2]
-            lo, hi = np.floor(src.min(axis=(0, 1))) - 2, np.ceil(src.max(axis=(0, 1))) + 2
-            x0, y0 = lo
-            w, h = int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1
-            self.cv2 = require("cv2", "rendering a camera with lens distortion")
-            self.map = (src - lo).astype(np.float32)
-        self.size = (w, h)
+        self.window = PinholeWindow(cam)  # as pyrender's view: a wider pinhole render, resampled
+        x0, y0 = self.window.offset
+        w, h = self.size = self.window.size
         data = bpy.data.cameras.new(name)
         data.sensor_fit = "HORIZONTAL"
         data.sensor_width = 36.0
@@ -133,10 +125,7 @@ class _View:
         self.pose = pose
 
     def resample(self, lin: np.ndarray) -> np.ndarray:
-        if self.map is None:
-            return lin
-        cv2 = self.cv2
-        return cv2.remap(lin, self.map, None, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return self.window.resample(lin)
 
 
 class CyclesRenderer:

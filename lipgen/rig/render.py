@@ -9,13 +9,14 @@ as many pixels as one full frame.
 
 OpenGL conventions stay in this module: pyrender's cameras look down -z with y up, and its
 principal point is measured from the pixel corner (OpenCV's from the pixel centre, hence +0.5).
-Radial distortion, which OpenGL cannot draw, is applied by resampling a wider pinhole render.
+Radial distortion, which OpenGL cannot draw, is applied by resampling a wider pinhole render
+(:class:`~lipgen.rig.resample.PinholeWindow`, shared with the Cycles renderer). How a scene becomes
+pyrender meshes and lights is in :mod:`lipgen.rig._pyscene`.
 """
 
 from __future__ import annotations
 
 import functools
-import hashlib
 import os
 from dataclasses import dataclass
 
@@ -25,8 +26,20 @@ from lipgen._optional import require
 from lipgen._threads import single_threaded
 from lipgen.errors import MissingDependencyError, RenderBackendError
 from lipgen.rig import _onepass, _shadowmap
+from lipgen.rig._pyscene import (
+    _decode_labels,
+    _fingerprint,
+    _groups,
+    _label_color,
+    _ordered_scene,
+    _pyrender_light,
+    _pyrender_mesh,
+    _set_vertices,
+    _upload_vertices,
+)
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
+from lipgen.rig.resample import PinholeWindow
 from lipgen.rig.scene import MeshItem, Scene, srgb_to_linear
 
 __all__ = ["RigRenderer", "RenderedFrame", "import_pyrender"]
@@ -75,26 +88,14 @@ class RenderedFrame:
 
 
 class _View:
-    """A view camera as pyrender draws it, plus the resampling map when it has distortion."""
+    """A view camera as pyrender draws it: the pinhole window it is resampled from (lens distortion)."""
 
     def __init__(self, pyrender, cam: PinholeCamera, znear: float, zfar: float) -> None:
         self.cam = cam
+        self.window = PinholeWindow(cam)
+        self.size = self.window.size
         K = cam.K
-        x0 = y0 = 0.0
-        w, h = cam.width, cam.height
-        if cam.dist is not None:
-            # where each output pixel comes from in an undistorted render of the same K
-            uu, vv = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
-            xy = cam.normalized(np.stack([uu, vv], -1))
-            src = xy * np.diag(K)[:2] + K[:2, 2]
-            lo, hi = np.floor(src.min(axis=(0, 1))) - 2, np.ceil(src.max(axis=(0, 1))) + 2
-            x0, y0 = lo
-            w, h = int(hi[0] - lo[0]) + 1, int(hi[1] - lo[1]) + 1
-            s = src - lo
-            self.cv2 = require("cv2", "rendering a camera with lens distortion")
-            self.map = s.astype(np.float32)  # bilinear resampling by OpenCV's remap (1/32 px weights)
-            self.nearest = np.round(s[..., 1]).astype(np.int64) * w + np.round(s[..., 0]).astype(np.int64)
-        self.size = (w, h)
+        x0, y0 = self.window.offset
         gl = pyrender.IntrinsicsCamera(K[0, 0], K[1, 1], K[0, 2] - x0 + 0.5, K[1, 2] - y0 + 0.5, znear, zfar)
         pose = np.eye(4)
         pose[:3, :3] = cam.R.T @ np.diag([1.0, -1.0, -1.0])
@@ -102,18 +103,14 @@ class _View:
         self.node = pyrender.Node(camera=gl, matrix=pose)
 
     def resample(self, color: np.ndarray, depth: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        if self.cam.dist is None:
-            return color, depth
-        color = self.cv2.remap(color, self.map, None, self.cv2.INTER_LINEAR,
-                               borderMode=self.cv2.BORDER_REPLICATE)
-        return color, None if depth is None else depth.ravel()[self.nearest]
+        return self.window.resample(color), None if depth is None else self.window.resample_nearest(depth)
 
 
 class RigRenderer:
     """Renders :class:`~lipgen.rig.scene.Scene` s through a :class:`~lipgen.rig.camera.MirrorRig`.
 
     Holds one offscreen OpenGL context (EGL) for its lifetime; make one per process and reuse
-    it. Geometry is uploaded again only for items whose arrays changed.
+    it. Geometry is uploaded again only for items whose arrays changed (vertex buffers in place).
 
     Parameters
     ----------
@@ -161,6 +158,10 @@ class RigRenderer:
     def _sync(self, scene: Scene, labels: bool) -> None:
         """Bring the pyrender scene up to date; upload only items whose arrays changed.
 
+        An item whose faces, materials and uv are unchanged keeps its pyrender meshes, and only
+        their vertex buffers are written again (in place): a moving subject builds no new
+        meshes, vertex arrays or programs frame after frame.
+
         Colour nodes group faces by appearance (few draw calls); label nodes group them by
         label and exist only once labels are asked for, hidden except in the label pass.
         """
@@ -171,10 +172,16 @@ class RigRenderer:
         for name in list(self._items):
             if name not in wanted:
                 self._drop(self._items.pop(name))
+        moved = []
         for name, item in wanted.items():
-            key = _fingerprint(item)
+            key, geometry = _fingerprint(item)
             old = self._items.get(name)
-            if old is not None and old["key"] == key:
+            if old is not None and old["key"] == key:  # the same meshes, perhaps moved
+                if old["geometry"] != geometry:
+                    nodes = old["colour"] + [node for node, _ in old["label"] or ()]
+                    moved += [n.mesh.primitives[0] for n in nodes if _set_vertices(n.mesh, item)]
+                    old["geometry"] = geometry
+                    self._scene._bounds = None
                 if labels and old["label"] is None:
                     old["label"] = self._add_label_nodes(item)
                 continue
@@ -184,8 +191,14 @@ class RigRenderer:
                                               None if m.texture is None else id(m.texture), m.opacity))
             meshes = [_pyrender_mesh(pr, item, faces, mat, self._textures) for faces, mat in groups]
             colour = [self._scene.add(m, name=m.name) for m in meshes]
-            self._items[name] = {"key": key, "colour": colour,
+            self._items[name] = {"key": key, "geometry": geometry, "colour": colour,
                                  "label": self._add_label_nodes(item) if labels else None}
+        if moved:
+            self._renderer._platform.make_current()
+            try:
+                _upload_vertices(moved)
+            finally:
+                self._renderer._platform.make_uncurrent()
         if scene.lights != self._lights:
             for node in self._light_nodes:
                 self._scene.remove_node(node)
@@ -244,8 +257,7 @@ class RigRenderer:
         finally:
             for node, _ in pairs:
                 node.mesh.is_visible = False
-        if v.cam.dist is not None:
-            seg = seg.reshape(-1, 3)[v.nearest].reshape(v.cam.height, v.cam.width, 3)
+        seg = v.window.resample_nearest(seg)
         return _decode_labels(seg, sorted({m.label for it in scene.items for m in it.materials}))
 
     def render(self, scene: Scene, depth: bool = False, labels: bool = False) -> RenderedFrame:
@@ -284,152 +296,3 @@ class RigRenderer:
 def _dimming_table(reflectance: float) -> np.ndarray:
     """(256,) uint8: ``round(v * reflectance)`` in float32 for every 8-bit value ``v``."""
     return np.round(np.arange(256, dtype=np.float32) * np.float32(reflectance)).astype(np.uint8)
-
-
-def _ordered_scene(pr):
-    """A pyrender Scene that hands out its nodes sorted by name.
-
-    pyrender keeps nodes in sets, which iterate in an order set by memory addresses; the sum
-    over lights and the draw order would then change from process to process, and with them
-    the last bit of some pixels. Sorted, the same scene gives the same bytes everywhere.
-    """
-
-    def key(node):
-        return node.name or ""
-
-    class OrderedScene(pr.Scene):
-        @property
-        def mesh_nodes(self):
-            return sorted(self._mesh_nodes, key=key)
-
-        @property
-        def point_light_nodes(self):
-            return sorted(self._point_light_nodes, key=key)
-
-        @property
-        def spot_light_nodes(self):
-            return sorted(self._spot_light_nodes, key=key)
-
-        @property
-        def directional_light_nodes(self):
-            return sorted(self._directional_light_nodes, key=key)
-
-        @property
-        def light_nodes(self):
-            return sorted(self._point_light_nodes | self._spot_light_nodes | self._directional_light_nodes,
-                          key=key)
-
-    return OrderedScene
-
-
-def _fingerprint(item: MeshItem) -> str:
-    h = hashlib.blake2b(digest_size=16)
-    for a in (item.vertices, item.faces, item.normals, item.face_material):
-        h.update(np.ascontiguousarray(a).tobytes())
-    h.update(repr([m.key for m in item.materials]).encode())
-    if item.uv is not None:
-        h.update(np.ascontiguousarray(item.uv).tobytes())
-    return h.hexdigest()
-
-
-def _groups(item: MeshItem, key) -> list[tuple[np.ndarray, object]]:
-    """Faces of ``item`` grouped by ``key(material)``: ``[(faces (k, 3), first material), ...]``."""
-    keys = [key(m) for m in item.materials]
-    first = {}
-    for i, k in enumerate(keys):
-        first.setdefault(k, i)
-    group_of_material = np.array([list(first).index(k) for k in keys])
-    g = group_of_material[item.face_material]
-    return [(item.faces[g == j], item.materials[i]) for j, i in enumerate(first.values()) if (g == j).any()]
-
-
-def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | None = None):
-    """A pyrender mesh of some of ``item``'s faces with material ``mat`` (compact vertex buffer).
-
-    ``textures`` caches pyrender textures by image, so a texture shared by every frame stays on
-    the GPU (pyrender uploads a texture object once while some mesh uses it)."""
-    used, inv = np.unique(faces, return_inverse=True)
-    textured = mat.texture is not None and item.uv is not None
-    tex = None
-    if textured:
-        cache = {} if textures is None else textures
-        if id(mat.texture) not in cache:
-            cache[id(mat.texture)] = (mat.texture, pr.Texture(source=mat.texture, source_channels="RGB"))
-        tex = cache[id(mat.texture)][1]
-    material = pr.MetallicRoughnessMaterial(
-        baseColorFactor=np.append(srgb_to_linear(mat.color), mat.opacity), metallicFactor=0.0,
-        roughnessFactor=mat.roughness, doubleSided=mat.double_sided, baseColorTexture=tex,
-        alphaMode="BLEND" if mat.opacity < 1 else None)
-    prim = pr.Primitive(positions=item.vertices[used].astype(np.float32),
-                        normals=item.normals[used].astype(np.float32),
-                        texcoord_0=item.uv[used].astype(np.float32) if textured else None,
-                        indices=inv.reshape(-1, 3).astype(np.uint32), material=material)
-    return pr.Mesh([prim], name=f"{item.name}:{mat.name}")
-
-
-_FAR = 1e5  # mm: a point light this far stands in for a directional light that casts no shadow
-
-
-def _pyrender_light(pr, light, shadows: bool = False) -> tuple:
-    """A pyrender light and its pose. When shadows are drawn, a directional light that casts none
-    becomes a point light ``_FAR`` mm away along its direction, as bright at the scene (pyrender
-    draws shadows for every directional light or none)."""
-    color = srgb_to_linear(light.color)
-    pose = np.eye(4)
-    if light.kind == "directional" and shadows and not light.shadows:
-        d = np.asarray(light.direction, float)
-        pose[:3, 3] = -_FAR * d / np.linalg.norm(d)
-        return pr.PointLight(color=color, intensity=light.intensity * _FAR**2), pose
-    if light.kind == "directional":
-        z = -np.asarray(light.direction, float)
-        z /= np.linalg.norm(z)
-        x = np.cross([0.0, 1.0, 0.0], z)
-        x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0, 0])
-        pose[:3, :3] = np.stack([x, np.cross(z, x), z], 1)
-        return _shadow_light_class(pr)(color=color, intensity=light.intensity), pose
-    pose[:3, 3] = light.position
-    return pr.PointLight(color=color, intensity=light.intensity), pose
-
-
-_SHADOW_DEPTH_RANGE = 40.0
-
-
-def _shadow_light_class(pr):
-    """pyrender's directional light with a deeper shadow-map camera (no shadow acne).
-
-    pyrender's fragment shader offsets each depth comparison by 1e-4 to 1e-3 (slope-scaled) of the
-    shadow camera's depth range, which it sets to 10 scene sizes: on a finely curved face lit at a
-    grazing angle that is less than the depth step between shadow-map texels, and the surface
-    shadows itself in stripes (acne). A range of 40 scene sizes makes the offset 0.4-4 % of the
-    scene (about 1-10 mm on a face, less than the nose's or the lips' relief), with depth
-    precision to spare (24 bits over 40 scene sizes).
-    """
-    cls = getattr(pr, "_lipgen_shadow_light", None)
-    if cls is None:
-        class ShadowDirectionalLight(pr.DirectionalLight):
-            def _get_shadow_camera(self, scene_scale):
-                return pr.OrthographicCamera(znear=0.01 * scene_scale, zfar=_SHADOW_DEPTH_RANGE * scene_scale,
-                                             xmag=scene_scale, ymag=scene_scale)
-
-        cls = pr._lipgen_shadow_light = ShadowDirectionalLight
-    return cls
-
-
-_PALETTE_STEP = np.array([1, 89, 157])
-
-
-def _label_color(label: int) -> np.ndarray:
-    """A distinct 8-bit colour per label (far apart, so blended edge pixels decode sensibly)."""
-    return (int(label) * _PALETTE_STEP) % 256
-
-
-def _decode_labels(seg: np.ndarray, labels: list[int]) -> np.ndarray:
-    """Labels from a segmentation render: the nearest colour among the scene's labels and the
-    black background (edge pixels blend neighbouring colours)."""
-    ids = np.array([0, *labels])
-    palette = np.stack([_label_color(k) for k in ids]).astype(np.int32)
-    packed = (seg[..., 0].astype(np.int32) << 16) | (seg[..., 1].astype(np.int32) << 8) | seg[..., 2]
-    keys, inv = np.unique(packed.ravel(), return_inverse=True)
-    colors = np.stack([keys >> 16, (keys >> 8) & 255, keys & 255], 1)
-    d = ((colors[:, None, :] - palette[None]) ** 2).sum(axis=2)
-    return ids[np.argmin(d, axis=1)].astype(np.uint8)[inv.ravel()].reshape(seg.shape[:2])

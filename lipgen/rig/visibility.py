@@ -1,8 +1,9 @@
 """Ray casting against triangle soups: which points a camera sees (occlusion by surfaces).
 
 The dataset's visibility truth comes from here, not from the renderer, so it is exact geometry
-and independent of the rasteriser. A 2-D grid over the image culls the triangles a line of
-sight could cross before the exact Moller-Trumbore test.
+and independent of the rasteriser. Each triangle's pixel bounding box culls the points whose line
+of sight could cross it before the exact Moller-Trumbore test (few points, many triangles: one
+vectorised point-in-box test per pair).
 """
 
 from __future__ import annotations
@@ -12,8 +13,6 @@ import numpy as np
 from lipgen.rig.pinhole import PinholeCamera
 
 __all__ = ["segment_hits", "occluded"]
-
-_CELL_PX = 12.0
 
 
 def segment_hits(origins: np.ndarray, targets: np.ndarray, triangles: np.ndarray,
@@ -30,21 +29,34 @@ def segment_hits(origins: np.ndarray, targets: np.ndarray, triangles: np.ndarray
         Crossings within this distance (mm) of either end do not count, so a point on a
         surface does not hide itself.
     """
-    d = targets - origins
-    length = np.linalg.norm(d, axis=1)
-    A, B, C = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    e1, e2 = B - A, C - A
-    p = np.cross(d, e2)
-    det = np.sum(e1 * p, axis=1)
+    d = (targets - origins).T  # component rows: the same products and sums as np.cross / np.sum
+    length = np.sqrt(_dot(d, d))
+    A = triangles[:, 0].T
+    e1, e2 = triangles[:, 1].T - A, triangles[:, 2].T - A
+    p = _cross(d, e2)
+    det = _dot(e1, p)
     ok = np.abs(det) > 1e-12 * np.maximum(length, 1.0) ** 3
     inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
-    s = origins - A
-    u = np.sum(s * p, axis=1) * inv
-    q = np.cross(s, e1)
-    v = np.sum(d * q, axis=1) * inv
-    t = np.sum(e2 * q, axis=1) * inv
+    s = origins.T - A
+    u = _dot(s, p) * inv
+    q = _cross(s, e1)
+    v = _dot(d, q) * inv
+    t = _dot(e2, q) * inv
     gap = end_gap / np.maximum(length, 1e-300)
     return ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > gap) & (t < 1 - gap)
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot of (3, p) arrays, summed in np.sum's order."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of (3, p) arrays (np.cross's products)."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+_PAIR_BLOCK = 1 << 22  # point-box tests per block (bools): bounds the memory of the candidate search
 
 
 def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) -> np.ndarray:
@@ -67,39 +79,32 @@ def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) ->
     out = np.zeros(len(points), bool)
     if len(points) == 0 or len(tris) == 0:
         return out
-    nx = int(np.ceil((camera.width + 2) / _CELL_PX))
-    ny = int(np.ceil((camera.height + 2) / _CELL_PX))
-    # triangles: pixel bounding boxes (behind-camera vertices make a box over the whole image)
+    # triangles: pixel bounding boxes, 1 px wider (behind-camera vertices make a box over everything)
     uv = camera.project(tris.reshape(-1, 3)).reshape(-1, 3, 2)
-    behind = np.isnan(uv).any(axis=(1, 2))
-    lo = np.where(behind[:, None], -np.inf, np.nanmin(uv, axis=1) - 1.0)
-    hi = np.where(behind[:, None], np.inf, np.nanmax(uv, axis=1) + 1.0)
-    c_lo = np.clip(np.floor((lo + 1.0) / _CELL_PX), 0, [nx - 1, ny - 1]).astype(np.int64)
-    c_hi = np.clip(np.floor((hi + 1.0) / _CELL_PX), 0, [nx - 1, ny - 1]).astype(np.int64)
+    nan = np.isnan(uv)
+    behind = nan.any(axis=(1, 2))
+    uv[nan] = 0.0  # those boxes are replaced below
+    lo = np.where(behind[:, None], -np.inf, uv.min(axis=1) - 1.0)
+    hi = np.where(behind[:, None], np.inf, uv.max(axis=1) + 1.0)
     off_image = (hi[:, 0] < -1) | (hi[:, 1] < -1) | (lo[:, 0] > camera.width) | (lo[:, 1] > camera.height)
     keep = np.flatnonzero(~off_image)
-    c_lo, c_hi = c_lo[keep], c_hi[keep]
-    span = c_hi - c_lo + 1
-    count = span[:, 0] * span[:, 1]
-    tri_id = np.repeat(keep, count)
-    k = np.arange(len(tri_id)) - np.repeat(np.cumsum(count) - count, count)
-    sx = np.repeat(span[:, 0], count)
-    cell = (np.repeat(c_lo[:, 1], count) + k // sx) * nx + np.repeat(c_lo[:, 0], count) + k % sx
-    order = np.argsort(cell, kind="stable")
-    cell, tri_id = cell[order], tri_id[order]
-    # points: their cell, then every (point, candidate triangle) pair
+    lo, hi = lo[keep].T.copy(), hi[keep].T.copy()
+    # points in the image, then every (point, triangle whose box holds it) pair
     q = camera.project(points)
     valid = np.isfinite(q).all(axis=1) & camera.inside(q, margin=-1.0)
     qi = np.flatnonzero(valid)
-    qc = np.floor((q[qi] + 1.0) / _CELL_PX).astype(np.int64)
-    qcell = np.clip(qc[:, 1], 0, ny - 1) * nx + np.clip(qc[:, 0], 0, nx - 1)
-    start = np.searchsorted(cell, qcell, side="left")
-    stop = np.searchsorted(cell, qcell, side="right")
-    n_pairs = stop - start
-    pair_q = np.repeat(qi, n_pairs)
-    pair_t = tri_id[np.repeat(start, n_pairs) + np.arange(n_pairs.sum()) - np.repeat(
-        np.cumsum(n_pairs) - n_pairs, n_pairs)]
+    step = max(1, _PAIR_BLOCK // max(len(keep), 1))
+    pair_q, pair_t = [], []
+    for b in range(0, len(qi), step):
+        qb = q[qi[b:b + step]]
+        x, y = qb[:, :1], qb[:, 1:]
+        inside = (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1])
+        i, j = np.nonzero(inside)
+        pair_q.append(qi[b:b + step][i])
+        pair_t.append(keep[j])
+    pair_q = np.concatenate(pair_q) if pair_q else np.zeros(0, np.int64)
+    pair_t = np.concatenate(pair_t) if pair_t else np.zeros(0, np.int64)
     hit = segment_hits(np.broadcast_to(camera.center, (len(pair_q), 3)), points[pair_q], tris[pair_t],
                        end_gap)
-    np.logical_or.at(out, pair_q[hit], True)
+    out[pair_q[hit]] = True
     return out

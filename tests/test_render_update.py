@@ -1,0 +1,43 @@
+"""A moving subject's vertex buffers written in place give the pixels of freshly built meshes (issue 22)."""
+
+import numpy as np
+import pytest
+
+from lipgen.rig.camera import MirrorRig, PinholeCamera, default_rig
+from lipgen.rig.scene import Light
+from lipgen.subject.face import FaceLook, FaceModel
+
+pytestmark = pytest.mark.render
+render = pytest.importorskip("lipgen.rig.render")
+
+
+def _frames(face, n):
+    V0 = face.mesh.vertices
+    return [V0 + np.outer(np.clip(-V0[:, 1], 0, 25) * (0.04 * k), [0.0, -1.0, 0.0]) for k in range(n)]
+
+
+@pytest.mark.parametrize("shadows", [False, True])
+def test_vertices_written_in_place_equal_new_meshes(shadows):
+    from lipgen.mesh.procedural import lip_mesh
+
+    c = default_rig(160, 120).camera  # the hard preset's lens: wider views, resampled depth and labels
+    base = default_rig(160, 120)
+    rig = MirrorRig(PinholeCamera(c.K, c.R, c.t, c.width, c.height, (-0.12, 0.03, 0.0, 0.0, 0.0), c.name),
+                    base.mirror_normal, base.mirror_offset, base.mirror_side, base.split)
+    face = FaceModel(lip_mesh(1), FaceLook(texture=0.6, texture_seed=3))
+    lights = (Light("directional", (1.0, 0.97, 0.92), 3.2, (-0.3, -0.45, -1.0), shadows=True),
+              Light("directional", (0.9, 0.95, 1.0), 1.4, (0.7, -0.1, -0.8)))
+    scenes = [face.scene(V, lights=lights) for V in _frames(face, 3)]
+    kept = {}
+    with render.RigRenderer(rig, shadows=shadows) as r:
+        for k, sc in enumerate(scenes):
+            moved = r.render_views(sc, depth=True, labels=True)
+            if k == 0:
+                nodes = {n for e in r._items.values() for n in e["colour"] + [m for m, _ in e["label"]]}
+        kept = {n for e in r._items.values() for n in e["colour"] + [m for m, _ in e["label"]]}
+        assert kept == nodes, "the meshes are kept; only their vertex data change"
+        r.clear()  # a fresh scene: new meshes for the last frame
+        fresh = r.render_views(scenes[-1], depth=True, labels=True)
+    for (ca, za, la), (cb, zb, lb) in zip(moved, fresh, strict=True):
+        assert np.array_equal(ca, cb) and np.array_equal(za, zb) and np.array_equal(la, lb)
+    assert (moved[1][0] != moved[1][0][0, 0]).any(), "the face is drawn"

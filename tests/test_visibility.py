@@ -1,0 +1,40 @@
+"""The visibility ray cast (lipgen.rig.visibility) against an all-pairs cast with no culling."""
+
+import numpy as np
+import pytest
+
+from lipgen.rig import visibility
+from lipgen.rig.pinhole import PinholeCamera
+
+
+def _all_pairs(cam, pts, tris):
+    n, m = len(pts), len(tris)
+    o = np.broadcast_to(cam.center, (n * m, 3))
+    hit = visibility.segment_hits(o, np.repeat(pts, m, 0), np.tile(tris, (n, 1, 1)))
+    return hit.reshape(n, m).any(axis=1)
+
+
+@pytest.mark.parametrize("block", [None, 7])
+def test_culled_cast_equals_all_pairs_with_triangles_behind_the_camera(monkeypatch, block):
+    if block is not None:  # several candidate blocks (7 point-box tests per block: one point at a time)
+        monkeypatch.setattr(visibility, "_PAIR_BLOCK", block)
+    rng = np.random.default_rng(4)
+    cam = PinholeCamera.look_at([0, 0, 300.0], [0, 0, 0], 160, 120, 200.0)
+    centers = rng.uniform([-40, -30, -20], [40, 30, 20], size=(300, 3))
+    tris = centers[:, None, :] + rng.normal(size=(300, 3, 3)) * 4
+    # big triangles with a vertex behind the camera, and one passing beside it
+    big = np.array([[[-30.0, -30, 0], [30, -30, 0], [0, 10, 400]], [[-5.0, 5, 0], [5, 5, 0], [0, 400, 350]]])
+    tris = np.concatenate([tris, big])
+    pts = rng.uniform([-40, -30, -25], [40, 30, 25], size=(250, 3))
+    got = visibility.occluded(cam, pts, tris)
+    want = _all_pairs(cam, pts, tris)
+    inside = cam.in_view(pts)
+    np.testing.assert_array_equal(got[inside], want[inside])
+    assert not got[~inside].any()  # outside the image: not occluded (in_view is the caller's test)
+    assert want[inside].any() and not want[inside].all()
+
+
+def test_no_points_or_no_triangles():
+    cam = PinholeCamera.look_at([0, 0, 300.0], [0, 0, 0], 160, 120, 200.0)
+    assert visibility.occluded(cam, np.zeros((0, 3)), np.zeros((3, 3, 3))).shape == (0,)
+    assert not visibility.occluded(cam, np.zeros((2, 3)), np.zeros((0, 3, 3))).any()
