@@ -317,6 +317,12 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
             raise ValueError(f"window must be a positive number of sigmas or None, got {window!r}")
         weight = np.exp(-((dx - u[:, None]) ** 2 + (dy - v[:, None]) ** 2) / (2 * (window * sigma) ** 2))
     params = _lm_fit(img, bg, dx, dy, params, iterations, sigma, weight)
+    if window is not None:
+        # The window moved to the fitted centre, and the fit repeated: the centre then depends
+        # little on where the fit started (a detector's whole pixel, another view's guess).
+        r2 = (dx - params[:, 0:1]) ** 2 + (dy - params[:, 1:2]) ** 2
+        weight = np.exp(-r2 / (2 * (window * sigma) ** 2))
+        params = _lm_fit(img, bg, dx, dy, params, iterations, sigma, weight)
     crowded = np.flatnonzero(close.any(1))
     for _ in range(deblend if len(crowded) else 0):
         others = np.zeros((len(crowded), img.shape[1]))
