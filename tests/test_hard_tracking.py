@@ -33,7 +33,7 @@ def test_windowed_fit_is_not_pulled_by_a_dark_step_beside_the_dot(gap, most):
     for _ in range(12):
         img, c = _dot_beside_an_edge(rng, rng.uniform(-0.5, 0.5, 2), gap=gap)
         start = np.round(c)[None]
-        err_window.append(np.linalg.norm(refine_centroids(img, start, 1.3)[0] - c))
+        err_window.append(np.linalg.norm(refine_centroids(img, start, 1.3, window=1.25)[0] - c))
         err_plain.append(np.linalg.norm(refine_centroids(img, start, 1.3, window=None)[0] - c))
     assert max(err_window) < most
     assert np.mean(err_plain) > 0.5
@@ -45,7 +45,7 @@ def test_windowed_fit_is_unbiased_on_a_plain_dot():
     rng = np.random.default_rng(4)
     c = rng.uniform(15, 25, (10, 2))
     img = draw_dots(np.full((40, 40), 0.6), c[:1], sigma=1.5) + 0.003 * rng.standard_normal((40, 40))
-    assert np.linalg.norm(refine_centroids(img, np.round(c[:1]), 1.5)[0] - c[0]) < 0.05
+    assert np.linalg.norm(refine_centroids(img, np.round(c[:1]), 1.5, window=1.25)[0] - c[0]) < 0.05
 
 
 def test_window_must_be_positive():

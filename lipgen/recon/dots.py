@@ -54,6 +54,11 @@ class DotSettings:
         turning away from the camera (the lip corner in a side view) is an ellipse and may fall
         below ``min_roundness``; such blobs are kept as candidates that a tracker may snap to
         only where its correlation already found the marker.
+    window : float or None
+        Weight window of the sub-pixel fit, in ``sigma`` (:func:`refine_centroids`); None: the
+        plain fit. 1.25 halves the centre error on hard-preset frames, but is off by default: with
+        it, a clip whose one dot was erased lost three more markers at the start (the first
+        frame's matching found its neighbours ambiguous), which the plain fit does not.
     """
 
     sigma: float = 1.5
@@ -63,6 +68,7 @@ class DotSettings:
     smoothing: float = 0.6
     min_roundness: float = 0.3
     min_foreshortened_roundness: float = 0.1
+    window: float | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0.3 <= self.sigma <= 50):
@@ -224,7 +230,7 @@ def refine_peaks(gray: np.ndarray, peaks: np.ndarray, settings: DotSettings) -> 
     A plateau can give two maxima a pixel apart that converge to one dot: the stronger is kept.
     Fits that end outside the image (edge artefacts of the closing) are not dots.
     """
-    uv = refine_centroids(gray, peaks, settings.sigma)
+    uv = refine_centroids(gray, peaks, settings.sigma, window=settings.window)
     h, w = gray.shape
     inside = (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
     keep = _dedupe(uv, settings.separation / 2) & inside
@@ -242,7 +248,7 @@ def _dedupe(uv: np.ndarray, radius: float) -> np.ndarray:
 
 @single_threaded  # a stack of 10x10 solves per iteration: threads only wait (lipgen._threads)
 def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations: int = 15,
-                     deblend: int = 2, window: float | None = 1.25) -> np.ndarray:
+                     deblend: int = 2, window: float | None = None) -> np.ndarray:
     """Sub-pixel dot centres by fitting a Gaussian dot on a quadratic background.
 
     Each patch of radius ``ceil(3 sigma) + 1`` around a starting point is fitted (batched
@@ -251,14 +257,14 @@ def refine_centroids(gray: np.ndarray, uv: np.ndarray, sigma: float, iterations:
         I(x, y) = c0 + c1 dx + c2 dy + c3 dx^2 + c4 dx dy + c5 dy^2 - a exp(-|(x, y) - (u, v)|^2 / 2 s^2)
 
     so shading and texture gradients under the dot do not pull the centre, as they pull a plain
-    centroid. The pixels are weighted by a Gaussian window of ``window * sigma`` around the
-    starting point, so what the model cannot follow at the patch's edge (the lip border, the
-    mouth opening, a neighbouring crease: steps no quadratic describes) has little say. On
-    hard-preset frames (validation seeds 7-8, starts within 0.7 px of the truth) the window takes
-    the error from 1.1 to 0.5 px RMS in the defocused mirror view and from 0.7-0.8 to 0.45-0.5 px
-    in the direct view; on the ideal frames of ``easy`` it stays at 0.17 px. (Tukey-reweighted
-    fits on top did not help: they down-weight the dot's own edge, where a disc departs from a
-    Gaussian.)
+    centroid. With ``window``, the pixels are weighted by a Gaussian of ``window * sigma`` round
+    the start, then round the fitted centre (a second fit), so what the model cannot follow at
+    the patch's edge (the lip border, the mouth opening, a crease: steps no quadratic describes)
+    has little say. With 1.25, centres started within 0.7 px of the truth (every 4th frame,
+    mirror / direct px RMS): hard validation seeds 7 and 8 1.04 / 0.74 -> 0.50 / 0.49 and
+    1.01 / 0.71 -> 0.53 / 0.49, ``default`` seed 7 0.50 / 0.42 -> 0.39 / 0.30, ``easy`` seed 7
+    0.17 / 0.16 -> 0.16 / 0.17. (Tukey-reweighted fits on top did not help: they down-weight
+    the dot's own edge, where a disc departs from a Gaussian.)
     Dots close enough to share a patch are deblended: each fit sees the image with the
     other dots' current Gaussians added back (they are dark, so they are subtracted from the
     darkness), and the fits are repeated ``deblend`` times. Without it two dots 4 px apart
