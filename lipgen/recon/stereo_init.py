@@ -11,10 +11,13 @@ layout, moved to where the dots are, are matched (:func:`layout_dots`). The layo
 translation only: its residuals to the subject's own dots are 1-3 mm (its own lip shape, the
 head's turn), so ``near`` is generous; it removes lures, it does not match.
 
-Tracking validation seeds 7 and 8 (hard, 40 frames; mirror / direct px RMS, accepted share):
-seed 8 went from 5.0 / 7.8 px, 22 % (ten sightings of each view over 3 px) to 1.0 / 1.0 px,
-60 % (six); seed 7 from 0.81 / 0.68 px, 55 % to 0.79 / 0.59 px, 47 %; ``default`` and ``easy``
-seed 7 were unchanged. A match whose dot is dropped is left to the tracker, which acquires
+Off by default (``ReconstructSettings.first_frame_lures``). Tracking hard validation seeds 7-10
+(40 frames, with ``DotSettings.window=1.25``; mirror / direct px RMS, accepted share, sightings
+over 3 px per view), without -> with it: seed 7 0.74 / 0.82 px, 57 %, 3 / 3 -> 1.23 / 0.54 px,
+48 %, 3 / 0; seed 8 2.22 / 1.77 px, 32 %, 12 / 9 -> 1.62 / 1.65 px, 56 %, 13 / 12; seed 9
+0.81 / 0.79 px, 61 %, 5 / 5 -> 0.43 / 0.44 px, 59 %, 0 / 0; seed 10 0.47 / 0.39 px, 69 %,
+0 / 0 -> 1.67 / 1.76 px, 55 %, 7 / 7. Mixed, hence off.
+A match whose dot is dropped is left to the tracker, which acquires
 the marker later from the layout (a dot taken out before matching would instead leave its
 marker to a neighbour's dot: on ``easy`` that made ten wrong matches).
 """
