@@ -259,7 +259,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     names = [*mesh.marker_names, "nose"]
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks = track_raw_frames(frames, ds.rig, expected, settings,
-                                  (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names)
+                                  (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names,
+                                  rest_points=marks_rest)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()

@@ -243,7 +243,8 @@ class MarkerTracker:
             return np.zeros((0, 2)), idx
         reach = 2 * (np.ceil(3.0 * self.cfg.dots.sigma) + 1)
         nb = (np.linalg.norm(dots[:, None] - peaks[idx][None], axis=2) < reach).any(1)
-        uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), self.cfg.dots.sigma)[:len(idx)]
+        uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), self.cfg.dots.sigma,
+                              window=None)[:len(idx)]   # elongated blobs: the whole patch
         sep = self.cfg.dots.separation / 2
         ok = _dedupe(uv, sep)
         if len(dots):

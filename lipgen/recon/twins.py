@@ -265,7 +265,8 @@ def _resolve_merged_in_both(trackers, views, cameras, sigma: float, gate: float 
         if guess[0] is None or guess[1] is None:
             continue
         grays = [ink_gray(v) for v in views] if grays is None else grays
-        blob = [refine_centroids(grays[v], guess[v].mean(0, keepdims=True), trackers[v].cfg.dots.sigma)[0]
+        blob = [refine_centroids(grays[v], guess[v].mean(0, keepdims=True), trackers[v].cfg.dots.sigma,
+                                  window=None)[0]
                 for v in range(2)]
         centre = triangulate(cameras[1], blob[1], cameras[0], blob[0])[0]
         X = triangulate(cameras[1], guess[1], cameras[0], guess[0])[0]
