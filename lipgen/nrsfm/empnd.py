@@ -285,7 +285,7 @@ def em_pnd(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_
         Image translations.
     info : dict
         ``iterations``, ``noise_std``, ``nll`` (first and last, per observed coordinate),
-        ``nll_total``, ``converged``, ``procrustean_residual``.
+        ``nll_history`` (every iteration's), ``nll_total``, ``converged``, ``procrustean_residual``.
     """
     F, P = tracks.mask.shape
     m = tracks.mask.astype(float)
@@ -298,7 +298,7 @@ def em_pnd(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_
         theta, spread2, floor = _aligned_start(tracks, k, *start)
     ridge = 1e-12 * spread2
     nll, post = _e_step(data, theta)
-    first = nll
+    history = [float(nll)]
     eta, converged, it = 1.0, False, 0
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
         theta_em = _m_step(data, theta, post, ridge, floor)
@@ -318,6 +318,7 @@ def em_pnd(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_
             eta = relax_growth
         done = nll - nll_new < tol or trial[5] <= floor
         theta, nll, post = trial, nll_new, post_new
+        history.append(float(nll))
         if done:
             converged = True
             break
@@ -326,7 +327,7 @@ def em_pnd(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_
     basis = np.concatenate([sbar.T[:, :, None], V], axis=2).transpose(2, 1, 0)   # (K+1, 3, P)
     weights = c[:, None] * np.concatenate([np.ones((F, 1)), Ez], axis=1)
     info = {"iterations": it, "noise_std": float(np.sqrt(s2)), "converged": converged,
-            "nll": [float(first), float(nll)], "nll_total": float(nll) * n_obs2,
+            "nll": [history[0], history[-1]], "nll_history": history, "nll_total": float(nll) * n_obs2,
             "procrustean_residual": procrustean_residual(sbar, V)}
     log.debug("EM-PND K=%d: %d iterations, noise std %.3e, converged %s", k, it, np.sqrt(s2), converged)
     return complete_rotations(Q[:, :2]), weights, basis, t, info
