@@ -41,8 +41,8 @@ Methods:
 rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
 noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
 plotted.
-em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 6,
-8, 10, 12 (modes; up to --kmax), printed.
+em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 8, 12
+(modes; up to --kmax), printed.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
 the centred tracks (else where the curve flattens); the curve is plotted (Bregler et al. Fig 2).
 """

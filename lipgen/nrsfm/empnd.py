@@ -18,9 +18,9 @@ mean shape, deformation distribution, cameras and noise variance):
 
 - the deformation distribution here is ``d_f = V z_f``, ``z_f ~ N(0, I_K)``, with the K columns
   of V held inside the constraint space above - a rank-K covariance ``V V^T`` (the paper's
-  covariance is not tied to a user-set rank; :func:`em_pnd_auto` chooses K from the data, see
-  below). The E-step and the camera, translation and noise updates are the EM-PPCA ones of
-  :mod:`.emppca` (the same Gaussian algebra);
+  covariance is not tied to a user-set rank; :func:`lipgen.nrsfm.pndk.reconstruct_pnd_auto`
+  chooses K from the data, see below). The E-step and the camera, translation and noise
+  updates are the EM-PPCA ones of :mod:`.emppca` (the same Gaussian algebra);
 - the M-step for ``(Xbar, V)`` is *constrained*: the expected cost is quadratic in them, and the
   bilinear constraint is linear in V for a fixed Xbar and in Xbar for a fixed V, so the step is
   two exact conditional minimisations under the constraints (Lagrange multipliers: one small
@@ -29,9 +29,15 @@ mean shape, deformation distribution, cameras and noise variance):
   :mod:`.emppca` is kept, its steps projected back onto the constraints and kept only if the
   likelihood improves.
 
-Choosing K without the truth (:func:`em_pnd_auto`): EM-PND is fitted at K = 0, 1, 2, ... and the
-K of the least Bayesian information criterion (marginal likelihood against the number of free
-parameters) is kept; the search stops once the criterion has risen on two Ks in a row.
+Start and safeguard (:func:`pnd_reconstruction`): EM from the rigid factorisation alone went to
+depth-inflated answers on the validation bodies (e3D 1-4 against a flat baseline of 0.5), as
+EM-PPCA does, so EM-PND starts from ``dai`` at K + 1 basis shapes (the same rank), aligned by
+generalised Procrustes, and its answer is kept only if its depth neither inflates nor roughens
+against that start (the truth-free test of ``dai-ba``).
+
+Choosing K without the truth (:func:`lipgen.nrsfm.pndk.reconstruct_pnd_auto`): EM-PND is fitted
+on a grid of K and the least Bayesian information criterion (marginal likelihood against the
+number of free parameters) among the kept fits wins.
 """
 
 from __future__ import annotations
@@ -52,7 +58,7 @@ from lipgen.nrsfm.emppca import (
     _update_cameras,
 )
 
-__all__ = ["em_pnd", "em_pnd_auto", "procrustean_residual", "n_parameters"]
+__all__ = ["em_pnd", "pnd_reconstruction", "procrustean_residual", "n_parameters", "bic"]
 
 log = logging.getLogger(__name__)
 
@@ -194,7 +200,9 @@ def _m_step(data, theta, post, ridge, floor):
     Q, c = _update_cameras(Q, A, C)
     G = c[:, None, None] * Q[:, :2]
     fit = (Wt - G @ mean) * m[:, None, :]
-    spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum()) if V.shape[2] else 0.0
+    spread_z = 0.0
+    if V.shape[2]:
+        spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
     return Q, c, sbar, V, t, max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
 
 
@@ -219,7 +227,8 @@ def _start(tracks: Tracks, k: int, n_starts: int, seed: int):
     V = (Vt[:k] * (sv[:k, None] / np.sqrt(F))).reshape(k, 3, P).transpose(2, 1, 0)
     V = _project_modes(sbar, V)
     if k and np.linalg.norm(V) <= 1e-9 * np.sqrt(spread2 * P):
-        V = _project_modes(sbar, 1e-3 * np.sqrt(spread2) * np.random.default_rng(seed).standard_normal((P, 3, k)))
+        noise = np.random.default_rng(seed).standard_normal((P, 3, k))
+        V = _project_modes(sbar, 1e-3 * np.sqrt(spread2) * noise)
     return (Q, c, sbar, V, t, s2), spread2, floor
 
 

@@ -10,8 +10,8 @@ from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_f
 from lipgen.nrsfm._tracks import check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
-from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.empnd import pnd_reconstruction
+from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.lowrank import fit_rank_k
 from lipgen.nrsfm.plausibility import plausible, shape_figures
 from lipgen.nrsfm.record import Reconstruction, check_method_k

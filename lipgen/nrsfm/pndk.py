@@ -24,7 +24,7 @@ __all__ = ["K_GRID", "reconstruct_pnd_auto"]
 
 log = logging.getLogger(__name__)
 
-K_GRID = (0, 1, 2, 4, 6, 8, 10, 12)
+K_GRID = (0, 1, 2, 4, 8, 12)
 """Numbers of deformation modes tried by ``k="auto"`` (those the tracks allow)."""
 
 
