@@ -107,3 +107,12 @@ def test_k_auto_picks_the_true_number_of_modes_by_bic():
     choice = rec.info["k_choice"]
     assert choice["ks"] == [0, 1, 2, 4] and rec.k == 2 == choice["chosen"]
     assert e3d(S_est=rec.S, S_true=S) < 1e-6
+
+
+def test_missing_points_noise_free():
+    W, S, _, _ = _pnd_sequence(40, 12, 1, seed=9)
+    visible = np.random.default_rng(4).random((40, 12)) > 0.1
+    W = np.where(np.repeat(visible, 2, axis=0), W, np.nan)
+    rec = reconstruct(W, 1, method="em-pnd", visible=visible)
+    assert rec.info["pnd_kept"]
+    assert e3d(S_est=rec.S, S_true=S) < 1e-6
