@@ -64,6 +64,10 @@ log = logging.getLogger(__name__)
 
 _PAIRS = ((0, 1), (0, 2), (1, 2))
 
+_EXACT = 1e-6
+"""Largest reprojection residual, relative to the largest track coordinate, of a fit that counts as
+reproducing noise-free tracks exactly."""
+
 
 def procrustean_residual(sbar: np.ndarray, V: np.ndarray) -> float:
     """Largest violation of the Procrustean constraints, relative to ``|sbar| |V|``.
@@ -361,7 +365,9 @@ def pnd_reconstruction(tracks: Tracks, k: int, start, *, max_iter: int = 500) ->
     The start's camera-frame shapes are aligned by generalised Procrustes (:func:`_aligned_start`);
     EM-PND then refines rotations, mean shape and modes. The refinement is kept unless its depth
     inflates or roughens against the start's (:func:`lipgen.nrsfm.plausibility.plausible`, the
-    truth-free test ``dai-ba`` uses); otherwise the start is returned.
+    truth-free test ``dai-ba`` uses), or the start is dai's exact K-shape fit (noise-free low-rank
+    tracks reproduced exactly) and EM-PND does not reproduce the tracks as exactly; otherwise the
+    start is returned.
 
     Parameters
     ----------
@@ -384,6 +390,15 @@ def pnd_reconstruction(tracks: Tracks, k: int, start, *, max_iter: int = 500) ->
     ref = shape_figures(start.rotations, start.object_shapes)
     mine = shape_figures(R, np.einsum("fk,kip->fip", C, B))
     keep = plausible(mine, ref)
+    if start.info.get("shapes") == "rank-K fit":
+        # the start is dai's exact K-shape fit (noise-free low-rank tracks, reproduced exactly): the
+        # closed-form answer, kept unless EM-PND reproduces the tracks as exactly
+        F, P = tracks.mask.shape
+        pred = np.einsum("fij,fjp->fip", R[:, :2], np.einsum("fk,kip->fip", C, B)) + t[:, :, None]
+        res = (tracks.W.reshape(F, 2, P) - pred) * tracks.mask[:, None, :]
+        spread = np.abs(tracks.W * np.repeat(tracks.mask, 2, axis=0)).max()
+        info["pnd_relative_reprojection"] = float(np.abs(res).max() / max(spread, 1e-300))
+        keep = keep and info["pnd_relative_reprojection"] <= _EXACT
     info.update(start_shapes=ref, pnd_shapes=mine, pnd_kept=bool(keep))
     if keep:
         return R, C, B, t, info

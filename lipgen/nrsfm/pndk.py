@@ -6,12 +6,16 @@ EM-PND is a probabilistic model, so its own evidence can choose K: for each K on
 half its number of free parameters times the log of the number of observed coordinates
 (:func:`lipgen.nrsfm.empnd.bic`). Among the fits that EM-PND kept (plausible against their
 ``dai`` start, see :func:`lipgen.nrsfm.empnd.pnd_reconstruction`), the least criterion wins; if
-none was kept, the least criterion overall (whose answer is then its ``dai`` start).
+none was kept, the least criterion overall (whose answer is then its ``dai`` start). Noise-free
+low-rank tracks come first: the smallest K whose answer reproduces them exactly wins (their
+likelihood is unbounded, so the criterion cannot rank them).
 """
 
 from __future__ import annotations
 
 import logging
+
+import numpy as np
 
 from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
@@ -20,9 +24,13 @@ from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.kchoice import candidate_ks
 from lipgen.nrsfm.record import Reconstruction
 
-__all__ = ["K_GRID", "reconstruct_pnd_auto"]
+__all__ = ["K_GRID", "EXACT_REPROJECTION", "reconstruct_pnd_auto"]
 
 log = logging.getLogger(__name__)
+
+EXACT_REPROJECTION = 1e-6
+"""RMS reprojection, relative to the largest track coordinate, below which a fit reproduces the
+tracks exactly (noise-free low-rank tracks)."""
 
 K_GRID = (0, 1, 2, 4, 8, 12)
 """Numbers of deformation modes tried by ``k="auto"`` (those the tracks allow)."""
@@ -44,7 +52,7 @@ def reconstruct_pnd_auto(W, visible=None, *, kmax: int = 12, **options) -> Recon
     Returns
     -------
     Reconstruction
-        The chosen fit; ``info["k_choice"]`` holds ``ks``, ``bic``, ``kept`` (lists per K),
+        The chosen fit; ``info["k_choice"]`` holds ``ks``, ``bic``, ``kept``, ``exact`` (lists per K),
         ``chosen`` and ``rule``.
     """
     tracks = check_tracks(W, visible)
@@ -61,9 +69,14 @@ def reconstruct_pnd_auto(W, visible=None, *, kmax: int = 12, **options) -> Recon
         scores.append(bic(rec.info["nll_total"], k, F, P, 2 * tracks.n_observed))
         kept.append(bool(rec.info["pnd_kept"]))
         log.info("em-pnd K=%d: BIC %.6g, kept %s", k, scores[-1], kept[-1])
+    # noise-free low-rank tracks: the smallest K whose answer reproduces them exactly (infinite
+    # likelihood; dai's exact K-shape fit when EM-PND was not kept)
+    size = float(np.abs(tracks.W).max())
+    exact = [r.reprojection_rms <= EXACT_REPROJECTION * size for r in runs]
     pool = [i for i in range(len(ks)) if kept[i]] or list(range(len(ks)))
-    best = min(pool, key=lambda i: scores[i])
+    best = exact.index(True) if any(exact) else min(pool, key=lambda i: scores[i])
     rec = runs[best]
-    rec.info["k_choice"] = {"ks": ks, "bic": scores, "kept": kept, "chosen": ks[best],
-                            "rule": "least BIC of EM-PND's marginal likelihood among the plausible fits"}
+    rec.info["k_choice"] = {"ks": ks, "bic": scores, "kept": kept, "exact": exact, "chosen": ks[best],
+                            "rule": "the smallest K reproducing the tracks exactly, else the least BIC of "
+                                    "EM-PND's marginal likelihood among the plausible fits"}
     return rec
