@@ -156,9 +156,10 @@ def _run(args) -> int:
         rec = reconstruct_pnd_auto(W, visible, kmax=args.kmax or 12, seed=args.seed)
         seconds = time.perf_counter() - t0
         choice = rec.info["k_choice"]
-        write("K   BIC              plausible\n")
-        for kk, score, kept in zip(choice["ks"], choice["bic"], choice["kept"], strict=True):
-            write(f"{kk:<3d} {score:<16.8g} {'yes' if kept else 'no'}\n")
+        write("K   BIC              plausible  exact\n")
+        for kk, score, kept, exact in zip(choice["ks"], choice["bic"], choice["kept"], choice["exact"],
+                                          strict=True):
+            write(f"{kk:<3d} {score:<16.8g} {'yes' if kept else 'no':<10} {'yes' if exact else 'no'}\n")
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
     elif k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
