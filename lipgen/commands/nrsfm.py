@@ -136,7 +136,8 @@ def _run(args) -> int:
     W, visible = data["W"], data.get("visible")
     write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
-    plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
+    plot = args.plot or (str(out.with_name(out.stem + "_curve.png"))
+                         if k == "auto" and args.method != "em-pnd" else None)  # em-pnd: a printed table
     if plot:
         check_file_output(plot, args.force, "--plot")
     rec = None
