@@ -31,18 +31,24 @@ Methods:
            deformation modes, fitted by EM from a rigid start; handles missing points. Here
            K counts the modes BEYOND the mean shape, so em-ppca --k 2 has 3 basis shapes (the
            size of dai --k 3), and --k 0 is rigid; weights are F x (K+1), basis (K+1) x 3 x P.
+  em-pnd   Lee, Cho & Oh 2013/2017 (Procrustean normal distribution): aligned shapes normal
+           about a mean, deformations that can neither translate nor rotate it; fitted by EM
+           from dai at K + 1 shapes, kept only if its depth stays plausible. K counts modes
+           beyond the mean, as for em-ppca.
   bregler  Bregler, Hertzmann & Biermann 1999 as written (3x3 metric upgrade).
 
 --k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
 rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
 noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
 plotted.
+em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 8, 12
+(modes; up to --kmax), printed.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
 the centred tracks (else where the curve flattens); the curve is plotted (Bregler et al. Fig 2).
 """
 
 
-METHOD_NAMES: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
+METHOD_NAMES: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-pnd", "em-ppca")
 DEFAULT_METHOD = "dai"
 """The choices of ``--method``, spelled out so that ``lipgen nrsfm --help`` need not import
 :mod:`lipgen.nrsfm` (and scipy.optimize); a test checks they match ``lipgen.nrsfm.METHODS``."""
@@ -117,6 +123,7 @@ def _run(args) -> int:
     )
     from lipgen.nrsfm.kchoice import SMOOTH_METHODS, reconstruct_auto
     from lipgen.nrsfm.metrics import plot_k_choice
+    from lipgen.nrsfm.pndk import reconstruct_pnd_auto
 
     out = check_file_output(args.out, args.force)
     k = _parse_k(args.k)
@@ -129,7 +136,8 @@ def _run(args) -> int:
     W, visible = data["W"], data.get("visible")
     write(f"tracks: {W.shape[0] // 2} frames x {W.shape[1]} points"
           + (f", {int(visible.size - visible.sum())} unobserved" if visible is not None else "") + "\n")
-    plot = args.plot or (str(out.with_name(out.stem + "_curve.png")) if k == "auto" else None)
+    plot = args.plot or (str(out.with_name(out.stem + "_curve.png"))
+                         if k == "auto" and args.method != "em-pnd" else None)  # em-pnd: a printed table
     if plot:
         check_file_output(plot, args.force, "--plot")
     rec = None
@@ -144,6 +152,16 @@ def _run(args) -> int:
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
         plot_k_choice(choice, plot)
         write(f"wrote {plot}\n")
+    elif k == "auto" and args.method == "em-pnd":
+        t0 = time.perf_counter()
+        rec = reconstruct_pnd_auto(W, visible, kmax=args.kmax or 12, seed=args.seed)
+        seconds = time.perf_counter() - t0
+        choice = rec.info["k_choice"]
+        write("K   BIC              plausible  exact\n")
+        for kk, score, kept, exact in zip(choice["ks"], choice["bic"], choice["kept"], choice["exact"],
+                                          strict=True):
+            write(f"{kk:<3d} {score:<16.8g} {'yes' if kept else 'no':<10} {'yes' if exact else 'no'}\n")
+        write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
     elif k == "auto" or plot:
         first = 0 if args.method in MEAN_PLUS_MODES else 1
         ks = range(first, args.kmax + 1) if args.kmax is not None else None

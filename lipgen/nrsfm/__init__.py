@@ -1,6 +1,7 @@
 """Non-rigid structure from motion under orthography.
 
-- :func:`reconstruct` (``method="bregler"``, ``"dai"``, ``"dai-ba"`` or ``"em-ppca"``, see :data:`METHODS`):
+- :func:`reconstruct` (``method="bregler"``, ``"dai"``, ``"dai-ba"``, ``"em-ppca"`` or ``"em-pnd"``, see
+  :data:`METHODS`):
   rotations, weights and basis shapes from 2D tracks W (2F x P), optionally with missing points.
 - :func:`e3d`: the benchmark's normalised 3D error.
 - :func:`reprojection_curve` / :func:`choose_k`: K from the reprojection error (Bregler Fig 2).

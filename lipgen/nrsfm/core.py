@@ -6,6 +6,7 @@ from __future__ import annotations
 from lipgen._threads import single_threaded
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.kchoice import choose_k, curve_values, reconstruct_auto
+from lipgen.nrsfm.pndk import reconstruct_pnd_auto
 from lipgen.nrsfm.record import (
     DEFAULT_METHOD,
     MEAN_PLUS_MODES,
@@ -39,8 +40,11 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
         shapes): em-ppca with K modes spans the same rank-3(K + 1) model as ``"dai"`` with K + 1.
+        ``"em-pnd"`` counts modes likewise; its ``"auto"`` is the least BIC of its own likelihood
+        (:func:`lipgen.nrsfm.pndk.reconstruct_pnd_auto`, kept in ``info["k_choice"]``).
     method : str
-        One of :data:`METHODS`: ``"bregler"``, ``"dai"`` (default), ``"dai-ba"`` or ``"em-ppca"``.
+        One of :data:`METHODS`: ``"bregler"``, ``"dai"`` (default), ``"dai-ba"``, ``"em-ppca"`` or
+        ``"em-pnd"``.
     visible : (F, P) array_like of bool, optional
         Observed points; unobserved entries of W are ignored (NaN allowed there). Every method
         accepts it: the rank-3K factor is then taken from a low-rank completion of W, and
@@ -55,7 +59,7 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     refine_iter : int
         Iteration cap of the bundle adjustment (``"dai-ba"``).
     em_iter : int
-        Iteration cap of EM (``"em-ppca"``).
+        Iteration cap of EM (``"em-ppca"``, ``"em-pnd"``).
 
     Returns
     -------
@@ -76,5 +80,7 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
     if isinstance(k, str):
         if k.strip().lower() != "auto":
             raise ValueError(f"k must be an integer (number of basis shapes) or 'auto', got {k!r}")
+        if method == "em-pnd":
+            return reconstruct_pnd_auto(W, visible, **options)
         return reconstruct_auto(W, method, visible, **options)
     return reconstruct_k(W, k, method, visible, **options)

@@ -10,6 +10,7 @@ from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_f
 from lipgen.nrsfm._tracks import check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
+from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.lowrank import fit_rank_k
 from lipgen.nrsfm.plausibility import plausible, shape_figures
@@ -118,6 +119,12 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
     tracks = check_tracks(W, visible)
     F, P = tracks.mask.shape
     k = check_method_k(k, method, F, P, tracks.n_observed)
+    if method == "em-pnd":  # started from dai at K + 1 basis shapes (lipgen.nrsfm.empnd)
+        start = _reconstruct(W, k + 1, "dai", visible, seed=seed, n_starts=n_starts,
+                             shape_starts=shape_starts, refine_iter=refine_iter, em_iter=em_iter)
+        R, C, B, t, info = pnd_reconstruction(tracks, k, start, max_iter=em_iter)
+        return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
+                              reprojection_rms=_reprojection_rms(tracks, R, C, B, t), info=info)
     if method == "em-ppca":
         R, C, B, t, info = em_ppca(tracks, k, max_iter=em_iter, n_starts=n_starts, seed=seed)
         return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,

@@ -24,13 +24,17 @@ METHODS: dict[str, str] = {
     "em-ppca": "Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): mean shape plus K Gaussian "
                "deformation modes, fitted by EM from a rigid start; here K counts the modes, so the "
                "model has K + 1 basis shapes (rank 3(K + 1))",
+    "em-pnd": "Lee, Cho & Oh 2013/2017 (EM-PND): aligned shapes normally distributed about a mean, "
+              "deformations held to the Procrustean constraints (no translation, no rotation about the "
+              "mean), fitted by EM from 'dai' at K + 1 basis shapes and kept only if its depth stays "
+              "plausible; K counts the modes (K + 1 basis shapes); k='auto' by the BIC",
 }
 """Method names accepted by :func:`reconstruct`, with what each does."""
 
 DEFAULT_METHOD = "dai"
 """The method :func:`reconstruct` uses unless told."""
 
-MEAN_PLUS_MODES = frozenset({"em-ppca"})
+MEAN_PLUS_MODES = frozenset({"em-ppca", "em-pnd"})
 """Methods whose ``k`` counts deformation modes beyond a mean shape (``k + 1`` basis shapes)."""
 
 
