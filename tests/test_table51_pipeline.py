@@ -67,7 +67,8 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     from lipgen.fem import Physics
     from lipgen.recon.pipeline import model_mesh
 
-    s = PipelineSettings(seeds=(0, 1), n_train=16, n_test=10, lead_in=0, n_modes=4, calib_frames=5)
+    s = PipelineSettings(seeds=(0, 1), n_train=12, n_test=10, lead_in=0, n_modes=4, calib_frames=4,
+                         size=(480, 360))
     physics = Physics(model_mesh())
     record = seed_record(s, 0, tmp_path, physics, progress=False)
     # the three datasets: subject seed and motion as documented
@@ -76,7 +77,7 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     assert made["train"]["subject_seed"] == made["utterance"]["subject_seed"] == 0
     assert made["subject"]["subject_seed"] == 1000
     assert len({made[p]["seed"] for p in made}) == 3
-    assert dataset_settings(s, 0)["train"].frames == 16
+    assert dataset_settings(s, 0)["train"].frames == s.n_train
     for split in SPLITS:
         for axes in ("xy", "yz"):
             want = _independent(tmp_path, split, record["test_frames"][split], s.n_modes, axes,
@@ -84,7 +85,7 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
             got = record[split][f"{axes} (16 points)"]
             for k in ("modes", "full"):
                 assert got[k]["truth"] == pytest.approx(want[k], rel=1e-6), (split, axes, k)
-        for row, cells in record[split].items():
+        for cells in record[split].values():
             assert set(cells) == set(ESTIMATORS)
             for c in cells.values():
                 assert np.isfinite(c["truth"]) and c["truth"] > 0
