@@ -15,12 +15,10 @@ import pytest
 from lipgen.experiments.table51_pipeline import PipelineSettings, dataset_settings, run_pipeline, seed_record
 from lipgen.experiments.table51_splits import ESTIMATORS, SPLITS, mean_interval
 
-pytest.importorskip("cv2")
-pytestmark = pytest.mark.render
-
 
 @pytest.fixture(scope="module")
 def _egl():
+    pytest.importorskip("cv2")
     from lipgen.rig.render import import_pyrender
 
     try:
@@ -63,6 +61,7 @@ def _independent(work, split: str, frames, n_modes: int, axes: str, hidden_free)
     return {k: float(np.mean(v)) for k, v in out.items()}
 
 
+@pytest.mark.render
 def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     from lipgen.fem import Physics
     from lipgen.recon.pipeline import model_mesh
@@ -95,6 +94,7 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
 
 
 @pytest.mark.slow
+@pytest.mark.render
 def test_five_seed_pipeline(tmp_path, _egl):
     from lipgen.experiments.table51_pipeline import write_pipeline_report
 
@@ -108,3 +108,25 @@ def test_five_seed_pipeline(tmp_path, _egl):
                 assert cells[col]["truth"][1] <= cells[col]["truth"][0] <= cells[col]["truth"][2]
     md = write_pipeline_report(result, tmp_path / "out")
     assert "Utterance split" in open(md).read()
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"seeds": (3,)}, "2 or more distinct"),
+    ({"seeds": (1, 1)}, "2 or more distinct"),
+    ({"preset": "easy"}, "preset must be"),
+    ({"window": 5}, "window must be >= 10"),
+    ({"n_test": 15, "lead_in": 10}, "n_test >= lead_in"),
+    ({"n_modes": 150}, "n_modes < n_train"),
+])
+def test_bad_settings(bad, match):
+    with pytest.raises(ValueError, match=match):
+        PipelineSettings(**bad)
+
+
+def test_cli_refuses_a_missing_splits_file(tmp_path, capsys):
+    from lipgen.cli import main
+
+    status = main(["experiment", "table51-pipeline", "--splits", str(tmp_path / "nope.json"), "--out",
+                   str(tmp_path / "o")])
+    assert status != 0 and "nope.json" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()

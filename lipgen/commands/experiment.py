@@ -73,7 +73,7 @@ def add_parser(sub) -> None:
         "utterance, --test-frames of another utterance of the same subject and of another subject "
         "(subject seed + 1000); reconstruct each (calibrate, track, triangulate, normalise); train 10 modes "
         "and the combined model on the first; score the Table 5.1 rows of lipgen evaluate on windows of 10 "
-        "consecutive test frames against the true surface. Reports the mean and a 95 %% interval over the "
+        "consecutive test frames against the true surface. Reports the mean and a 95 % interval over the "
         "seeds, the paired comparison and the x-y/y-z order, as table51-splits (given --splits, its "
         "splits.json on simulated markers is shown beside). Writes pipeline.md and pipeline.json to --out; "
         "the datasets and reconstructions go to --work (reused by a second run). "
