@@ -130,3 +130,23 @@ def test_cli_refuses_a_missing_splits_file(tmp_path, capsys):
                    str(tmp_path / "o")])
     assert status != 0 and "nope.json" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_report_from_seed_records(tmp_path):
+    """The report of made-up records: their means appear, beside a splits result."""
+    from lipgen.experiments.table51_pipeline import ROW_NAMES, write_pipeline_report
+    from lipgen.experiments.table51_splits import aggregate
+
+    rng = np.random.default_rng(0)
+    refs = ("truth", "reach", "truth_relative")
+    per_seed = [{"seed": k, "variance_captured": 0.99, "accepted_share": {p: 0.9 for p in ("train", *SPLITS)},
+                 **{split: {row: {c: {r: float(rng.uniform(1, 2)) for r in refs} for c in ESTIMATORS}
+                            for row in ROW_NAMES.values()} for split in SPLITS}}
+                for k in range(3)]
+    result = {"settings": {**PipelineSettings().__dict__, "n_windows": 3, "size": [640, 480]},
+              "mm_per_unit": 10.0, "per_seed": per_seed, **aggregate(per_seed, list(ROW_NAMES.values()))}
+    md = open(write_pipeline_report(result, tmp_path, splits=result)).read()
+    mean = np.mean([r["subject"]["xy (16 points)"]["modes"]["truth"] for r in per_seed])
+    assert f"{mean:.3g} [" in md
+    assert f"{mean:.3g} / {mean:.3g}" in md  # beside itself
+    assert json.loads((tmp_path / "pipeline.json").read_text())["per_seed"][2]["seed"] == 2
