@@ -205,7 +205,8 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     record = {"seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
               "train_frames": len(ok), "test_mean_square_mm2": {}, "test_frames": {},
               "combined_kind": combined.kind,
-              "accepted_share": {part: float(np.mean(r.visible)) for part, r in recons.items()}}
+              "accepted_share": {part: float(np.mean(r.visible)) for part, r in recons.items()},
+              "marker_error_mm": {part: _marker_error(recons[part], datasets[part], mesh) for part in recons}}
     for split in SPLITS:
         ds, recon = datasets[split], recons[split]
         true = _true_fields(load_truth(ds), mesh, ds.mesh.vertices)
@@ -216,6 +217,25 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
         record["test_mean_square_mm2"][split] = float(np.mean(true[frames] ** 2))
         record["test_frames"][split] = [int(f) for f in frames]
     return record
+
+
+def _marker_error(recon, ds, mesh) -> dict:
+    """RMS error (mm) of the reconstructed marker displacements (normalised markers minus the
+    model's rest) against the true ones (model-frame marks minus the subject's rest) over the
+    accepted sightings; ``"after_offset"``: once each marker's mean error over the frames (a
+    constant offset, e.g. from the normalisation's reference frame) is taken out."""
+    from lipgen.evaluate.scoring import load_truth
+
+    P = len(mesh.markers)
+    truth = load_truth(ds)
+    err = (recon.markers - mesh.vertices[mesh.markers]) - (truth["marks_model"][:, :P] - ds.rest_marks()[:P])
+    err = np.where(recon.visible[..., None], err, np.nan)
+    seen = np.any(recon.visible, axis=0)
+    offset = np.zeros((P, 3))
+    offset[seen] = np.nanmean(err[:, seen], axis=0)
+    with np.errstate(invalid="ignore"):
+        return {"rms": float(np.sqrt(np.nanmean(np.sum(err**2, axis=-1)))),
+                "after_offset": float(np.sqrt(np.nanmean(np.sum((err - offset) ** 2, axis=-1))))}
 
 
 def run_pipeline(settings: PipelineSettings | None = None, work=None, progress: bool = True) -> dict:
@@ -285,6 +305,12 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
     acc = {p: np.mean([r["accepted_share"][p] for r in result["per_seed"]]) for p in ("train", *SPLITS)}
     lines += ["Share of marker sightings accepted (seen in both views, rays agreeing), mean over seeds: "
               + ", ".join(f"{p} {100 * a:.1f} %" for p, a in acc.items()) + ".", ""]
+    if all("marker_error_mm" in r for r in result["per_seed"]):
+        me = {p: [np.mean([r["marker_error_mm"][p][k] for r in result["per_seed"]])
+                  for k in ("rms", "after_offset")] for p in acc}
+        lines += ["RMS error of the reconstructed marker displacements against the true ones (accepted "
+                  "sightings; mean over seeds), and after each marker's constant offset is taken out: "
+                  + ", ".join(f"{p} {a:.2f} / {b:.2f} mm" for p, (a, b) in me.items()) + ".", ""]
     for split in SPLITS:
         lines += split_section_lines(result, split)
     if splits is not None:
