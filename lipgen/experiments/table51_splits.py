@@ -48,7 +48,7 @@ from lipgen.experiments.table51_protocol import (
 )
 
 __all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "paired_interval", "order",
-           "window_orders", "ESTIMATORS", "SPLITS"]
+           "window_orders", "aggregate", "split_section_lines", "ESTIMATORS", "SPLITS"]
 
 log = logging.getLogger(__name__)
 
@@ -212,6 +212,33 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
             record[split] = _mean_tables(tables)
             record["test_mean_square_mm2"][split] = float(np.mean(ms))
         per_seed.append(record)
+    result = {"settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "per_seed": per_seed,
+              **aggregate(per_seed, list(rows))}
+    for split in SPLITS:
+        result["order_xy_over_yz"][split]["markers"] = mean_interval([r["order_markers"][split]
+                                                                      for r in per_seed])
+    return result
+
+
+def aggregate(per_seed: list, rows) -> dict:
+    """Over the seeds: the mean and 95 % interval of every cell, the x-y / y-z order, the paired
+    comparison, and whether the estimators separate.
+
+    Parameters
+    ----------
+    per_seed : list of dict
+        One record per seed: ``{split: {row: {estimator: {ref: mm²}}}, "variance_captured": float}``
+        for every split of :data:`SPLITS`, estimator of :data:`ESTIMATORS` and ref ``"truth"``,
+        ``"reach"``, ``"truth_relative"``; rows include ``"xy (16 points)"`` and ``"yz (16 points)"``.
+    rows : sequence of str
+        The rows to summarise.
+
+    Returns
+    -------
+    dict
+        ``"summary"``, ``"order_xy_over_yz"``, ``"paired"``, ``"distinguished"``,
+        ``"variance_captured"``, ``"separated"`` (as in :func:`run_splits`' result).
+    """
     summary = {}
     for split in SPLITS:
         summary[split] = {row: {col: {ref: mean_interval([r[split][row][col][ref] for r in per_seed])
@@ -219,11 +246,8 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
                                 for col in ESTIMATORS} for row in rows}
     orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed])
                       for ref in ("truth", "reach")} for split in SPLITS}
-    for split in SPLITS:
-        orders[split]["markers"] = mean_interval([r["order_markers"][split] for r in per_seed])
     paired = {split: {row: _paired(per_seed, split, row) for row in rows} for split in SPLITS}
-    return {"settings": asdict(s), "mm_per_unit": thesis_unit_mm(mesh), "per_seed": per_seed,
-            "summary": summary, "order_xy_over_yz": orders, "paired": paired,
+    return {"summary": summary, "order_xy_over_yz": orders, "paired": paired,
             "distinguished": {split: {row: any(not lo <= 1 <= hi for _, lo, hi in paired[split][row].values())
                                       for row in rows}
                               for split in SPLITS},
@@ -317,18 +341,65 @@ def _cell(v) -> str:
     return f"{v[0]:.3g} [{v[1]:.3g}, {v[2]:.3g}]"
 
 
+def split_section_lines(result: dict, split: str) -> list[str]:
+    """The markdown lines of one split's section of a report: the table of means and intervals,
+    the paired comparison, the x-y / y-z order and the thesis's figures beside.
+
+    Parameters
+    ----------
+    result : dict
+        :func:`run_splits`' result (or one with the same ``"summary"``, ``"paired"``,
+        ``"distinguished"``, ``"separated"``, ``"order_xy_over_yz"`` and ``"mm_per_unit"``).
+    split : str
+        One of :data:`SPLITS`.
+    """
+    from lipgen.experiments.table51_report import THESIS_TABLE
+
+    u2 = result["mm_per_unit"] ** 2
+    lines = [f"## {split.capitalize()} split: vs the true surface, mm² (relative)", "",
+             "| observed | " + " | ".join(_NAMES[c] for c in ESTIMATORS) + " | intervals separate |",
+             "|---|" + "---|" * (len(ESTIMATORS) + 1)]
+    for row, cols in result["summary"][split].items():
+        cells = [f"{_cell(cols[c]['truth'])} ({cols[c]['truth_relative'][0]:.3f})" for c in ESTIMATORS]
+        sep = result["separated"][split]
+        lines.append(f"| {row} | " + " | ".join(cells) + f" | {'yes' if sep['truth'][row] else 'no'} "
+                     f"(relative: {'yes' if sep['truth_relative'][row] else 'no'}) |")
+    lines += ["", "Paired (the same seeds and frames): geometric mean over the seeds of the ratio of two "
+              "estimators' errors vs the true surface, and its 95 % interval; **bold** where it "
+              "excludes 1.", "",
+              "| observed | " + " | ".join(f"{_NAMES[a]} / {_NAMES[b]}" for a, b in _pairs())
+              + " | told apart |", "|---|" + "---|" * (len(_pairs()) + 1)]
+    for row, pairs in result["paired"][split].items():
+        cells = [(f"**{_cell(v)}**" if not v[1] <= 1.0 <= v[2] else _cell(v)) for v in pairs.values()]
+        lines.append(f"| {row} | " + " | ".join(cells)
+                     + f" | {'yes' if result['distinguished'][split][row] else 'no'} |")
+    o = result["order_xy_over_yz"][split]
+    mk = (f", {_cell(o['markers'])} at the hidden marker coordinates vs the measured markers"
+          if "markers" in o else "")
+    lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
+              f"{_cell(o['reach'])} vs the least-strain field{mk} (thesis: "
+              f"{THESIS_TABLE['xy (16 points)'][0] / THESIS_TABLE['yz (16 points)'][0]:.1f}).", "",
+              *_window_lines(result, split),
+              "In the thesis's terms (vs the least-strain field, units², 10 modes / full cov.):", "",
+              "| observed | thesis | ours |", "|---|---|---|"]
+    for row, (a, b) in THESIS_TABLE.items():
+        c = result["summary"][split][row]
+        lines.append(f"| {row} | {a:.2e} / {b:.2e} | {c['modes']['reach'][0] / u2:.2e} / "
+                     f"{c['full']['reach'][0] / u2:.2e} |")
+    lines.append("")
+    return lines
+
+
 def write_splits_report(result: dict, out) -> str:
     """Write ``splits.md`` and ``splits.json`` into the folder ``out``; returns the markdown path."""
     import json
     from pathlib import Path
 
     from lipgen.evaluate.metric import ERROR_DEFINITION
-    from lipgen.experiments.table51_report import THESIS_TABLE
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     s = result["settings"]
-    u2 = result["mm_per_unit"] ** 2
     v = result["variance_captured"]
     lines = ["# Table 5.1 with utterance and subject splits", "",
              f"Preset `{s['preset']}`, subject seeds {list(s['seeds'])}; trained on {s['n_train']} "
@@ -341,37 +412,7 @@ def write_splits_report(result: dict, out) -> str:
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the training "
              "variance (thesis: 99.2 %).", ""]
     for split in SPLITS:
-        lines += [f"## {split.capitalize()} split: vs the true surface, mm² (relative)", "",
-                  "| observed | " + " | ".join(_NAMES[c] for c in ESTIMATORS) + " | intervals separate |",
-                  "|---|" + "---|" * (len(ESTIMATORS) + 1)]
-        for row, cols in result["summary"][split].items():
-            cells = [f"{_cell(cols[c]['truth'])} ({cols[c]['truth_relative'][0]:.3f})" for c in ESTIMATORS]
-            sep = result["separated"][split]
-            lines.append(f"| {row} | " + " | ".join(cells) + f" | {'yes' if sep['truth'][row] else 'no'} "
-                         f"(relative: {'yes' if sep['truth_relative'][row] else 'no'}) |")
-        lines += ["", "Paired (the same seeds and frames): geometric mean over the seeds of the ratio of two "
-                  "estimators' errors vs the true surface, and its 95 % interval; **bold** where it "
-                  "excludes 1.", "",
-                  "| observed | " + " | ".join(f"{_NAMES[a]} / {_NAMES[b]}" for a, b in _pairs())
-                  + " | told apart |", "|---|" + "---|" * (len(_pairs()) + 1)]
-        for row, pairs in result["paired"][split].items():
-            cells = [(f"**{_cell(v)}**" if not v[1] <= 1.0 <= v[2] else _cell(v)) for v in pairs.values()]
-            lines.append(f"| {row} | " + " | ".join(cells)
-                         + f" | {'yes' if result['distinguished'][split][row] else 'no'} |")
-        o = result["order_xy_over_yz"][split]
-        mk = (f", {_cell(o['markers'])} at the hidden marker coordinates vs the measured markers"
-              if "markers" in o else "")
-        lines += ["", f"x-y over y-z (16 points, 10 modes): {_cell(o['truth'])} vs the true surface, "
-                  f"{_cell(o['reach'])} vs the least-strain field{mk} (thesis: "
-                  f"{THESIS_TABLE['xy (16 points)'][0] / THESIS_TABLE['yz (16 points)'][0]:.1f}).", "",
-                  *_window_lines(result, split),
-                  "In the thesis's terms (vs the least-strain field, units², 10 modes / full cov.):", "",
-                  "| observed | thesis | ours |", "|---|---|---|"]
-        for row, (a, b) in THESIS_TABLE.items():
-            c = result["summary"][split][row]
-            lines.append(f"| {row} | {a:.2e} / {b:.2e} | {c['modes']['reach'][0] / u2:.2e} / "
-                         f"{c['full']['reach'][0] / u2:.2e} |")
-        lines.append("")
+        lines += split_section_lines(result, split)
     md = out / "splits.md"
     md.write_text("\n".join(lines) + "\n")
     (out / "splits.json").write_text(json.dumps(result, indent=1))

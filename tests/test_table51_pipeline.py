@@ -1,0 +1,152 @@
+"""Table 5.1 through the whole pipeline (lipgen experiment table51-pipeline).
+
+The invariant: the figures of a seed equal an independent scoring of the same reconstructed
+fields (the reconstructions written to disk, reloaded; the learned prior rebuilt from the training
+fields by an SVD here; the LLSE and the error per hidden DOF written out in numpy).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from lipgen.experiments.table51_pipeline import PipelineSettings, dataset_settings, run_pipeline, seed_record
+from lipgen.experiments.table51_splits import ESTIMATORS, SPLITS, mean_interval
+
+
+@pytest.fixture(scope="module")
+def _egl():
+    pytest.importorskip("cv2")
+    from lipgen.rig.render import import_pyrender
+
+    try:
+        import_pyrender()
+    except Exception as exc:  # pragma: no cover - depends on the machine
+        pytest.skip(f"no offscreen rendering: {exc}")
+
+
+def _independent(work, split: str, frames, n_modes: int, axes: str, hidden_free) -> dict:
+    """{"modes": mm², "full": mm²} vs the true surface for the "{axes} (16 points)" row, in numpy."""
+    from lipgen.dataset.layout import Dataset
+    from lipgen.recon.pipeline import Reconstruction, model_mesh
+
+    mesh = model_mesh()
+    train = Reconstruction.load(work / "s0_train.recon.npz")
+    F = len(train.fields)
+    X = train.fields.reshape(F, -1)
+    X = X[np.all(np.isfinite(X), axis=1)]
+    mean = X.mean(axis=0)
+    _, sv, Vt = np.linalg.svd(X - mean, full_matrices=False)
+    priors = {"modes": (Vt[:n_modes].T * sv[:n_modes] ** 2) @ Vt[:n_modes],
+              "full": (Vt.T * sv**2) @ Vt}  # covariances up to a scale, which the LLSE ignores
+    recon = Reconstruction.load(work / f"s0_{split}.recon.npz")
+    ds = Dataset(work / f"s0_{split}")
+    n = mesh.n_nodes
+    true = np.stack([np.asarray(f.truth["vertices"])[:n] for f in ds]) - ds.mesh.vertices[:n]
+    rest = mesh.vertices[mesh.markers]
+    ax = ["xyz".index(a) for a in axes]
+    out = {k: [] for k in priors}
+    for f in frames:
+        seen = np.flatnonzero(recon.visible[f])
+        if len(seen) == 0 or not np.all(np.isfinite(recon.fields[f])):
+            continue
+        d = (3 * np.asarray(mesh.markers)[seen][:, None] + np.array(ax)).ravel()
+        hid = np.setdiff1d(hidden_free, d)
+        y = (recon.markers[f, seen] - rest[seen])[:, ax].ravel()
+        for k, C in priors.items():
+            est = mean + C[:, d] @ np.linalg.pinv(C[np.ix_(d, d)], hermitian=True) @ (y - mean[d])
+            out[k].append(np.mean((est[hid] - true[f].ravel()[hid]) ** 2))
+    return {k: float(np.mean(v)) for k, v in out.items()}
+
+
+@pytest.mark.render
+def test_seed_record_equals_independent_scoring(tmp_path, _egl):
+    from lipgen.fem import Physics
+    from lipgen.recon.pipeline import model_mesh
+
+    s = PipelineSettings(seeds=(0, 1), n_train=12, n_test=10, lead_in=0, n_modes=4, calib_frames=4,
+                         size=(480, 360))
+    physics = Physics(model_mesh())
+    record = seed_record(s, 0, tmp_path, physics, progress=False)
+    # the three datasets: subject seed and motion as documented
+    made = {p: json.loads((tmp_path / f"s0_{p}" / "manifest.json").read_text())["settings"] for p in
+            ("train", "utterance", "subject")}
+    assert made["train"]["subject_seed"] == made["utterance"]["subject_seed"] == 0
+    assert made["subject"]["subject_seed"] == 1000
+    assert len({made[p]["seed"] for p in made}) == 3
+    assert dataset_settings(s, 0)["train"].frames == s.n_train
+    for split in SPLITS:
+        for axes in ("xy", "yz"):
+            want = _independent(tmp_path, split, record["test_frames"][split], s.n_modes, axes,
+                                physics.free_dofs)
+            got = record[split][f"{axes} (16 points)"]
+            for k in ("modes", "full"):
+                assert got[k]["truth"] == pytest.approx(want[k], rel=1e-6), (split, axes, k)
+        for cells in record[split].values():
+            assert set(cells) == set(ESTIMATORS)
+            for c in cells.values():
+                assert np.isfinite(c["truth"]) and c["truth"] > 0
+    # a second call reuses the reconstructions on disk and gives the same figures
+    again = seed_record(s, 0, tmp_path, physics, progress=False)
+    assert again["utterance"] == record["utterance"] and again["subject"] == record["subject"]
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_five_seed_pipeline(tmp_path, _egl):
+    from lipgen.experiments.table51_pipeline import write_pipeline_report
+
+    result = run_pipeline(PipelineSettings(), tmp_path / "work", progress=False)
+    assert len(result["per_seed"]) == 5
+    for split in SPLITS:
+        for row, cells in result["summary"][split].items():
+            for col in ESTIMATORS:
+                vals = [r[split][row][col]["truth"] for r in result["per_seed"]]
+                assert cells[col]["truth"] == pytest.approx(mean_interval(vals))
+                assert cells[col]["truth"][1] <= cells[col]["truth"][0] <= cells[col]["truth"][2]
+    md = write_pipeline_report(result, tmp_path / "out")
+    assert "Utterance split" in open(md).read()
+
+
+@pytest.mark.parametrize("bad, match", [
+    ({"seeds": (3,)}, "2 or more distinct"),
+    ({"seeds": (1, 1)}, "2 or more distinct"),
+    ({"preset": "easy"}, "preset must be"),
+    ({"window": 5}, "window must be >= 10"),
+    ({"n_test": 15, "lead_in": 10}, "n_test >= lead_in"),
+    ({"n_modes": 150}, "n_modes < n_train"),
+])
+def test_bad_settings(bad, match):
+    with pytest.raises(ValueError, match=match):
+        PipelineSettings(**bad)
+
+
+def test_cli_refuses_a_missing_splits_file(tmp_path, capsys):
+    from lipgen.cli import main
+
+    status = main(["experiment", "table51-pipeline", "--splits", str(tmp_path / "nope.json"), "--out",
+                   str(tmp_path / "o")])
+    assert status != 0 and "nope.json" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_report_from_seed_records(tmp_path):
+    """The report of made-up records: their means appear, beside a splits result."""
+    from lipgen.experiments.table51_pipeline import ROW_NAMES, write_pipeline_report
+    from lipgen.experiments.table51_splits import aggregate
+
+    rng = np.random.default_rng(0)
+    refs = ("truth", "reach", "truth_relative")
+    per_seed = [{"seed": k, "variance_captured": 0.99, "accepted_share": {p: 0.9 for p in ("train", *SPLITS)},
+                 **{split: {row: {c: {r: float(rng.uniform(1, 2)) for r in refs} for c in ESTIMATORS}
+                            for row in ROW_NAMES.values()} for split in SPLITS}}
+                for k in range(3)]
+    result = {"settings": {**PipelineSettings().__dict__, "n_windows": 3, "size": [640, 480]},
+              "mm_per_unit": 10.0, "per_seed": per_seed, **aggregate(per_seed, list(ROW_NAMES.values()))}
+    md = open(write_pipeline_report(result, tmp_path, splits=result)).read()
+    mean = np.mean([r["subject"]["xy (16 points)"]["modes"]["truth"] for r in per_seed])
+    assert f"{mean:.3g} [" in md
+    assert f"{mean:.3g} / {mean:.3g}" in md  # beside itself
+    assert json.loads((tmp_path / "pipeline.json").read_text())["per_seed"][2]["seed"] == 2
