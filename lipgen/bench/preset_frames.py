@@ -20,6 +20,14 @@ the ``face`` item (the lips and the head round them, most of the scene's triangl
 triangles turned away from the cameras (culled before rasterization: its vertex work stays), and
 with each of its triangles split in four (the same surface and pixels, four times the triangles).
 On llvmpipe the last two say whether the head costs by its pixels or by its triangles.
+
+Measured (2 cores, load 8, main at c7c70a3): hard/easy 0.29 CPU (0.21-0.25 wall); 0.47 s CPU
+per hard frame of which about 0.45 s is 1.75 renders; in one hard render, without the ``face``
+item 0.30, its triangles culled 0.34, split in four 2.0 (12,144 of the scene's 22,216
+triangles): on llvmpipe each front-facing triangle costs about 2.5 us per pass (two views and
+the shadow map), and the ``face`` item's pixels and triangles cost about the same. The draw order
+of the items changes neither the pixels nor the CPU (no overdraw to save), and one light instead
+of three or no skin texture changes the CPU by under 3 %: the shader's arithmetic is not the cost.
 """
 
 from __future__ import annotations
