@@ -48,15 +48,7 @@ import numpy as np
 
 from lipgen.nrsfm._rotation import complete_rotations
 from lipgen.nrsfm._tracks import Tracks
-from lipgen.nrsfm.emppca import (
-    _camera_terms,
-    _e_step,
-    _extrapolate,
-    _gram,
-    _mean_shapes,
-    _rigid_start,
-    _update_cameras,
-)
+from lipgen.nrsfm.emppca import _e_step, _extrapolate, _m_step, _rigid_start
 
 __all__ = ["em_pnd", "pnd_reconstruction", "procrustean_residual", "n_parameters", "bic"]
 
@@ -185,31 +177,6 @@ def _project_modes(sbar, V):
     return (v - A.T @ lam).reshape(P, 3, K)
 
 
-def _m_step(data, theta, post, ridge, floor):
-    W3, m, complete, n_obs2 = data
-    Q, c, sbar, V, t, s2 = theta
-    Ez, cov = post
-    F = W3.shape[0]
-    G = c[:, None, None] * Q[:, :2]
-    Wt = (W3 - t[:, :, None]) * m[:, None, :]
-    Zh = np.concatenate([np.ones((F, 1)), Ez], axis=1)
-    ZZ = Zh[:, :, None] * Zh[:, None, :]
-    ZZ[:, 1:, 1:] += cov
-    sbar, V = _shape_step(Wt, m, G, Zh, ZZ, sbar, V, ridge, complete)
-    B = np.concatenate([sbar.T[:, :, None], V], axis=2)        # (P, 3, K+1)
-    mean = _mean_shapes(B, Zh)
-    t = ((W3 - G @ mean) * m[:, None, :]).sum(2) / m.sum(1)[:, None]
-    Wt = (W3 - t[:, :, None]) * m[:, None, :]
-    A, C = _camera_terms(Wt, m, B, Zh, ZZ, complete)
-    Q, c = _update_cameras(Q, A, C)
-    G = c[:, None, None] * Q[:, :2]
-    fit = (Wt - G @ mean) * m[:, None, :]
-    spread_z = 0.0
-    if V.shape[2]:
-        spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
-    return Q, c, sbar, V, t, max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
-
-
 def _start(tracks: Tracks, k: int, n_starts: int, seed: int):
     """Rigid start (Tomasi-Kanade with the corrective triple), modes from the principal components of
     the back-projected rigid residuals, projected onto the Procrustean constraints."""
@@ -314,7 +281,7 @@ def em_pnd(tracks: Tracks, k: int, *, max_iter: int = 500, tol: float = 1e-6, n_
     history = [float(nll)]
     eta, converged, it = 1.0, False, 0
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        theta_em = _m_step(data, theta, post, ridge, floor)
+        theta_em = _m_step(data, theta, post, ridge, floor, _shape_step)
         nll_em, post_em = _e_step(data, theta_em)
         trial, nll_new, post_new = theta_em, nll_em, post_em
         if eta > 1.0:  # over-relaxed step, projected back onto the constraints, kept only if better

@@ -179,8 +179,11 @@ def _e_step(data, theta):
     return _neg_log_likelihood(res, Atr, Ez, AtA, s2, n_obs2), (Ez, cov)
 
 
-def _m_step(data, theta, post, ridge, floor):
-    """Shape, translations, cameras, noise variance, in that order, given the posterior of z."""
+def _m_step(data, theta, post, ridge, floor, shape_step=None):
+    """Shape, translations, cameras, noise variance, in that order, given the posterior of z.
+
+    ``shape_step(Wt, m, G, Zh, ZZ, sbar, V, ridge, complete) -> (sbar, V)`` replaces the
+    unconstrained shape update (EM-PND's constrained one, :mod:`lipgen.nrsfm.empnd`)."""
     W3, m, complete, n_obs2 = data
     Q, c, sbar, V, t, s2 = theta
     Ez, cov = post
@@ -190,8 +193,12 @@ def _m_step(data, theta, post, ridge, floor):
     Zh = np.concatenate([np.ones((F, 1)), Ez], axis=1)
     ZZ = Zh[:, :, None] * Zh[:, None, :]
     ZZ[:, 1:, 1:] += cov
-    B = _update_shape(Wt, m, G, Zh, ZZ, ridge, complete)      # (P, 3, K+1)
-    sbar, V = B[:, :, 0].T, B[:, :, 1:]
+    if shape_step is None:
+        B = _update_shape(Wt, m, G, Zh, ZZ, ridge, complete)      # (P, 3, K+1)
+        sbar, V = B[:, :, 0].T, B[:, :, 1:]
+    else:
+        sbar, V = shape_step(Wt, m, G, Zh, ZZ, sbar, V, ridge, complete)
+        B = np.concatenate([sbar.T[:, :, None], V], axis=2)
     mean = _mean_shapes(B, Zh)                                 # (F, 3, P)
     t = ((W3 - G @ mean) * m[:, None, :]).sum(2) / m.sum(1)[:, None]
     Wt = (W3 - t[:, :, None]) * m[:, None, :]
@@ -199,7 +206,9 @@ def _m_step(data, theta, post, ridge, floor):
     Q, c = _update_cameras(Q, A, C)
     G = c[:, None, None] * Q[:, :2]
     fit = (Wt - G @ mean) * m[:, None, :]
-    spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
+    spread_z = 0.0
+    if V.shape[2]:
+        spread_z = float((_gram(np.matmul(G.transpose(0, 2, 1), G), V, m, complete) * cov).sum())
     return Q, c, sbar, V, t, max((float((fit**2).sum()) + spread_z) / n_obs2, floor)
 
 
