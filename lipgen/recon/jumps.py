@@ -3,7 +3,8 @@
 The ray gap (:mod:`lipgen.recon.raygap`) cannot see an error along the epipolar line: at sensor
 noise 32 (seed 7, 60 frames), the nose in the mirror view jumped 22 px along its epipolar line at
 frame 2 and the pair was accepted 19 times. The triangulated point then jumps in depth. This
-check compares each marker's point with its last accepted one: a step (mm per frame elapsed)
+check compares each marker's point with its last accepted one: a step (mm, over the square
+root of the frames elapsed)
 beyond the marker's limit takes the sighting back in both views (it shows as *rejected* in the
 per-marker account, :mod:`lipgen.recon.account`), and both trackers resume from their last
 accepted state.
@@ -79,7 +80,9 @@ class StepLimit:
         last3d : (P, 3) float
             Each marker's last accepted point (NaN where never accepted).
         elapsed : (P,) int
-            Frames since that point (>= 1).
+            Frames since that point (>= 1). The step is divided by its square root: a still marker
+            (the nose) drifts like a random walk, and a wrong dot held for a few frames must not
+            pass as soon as its offset is spread over them.
 
         Returns
         -------
@@ -91,7 +94,7 @@ class StepLimit:
         if X.shape != L.shape or X.ndim != 2 or X.shape[1] != 3 or len(X) != len(self._steps):
             raise ValueError(f"points {X.shape} and last3d {L.shape} must both be ({len(self._steps)}, 3)")
         dt = np.maximum(np.asarray(elapsed, dtype=float).reshape(len(X)), 1.0)
-        step = np.linalg.norm(X - L, axis=1) / dt
+        step = np.linalg.norm(X - L, axis=1) / np.sqrt(dt)
         known = np.isfinite(step)
         jump = known & (step > self.limits())
         ok = np.flatnonzero(known & ~jump)
