@@ -51,7 +51,8 @@ class StepLimit:
             raise ValueError(f"StepLimit.quantile must be in (0, 1], got {quantile!r}")
         if floor > max_step:
             raise ValueError(f"StepLimit.floor ({floor!r}) exceeds max_step ({max_step!r})")
-        self.k, self.quantile, self.floor, self.max_step = float(k), float(quantile), float(floor), float(max_step)
+        self.k, self.quantile = float(k), float(quantile)
+        self.floor, self.max_step = float(floor), float(max_step)
         self.min_samples = int(min_samples)
         self._steps: list[list[float]] = [[] for _ in range(int(n_markers))]
 
