@@ -14,6 +14,15 @@ robust scale (the ``quantile`` of the marker's accepted steps), never below ``fl
 ``max_step`` until ``min_samples`` steps of that marker are known. A marker's own steps set its
 limit, because the nose moves with the head only while the lower lip's markers move fastest
 (true steps reach 6.4 mm per frame on the ``hard`` preset).
+
+Measured (calibrate -> track -> triangulate, scored against the truth; mirror / direct px RMS over
+accepted sightings, accepted share of visible sightings, accepted sightings over 3 px per view):
+noise 32 seed 7 with ``DotSettings(window=1.25)``: 3.28/0.33, 69.0 %, 19/0 -> 0.29/0.30, 65.1 %,
+0/0 (one jump taken back, the nose at frame 2; the lower right corner, accepted on the wrong dot
+before, is now lost). With the window, hard validation seeds 7-10 and default/easy seed 7 are
+unchanged (no jump found). With the plain fit, the same except hard seed 10, whose tracks start on
+wrong dots: 8.53/23.8, 6.0 %, 15/27 -> 6.51/30.7, 7.5 %, 24/41 (a right sighting after a wrong
+one reads as a jump until its offset, over the square root of the frames elapsed, passes).
 """
 
 from __future__ import annotations
