@@ -30,6 +30,7 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
+from lipgen.recon.jumps import StepLimit
 from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.stereo_init import layout_dots
@@ -75,6 +76,13 @@ class ReconstructSettings:
         validation seed 8 it took the accepted share from 22 % to 60 %, but a correct match it
         drops is left to the tracker's later acquisition, which on short clips (8 frames of
         ``easy`` through H.264) never came, and a marker was lost.
+    step_k : float or None
+        A sighting whose 3-D point moved farther from the marker's last accepted point than
+        ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
+        ``min_step``) is a jump along the epipolar line and is taken back in both views
+        (:class:`lipgen.recon.jumps.StepLimit`); None: no step check.
+    min_step : float
+        Least step limit, mm per frame.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -85,6 +93,8 @@ class ReconstructSettings:
     ray_gap_k: float | None = 8.0
     min_ray_gap_px: float = 1.0
     first_frame_lures: bool = False
+    step_k: float | None = 4.0
+    min_step: float = 1.0
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -136,6 +146,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     trackers: list[MarkerTracker] = []
     gap_limit = None if cameras is None else settings.ray_gap_limit(cameras)
     last3d = np.full((exp.shape[1], 3), np.nan)      # each marker's last accepted point (lab, mm)
+    since = np.ones(exp.shape[1])                    # frames since then
+    steps = None if settings.step_k is None else StepLimit(exp.shape[1], settings.step_k,
+                                                           floor=settings.min_step)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
@@ -185,7 +198,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
-            _check_views(trackers, cameras, gap_limit, last3d)
+            _check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if progress is not None:
@@ -196,13 +209,16 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
 
 
 def _check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit | float,
-                 last3d: np.ndarray | None = None) -> None:
+                 last3d: np.ndarray | None = None, steps: StepLimit | None = None,
+                 since: np.ndarray | None = None, names=None) -> None:
     """Take back sightings whose two rays pass farther apart than ``gap_limit`` (a wrong dot in a view).
 
     ``gap_limit`` is a :class:`~lipgen.recon.raygap.RayGapLimit` (it learns from the gaps of the
     sightings kept) or a fixed limit in mm. With ``last3d (P, 3)`` (each marker's last accepted
     point, updated in place), sightings another marker's ray explains better are taken back too
-    (:func:`_reject_ambiguous`).
+    (:func:`_reject_ambiguous`). With ``steps`` and ``since (P,)`` (frames since ``last3d``,
+    updated in place), a sighting whose 3-D step is a jump (:class:`~lipgen.recon.jumps.StepLimit`)
+    is taken back in both views.
 
     A sighting that continues a track (seen in the previous image) beats one just re-acquired:
     only the latter is taken back. Otherwise both are, since a lost marker is far better than a
@@ -228,8 +244,21 @@ def _check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit 
         _reject_ambiguous(trackers, cameras, max_gap, last3d)
         (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
         kept = (st0 != LOST) & (st1 != LOST)
+        pts = np.full(last3d.shape, np.nan)
         if kept.any():
-            last3d[kept] = triangulate(cameras[1], uv1[kept], cameras[0], uv0[kept])[0]
+            pts[kept] = triangulate(cameras[1], uv1[kept], cameras[0], uv0[kept])[0]
+        if steps is not None and since is not None:
+            jump = steps.check(pts, last3d, since)
+            if jump.any():
+                idx = np.flatnonzero(jump)
+                log.info("3-D jump taken back: %s", ", ".join(
+                    str(i) if names is None else str(names[i]) for i in idx))
+                trackers[0].reject(idx)
+                trackers[1].reject(idx)
+                kept &= ~jump
+            since[kept] = 0
+            since += 1
+        last3d[kept] = pts[kept]
 
 
 def _reject_ambiguous(trackers: list[MarkerTracker], cameras, max_gap: float, last3d: np.ndarray,
