@@ -12,6 +12,7 @@ The truth is read here only; nothing computed from it flows back into the recons
 from __future__ import annotations
 
 import logging
+import warnings
 
 import numpy as np
 
@@ -54,7 +55,9 @@ def load_truth(ds) -> dict:
 
 
 def _rms(err, axis=None):
-    with np.errstate(invalid="ignore"):
+    """RMS over the finite entries; NaN (no warning) where there are none, e.g. a never-seen marker."""
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # nanmean of an all-NaN slice
         return np.sqrt(np.nanmean(np.asarray(err) ** 2, axis=axis))
 
 
