@@ -46,18 +46,21 @@ from lipgen.experiments.table51_protocol import (
     observation_rows,
     observe,
 )
+from lipgen.experiments.table51_stats import (
+    ESTIMATORS,
+    SPLITS,
+    _mean_tables,
+    _pairs,
+    aggregate,
+    mean_interval,
+    order,
+    paired_interval,
+)
 
 __all__ = ["SplitSettings", "run_splits", "write_splits_report", "mean_interval", "paired_interval", "order",
            "window_orders", "aggregate", "split_section_lines", "ESTIMATORS", "SPLITS"]
 
 log = logging.getLogger(__name__)
-
-ESTIMATORS = ("modes", "full", "combined", "physics_force")
-"""The four estimators compared: 10 modes, the full covariance, the combined model, the physics."""
-
-SPLITS = ("utterance", "subject")
-"""Another utterance of the training subject; another subject."""
-
 
 @dataclass(frozen=True)
 class SplitSettings:
@@ -93,59 +96,6 @@ class SplitSettings:
             raise ValueError(f"lead_in must be >= 0 frames, got {self.lead_in}")
         Table51Settings(preset=self.preset, marker_noise_mm=self.marker_noise_mm,
                         marker_noise_px=self.marker_noise_px)  # checks the rest
-
-
-def mean_interval(values, level: float = 0.95) -> tuple[float, float, float]:
-    """(mean, low, high): the mean of ``values`` (k,) and its Student-t confidence interval."""
-    from scipy import stats
-
-    v = np.asarray(values, float)
-    if v.ndim != 1 or len(v) < 2:
-        raise ValueError(f"need 2 or more values for an interval, got shape {v.shape}")
-    m = float(v.mean())
-    half = float(stats.t.ppf(0.5 + level / 2, len(v) - 1) * v.std(ddof=1) / np.sqrt(len(v)))
-    return m, m - half, m + half
-
-
-def paired_interval(a, b, level: float = 0.95) -> tuple[float, float, float]:
-    """(ratio, low, high): the geometric mean over seeds of ``a / b`` and its Student-t interval.
-
-    Parameters
-    ----------
-    a, b : (k,) float
-        Two estimators' errors (> 0) on the same k seeds (and the same test frames), k >= 2.
-    level : float
-        Confidence level of the interval.
-
-    Returns
-    -------
-    tuple of float
-        ``exp`` of the mean of ``log(a / b)`` and of its t-interval: the paired t-test on the log
-        errors; an interval that excludes 1 tells the two estimators apart at ``level``.
-    """
-    x, y = np.asarray(a, float), np.asarray(b, float)
-    if x.shape != y.shape or x.ndim != 1:
-        raise ValueError(f"a and b must be two (k,) arrays of the same seeds, got shapes {x.shape} and "
-                         f"{y.shape}")
-    if not (np.all(x > 0) and np.all(y > 0)):
-        raise ValueError("paired errors must be > 0 (a ratio of errors is compared)")
-    return tuple(float(np.exp(v)) for v in mean_interval(np.log(x / y), level))
-
-
-def _pairs() -> list[tuple[str, str]]:
-    return [(a, b) for i, a in enumerate(ESTIMATORS) for b in ESTIMATORS[i + 1:]]
-
-
-def _paired(per_seed: list, split: str, row: str, ref: str = "truth") -> dict:
-    """{"a/b": (ratio, low, high)} for every pair of :data:`ESTIMATORS`."""
-    return {f"{a}/{b}": paired_interval([r[split][row][a][ref] for r in per_seed],
-                                        [r[split][row][b][ref] for r in per_seed]) for a, b in _pairs()}
-
-
-def order(table: dict, ref: str = "truth", column: str = "modes") -> float:
-    """x-y over y-z error from 16 points (> 1: the thesis's order, x-y worse; thesis: 9.4 with 10
-    modes against the least-strain field)."""
-    return table["xy (16 points)"][column][ref] / table["yz (16 points)"][column][ref]
 
 
 def _settings(s: SplitSettings, subject_seed: int) -> Table51Settings:
@@ -220,42 +170,6 @@ def run_splits(settings: SplitSettings | None = None) -> dict:
     return result
 
 
-def aggregate(per_seed: list, rows) -> dict:
-    """Over the seeds: the mean and 95 % interval of every cell, the x-y / y-z order, the paired
-    comparison, and whether the estimators separate.
-
-    Parameters
-    ----------
-    per_seed : list of dict
-        One record per seed: ``{split: {row: {estimator: {ref: mm²}}}, "variance_captured": float}``
-        for every split of :data:`SPLITS`, estimator of :data:`ESTIMATORS` and ref ``"truth"``,
-        ``"reach"``, ``"truth_relative"``; rows include ``"xy (16 points)"`` and ``"yz (16 points)"``.
-    rows : sequence of str
-        The rows to summarise.
-
-    Returns
-    -------
-    dict
-        ``"summary"``, ``"order_xy_over_yz"``, ``"paired"``, ``"distinguished"``,
-        ``"variance_captured"``, ``"separated"`` (as in :func:`run_splits`' result).
-    """
-    summary = {}
-    for split in SPLITS:
-        summary[split] = {row: {col: {ref: mean_interval([r[split][row][col][ref] for r in per_seed])
-                                      for ref in ("truth", "reach", "truth_relative")}
-                                for col in ESTIMATORS} for row in rows}
-    orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed])
-                      for ref in ("truth", "reach")} for split in SPLITS}
-    paired = {split: {row: _paired(per_seed, split, row) for row in rows} for split in SPLITS}
-    return {"summary": summary, "order_xy_over_yz": orders, "paired": paired,
-            "distinguished": {split: {row: any(not lo <= 1 <= hi for _, lo, hi in paired[split][row].values())
-                                      for row in rows}
-                              for split in SPLITS},
-            "variance_captured": mean_interval([r["variance_captured"] for r in per_seed]),
-            "separated": {split: {ref: {row: _separated(summary[split][row], ref) for row in rows}
-                                  for ref in ("truth", "truth_relative")} for split in SPLITS}}
-
-
 def _marker_order(at_markers: dict, fields) -> float:
     """x-y over y-z with 10 modes scored only where the thesis had data: the hidden coordinates of
     the 16 markers (z for the x-y row, x for the y-z row) against the measured markers (the
@@ -318,19 +232,6 @@ def _window_lines(result: dict, split: str) -> list[str]:
             f"window's depth-over-lateral marker motion (z over x variance) is {w['spearman']['truth']:.2f} "
             f"and {w['spearman']['reach']:.2f}; in the quarter of windows with the most depth motion its "
             f"median is {w['top_quartile']['truth']:.2f} and {w['top_quartile']['reach']:.2f}.", ""]
-
-
-def _mean_tables(tables: list) -> dict:
-    """The cell-by-cell mean of tables ``{row: {column: {ref: value}}}``."""
-    first = tables[0]
-    return {row: {col: {ref: float(np.mean([t[row][col][ref] for t in tables])) for ref in first[row][col]}
-                  for col in first[row]} for row in first}
-
-
-def _separated(cells: dict, ref: str = "truth") -> bool:
-    """True when the estimators' intervals do not all overlap (some pair is disjoint)."""
-    iv = [cells[c][ref][1:] for c in ESTIMATORS]
-    return any(a[1] < b[0] or b[1] < a[0] for i, a in enumerate(iv) for b in iv[i + 1:])
 
 
 _NAMES = {"modes": "10 modes", "full": "full cov.", "combined": "combined",
