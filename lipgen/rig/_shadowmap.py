@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 _PCF_SHA256 = "1afa7eb7b9e2fea6a3fe659029c1e37f42c4b4f01749b01374fbca7ab018c32d"
 """sha256 of pyrender's ``texture2DCompare`` .. ``shadow_calc`` text in ``mesh.frag`` (0.1.45)."""
 
-SHADOW_CALC_FETCH = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
+_HEAD = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
 {
     // Compute light texture UV coords
     vec4 proj_coords = vec4(light_matrix * vec4(frag_position.xyz, 1.0));
@@ -47,7 +47,16 @@ SHADOW_CALC_FETCH = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map
     float bias = max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;
     float compare = (current_depth - bias);
     // pyrender's 3 x 3 bilinear PCF, summed out: 4 x 4 texels, weights (1 - f, 1, 1, f) per axis, / 9
-    ivec2 size = textureSize(shadow_map, 0);
+"""
+_TAIL = """    if (light_coords.z > 1.0) {
+        shadow = 0.0;
+    }
+    return shadow;
+}
+
+"""
+
+SHADOW_CALC_FETCH = _HEAD + """    ivec2 size = textureSize(shadow_map, 0);
     vec2 p = light_coords.xy * vec2(size) + 0.5;
     vec2 f = fract(p);
     ivec2 k = ivec2(floor(p));
@@ -64,26 +73,10 @@ SHADOW_CALC_FETCH = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map
         shadow += wy[j] * dot(wx, c);
     }
     shadow = shadow / 9.0;
-    if (light_coords.z > 1.0) {
-        shadow = 0.0;
-    }
-    return shadow;
-}
-
-"""
+""" + _TAIL
 """GLSL replacing pyrender's ``texture2DCompare`` .. ``shadow_calc``: 16 ``texelFetch`` reads."""
 
-SHADOW_CALC = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map, float nl)
-{
-    // Compute light texture UV coords
-    vec4 proj_coords = vec4(light_matrix * vec4(frag_position.xyz, 1.0));
-    vec3 light_coords = proj_coords.xyz / proj_coords.w;
-    light_coords = light_coords * 0.5 + 0.5;
-    float current_depth = light_coords.z;
-    float bias = max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;
-    float compare = (current_depth - bias);
-    // pyrender's 3 x 3 bilinear PCF, summed out: 4 x 4 texels, weights (1 - f, 1, 1, f) per axis, / 9
-    vec2 size = vec2(textureSize(shadow_map, 0));
+SHADOW_CALC = _HEAD + """    vec2 size = vec2(textureSize(shadow_map, 0));
     vec2 p = light_coords.xy * size + 0.5;
     vec2 f = fract(p);
     vec2 k = floor(p);
@@ -99,13 +92,7 @@ SHADOW_CALC = """float shadow_calc(mat4 light_matrix, sampler2D shadow_map, floa
     float row2 = ax * c01.w + c01.z + c11.w + bx * c11.z;
     float row3 = ax * c01.x + c01.y + c11.x + bx * c11.y;
     float shadow = ((1.0 - f.y) * row0 + row1 + row2 + f.y * row3) / 9.0;
-    if (light_coords.z > 1.0) {
-        shadow = 0.0;
-    }
-    return shadow;
-}
-
-"""
+""" + _TAIL
 """GLSL replacing pyrender's ``texture2DCompare`` .. ``shadow_calc``: four ``textureGather`` s."""
 
 _GATHER_EXTENSION = "#extension GL_ARB_texture_gather : require\n"
