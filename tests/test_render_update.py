@@ -41,3 +41,24 @@ def test_vertices_written_in_place_equal_new_meshes(shadows):
     for (ca, za, la), (cb, zb, lb) in zip(moved, fresh, strict=True):
         assert np.array_equal(ca, cb) and np.array_equal(za, zb) and np.array_equal(la, lb)
     assert (moved[1][0] != moved[1][0][0, 0]).any(), "the face is drawn"
+
+
+def test_another_pyrender_release_falls_back_to_public_paths(monkeypatch):
+    """With a pyrender release other than the one its internals were read from, the renderer uses
+    neither the one-pass renderer nor in-place uploads, and draws the same pixels."""
+    from lipgen.mesh.procedural import lip_mesh
+
+    rig = default_rig(160, 120)
+    face = FaceModel(lip_mesh(1), FaceLook(texture=0.6, texture_seed=3))
+    scenes = [face.scene(V) for V in _frames(face, 2)]
+    with render.RigRenderer(rig) as r:
+        assert r._one_pass and r._in_place
+        known = [r.render_views(sc, labels=True) for sc in scenes]
+    pr = render.import_pyrender()
+    monkeypatch.setattr(pr, "__version__", "0.2.0", raising=False)
+    with render.RigRenderer(rig) as r:
+        assert not r._one_pass and not r._in_place
+        other = [r.render_views(sc, labels=True) for sc in scenes]
+    for a, b in zip(known, other, strict=True):
+        for (ca, _, la), (cb, _, lb) in zip(a, b, strict=True):
+            assert np.abs(ca.astype(int) - cb.astype(int)).max() <= 1 and np.array_equal(la, lb)

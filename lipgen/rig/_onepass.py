@@ -104,9 +104,12 @@ def _one_pass_class(pr):
 def install(offscreen, pr) -> bool:
     """Give ``offscreen`` (a ``pyrender.OffscreenRenderer``) the one-pass renderer.
 
-    Returns False, changing nothing, when its platform draws without framebuffer objects.
+    Returns False, changing nothing, when its platform draws without framebuffer objects or
+    pyrender is not the release this was written against (:data:`lipgen.rig._pyscene.TESTED_PYRENDER`).
     """
-    if not offscreen._platform.supports_framebuffers():
+    from lipgen.rig._pyscene import internals_known
+
+    if not internals_known(pr) or not offscreen._platform.supports_framebuffers():
         return False
     offscreen._renderer.__class__ = _one_pass_class(pr)  # adds methods only; no state to convert
     return True

@@ -15,6 +15,17 @@ from lipgen.rig.scene import MeshItem, srgb_to_linear
 __all__: list[str] = []
 
 
+TESTED_PYRENDER = "0.1.45"
+"""The pyrender release whose internals the in-place vertex upload (here), the one-pass renderer
+(:mod:`lipgen.rig._onepass`) and the shadow filter (:mod:`lipgen.rig._shadowmap`, which also checks
+the shader's hash) were written against; with another release they stand aside."""
+
+
+def internals_known(pr) -> bool:
+    """True when ``pr`` (the pyrender module) is :data:`TESTED_PYRENDER`."""
+    return getattr(pr, "__version__", None) == TESTED_PYRENDER
+
+
 def _ordered_scene(pr):
     """A pyrender Scene that hands out its nodes sorted by name.
 

@@ -36,6 +36,7 @@ from lipgen.rig._pyscene import (
     _pyrender_mesh,
     _set_vertices,
     _upload_vertices,
+    internals_known,
 )
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
@@ -144,6 +145,7 @@ class RigRenderer:
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
         self._one_pass = bool(one_pass) and _onepass.install(self._renderer, pr)
+        self._in_place = internals_known(pr)  # else every moved item is rebuilt
         if shadows:  # pyrender's shadow filter in 16 depth reads, not 36: the same pixels
             _shadowmap.install(self._renderer)
         self._scene = _ordered_scene(pr)()
@@ -176,7 +178,7 @@ class RigRenderer:
         for name, item in wanted.items():
             key, geometry = _fingerprint(item)
             old = self._items.get(name)
-            if old is not None and old["key"] == key:  # the same meshes, perhaps moved
+            if old is not None and old["key"] == key and self._in_place:  # the same meshes, perhaps moved
                 if old["geometry"] != geometry:
                     nodes = old["colour"] + [node for node, _ in old["label"] or ()]
                     moved += [n.mesh.primitives[0] for n in nodes if _set_vertices(n.mesh, item)]
