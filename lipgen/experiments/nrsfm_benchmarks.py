@@ -345,9 +345,10 @@ def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
         lines += [""]
     if result["validation"]:
         ks = [*map(str, settings.validation_ks), "auto"]
-        lines += ["## Held-out validation: synthetic human bodies (`lipgen.nrsfm.validation`)", "",
-                  f"{settings.validation_frames} frames each, orthographic, no noise; never used to tune a "
-                  "method. e3D (CPU seconds); K counts basis shapes (em-ppca: K - 1 modes + the mean); "
+        lines += ["## Development bodies: synthetic human bodies (`lipgen.nrsfm.validation`)", "",
+                  f"{settings.validation_frames} frames each, orthographic, no noise; no method's code was "
+                  "fitted to them, but they are not held out (see the last sentence). e3D (CPU seconds); "
+                  "K counts basis shapes (em-ppca: K - 1 modes + the mean); "
                   "*auto*: the method's own K (`dai`, `dai-ba`: the smoothest rotations; the others: the "
                   "reprojection curve). These seeds were used to choose the automatic-K rule.", "",
                   "| sequence | P | deg/frame | flat | " + " | ".join(f"{m} K={k}" for m in settings.methods
