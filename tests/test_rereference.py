@@ -99,4 +99,5 @@ def test_bad_reference(model, recordings):
     with pytest.raises(TypeError, match="reference must be a Similarity"):
         normalize_markers(X, N, up, lo, M, model_nose=mesh.nose, reference=np.eye(4))
     with pytest.raises(ValueError, match="reference.scale"):
-        normalize_markers(X, N, up, lo, M, model_nose=mesh.nose, reference=Similarity(0.0, np.eye(3), np.zeros(3)))
+        normalize_markers(X, N, up, lo, M, model_nose=mesh.nose,
+                          reference=Similarity(0.0, np.eye(3), np.zeros(3)))

@@ -92,6 +92,14 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
             assert set(cells) == set(ESTIMATORS)
             for c in cells.values():
                 assert np.isfinite(c["truth"]) and c["truth"] > 0
+    # the training recording re-normalised with its own reference is itself again
+    from lipgen.recon.pipeline import Reconstruction
+    from lipgen.recon.rereference import renormalize
+
+    train = Reconstruction.load(tmp_path / "s0_train.recon.npz")
+    same = renormalize(train, train, physics)
+    assert np.allclose(same.markers, train.markers, atol=1e-6, equal_nan=True)
+    assert np.allclose(same.fields, train.fields, atol=1e-6, equal_nan=True)
     # a second call reuses the reconstructions on disk and gives the same figures
     again = seed_record(s, 0, tmp_path, physics, progress=False)
     assert again["utterance"] == record["utterance"] and again["subject"] == record["subject"]

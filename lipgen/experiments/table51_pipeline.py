@@ -14,9 +14,9 @@ triangulation, normalisation, least-strain fields; the normalisation's reference
 neutral of the dataset's own frames, the truth is never read). By default
 (``utterance_reference="train"``) the utterance recording is then re-normalised with the training
 recording's reference (:func:`lipgen.recon.rereference.renormalize`), so that one subject's data
-share one frame of reference; the other subject keeps its own (another rest shape and size). The modes (:class:`ModeModel`) and
-the combined model (:class:`~lipgen.modes.combined.CombinedModel`, its prior and noise chosen from
-the training fields) are learned from the training reconstruction's fields. The test frames are
+share one frame of reference; the other subject keeps its own (another rest shape and size). The
+modes (:class:`ModeModel`) and the combined model (:class:`~lipgen.modes.combined.CombinedModel`,
+its prior and noise chosen from the training fields) are learned from the training reconstruction's fields. The test frames are
 ``n_windows`` windows of ``window`` consecutive frames after ``lead_in`` frames of each test
 dataset; each window is scored by :func:`lipgen.evaluate.scoring.table51` (the rows and the
 estimators of ``lipgen evaluate``: from the markers each frame saw, 10 modes, the full covariance,
@@ -77,7 +77,8 @@ class PipelineSettings:
             raise ValueError(f"seeds must hold 2 or more distinct subject seeds (5 for the report), got "
                              f"{self.seeds}")
         if self.utterance_reference not in ("train", "own"):
-            raise ValueError(f"utterance_reference must be 'train' or 'own', got {self.utterance_reference!r}")
+            raise ValueError(f"utterance_reference must be 'train' or 'own', got "
+                             f"{self.utterance_reference!r}")
         if self.preset not in ("default", "hard"):
             raise ValueError(f"preset must be 'default' or 'hard' (a subject seed needs its own shape), got "
                              f"{self.preset!r}")
@@ -339,9 +340,9 @@ def _reference_line(which: str) -> str:
     """The report's sentence on the normalisation references of the test recordings."""
     utt = ("the training recording's (re-normalised with it: one subject, one frame of reference)"
            if which == "train" else "its own most neutral frame's")
-    return (f"Normalisation reference: the training recording's own most neutral frame; the utterance split's "
-            f"test recording: {utt}; the subject split's: its own (another subject has another rest shape "
-            "and size).")
+    return ("Normalisation reference: the training recording's own most neutral frame; the utterance "
+            f"split's test recording: {utt}; the subject split's: its own (another subject has another "
+            "rest shape and size).")
 
 
 def _beside(result: dict, splits: dict) -> list[str]:

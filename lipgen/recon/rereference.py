@@ -101,11 +101,11 @@ def renormalize(recon, reference, physics=None):
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
     S[:3, 3] = norm.similarity.translation
-    source = reference.info.get("dataset", "a given reconstruction") if not isinstance(reference, Similarity) \
-        else "a given similarity"
+    source = ("a given similarity" if isinstance(reference, Similarity)
+              else reference.info.get("dataset", "a given reconstruction"))
     new_info = {**info, "normalisation": {**norm_info, "scale": norm.similarity.scale, "reference_frame": -1,
                                           "reference_from": source, "fit_rms_mm": float("nan"),
                                           "borrowed_frames": int(norm.borrowed.sum()),
                                           "outliers": np.argwhere(outliers).tolist()}}
-    return dataclasses.replace(recon, fields=fields, markers=norm.markers, similarity=S, rotations=norm.rotations,
-                               info=new_info)
+    return dataclasses.replace(recon, fields=fields, markers=norm.markers, similarity=S,
+                               rotations=norm.rotations, info=new_info)
