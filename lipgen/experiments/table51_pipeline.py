@@ -17,13 +17,14 @@ recording's reference (:func:`lipgen.recon.rereference.renormalize`), so that on
 share one frame of reference; the other subject keeps its own (another rest shape and size). The
 modes (:class:`ModeModel`) and the combined model (:class:`~lipgen.modes.combined.CombinedModel`,
 its prior and noise chosen from the training fields) are learned from the training reconstruction's
-fields. The test frames are ``n_windows`` windows of ``window`` consecutive frames after
-``lead_in`` frames of each test dataset; each window is scored by :func:`lipgen.evaluate.scoring.table51` (the rows and the
-estimators of ``lipgen evaluate``: from the markers each frame saw, 10 modes, the full covariance,
-the combined model and the physics; the error per hidden DOF of :mod:`lipgen.evaluate.metric`
-against the true surface, the frame's reconstructed least-strain field, and relative). A seed's
-figure is the mean over its windows; the mean, 95 % intervals, the paired comparison and the
-x-y / y-z order over the seeds come from :func:`lipgen.experiments.table51_splits.aggregate`.
+fields. The test frames are ``n_windows`` windows of ``window`` consecutive frames after ``lead_in``
+frames of each test dataset; each window is scored by :func:`lipgen.evaluate.scoring.table51` (the
+rows and the estimators of ``lipgen evaluate``: from the markers each frame saw, 10 modes, the full
+covariance, the combined model and the physics; the error per hidden DOF of
+:mod:`lipgen.evaluate.metric` against the true surface, the frame's reconstructed least-strain
+field, and relative). A seed's figure is the mean over its windows; the mean, 95 % intervals, the
+paired comparison and the x-y / y-z order over the seeds come from
+:func:`lipgen.experiments.table51_splits.aggregate`.
 """
 
 from __future__ import annotations
