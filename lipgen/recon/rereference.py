@@ -12,6 +12,18 @@ the rig are the same. The thesis normalised all the data of its one subject with
 the training recording's (:func:`reference_similarity`). The reference still comes from
 training frames only (issue 16): the other recording's own reference frame.
 
+Measured on the cached ``table51-pipeline`` recordings (subject seeds 0-4; training 150 frames,
+test utterance 40 frames, rendered at 640x480), the per-marker constant offset of the marker
+displacements against the truth (each marker's mean error over its accepted sightings, RMS over the
+markers, mm). How far the test utterance's offset is from the training recording's, with its own
+reference / with the training one: 6.09 / 3.91, 4.95 / 2.44, 4.66 / 2.23, 1.19 / 0.78,
+1.07 / 0.78 (mean 3.59 / 2.03). The test offset itself: 5.11 / 4.72, 4.63 / 2.87, 3.87 / 3.13,
+2.82 / 3.42, 4.05 / 4.64 (mean 4.10 / 3.76). The scales: training 1.036, 1.005, 1.046, 0.940,
+0.921; the utterance's own 0.938, 0.907, 0.949, 0.962, 0.937. What remains is the training
+reference's own error (its scale is fitted on a speaking frame) and the displacement being taken
+from the model's rest, not the subject's (the subject's rest markers are 2.2-2.7 mm RMS from the
+model's on these seeds), which training and test share.
+
 For another subject this is the wrong reference: its rest shape and size are its own, so the
 training subject's scale misreads its shape as motion. It keeps its own reference (fitted on its
 own most neutral frame, or on frames named as rest), as a new person is calibrated.
