@@ -42,6 +42,10 @@ def _independent(work, split: str, frames, n_modes: int, axes: str, hidden_free)
     priors = {"modes": (Vt[:n_modes].T * sv[:n_modes] ** 2) @ Vt[:n_modes],
               "full": (Vt.T * sv**2) @ Vt}  # covariances up to a scale, which the LLSE ignores
     recon = Reconstruction.load(work / f"s0_{split}.recon.npz")
+    if split == "utterance":  # the same subject: expressed in the training recording's frame of reference
+        from lipgen.recon.rereference import renormalize
+
+        recon = renormalize(recon, train)
     ds = Dataset(work / f"s0_{split}")
     n = mesh.n_nodes
     true = np.stack([np.asarray(f.truth["vertices"])[:n] for f in ds]) - ds.mesh.vertices[:n]
@@ -88,6 +92,14 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
             assert set(cells) == set(ESTIMATORS)
             for c in cells.values():
                 assert np.isfinite(c["truth"]) and c["truth"] > 0
+    # the training recording re-normalised with its own reference is itself again
+    from lipgen.recon.pipeline import Reconstruction
+    from lipgen.recon.rereference import renormalize
+
+    train = Reconstruction.load(tmp_path / "s0_train.recon.npz")
+    same = renormalize(train, train, physics)
+    assert np.allclose(same.markers, train.markers, atol=1e-6, equal_nan=True)
+    assert np.allclose(same.fields, train.fields, atol=1e-6, equal_nan=True)
     # a second call reuses the reconstructions on disk and gives the same figures
     again = seed_record(s, 0, tmp_path, physics, progress=False)
     assert again["utterance"] == record["utterance"] and again["subject"] == record["subject"]
@@ -117,6 +129,7 @@ def test_five_seed_pipeline(tmp_path, _egl):
     ({"window": 5}, "window must be >= 10"),
     ({"n_test": 15, "lead_in": 10}, "n_test >= lead_in"),
     ({"n_modes": 150}, "n_modes < n_train"),
+    ({"utterance_reference": "test"}, "utterance_reference must be"),
 ])
 def test_bad_settings(bad, match):
     with pytest.raises(ValueError, match=match):

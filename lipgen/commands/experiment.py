@@ -91,6 +91,9 @@ def add_parser(sub) -> None:
     pp.add_argument("--workers", type=int, default=1, help="rendering processes")
     pp.add_argument("--splits", default=None, metavar="JSON",
                     help="splits.json of lipgen experiment table51-splits, shown beside")
+    pp.add_argument("--utterance-reference", choices=("train", "own"), default="train",
+                    help="normalisation reference of the utterance split's test recording: the training "
+                         "recording's (one subject, one frame of reference) or its own most neutral frame")
     pp.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_force(pp, "the report files in --out")
     pp.set_defaults(func=_pipeline)
@@ -182,7 +185,8 @@ def _pipeline(args) -> int:
     from lipgen.experiments.table51_pipeline import PipelineSettings, run_pipeline, write_pipeline_report
 
     settings = PipelineSettings(seeds=tuple(args.seeds), n_train=args.frames, n_test=args.test_frames,
-                                lead_in=args.lead_in, size=tuple(args.size), workers=args.workers)
+                                lead_in=args.lead_in, size=tuple(args.size), workers=args.workers,
+                                utterance_reference=args.utterance_reference)
     splits = None
     if args.splits is not None:
         if not os.path.isfile(args.splits):

@@ -11,16 +11,20 @@ with :func:`lipgen.dataset.generate.generate` (preset ``default``, pyrender):
 
 Each is reconstructed (:func:`lipgen.recon.pipeline.reconstruct_dataset`: calibration, tracking,
 triangulation, normalisation, least-strain fields; the normalisation's reference frame is the most
-neutral of the dataset's own frames, the truth is never read). The modes (:class:`ModeModel`) and
-the combined model (:class:`~lipgen.modes.combined.CombinedModel`, its prior and noise chosen from
-the training fields) are learned from the training reconstruction's fields. The test frames are
-``n_windows`` windows of ``window`` consecutive frames after ``lead_in`` frames of each test
-dataset; each window is scored by :func:`lipgen.evaluate.scoring.table51` (the rows and the
-estimators of ``lipgen evaluate``: from the markers each frame saw, 10 modes, the full covariance,
-the combined model and the physics; the error per hidden DOF of :mod:`lipgen.evaluate.metric`
-against the true surface, the frame's reconstructed least-strain field, and relative). A seed's
-figure is the mean over its windows; the mean, 95 % intervals, the paired comparison and the
-x-y / y-z order over the seeds come from :func:`lipgen.experiments.table51_splits.aggregate`.
+neutral of the dataset's own frames, the truth is never read). By default
+(``utterance_reference="train"``) the utterance recording is then re-normalised with the training
+recording's reference (:func:`lipgen.recon.rereference.renormalize`), so that one subject's data
+share one frame of reference; the other subject keeps its own (another rest shape and size). The
+modes (:class:`ModeModel`) and the combined model (:class:`~lipgen.modes.combined.CombinedModel`,
+its prior and noise chosen from the training fields) are learned from the training reconstruction's
+fields. The test frames are ``n_windows`` windows of ``window`` consecutive frames after ``lead_in``
+frames of each test dataset; each window is scored by :func:`lipgen.evaluate.scoring.table51` (the
+rows and the estimators of ``lipgen evaluate``: from the markers each frame saw, 10 modes, the full
+covariance, the combined model and the physics; the error per hidden DOF of
+:mod:`lipgen.evaluate.metric` against the true surface, the frame's reconstructed least-strain
+field, and relative). A seed's figure is the mean over its windows; the mean, 95 % intervals, the
+paired comparison and the x-y / y-z order over the seeds come from
+:func:`lipgen.experiments.table51_splits.aggregate`.
 """
 
 from __future__ import annotations
@@ -63,11 +67,19 @@ class PipelineSettings:
     calib_frames: int = 10
     preset: str = "default"
     workers: int = 1
+    utterance_reference: str = "train"
+    """The normalisation reference of the utterance split's test recording: ``"train"``, the training
+    recording's (:func:`lipgen.recon.rereference.renormalize`: one subject, one frame of reference,
+    as the thesis had), or ``"own"`` (its own most neutral frame). The subject split always keeps its
+    own: another subject has another rest shape and size."""
 
     def __post_init__(self) -> None:
         if len(self.seeds) < 2 or len(set(self.seeds)) != len(self.seeds):
             raise ValueError(f"seeds must hold 2 or more distinct subject seeds (5 for the report), got "
                              f"{self.seeds}")
+        if self.utterance_reference not in ("train", "own"):
+            raise ValueError(f"utterance_reference must be 'train' or 'own', got "
+                             f"{self.utterance_reference!r}")
         if self.preset not in ("default", "hard"):
             raise ValueError(f"preset must be 'default' or 'hard' (a subject seed needs its own shape), got "
                              f"{self.preset!r}")
@@ -195,6 +207,10 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     train = recons["train"]
     physics = Physics(model_mesh(train.info["mesh_source"])) if physics is None else physics
     mesh = physics.mesh
+    if s.utterance_reference == "train":
+        from lipgen.recon.rereference import renormalize
+
+        recons["utterance"] = renormalize(recons["utterance"], train, physics)
     F = len(train.fields)
     ok = np.flatnonzero(np.all(np.isfinite(train.fields.reshape(F, -1)), axis=1))
     if len(ok) <= s.n_modes:
@@ -297,7 +313,7 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
              f"another utterance of the same subject ({s['n_test']} frames rendered) and of another subject "
              "(subject seed + 1000), each reconstructed the same way. Each test frame is estimated from "
              "the markers it saw (rows of `lipgen evaluate`: '16 points' is the markers seen of the 16).",
-             "",
+             "", _reference_line(s.get("utterance_reference", "own")), "",
              f"Error: {ERROR_DEFINITION}. 'vs the least-strain field' is the frame's reconstructed field. "
              "Mean over the seeds and 95 % Student-t interval.", "",
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the variance of the "
@@ -319,6 +335,15 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
     md.write_text("\n".join(lines) + "\n")
     (out / "pipeline.json").write_text(json.dumps(result, indent=1))
     return str(md)
+
+
+def _reference_line(which: str) -> str:
+    """The report's sentence on the normalisation references of the test recordings."""
+    utt = ("the training recording's (re-normalised with it: one subject, one frame of reference)"
+           if which == "train" else "its own most neutral frame's")
+    return ("Normalisation reference: the training recording's own most neutral frame; the utterance "
+            f"split's test recording: {utt}; the subject split's: its own (another subject has another "
+            "rest shape and size).")
 
 
 def _beside(result: dict, splits: dict) -> list[str]:

@@ -204,12 +204,17 @@ def marker_cost_shares(points, targets, metric: MarkerMetric, visible, rotations
 
 def pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, reference_frame,
                     method: str, physics, outlier_ratio: float, max_outliers: int,
-                    candidates=None) -> Normalization:
+                    candidates=None, reference: Similarity | None = None) -> Normalization:
     """The pose methods of :func:`lipgen.recon.normalize.normalize_markers` (which checks the input):
     one scale from the reference frame's similarity, then per frame the rotation about the nose
     of least cost (:func:`least_cost_rotations`), leaving mis-measured markers out.
 
-    ``rel (F, P, 3)`` are the nose-relative marks, ``vis (F, P)`` the visible ones.
+    ``rel (F, P, 3)`` are the nose-relative marks, ``vis (F, P)`` the visible ones. ``reference``
+    (another normalisation's ``similarity``, of the same subject) gives the scale and the rotation
+    every frame's fit starts from, instead of the reference frame's similarity; the result's
+    ``reference_frame`` is then -1 and its ``similarity`` is ``reference``. Passing a
+    normalisation's own similarity back gives its markers again (each frame's fit starts from the
+    reference frame's final rotation instead of its similarity's, and converges to the same pose).
     """
 
     F, P, _ = rel.shape
@@ -229,6 +234,8 @@ def pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, 
                              f"model_markers ({P}, 3); build it from the same model mesh")
         metric = MarkerMetric.from_physics(physics, "force" if method == "least-force" else "energy")
     zero = np.zeros((F, P, 3))
+    if reference is not None:
+        return _with_reference(rel, vis, M, n0, metric, reference, method, outlier_ratio, max_outliers)
     ref = most_neutral_frame(np.where(vis[..., None], rel, 0.0), vis, M, n0, candidates) \
         if reference_frame == "auto" else int(reference_frame)
     seen = vis[ref]
@@ -259,6 +266,30 @@ def pose_normalize(rel: np.ndarray, vis: np.ndarray, M: np.ndarray, model_nose, 
     rotations = np.einsum("ij,fjk->fik", Rref.T, R)  # so that out = sim.apply(rotations @ rel)
     return Normalization(out, rotations, sim, np.full(F, np.nan), borrowed, fit_rms, int(ref), method, cost,
                          outliers)
+
+
+def _with_reference(rel, vis, M, n0, metric, reference: Similarity, method: str, outlier_ratio: float,
+                    max_outliers: int) -> Normalization:
+    """:func:`pose_normalize` with the scale and start rotation of a given reference."""
+    s, R0 = float(reference.scale), np.asarray(reference.rotation, dtype=np.float64)
+    A = np.where(vis[..., None], s * rel, 0.0)
+    R, cost, _ = least_cost_rotations(A, M - n0, metric, vis, R0)
+    outliers = _trim_outliers(A, M - n0, metric, vis, R0, R, cost, outlier_ratio, max_outliers)
+    borrowed = ~np.isfinite(cost)
+    good = np.flatnonzero(~borrowed)
+    if len(good) == 0:
+        raise ValueError("no frame has 3 visible markers off a line through the nose; cannot normalise")
+    if borrowed.any():
+        nearest = good[np.abs(good[None, :] - np.arange(len(rel))[:, None]).argmin(1)]
+        R[borrowed] = R[nearest[borrowed]]
+        log.warning("%d frame(s) borrowed the head rotation of a neighbour (too few visible markers)",
+                    int(borrowed.sum()))
+    out = s * np.einsum("fij,fpj->fpi", R, rel) + n0
+    out[~vis] = np.nan
+    rotations = np.einsum("ij,fjk->fik", R0.T, R)  # so that out = reference.apply(rotations @ rel)
+    sim = Similarity(s, R0, n0.copy())
+    return Normalization(out, rotations, sim, np.full(len(rel), np.nan), borrowed, float("nan"), -1, method,
+                         cost, outliers)
 
 
 def _trim_outliers(A, B, metric, vis, start, R, cost, ratio: float, rounds: int) -> np.ndarray:

@@ -186,7 +186,8 @@ def lip_subsets(marker_names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
 def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=None, visible=None,
                       up=(0.0, 1.0, 0.0), x_hint=(1.0, 0.0, 0.0), reference_frame: int | str = 0,
                       method: str = "thesis", physics=None, outlier_ratio: float = 0.25,
-                      max_outliers: int = 2, reference_candidates=None) -> Normalization:
+                      max_outliers: int = 2, reference_candidates=None,
+                      reference: Similarity | None = None) -> Normalization:
     """Bring triangulated markers into the model frame (thesis §3, or a least-deformation pose).
 
     Parameters
@@ -214,6 +215,16 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
     reference_candidates : (k,) int, optional
         The frames ``"auto"`` may choose from (default all): the training frames, so that no
         held-out test frame shapes the normalisation.
+    reference : Similarity, optional
+        The reference of another normalisation of the same subject on the same rig (its
+        ``Normalization.similarity``, e.g. the training recording's), so that these frames are
+        expressed in that recording's frame of reference instead of one fitted on a frame of
+        their own; ``reference_frame`` and ``reference_candidates`` are then not used, and the
+        result's ``reference_frame`` is -1. ``"thesis"`` applies it as the one similarity; the
+        pose methods take its scale and start each frame's rotation from its rotation. A
+        recording's own ``similarity`` passed back gives its own result (see
+        :func:`lipgen.recon.headpose.pose_normalize`). A different subject has a different rest
+        shape and size, so it needs a reference of its own.
     method : str
         One of :data:`METHODS`. ``"thesis"`` (the default here) is steps 1-4 of the module
         docstring; the others rotate each frame about the nose (see :mod:`lipgen.recon.headpose`) and
@@ -242,7 +253,12 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
     if vis.shape != (F, P):
         raise ValueError(f"visible must have shape ({F}, {P}), got {vis.shape}")
     vis = vis & np.all(np.isfinite(X), axis=2)
-    if reference_frame != "auto" and not (isinstance(reference_frame, int | np.integer)
+    if reference is not None and not isinstance(reference, Similarity):
+        raise TypeError(f"reference must be a Similarity (a Normalization's .similarity), got "
+                        f"{type(reference).__name__}")
+    if reference is not None and not (np.isfinite(reference.scale) and reference.scale > 0):
+        raise ValueError(f"reference.scale must be finite and > 0, got {reference.scale}")
+    if reference is None and reference_frame != "auto" and not (isinstance(reference_frame, int | np.integer)
                                           and 0 <= reference_frame < F):
         raise ValueError(f"reference_frame must be 'auto' or a frame in [0, {F}), got {reference_frame!r}")
     rel = X - N[:, None, :]
@@ -251,7 +267,7 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
             raise ValueError(f"outlier_ratio must be in [0, 1) and max_outliers >= 0, got {outlier_ratio} "
                              f"and {max_outliers}")
         return pose_normalize(rel, vis, M, model_nose, reference_frame, method, physics,
-                              float(outlier_ratio), int(max_outliers), reference_candidates)
+                              float(outlier_ratio), int(max_outliers), reference_candidates, reference)
     rotations = np.full((F, 3, 3), np.nan)
     angle = np.full(F, np.nan)
     for f in range(F):
@@ -271,6 +287,10 @@ def normalize_markers(markers, nose, upper, lower, model_markers, model_nose=Non
         log.warning("%d frame(s) borrowed the lip frame of a neighbour (too few visible markers)",
                     int(borrowed.sum()))
     local = np.einsum("fij,fpj->fpi", rotations, rel)
+    if reference is not None:
+        out = reference.apply(local)
+        out[~vis] = np.nan
+        return Normalization(out, rotations, reference, angle, borrowed, float("nan"), -1)
     if reference_frame == "auto":
         reference_frame = most_neutral_frame(local, vis, M, model_nose, reference_candidates)
         log.info("normalisation: frame %d looks the most neutral; the similarity is fitted there",
