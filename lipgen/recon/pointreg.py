@@ -14,6 +14,10 @@ from lipgen._validate import as_float_array
 __all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected"]
 
 _BIG = 1e12
+# Trimming (robust=True): a match is an outlier when its residual exceeds _TRIM_K robust standard
+# deviations (1.4826 x median residual) of all matches, and at least _TRIM_FLOOR x the gate.
+_TRIM_K = 2.0
+_TRIM_FLOOR = 0.5
 
 
 def assign(points: np.ndarray, dots: np.ndarray, gates: np.ndarray) -> np.ndarray:
@@ -143,8 +147,38 @@ def register_points(dots: np.ndarray, expected: np.ndarray, gate: float, iterati
     return match, cur
 
 
-def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, iterations: int = 12
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def _trim(match: np.ndarray, cur: np.ndarray, dots: np.ndarray, gate: float, k: float = _TRIM_K
+          ) -> np.ndarray:
+    """Unmatch the matches whose residual (dot - ``cur``) is an outlier among all matches'. (P,) int."""
+    m = np.flatnonzero(match >= 0)
+    if len(m) < 3:
+        return match
+    r = np.linalg.norm(dots[match[m]] - cur[m], axis=1)
+    limit = max(k * 1.4826 * float(np.median(r)), _TRIM_FLOOR * gate)
+    out = match.copy()
+    out[m[r > limit]] = -1
+    return out
+
+
+def _trimmed_similarity(dots: np.ndarray, expected: np.ndarray, match: np.ndarray, cur: np.ndarray,
+                        gate: float, iterations: int = 10) -> tuple[np.ndarray, np.ndarray]:
+    """Refit the similarity on the inlier matches only (trimmed ICP). ((P,) int, (P, 2))."""
+    for _ in range(iterations):
+        inl = _trim(match, cur, dots, gate)
+        m = inl >= 0
+        if m.sum() < 3:
+            break
+        s, R, t = similarity_2d(expected[m], dots[inl[m]])
+        cur = s * expected @ R.T + t
+        new = _trim(assign(cur, dots, np.full(len(expected), gate)), cur, dots, gate)
+        if np.array_equal(new, match):
+            break
+        match = new
+    return match, cur
+
+
+def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, iterations: int = 12,
+                      robust: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Align a layout to dots allowing smooth deformation (coherent point drift, simply done).
 
     After the similarity of :func:`register_points`, alternately assign one-to-one within a
@@ -152,6 +186,24 @@ def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, itera
     neighbours' offsets (weights by distance in the layout, width shrinking from four times to
     one typical marker spacing). Neighbouring markers thus move together: when the lower lip has
     dropped, all its markers follow, so one of them does not take its neighbour's dot.
+
+    With ``robust``, lure dots and missing dots weigh less: the similarity is refitted on its
+    inlier matches only (trimmed ICP: a match whose residual exceeds 2 robust standard deviations
+    of all residuals, and half the gate, is left out), and every deformation step moves the
+    layout by the offsets of the inlier matches only.
+
+    Parameters
+    ----------
+    dots : (k, 2) float
+        Detected dot centres.
+    expected : (P, 2) float
+        The layout.
+    gate : float
+        Largest residual (pixels) of a final match.
+    iterations : int
+        Deformation steps.
+    robust : bool
+        Trim outlier matches (see above).
 
     Returns
     -------
@@ -161,6 +213,8 @@ def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, itera
         The deformed layout.
     """
     match, base = register_points(dots, expected, gate)
+    if robust:
+        match, base = _trimmed_similarity(dots, expected, match, base, gate)
     if len(dots) == 0 or len(expected) < 3:
         return match, base
     d = np.linalg.norm(expected[:, None] - expected[None], axis=2)
@@ -172,6 +226,8 @@ def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, itera
         width = spacing * (4.0 - 3.0 * frac)
         current_gate = gate * (3.0 - 2.0 * frac)
         match = assign(cur, dots, np.full(len(expected), current_gate))
+        if robust:
+            match = _trim(match, cur, dots, gate)
         m = match >= 0
         if m.sum() < 3:
             break
@@ -181,7 +237,8 @@ def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, itera
     return assign(cur, dots, np.full(len(expected), gate)), cur
 
 
-def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio: float = 0.6) -> np.ndarray:
+def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio: float = 0.6,
+                      robust: bool = False) -> np.ndarray:
     """Match the first frame's dots to the expected marker positions (the thesis's GUI step).
 
     After :func:`register_nonrigid`, a match is kept only when it is unambiguous: the dot is
@@ -189,12 +246,25 @@ def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio
     marker's, and than ``ratio`` times the distance from that marker to any other dot. Markers
     whose dots cannot be told apart stay unmatched (-1) and are acquired later by the tracker.
 
+    Parameters
+    ----------
+    dots : (k, 2) float
+        Detected dot centres.
+    expected : (P, 2) float
+        The layout (expected marker positions).
+    gate : float
+        Largest residual (pixels) of a match.
+    ratio : float
+        Ambiguity ratio (see above).
+    robust : bool
+        Trimmed registration (:func:`register_nonrigid`'s ``robust``).
+
     Returns
     -------
     (P,) int
         Index into ``dots`` for each marker, -1 where none matches.
     """
-    match, aligned = register_nonrigid(dots, expected, gate)
+    match, aligned = register_nonrigid(dots, expected, gate, robust=robust)
     m = np.flatnonzero(match >= 0)
     if len(m) == 0:
         return match
