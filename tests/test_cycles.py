@@ -45,11 +45,10 @@ def _centroids(img, bg, labels, n_dots, grow=2):
 def centroid_offsets(rig, face, frames, cycles_kw=None) -> dict:
     """Rendered dot centroid minus truth projection, px, per renderer: ``{"pyrender": (k, 2),
     "cycles": (k, 2)}`` over the fully visible dots (those ``test_render`` counts) of ``frames``."""
-    from test_render import _area
+    from test_render import _fully_seen
 
     from lipgen.rig.cycles import CyclesRenderer
     from lipgen.rig.render import RigRenderer
-    from lipgen.rig.visibility import occluded
 
     errors = {"pyrender": [], "cycles": []}
     with RigRenderer(rig) as pr, CyclesRenderer(rig, **(cycles_kw or {})) as cr:
@@ -65,10 +64,7 @@ def centroid_offsets(rig, face, frames, cycles_kw=None) -> dict:
             surf = face.surfaces(V, P)
             tris, rims = face.occluders(surf), face.dot_rims(surf)
             for k, cam in enumerate(rig.views):
-                whole = np.array([cam.in_view(rim, margin=2).all() and not occluded(cam, rim, tris).any()
-                                  and _area(cam.project(rim)) >= 6.0 for rim in rims])
-                facing = np.sum((cam.center - X) * N, axis=1) > 0
-                seen = inside[k] & ~occluded(cam, X, tris) & facing & whole
+                seen = _fully_seen(cam, X, N, inside[k], tris, rims, margin=2)
                 for name, (views, bg) in pairs.items():
                     c = _centroids(views[k][0], bg[k][0], labelled[k][2], len(X))
                     assert np.isfinite(c[seen]).all(), f"{name}: a fully visible dot was not drawn"

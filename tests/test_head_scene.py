@@ -123,28 +123,7 @@ def test_record_matches_the_face(face, mesh):
 
 # ---- rendering -------------------------------------------------------------------------------
 render = pytest.importorskip("lipgen.rig.render")
-
-
-def _dot_centroids(img, bg, labels, n_dots):
-    """(n_dots, 2) darkening-weighted centroids of each dot's labelled pixels and their ring."""
-    from scipy import ndimage
-
-    g, b = img.astype(float).mean(axis=2), bg.astype(float).mean(axis=2)
-    out = np.full((n_dots, 2), np.nan)
-    for k in range(n_dots):
-        mine = labels == 10 + k
-        if mine.sum() < 2:
-            continue
-        region = ndimage.binary_dilation(mine, iterations=1) & ((labels == 10 + k) | (labels < 10))
-        w = np.clip((b - g) / np.maximum(b - g[mine].min(), 1.0), 0, 1) * region
-        yy, xx = np.nonzero(w)
-        out[k] = np.sum(xx * w[yy, xx]) / w.sum(), np.sum(yy * w[yy, xx]) / w.sum()
-    return out
-
-
-def _area(uv):
-    x, y = uv[:, 0], uv[:, 1]
-    return 0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+from test_render import _dot_centroids, _fully_seen  # noqa: E402  (after the skip)
 
 
 @pytest.mark.render
@@ -164,10 +143,7 @@ def test_rendered_ink_lands_on_the_truth_with_head_mouth_and_shadows(face, mesh)
             surf = face.surfaces(V)
             tris, rims = face.occluders(surf), face.dot_rims(surf)
             for k, cam in enumerate(rig.views):
-                whole = np.array([cam.in_view(rim, margin=1).all() and not occluded(cam, rim, tris).any()
-                                  and _area(cam.project(rim)) >= 6.0 for rim in rims])
-                facing = np.sum((cam.center - X) * N, axis=1) > 0
-                seen = inside[k] & ~occluded(cam, X, tris) & facing & whole
+                seen = _fully_seen(cam, X, N, inside[k], tris, rims)
                 c = _dot_centroids(views[k][0], bg[k][0], views[k][2], len(X))
                 assert np.isfinite(c[seen]).all(), "a fully visible dot was not drawn"
                 errors.append(c[seen] - uv[k][seen])

@@ -70,6 +70,15 @@ def _area(uv):
     return 0.5 * abs(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
+def _fully_seen(cam, X, N, inside, tris, rims, margin: int = 1) -> np.ndarray:
+    """(n,) bool: dots in view of ``cam`` whose centre faces it and is unoccluded, and whose whole
+    rim is in view, unoccluded and at least 6 px² in the image (the dots whose centroid is fair)."""
+    whole = np.array([cam.in_view(rim, margin=margin).all() and not occluded(cam, rim, tris).any()
+                      and _area(cam.project(rim)) >= 6.0 for rim in rims])
+    facing = np.sum((cam.center - X) * N, axis=1) > 0
+    return inside & ~occluded(cam, X, tris) & facing & whole
+
+
 def _centroid_errors(rig, face, frames):
     errors = []
     with render.RigRenderer(rig) as r:
@@ -84,10 +93,7 @@ def _centroid_errors(rig, face, frames):
             tris = face.occluders(face.surfaces(V, P))
             rims = face.dot_rims(face.surfaces(V, P))
             for k, cam in enumerate(rig.views):
-                whole = np.array([cam.in_view(rim, margin=1).all() and not occluded(cam, rim, tris).any()
-                                  and _area(cam.project(rim)) >= 6.0 for rim in rims])
-                facing = np.sum((cam.center - X) * N, axis=1) > 0
-                seen = inside[k] & ~occluded(cam, X, tris) & facing & whole
+                seen = _fully_seen(cam, X, N, inside[k], tris, rims)
                 c = _dot_centroids(views[k][0], bg[k][0], views[k][2], len(X))
                 assert np.isfinite(c[seen]).all(), "a fully visible dot was not drawn"
                 errors.append(c[seen] - uv[k][seen])
