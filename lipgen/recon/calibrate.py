@@ -38,7 +38,7 @@ import numpy as np
 from lipgen._optional import require
 from lipgen._validate import as_float_array
 from lipgen.errors import DatasetError
-from lipgen.recon.dots import as_gray
+from lipgen.recon.chessboard import find_corners
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
 from lipgen.rig.target import Chessboard
@@ -109,58 +109,6 @@ class RigCalibration:
         """The calibration written by :meth:`to_dict`."""
         return cls(MirrorRig.from_dict(d["rig"]), dict(d["rms_px"]), dict(d["n_images"]), int(d["reference"]),
                    tuple(d.get("per_image_rms_px", ())), tuple(d.get("dropped", ())))
-
-
-def find_corners(image, board: Chessboard) -> np.ndarray | None:
-    """Sub-pixel inner corners of ``board`` in ``image``, or ``None`` if it is not found whole.
-
-    OpenCV's detector (the classic one, then the sector-based one) finds the grid; the corners
-    are refined with ``cornerSubPix`` in a window of about half a square; and the numbering is
-    made unambiguous by the board's colours: corner 0 is the one whose outer diagonal square
-    is black (see :class:`Chessboard`).
-
-    Returns
-    -------
-    (inner_cols * inner_rows, 2) float or None
-        Pixel positions (column, row), in :meth:`Chessboard.object_points` order.
-    """
-    cv2 = require("cv2", "chessboard calibration")
-    gray = np.clip(np.round(as_gray(image) * 255), 0, 255).astype(np.uint8)
-    size = (board.inner_cols, board.inner_rows)
-    found, corners = cv2.findChessboardCorners(
-        gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-    if not found:
-        found, corners = cv2.findChessboardCornersSB(
-            gray, size, flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE)
-    if not found:
-        return None
-    pts = corners.reshape(-1, 2).astype(np.float64)
-    grid = pts.reshape(board.inner_rows, board.inner_cols, 2)
-    spacing = min(np.linalg.norm(np.diff(grid, axis=0), axis=2).min(),
-                  np.linalg.norm(np.diff(grid, axis=1), axis=2).min())
-    half = int(np.clip(spacing / 2 - 1, 2, 10))
-    refined = cv2.cornerSubPix(gray, pts.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
-    pts = refined.reshape(-1, 2).astype(np.float64)
-    return pts if _origin_is_black(gray, pts, board) else pts[::-1].copy()
-
-
-def _origin_is_black(gray: np.ndarray, pts: np.ndarray, board: Chessboard) -> bool:
-    """Whether the square diagonally outside corner 0 is darker than the one outside the last.
-
-    The board has no half-turn symmetry, so exactly one of the two outer-corner squares is
-    black; their centres are found through the homography of the detected grid.
-    """
-    cv2 = require("cv2", "chessboard calibration")
-    obj = board.object_points()[:, :2] / board.square
-    H, _ = cv2.findHomography(obj.astype(np.float32), pts.astype(np.float32))
-    probes = np.array([[-0.5, -0.5], [board.inner_cols - 0.5, board.inner_rows - 0.5]])
-    uvw = np.column_stack([probes, np.ones(2)]) @ H.T
-    uv = uvw[:, :2] / uvw[:, 2:]
-    h, w = gray.shape
-    ij = np.clip(np.round(uv).astype(int), 0, [w - 1, h - 1])
-    first, last = gray[ij[:, 1], ij[:, 0]].astype(float)
-    return first <= last
 
 
 def _project(X: np.ndarray, f: np.ndarray, c: np.ndarray, k: np.ndarray) -> np.ndarray:
