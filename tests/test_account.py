@@ -54,3 +54,28 @@ def test_each_sighting_is_counted_once_with_the_reason_for_marks_never_tracked()
         "its expected place is outside this view"
     text = "\n".join(account_lines(acc))
     assert "NEVER ACCEPTED" in text and "never tracked in the real view: c: its expected place" in text
+
+
+def test_a_mark_never_accepted_but_seen_now_and_then_gets_a_reason_too():
+    """Seen in a few frames of a view (so not 'never tracked'), yet never accepted: still explained."""
+    F, names = 10, ["a", "b"]
+    T, L = TRACKED, LOST
+    virt = _tracks([[T, T]] * F)
+    real_status = np.array([[T, L]] * F)
+    real_status[0, 1] = T                              # b: one real sighting in 10, and it is taken back
+    rej = np.zeros((F, 2), bool)
+    rej[0, 1] = True
+    real = _tracks(real_status, rej)
+    visible = np.zeros((F, 2), bool)
+    visible[:, 0] = True
+    gap = np.where(visible, 0.1, np.nan)
+    expected = np.array([[[10, 10], [40, 10]], [[10, 10], [40, 10]]], float)
+    acc = sighting_account((virt, real), visible, gap, 2.0, np.zeros((F, 1), bool), names, expected,
+                           [(100, 100), (100, 100)], twins=3.0)
+    assert acc["missing"] == ["b"] and acc["never_tracked"] == []
+    (why,) = acc["never_accepted"]
+    assert why["mark"] == "b"
+    assert why["reason"].startswith("lost in the real view in 9 of 10 frames (")
+    assert "the views disagree in 1 frame(s)" in why["reason"]
+    assert "seen in one view only in 9 frame(s)" in why["reason"]
+    assert "never accepted: b: lost in the real view in 9 of 10" in "\n".join(account_lines(acc))

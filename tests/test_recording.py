@@ -110,6 +110,7 @@ def test_a_marker_never_seen_is_named_exits_3_and_evaluate_still_reports(tmp_pat
     assert main(["reconstruct", str(ds), "--out", str(rec), "--no-progress"]) == MISSING_STATUS == 3
     err = capsys.readouterr().err
     assert "never tracked in the real view: lower_left: no dot found" in err
+    assert "never accepted: lower_left: never tracked in the real view (no dot found" in err
     assert "never accepted in any frame: lower_left" in err and "--allow-missing" in err
     line = next(ln for ln in err.splitlines() if ln.strip().startswith("lower_left "))
     assert "0 /   0 /   8 /   0 (0, 8)" in line, line          # accepted / rejected / unpaired / lost
@@ -120,6 +121,8 @@ def test_a_marker_never_seen_is_named_exits_3_and_evaluate_still_reports(tmp_pat
                  "--test-frames", "2"]) == 0
     text = (rep / "report.md").read_text()
     assert "lower_left in the real view: no dot found" in text
+    assert "**Never accepted**" in text
+    assert "- lower_left: never tracked in the real view (no dot found" in text
     nrsfm = text[text.index("## Non-rigid SfM on one view"):]
     assert "Left out of the tracked run" in nrsfm and "lower_left (0 frames)" in nrsfm
     # 8 frames are too few for the factorisation: the section says so instead of crashing

@@ -257,6 +257,11 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
     if never:
         L += ["", "**Never tracked** (whole sequence):", ""]
         L += [f"- {n['mark']} in the {n['view']} view: {n['reason']}" for n in never]
+    unaccepted = recon.info.get("sightings", {}).get("never_accepted", [])
+    if unaccepted:
+        L += ["", "**Never accepted** (no frame with both views agreeing; the fields reach the other "
+              "markers):", ""]
+        L += [f"- {n['mark']}: {n['reason']}" for n in unaccepted]
     names = list(recon.info["marker_names"]) + ["nose"]
     L += ["", "Per mark (px RMS virtual / real; triangulation mm RMS):", "",
           "| mark | virtual | real | 3-D |", "|---|---|---|---|"]

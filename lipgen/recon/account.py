@@ -42,6 +42,29 @@ def _reason(v: int, j: int, names, tracks, expected, sizes, twins: float) -> str
     return "no dot found near where the layout of the other markers puts it"
 
 
+def _missing_reason(j: int, seen, disagree, unpaired, view_reason) -> str:
+    """Why mark ``j`` has no accepted sighting: per view how often it was lost, and what became of the rest.
+
+    ``view_reason(v)`` explains a view that lost the mark in most frames (see :func:`_reason`).
+    """
+    F = seen.shape[1]
+    parts = []
+    for v, view in enumerate(VIEWS):
+        n_lost = F - int(seen[v, :, j].sum())
+        if n_lost == F:
+            parts.append(f"never tracked in the {view} view ({view_reason(v)})")
+        elif n_lost > F // 2:
+            parts.append(f"lost in the {view} view in {n_lost} of {F} frames ({view_reason(v)})")
+        elif n_lost:
+            parts.append(f"lost in the {view} view in {n_lost} of {F} frames")
+    n_dis, n_one = int(disagree[:, j].sum()), int(unpaired[:, j].sum())
+    if n_dis:
+        parts.append(f"the views disagree in {n_dis} frame(s)")
+    if n_one:
+        parts.append(f"seen in one view only in {n_one} frame(s)")
+    return "; ".join(parts) or "lost in every frame"
+
+
 def sighting_account(tracks, visible, ray_gap, max_ray_gap: float, outliers, names, expected, sizes,
                      twins: float) -> dict:
     """Count each mark's sightings and explain the marks never tracked in a view.
@@ -71,7 +94,8 @@ def sighting_account(tracks, visible, ray_gap, max_ray_gap: float, outliers, nam
     dict
         ``frames``; ``per_mark``: name -> {accepted, rejected, unpaired, lost, lost_virtual,
         lost_real, rejected_virtual, rejected_real}; ``never_tracked``: [{mark, view, reason}];
-        ``missing``: names of marks with no accepted sighting; ``accepted_share``.
+        ``missing``: names of marks with no accepted sighting; ``never_accepted``: [{mark, reason}] for
+        each of them; ``accepted_share``.
     """
     F = len(visible)
     seen = np.stack([t.status != LOST for t in tracks])                         # (2, F, P+1)
@@ -94,8 +118,14 @@ def sighting_account(tracks, visible, ray_gap, max_ray_gap: float, outliers, nam
     never = [{"mark": str(names[j]), "view": VIEWS[v], "reason": _reason(v, j, names, tracks, expected, sizes,
                                                                           twins)}
              for v in range(2) for j in range(len(names)) if not seen[v, :, j].any()]
+    missing = [j for j in range(len(names)) if not accepted[:, j].any()]
+    def view_reason(j):
+        return lambda v: _reason(v, j, names, tracks, expected, sizes, twins)
+
+    why_missing = [{"mark": str(names[j]),
+                    "reason": _missing_reason(j, seen, disagree, unpaired, view_reason(j))} for j in missing]
     return {"frames": F, "max_ray_gap_mm": float(max_ray_gap), "per_mark": per_mark, "never_tracked": never,
-            "missing": [str(n) for j, n in enumerate(names) if not accepted[:, j].any()],
+            "missing": [str(names[j]) for j in missing], "never_accepted": why_missing,
             "accepted_share": float(accepted.mean()),
             "categories": "accepted: both views agree; rejected: the views disagree (or a pose outlier); "
                           "unpaired: one view only; lost: neither view"}
@@ -120,4 +150,6 @@ def account_lines(account: dict, reasons: bool = True) -> list[str]:
                      f"{c['lost']:3d} ({c['lost_virtual']}, {c['lost_real']}){flag}")
     for n in account["never_tracked"] if reasons else ():
         lines.append(f"never tracked in the {n['view']} view: {n['mark']}: {n['reason']}")
+    for n in account.get("never_accepted", []) if reasons else ():
+        lines.append(f"never accepted: {n['mark']}: {n['reason']}")
     return lines
