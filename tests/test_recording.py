@@ -181,6 +181,46 @@ def test_a_video_and_chessboard_photos_reconstruct_like_the_png_frames(tmp_path,
     assert len(per_image) == 5 and all(p["real"] < 0.5 and p["virtual"] < 0.5 for p in per_image)
 
 
+def test_a_folder_of_frames_reconstructs_directly_like_the_dataset(tmp_path, dataset, recon, capsys):
+    """``reconstruct FRAMES --calib PHOTOS``: the recording is built beside --out, and the frames are
+    the dataset's own pixels, so the tracks are the dataset's (to the runs' own 1e-6 px)."""
+    from lipgen.dataset.layout import Dataset
+    from lipgen.recon.pipeline import Reconstruction
+
+    frames = tmp_path / "frames"
+    shutil.copytree(dataset / "raw", frames)
+    out = tmp_path / "take.npz"
+    calib = str(dataset / "calib")
+    assert main(["reconstruct", str(frames), "--calib", calib, "--fps", "25", "--out", str(out),
+                 "--no-progress", "--allow-missing"]) == 0
+    assert "mirror on the left" in capsys.readouterr().out
+    rec = Dataset(tmp_path / "take_recording")
+    assert not rec.has_truth and len(rec) == FRAMES and rec.manifest["settings"]["fps"] == 25
+    got = Reconstruction.load(out)
+    assert np.nanmax(np.abs(got.uv - recon.uv)) < 1e-6
+    assert np.array_equal(np.isnan(got.uv), np.isnan(recon.uv))
+    # the recording is kept; a second run refuses to replace it (or --out) without --force
+    capsys.readouterr()
+    assert main(["reconstruct", str(frames), "--calib", calib, "--out", str(tmp_path / "b.npz"),
+                 "--recording", str(tmp_path / "take_recording")]) == 1
+    assert "take_recording exists and is not empty" in capsys.readouterr().err
+    assert main(["reconstruct", str(frames), "--out", str(tmp_path / "c.npz")]) == 1
+    assert "frames is not a dataset folder (no manifest.json)" in capsys.readouterr().err
+    assert not (tmp_path / "b.npz").exists() and not (tmp_path / "c.npz").exists()
+
+
+def test_a_frame_folder_of_mixed_sizes_is_named_and_nothing_is_written(tmp_path, dataset, capsys):
+    from PIL import Image
+
+    frames = tmp_path / "frames"
+    shutil.copytree(dataset / "raw", frames)
+    Image.open(frames / "000003.png").resize((320, 240)).save(frames / "000003.png")
+    assert main(["reconstruct", str(frames), "--calib", str(dataset / "calib"), "--out",
+                 str(tmp_path / "r.npz")]) == 1
+    assert "000003.png is 320x240 but 000000.png is 640x480" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"], "nothing written"
+
+
 def test_bad_recording_inputs_are_named_and_nothing_is_written(tmp_path, dataset):
     from PIL import Image
 
@@ -212,7 +252,7 @@ def test_bad_recording_inputs_are_named_and_nothing_is_written(tmp_path, dataset
     mixed = tmp_path / "mixed"
     shutil.copytree(dataset / "calib", mixed)
     Image.open(mixed / "000002.png").resize((320, 240)).save(mixed / "000002.png")
-    with pytest.raises(DatasetError, match="000002.png is 320x240 but the video frames are 640x480"):
+    with pytest.raises(DatasetError, match="000002.png is 320x240 but the recording's frames are 640x480"):
         init_recording(video, mixed, out)
     assert not out.exists() and not list(tmp_path.glob(".rec.part*")), "nothing written"
     # a recording without its calibration images is refused by reconstruct, naming them

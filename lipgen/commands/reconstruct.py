@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from lipgen.commands._output import check_file_output
+from lipgen.commands.recording import add_footage_options, report_recording
 
 _EPILOG = """\
 steps: calibrate the camera and the mirror from the dataset's chessboard frames; detect and track
@@ -23,10 +25,16 @@ each marker never tracked in a view is named there with the reason. Exit status:
 unless --allow-missing (then 0, with the same warnings); 1 on an error (nothing written).
 The dataset needs no truth/ folder: a recording of real footage (lipgen recording init) works.
 
+Real footage can also be given directly: a video file or a folder of frame images, with --calib
+(a folder of chessboard photos). The recording folder is then built first, as lipgen recording
+init builds it (at --recording; default: beside --out, named after it), and reconstructed.
+
 examples:
   lipgen reconstruct data/s0 --out recon.npz
   lipgen reconstruct data/lowres --out recon.npz --allow-missing
   lipgen reconstruct data/s0 --mesh my_lips.npz --out recon.npz
+  lipgen reconstruct take1.mp4 --calib boards/ --out take1.npz     (writes take1_recording/ too)
+  lipgen reconstruct frames/ --fps 60 --calib boards/ --out f.npz --recording rec_f
 """
 
 
@@ -35,7 +43,8 @@ def add_parser(sub) -> None:
                        description="Calibrate, track, triangulate, normalise and reach: turn a dataset's raw "
                        "camera-mirror frames into per-frame displacement fields of the model mesh.",
                        epilog=_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("dataset", help="dataset folder (lipgen generate, or lipgen recording init: no truth)")
+    p.add_argument("dataset", help="dataset folder (lipgen generate, or lipgen recording init: no truth); "
+                   "or, with --calib, a video file or a folder of frame images")
     p.add_argument("--out", required=True, help="output file (.npz); an existing file is kept unless --force")
     p.add_argument("--mesh", default="lip_mesh(0)",
                    help="model mesh: 'lip_mesh(R)' (default lip_mesh(0)) or a LipMesh file (.npz)")
@@ -50,7 +59,12 @@ def add_parser(sub) -> None:
                    "'0-20' or '3,7,12' (default: all training frames)")
     p.add_argument("--allow-missing", action="store_true",
                    help="exit 0 even when a whole marker was never accepted (default: exit status 3)")
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    p.add_argument("--calib", default=None,
+                   help="folder of chessboard photos: DATASET is then real footage (a video or frame folder)")
+    p.add_argument("--recording", default=None,
+                   help="with --calib: the recording folder to build (default: OUT's name + '_recording')")
+    add_footage_options(p)
+    p.add_argument("--force", action="store_true", help="overwrite --out (and --recording) if they exist")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -70,12 +84,42 @@ MISSING_STATUS = 3
 """Exit status of ``lipgen reconstruct`` when a whole marker was never accepted."""
 
 
+def _dataset_or_recording(args, out: Path) -> Path:
+    """The dataset folder to reconstruct: ``args.dataset`` itself, or the recording built from footage."""
+    from lipgen.errors import DatasetError
+
+    src = Path(args.dataset)
+    if args.calib is None:
+        if src.is_dir() and not (src / "manifest.json").is_file() or src.is_file():
+            raise DatasetError(f"{src} is not a dataset folder (no manifest.json); to reconstruct real "
+                               "footage (a video file or a folder of frame images) give --calib, a folder of "
+                               "chessboard photos")
+        return src
+    if (src / "manifest.json").is_file():
+        raise DatasetError(f"{src} is already a dataset folder; drop --calib (it is calibrated from its "
+                           "calib/ folder)")
+    rec = Path(args.recording) if args.recording else out.with_name(out.stem + "_recording")
+    if rec.resolve() == src.resolve():
+        raise ValueError(f"--recording {rec} is the footage itself; choose another folder")
+    if rec.exists() and (not rec.is_dir() or any(rec.iterdir())) and not args.force:
+        raise FileExistsError(f"--recording {rec} exists and is not empty; choose another folder or pass "
+                              "--force")
+    from lipgen.recon.recording import init_recording
+
+    summary = init_recording(src, args.calib, rec, mirror_side=args.mirror_side, split=args.split,
+                             board=args.board, dot_diameter=args.dot_diameter, mesh_source=args.mesh,
+                             force=args.force, progress=not args.no_progress, fps=args.fps)
+    report_recording(summary, rec, sys.stdout.write)
+    return rec
+
+
 def _run(args) -> int:
     from lipgen.recon.account import account_lines, missing_marks
     from lipgen.recon.pipeline import reconstruct_dataset
 
     out = check_file_output(args.out, args.force)
-    recon = reconstruct_dataset(args.dataset, args.mesh, progress=not args.no_progress,
+    dataset = _dataset_or_recording(args, out)
+    recon = reconstruct_dataset(dataset, args.mesh, progress=not args.no_progress,
                                 normalisation=args.normalisation, test_frames=args.test_frames,
                                 reference_frames=args.reference_frames)
     recon.save(out)

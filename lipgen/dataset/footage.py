@@ -20,10 +20,14 @@ import numpy as np
 from lipgen._optional import require
 from lipgen.errors import DatasetError
 
-__all__ = ["RECORDING", "RecordingSettings", "read_video", "video_info", "recording_manifest"]
+__all__ = ["RECORDING", "IMAGE_SUFFIXES", "RecordingSettings", "read_video", "video_info", "frame_files",
+           "source_info", "read_source", "recording_manifest"]
 
 RECORDING = "recording"
 """The manifest's ``source`` for a user's recording (a synthetic dataset has none)."""
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
+"""File suffixes read as images (calibration photos, frames of a frame folder)."""
 
 
 @dataclass(frozen=True)
@@ -113,6 +117,69 @@ def read_video(path) -> Iterator[np.ndarray]:
         raise DatasetError(f"{path}: decoding failed part-way: {str(exc).strip().splitlines()[-1]}") from None
     finally:
         reader.close()
+
+
+def frame_files(folder) -> list[Path]:
+    """The image files of a frame folder, in name order, checked to share one size.
+
+    Only the image headers are read. A :class:`DatasetError` names the first file whose size
+    differs from the first frame's, or an unreadable file.
+
+    Returns
+    -------
+    list of Path
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    d = Path(folder)
+    files = sorted(p for p in d.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    if not files:
+        raise DatasetError(f"{d} holds no frames ({', '.join(IMAGE_SUFFIXES)}); give a video file or a "
+                           "folder of frame images")
+    size = None
+    for f in files:
+        try:
+            with Image.open(f) as im:
+                this = im.size
+        except (UnidentifiedImageError, OSError) as exc:
+            raise DatasetError(f"{f} is not a readable image: {exc}") from None
+        if size is None:
+            size = this
+        elif this != size:
+            raise DatasetError(f"{f} is {this[0]}x{this[1]} but {files[0].name} is {size[0]}x{size[1]}: the "
+                               "frames of a recording must share one size (frames of mixed sizes)")
+    return files
+
+
+def source_info(path, fps: float | None = None) -> dict:
+    """:func:`video_info` of a video file, or the same of a folder of frame images.
+
+    A folder has no frame rate of its own: ``fps`` (default 30) is used; for a video ``fps``, when
+    given, overrides the file's.
+    """
+    p = Path(path)
+    if p.is_dir():
+        files = frame_files(p)
+        from PIL import Image
+
+        with Image.open(files[0]) as im:
+            size = tuple(int(v) for v in im.size)
+        return {"size": size, "fps": float(fps or 30.0), "frames": len(files)}
+    info = video_info(p)
+    return {**info, "fps": float(fps or info["fps"])}
+
+
+def read_source(path) -> Iterator[np.ndarray]:
+    """The frames of a video file or of a folder of frame images, one (H, W, 3) uint8 RGB array at a time."""
+    p = Path(path)
+    if not p.is_dir():
+        yield from read_video(p)
+        return
+    from PIL import Image
+
+    for f in frame_files(p):
+        with Image.open(f) as im:
+            yield np.asarray(im.convert("RGB"))
 
 
 def recording_manifest(s: RecordingSettings, rig, mesh, version: str) -> dict:

@@ -1,4 +1,6 @@
-"""``lipgen recording init``: a user's camera-mirror video and chessboard photos -> the dataset layout.
+"""``lipgen recording init``: a user's camera-mirror footage and chessboard photos -> the dataset layout.
+
+The footage is a video file or a folder of frame images (in name order).
 
 The layout is :mod:`lipgen.dataset.footage` (no truth). Which half of the frame is the mirror and
 where the split column lies are given, or detected:
@@ -13,7 +15,8 @@ where the split column lies are given, or detected:
   corners exactly as well (measured: 0.11 px RMS either way on a rendered rig), but it would mirror
   the face, swapping the left and right markers.
 
-Every input is checked before anything is written: the video decodes, all photos and frames share
+Every input is checked before anything is written: the video decodes (or every frame image is
+readable), all photos and frames share
 one size, at least 4 photos show the whole board in both views. The folder is written under a
 temporary name and renamed at the end, so a failure leaves nothing behind.
 """
@@ -29,14 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
+from lipgen.dataset.footage import IMAGE_SUFFIXES
 from lipgen.errors import DatasetError
 
 __all__ = ["IMAGE_SUFFIXES", "init_recording", "detect_split", "detect_mirror_side", "calibration_photos"]
 
 log = logging.getLogger(__name__)
-
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
-"""File suffixes read as calibration photos."""
 
 
 def calibration_photos(folder, size: tuple[int, int]) -> tuple[list[Path], list[np.ndarray]]:
@@ -59,7 +60,7 @@ def calibration_photos(folder, size: tuple[int, int]) -> tuple[list[Path], list[
         except (UnidentifiedImageError, OSError) as exc:
             raise DatasetError(f"{f} is not a readable image: {exc}") from None
         if (img.shape[1], img.shape[0]) != tuple(size):
-            raise DatasetError(f"{f} is {img.shape[1]}x{img.shape[0]} but the video frames are "
+            raise DatasetError(f"{f} is {img.shape[1]}x{img.shape[0]} but the recording's frames are "
                                f"{size[0]}x{size[1]}: the photos must come from the same camera at the same "
                                "resolution (frames of mixed sizes)")
         images.append(img)
@@ -101,15 +102,18 @@ def detect_mirror_side(images, split: int, min_contrast: float = 0.03) -> tuple[
 
 def init_recording(video, calib, out, mirror_side: str = "auto", split: int | str = "auto",
                    board=(9, 6, 8.0), dot_diameter: float = 2.0, mesh_source: str = "lip_mesh(0)",
-                   force: bool = False, progress: bool = False) -> dict:
+                   force: bool = False, progress: bool = False, fps: float | None = None) -> dict:
     """Build a recording folder ``out`` from ``video`` and the chessboard photos in ``calib``.
+
+    ``video`` is a video file or a folder of frame images (name order; ``fps``, default 30, is
+    then their frame rate; for a video it overrides the file's).
 
     Returns a summary: ``frames``, ``size``, ``fps``, ``mirror_side``, ``split``,
     ``brightness_ratio`` (mirror half / direct half), ``calibration_rms_px``, ``calibration``
     (per-image RMS, dropped images).
     """
     from lipgen import __version__
-    from lipgen.dataset.footage import RecordingSettings, read_video, recording_manifest, video_info
+    from lipgen.dataset.footage import RecordingSettings, read_source, recording_manifest, source_info
     from lipgen.recon.calibrate import calibrate_rig
     from lipgen.recon.pipeline import model_mesh
     from lipgen.rig.target import Chessboard
@@ -119,7 +123,9 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
         raise FileExistsError(f"{out} exists and is not empty; choose another --out or pass --force")
     if mirror_side not in ("auto", "left", "right"):
         raise ValueError(f"mirror_side must be 'auto', 'left' or 'right', got {mirror_side!r}")
-    info = video_info(video)
+    if fps is not None and not 1 <= float(fps) <= 1000:
+        raise ValueError(f"fps must be in [1, 1000], got {fps}")
+    info = source_info(video, fps)
     size = info["size"]
     files, photos = calibration_photos(calib, size)
     if len(photos) < 4:
@@ -153,7 +159,7 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
     if tmp.exists():
         shutil.rmtree(tmp)
     try:
-        n = _write(tmp, video, photos, size, read_video, progress)
+        n = _write(tmp, video, photos, size, read_source, progress)
         settings = replace(settings, frames=n)
         mesh.save(tmp / "mesh.npz")
         manifest = recording_manifest(settings, cal.rig, mesh, __version__)
