@@ -105,10 +105,10 @@ PRESETS: dict[str, Preset] = {
         MotionConditions(head_rotation_deg=8.0, head_translation_mm=6.0, sources="independent"),
         FrameConditions(noise=0.0, conditions=ImageConditions(
             distortion=(-0.15, 0.10, 0.0012, -0.0008, 0.0), focus_mm=340.0, aperture_px=12.0,
-            shutter=0.25, blur_samples=5, light_jitter=1.0, mirror_reflectance=0.85,
+            shutter=0.25, blur_samples=5, blur_step_px=2.0, light_jitter=1.0, mirror_reflectance=0.85,
             mirror_tint=(0.93, 1.0, 0.95), ghost=0.04, glass_mm=3.0, mirror_extent_mm=(90.0, 110.0),
             full_well=6000.0, read_noise=1.5, bayer=True, codec="jpeg", jpeg_quality=85, texture=1.0,
-            shadows=True, head=True, mouth=True, ink=1.0, smudge=0.5))),
+            shadows=True, head=True, head_mesh=(28, 3, 36, 64), mouth=True, ink=1.0, smudge=0.5))),
 }
 """The presets by name."""
 
