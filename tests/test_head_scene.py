@@ -243,7 +243,8 @@ def test_head_mesh_sets_the_tessellation_and_keeps_the_surface(mesh):
     assert PRESETS["default"].image.conditions.head_mesh == HEAD_MESH
     k = len(FaceModel(mesh, HARD).loop)
     for rings, subdiv, nr, ns in (HEAD_MESH, PRESETS["hard"].image.conditions.head_mesh, (9, 2, 12, 20)):
-        f = FaceModel(mesh, FaceLook(head=True, mouth=True, texture_seed=3, head_mesh=(rings, subdiv, nr, ns)))
+        look = FaceLook(head=True, mouth=True, texture_seed=3, head_mesh=(rings, subdiv, nr, ns))
+        f = FaceModel(mesh, look)
         assert len(f.proxy_faces) == 2 * rings * k * subdiv
         assert len(f.nose_faces) == ns * (2 * nr - 1)
         np.testing.assert_array_equal(f.nose_vertices[0], mesh.nose)

@@ -245,7 +245,8 @@ class FaceModel:
             axes = np.stack([13.0 * d, 22.0 * dorsum, 11.0 * np.array([1.0, 0, 0])])
             self.nose_vertices, self.nose_faces, self.nose_normals = ellipsoid(nose - 13.0 * d, axes)
         else:
-            self.nose_vertices, self.nose_faces, nostril = nose_mesh(nose, self.head, *self.look.head_mesh[2:])
+            nr, ns = self.look.head_mesh[2:]
+            self.nose_vertices, self.nose_faces, nostril = nose_mesh(nose, self.head, nr, ns)
             self.nose_normals = vertex_normals(self.nose_vertices, self.nose_faces)
             self.nose_material = nostril.astype(np.int64)
             self.nostril_material = Material("nostril", (0.12, 0.05, 0.05), 0.9, label=3)
