@@ -134,7 +134,8 @@ def measure(worker: dict, motion, frames) -> dict:
     def figures(key):
         d, sh = np.concatenate(diffs[key]).ravel(), np.concatenate(shifts[key])
         return {"face_rms": float(np.sqrt(np.mean(d**2))),
-                "dot_shift_rms_px": float(np.sqrt(np.nanmean(sh**2))), "dot_shift_max_px": float(np.nanmax(sh))}
+                "dot_shift_rms_px": float(np.sqrt(np.nanmean(sh**2))),
+                "dot_shift_max_px": float(np.nanmax(sh))}
 
     out = {"frames": list(map(int, frames)),
            "blur": {name: figures(("blur", name)) | {"renders_per_frame": float(np.mean(renders[name]))}
