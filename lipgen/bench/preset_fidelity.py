@@ -1,9 +1,9 @@
 """How far the ``hard`` preset's sampling choices move its frames, beside the sensor's noise.
 
-Two choices make a ``hard`` frame cheaper than the densest sampling would: the motion-blur
-instants are at most ``blur_step_px`` apart (a mark's image moves at most that far between two
-rendered instants of the exposure), and the head is tessellated by ``head_mesh``. Each is
-measured against a dense reference on the preset's own frames, noise-free (lens, defocus, mirror,
+Two settings decide how finely a ``hard`` frame is sampled: the motion-blur instants are at most
+``blur_step_px`` apart (a mark's image moves at most that far between two rendered instants of
+the exposure), and the head is tessellated by ``head_mesh``. Each is measured against a dense
+reference on the preset's own frames, noise-free (lens, defocus, mirror,
 exposure and the tone curve applied; no sensor noise, Bayer or JPEG):
 
 - blur: the preset's instants against instants at most 0.25 px apart (at least 9), and the same
