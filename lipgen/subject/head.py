@@ -12,15 +12,16 @@ round the cheeks. With a :class:`HeadShape` the depth gets the relief of a real 
 - chin: a mental protuberance 3-8 mm high below the lip mesh.
 
 The proxy is then built finer (more rings, its border edges subdivided) so the folds are
-resolved and cast real shadows; how fine is a setting (``head_mesh``: rings, border
-subdivision, the nose's rings and sectors; :data:`HEAD_MESH` by default), chosen per preset from
-the pixel error of the mesh against a finer one at the frame's scale
-(:mod:`lipgen.bench.preset_fidelity`). At 640 x 480 the default mesh's triangles cover a median
-2-4 px (face) and 0.7-1.1 px (nose) in the two views. The nose keeps its mesh in every preset:
-its nostrils are the faces whose three corners lie in the pits, so a coarser nose has smaller
-nostrils (24 x 44: a quarter to two thirds of the dark area), not only coarser ones. The nose (:func:`nose_mesh`) is the ellipsoid of the plain
+resolved and cast real shadows. The nose (:func:`nose_mesh`) is the ellipsoid of the plain
 face widened at the base into alae, with two nostrils: dark elliptical pits on its underside.
 Its tip stays exactly the mesh's nose point.
+
+How finely both are tessellated is a setting (``head_mesh``: the proxy's rings and border
+subdivision, the nose's rings and sectors; :data:`HEAD_MESH` by default), measured per preset
+against a finer mesh at the frame's scale (:mod:`lipgen.bench.preset_fidelity`). At 640 x 480
+the default mesh's triangles cover a median 2-4 px (face) and 0.7-1.1 px (nose) in the two
+views. A coarser nose has smaller nostrils, not only coarser ones (they are the faces whose
+three corners lie in the pits; at 24 x 44 a quarter to two thirds of the dark area).
 """
 
 from __future__ import annotations
