@@ -31,9 +31,9 @@ the shadow map), and the ``face`` item's pixels and triangles cost about the sam
 of the items changes neither the pixels nor the CPU (no overdraw to save), and one light instead
 of three or no skin texture changes the CPU by under 3 %: the shader's arithmetic is not the cost.
 With hard's blur instants at most 2 px apart (``blur_step_px``; before: 1 px) every frame of the
-bench's motion is one render (1.75 before): hard/easy 0.29-0.32 CPU, 0.30-0.33 wall, against
-0.27-0.28 and 0.23-0.28 for the 1 px spacing in the same runs (load 16-34); one hard render
-still costs 0.24-0.27 s CPU against 0.07 s for a whole easy render.
+bench's motion is one render (1.75 before): hard/easy 0.292-0.294 CPU, 0.297-0.298 wall,
+against 0.267-0.274 and 0.251-0.254 for the 1 px spacing in alternating runs (load 23-34); one
+hard render still costs 0.23-0.26 s CPU against about 0.07 s for a whole easy render.
 """
 
 from __future__ import annotations
