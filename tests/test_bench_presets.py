@@ -1,6 +1,10 @@
-"""The presets bench's helpers: the four-way triangle split keeps the surface it splits."""
+"""The presets bench's helpers: the four-way triangle split keeps the surface it splits; the hard
+preset's sampling against dense references."""
+
+import contextlib
 
 import numpy as np
+import pytest
 
 from lipgen.bench.preset_frames import _split4
 from lipgen.rig.scene import Material, MeshItem, vertex_normals
@@ -35,3 +39,29 @@ def test_split4_same_surface_four_times_the_triangles():
     assert len(m) == 1
     np.testing.assert_allclose(s.uv[m[0]], 0.5 * (item.uv[0] + item.uv[1]))
     np.testing.assert_allclose(s.normals[m[0]], 0.5 * (item.normals[0] + item.normals[1]))
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_hard_sampling_stays_below_the_sensor_noise(tmp_path):
+    """The hard preset's blur instants (at most ``blur_step_px`` apart) and head mesh against dense
+    references: on the face's pixels the difference stays under a third (blur) and a half (head) of
+    the sensor's shot and read noise, and the ink dots' centroids move by under 0.1 px RMS."""
+    pytest.importorskip("pyrender")
+    from lipgen._threads import limit_worker_threads
+    from lipgen.bench.preset_fidelity import measure
+    from lipgen.bench.preset_frames import _contexts
+
+    limit_worker_threads(1)
+    workers, motion = _contexts(tmp_path, 3)
+    try:
+        f = measure(workers["hard"], motion, [1, 2])
+    finally:
+        for w in workers.values():
+            with contextlib.suppress(Exception):
+                w["renderer"].close()
+    sigma = f["sensor_noise"]["shot_read"]
+    assert 1.0 < sigma < f["sensor_noise"]["with_bayer_jpeg"]
+    assert f["blur"]["preset"]["face_rms"] < sigma / 3 and f["head"]["preset"]["face_rms"] < sigma / 2
+    for part in (f["blur"]["preset"], f["head"]["preset"]):
+        assert part["dot_shift_rms_px"] < 0.1

@@ -230,3 +230,28 @@ def test_scene_conditions_are_checked_and_recorded():
         old.pop(k)  # a manifest written before these existed reads as the plain scene
     plain = ImageConditions.from_dict(old)
     assert (plain.head, plain.mouth, plain.ink, plain.smudge) == (False, False, 0.0, 0.0)
+
+
+def test_head_mesh_sets_the_tessellation_and_keeps_the_surface(mesh):
+    """The head's tessellation (``FaceLook.head_mesh``): the default is the mesh the ``default``
+    preset always drew; a coarser proxy has the counts asked for and lies on the same relief."""
+    from lipgen.dataset.presets import PRESETS
+    from lipgen.rig.conditions import ImageConditions
+    from lipgen.subject.head import HEAD_MESH
+
+    assert HEAD_MESH == (28, 4, 36, 64) == ImageConditions().head_mesh == FaceLook().head_mesh
+    assert PRESETS["default"].image.conditions.head_mesh == HEAD_MESH
+    k = len(FaceModel(mesh, HARD).loop)
+    for rings, subdiv, nr, ns in (HEAD_MESH, PRESETS["hard"].image.conditions.head_mesh, (9, 2, 12, 20)):
+        look = FaceLook(head=True, mouth=True, texture_seed=3, head_mesh=(rings, subdiv, nr, ns))
+        f = FaceModel(mesh, look)
+        assert len(f.proxy_faces) == 2 * rings * k * subdiv
+        assert len(f.nose_faces) == ns * (2 * nr - 1)
+        np.testing.assert_array_equal(f.nose_vertices[0], mesh.nose)
+        # the outer ring lies on the head's relief (the rings inside blend into the lips' border)
+        P = f.proxy_rest[-k * subdiv:]
+        np.testing.assert_allclose(P[:, 2], face_depth(P[:, 0], P[:, 1], f.head), atol=1e-9)
+    with pytest.raises(ValueError, match="head_mesh must be 4 whole numbers"):
+        ImageConditions(head_mesh=(28, 0, 36, 64))
+    with pytest.raises(ValueError, match="blur_step_px must be in"):
+        ImageConditions(blur_step_px=0.0)

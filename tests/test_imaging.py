@@ -98,9 +98,14 @@ def test_mirror_tint_ghost_and_edge():
 
 def test_motion_blur_instants_and_lighting_are_seeded():
     hard = PRESETS["hard"].image.conditions
-    assert len(exposure_offsets(hard, 0.3)) == 1
-    off = exposure_offsets(hard, 2.5)
-    assert len(off) == 4 and off[0] == -hard.shutter / 2 and off[-1] == hard.shutter / 2
+    step = hard.blur_step_px
+    assert len(exposure_offsets(hard, 0.99 * step)) == 1
+    off = exposure_offsets(hard, 1.25 * step)  # 1 + ceil(1.25) instants, at most 2 px apart
+    assert len(off) == 3 and off[0] == -hard.shutter / 2 and off[-1] == hard.shutter / 2
+    assert len(exposure_offsets(hard, 100.0)) == hard.blur_samples
+    one_px = replace(hard, blur_step_px=1.0)  # the default preset's spacing: 1 + ceil(2.5) instants
+    assert len(exposure_offsets(one_px, 2.5)) == 4 == len(exposure_offsets(hard, 2.5, step_px=1.0))
+    assert PRESETS["default"].image.conditions.blur_step_px == 1.0
     V = np.arange(3 * 4 * 3, dtype=float).reshape(3, 4, 3)
     P = np.stack([np.eye(4)] * 3)
     (Va, _), (Vb, _) = sub_frame_states(V, P, 1, np.array([-0.25, 0.5]))

@@ -20,6 +20,8 @@ the ``face`` item (the lips and the head round them, most of the scene's triangl
 triangles turned away from the cameras (culled before rasterization: its vertex work stays), and
 with each of its triangles split in four (the same surface and pixels, four times the triangles).
 On llvmpipe the last two say whether the head costs by its pixels or by its triangles.
+``fidelity``: how far the hard preset's blur instants and head mesh move its frames against
+dense references, beside the sensor's noise (:mod:`lipgen.bench.preset_fidelity`).
 
 Measured (2 cores, load 8, main at c7c70a3): hard/easy 0.29 CPU (0.21-0.25 wall); 0.47 s CPU
 per hard frame of which about 0.45 s is 1.75 renders; in one hard render, without the ``face``
@@ -28,6 +30,10 @@ triangles): on llvmpipe each front-facing triangle costs about 2.5 us per pass (
 the shadow map), and the ``face`` item's pixels and triangles cost about the same. The draw order
 of the items changes neither the pixels nor the CPU (no overdraw to save), and one light instead
 of three or no skin texture changes the CPU by under 3 %: the shader's arithmetic is not the cost.
+With hard's blur instants at most 2 px apart (``blur_step_px``; before: 1 px) every frame of the
+bench's motion is one render (1.75 before): hard/easy 0.292-0.294 CPU, 0.297-0.298 wall,
+against 0.267-0.274 and 0.251-0.254 for the 1 px spacing in alternating runs (load 23-34); one
+hard render still costs 0.23-0.26 s CPU against about 0.07 s for a whole easy render.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from lipgen.bench.compare import load_average
+from lipgen.bench.preset_fidelity import measure as measure_fidelity
 
 NAME = "presets"
 
@@ -184,6 +191,7 @@ def run(quick: bool = False) -> dict:
             gen._WORKER.clear()
         shadow = _shadow_filter(workers["hard"], motion, 3 if quick else 8)
         face_cost = _face_cost(workers["hard"], motion, 3 if quick else 8)
+        fidelity = measure_fidelity(workers["hard"], motion, range(1, 1 + (2 if quick else 6)))
         for w in workers.values():
             with contextlib.suppress(Exception):  # the first close ends the process's EGL display
                 w["renderer"].close()
@@ -198,6 +206,7 @@ def run(quick: bool = False) -> dict:
         "hard_renders_per_frame": renders / n,
         "shadow_filter": shadow,
         "face_cost": face_cost,
+        "fidelity": fidelity,
         "target": {"hard_over_easy_fps": 0.5},
         "loadavg_before": load_before,
         "loadavg_after": load_average(),

@@ -108,15 +108,16 @@ def sub_frame_states(vertices: np.ndarray, poses: np.ndarray, i: int,
     return out
 
 
-def exposure_offsets(conditions: ImageConditions, span_px: float, step_px: float = 1.0) -> np.ndarray:
+def exposure_offsets(conditions: ImageConditions, span_px: float, step_px: float | None = None) -> np.ndarray:
     """Instants to render across the shutter (frame intervals from the frame time).
 
-    As many as keep the image of any mark moving less than ``step_px`` between two instants
-    (``span_px`` is the longest path of a mark's image while the shutter is open), at most
-    ``blur_samples``; one instant at the frame time when the marks move less than ``step_px``
-    (a sharper blur than that is below what the sensor resolves). Still frames so cost one
-    render, fast ones up to ``blur_samples``.
+    As many as keep the image of any mark moving less than ``step_px`` (by default the
+    conditions' ``blur_step_px``) between two instants (``span_px`` is the longest path of a mark's
+    image while the shutter is open), at most ``blur_samples``; one instant at the frame time when
+    the marks move less than ``step_px``. Still frames so cost one render, fast ones up to
+    ``blur_samples``.
     """
+    step_px = conditions.blur_step_px if step_px is None else float(step_px)
     if conditions.shutter == 0 or not np.isfinite(span_px) or span_px < step_px:
         return np.zeros(1)
     n = int(min(conditions.blur_samples, 1 + np.ceil(span_px / step_px)))

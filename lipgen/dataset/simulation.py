@@ -121,4 +121,4 @@ def face_look(s: GenerateSettings) -> FaceLook:
     """The subject's :class:`~lipgen.subject.face.FaceLook` under settings ``s`` (seeded by ``s.seed``)."""
     c = s.conditions
     return FaceLook(dot_diameter=s.dot_diameter, texture=c.texture, texture_seed=s.seed, head=c.head,
-                    mouth=c.mouth, dot_irregularity=c.ink, dot_smudge=c.smudge)
+                    head_mesh=c.head_mesh, mouth=c.mouth, dot_irregularity=c.ink, dot_smudge=c.smudge)

@@ -48,7 +48,11 @@ class ImageConditions:
     shutter : float
         Exposure time as a fraction of the frame interval (0: instantaneous, no motion blur).
     blur_samples : int
-        Sub-frame instants rendered across the exposure (>= 2 when ``shutter`` > 0).
+        Sub-frame instants rendered across the exposure at most (>= 2 when ``shutter`` > 0).
+    blur_step_px : float
+        Largest step, px, of a mark's image between two rendered instants of the exposure: a frame
+        whose marks move ``L`` px while the shutter is open gets ``1 + ceil(L / blur_step_px)``
+        instants (at most ``blur_samples``; one when ``L < blur_step_px``).
     exposure : float
         Brightness multiplier of all lights (1: the scene's own light).
     white_balance : (3,) float
@@ -89,6 +93,10 @@ class ImageConditions:
     head : bool
         Draw a head round the lips: cheeks, chin, nasolabial folds, a nose with nostrils
         (:mod:`lipgen.subject.head`), shaped per subject.
+    head_mesh : (4,) int
+        Tessellation of the head: the face proxy's rings and border subdivision, the nose's rings
+        and sectors (:mod:`lipgen.subject.head`); chosen per preset from the pixel error of the
+        mesh against a finer one at the frame's scale.
     mouth : bool
         Draw teeth, tongue and a deep oral cavity (:mod:`lipgen.subject.mouth`).
     ink : float
@@ -102,6 +110,7 @@ class ImageConditions:
     aperture_px: float = 0.0
     shutter: float = 0.0
     blur_samples: int = 1
+    blur_step_px: float = 1.0
     exposure: float = 1.0
     white_balance: tuple[float, float, float] = (1.0, 1.0, 1.0)
     light_jitter: float = 0.0
@@ -120,6 +129,7 @@ class ImageConditions:
     video_codec: str = ""
     video_crf: int = 18
     head: bool = False
+    head_mesh: tuple[int, int, int, int] = (28, 4, 36, 64)
     mouth: bool = False
     ink: float = 0.0
     smudge: float = 0.0
@@ -139,7 +149,8 @@ class ImageConditions:
         for name, lo, hi in (("focus_mm", 0, 1e5), ("aperture_px", 0, 50), ("shutter", 0, 1),
                              ("exposure", 0.05, 20), ("light_jitter", 0, 1), ("mirror_reflectance", 0.05, 1),
                              ("ghost", 0, 0.5), ("glass_mm", 0, 20), ("full_well", 0, 1e7),
-                             ("read_noise", 0, 50), ("texture", 0, 1), ("ink", 0, 1), ("smudge", 0, 1)):
+                             ("read_noise", 0, 50), ("texture", 0, 1), ("ink", 0, 1), ("smudge", 0, 1),
+                             ("blur_step_px", 0.05, 100)):
             object.__setattr__(self, name, _check_range(name, getattr(self, name), lo, hi))
         if self.aperture_px > 0 and self.focus_mm <= 0:
             raise ValueError(f"ImageConditions.aperture_px = {self.aperture_px} needs focus_mm > 0 "
@@ -149,6 +160,13 @@ class ImageConditions:
             if isinstance(v, bool) or not isinstance(v, int | np.integer) or not lo <= v <= hi:
                 raise ValueError(f"ImageConditions.{name} must be a whole number in [{lo}, {hi}], got {v!r}")
             object.__setattr__(self, name, int(v))
+        hm = self.head_mesh
+        if (not isinstance(hm, tuple | list) or len(hm) != 4
+                or not all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in hm)
+                or not (2 <= hm[0] <= 200 and 1 <= hm[1] <= 16 and 4 <= hm[2] <= 200 and 8 <= hm[3] <= 400)):
+            raise ValueError("ImageConditions.head_mesh must be 4 whole numbers (rings 2-200, border "
+                             f"subdivision 1-16, nose rings 4-200, nose sectors 8-400), got {hm!r}")
+        object.__setattr__(self, "head_mesh", tuple(int(v) for v in hm))
         if self.shutter > 0 and self.blur_samples < 2:
             raise ValueError(f"ImageConditions.shutter = {self.shutter} needs blur_samples >= 2 (sub-frame "
                              "instants across the exposure)")

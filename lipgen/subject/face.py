@@ -31,7 +31,15 @@ from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.rig.scene import Light, Material, MeshItem, Scene, vertex_normals
 from lipgen.subject.decal import _dots_items, make_decal, make_decal_at, place_decal
-from lipgen.subject.head import PROXY, build_proxy, ellipsoid, face_depth, head_shape, nose_mesh
+from lipgen.subject.head import (
+    HEAD_MESH,
+    PROXY,
+    build_proxy,
+    ellipsoid,
+    face_depth,
+    head_shape,
+    nose_mesh,
+)
 
 __all__ = ["FaceLook", "FaceModel", "LABELS", "DOT_LABEL0", "boundary_loops", "look_record"]
 
@@ -68,6 +76,9 @@ class FaceLook:
     """Seed of the subject's textures, skin tone, head shape and ink."""
     head: bool = False
     """A head round the lips: cheeks, chin, nasolabial folds, a nose with nostrils."""
+    head_mesh: tuple[int, int, int, int] = HEAD_MESH
+    """Tessellation of the head: the face proxy's rings and border subdivision, the nose's rings
+    and sectors (:data:`lipgen.subject.head.HEAD_MESH`)."""
     mouth: bool = False
     """Teeth, tongue and a deep oral cavity (else a shallow dark bowl)."""
     dot_irregularity: float = 0.0
@@ -211,7 +222,7 @@ class FaceModel:
         loop = max(loops, key=lambda lp: abs(area(lp)))
         if area(loop) < 0:
             loop = loop[::-1]  # counter-clockwise seen from the front (+z)
-        rings, subdiv = PROXY["plain" if self.head is None else "head"]
+        rings, subdiv = PROXY["plain"] if self.head is None else self.look.head_mesh[:2]
         head = self.head
         p = build_proxy(V[loop], _OUTER, _OUTER_Y0, rings, subdiv, lambda x, y: face_depth(x, y, head))
         self.loop, self.proxy_rest, self.fade, self._col = loop, p["rest"], p["fade"], p["col"]
@@ -234,7 +245,8 @@ class FaceModel:
             axes = np.stack([13.0 * d, 22.0 * dorsum, 11.0 * np.array([1.0, 0, 0])])
             self.nose_vertices, self.nose_faces, self.nose_normals = ellipsoid(nose - 13.0 * d, axes)
         else:
-            self.nose_vertices, self.nose_faces, nostril = nose_mesh(nose, self.head)
+            nr, ns = self.look.head_mesh[2:]
+            self.nose_vertices, self.nose_faces, nostril = nose_mesh(nose, self.head, nr, ns)
             self.nose_normals = vertex_normals(self.nose_vertices, self.nose_faces)
             self.nose_material = nostril.astype(np.int64)
             self.nostril_material = Material("nostril", (0.12, 0.05, 0.05), 0.9, label=3)

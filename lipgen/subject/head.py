@@ -15,6 +15,13 @@ The proxy is then built finer (more rings, its border edges subdivided) so the f
 resolved and cast real shadows. The nose (:func:`nose_mesh`) is the ellipsoid of the plain
 face widened at the base into alae, with two nostrils: dark elliptical pits on its underside.
 Its tip stays exactly the mesh's nose point.
+
+How finely both are tessellated is a setting (``head_mesh``: the proxy's rings and border
+subdivision, the nose's rings and sectors; :data:`HEAD_MESH` by default), measured per preset
+against a finer mesh at the frame's scale (:mod:`lipgen.bench.preset_fidelity`). At 640 x 480
+the default mesh's triangles cover a median 2-4 px (face) and 0.7-1.1 px (nose) in the two
+views. A coarser nose has smaller nostrils, not only coarser ones (they are the faces whose
+three corners lie in the pits; at 24 x 44 a quarter to two thirds of the dark area).
 """
 
 from __future__ import annotations
@@ -23,7 +30,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-__all__ = ["HeadShape", "head_shape", "face_depth", "build_proxy", "nose_mesh", "ellipsoid", "PROXY"]
+__all__ = ["HeadShape", "head_shape", "face_depth", "build_proxy", "nose_mesh", "ellipsoid", "PROXY",
+           "HEAD_MESH"]
 
 # face profile: depth of the face surface at the midline against height (mm, model frame)
 _PROFILE_Y = np.array([-95, -80, -68, -50, -30, 0, 20, 35, 55, 75, 100, 130.0])
@@ -34,6 +42,9 @@ _FOLD = np.array([[19.0, 27.0], [29.0, 19.0], [36.0, 7.0], [40.0, -6.0], [42.0, 
 
 PROXY = {"plain": (10, 1), "head": (28, 4)}
 """Rings and border subdivision of the face proxy: plain (today's) and with a head."""
+_NOSE = (36, 64)  # rings and sectors of the head's nose (the default mesh)
+HEAD_MESH = (*PROXY["head"], *_NOSE)
+"""The head's default tessellation: (proxy rings, border subdivision, nose rings, nose sectors)."""
 
 
 @dataclass(frozen=True)
@@ -187,12 +198,13 @@ def ellipsoid(center, axes, n_rings: int = 12, n_sectors: int = 24, cap: float =
     return V, F, N
 
 
-def nose_mesh(tip: np.ndarray, shape: HeadShape):
+def nose_mesh(tip: np.ndarray, shape: HeadShape, rings: int = _NOSE[0], sectors: int = _NOSE[1]):
     """The nose: ``(vertices (n, 3), faces (m, 3), face_nostril (m,) bool)`` in the model frame.
 
     An ellipsoid (as the plain face's nose) whose tip vertex 0 is ``tip``, widened towards its base
     into alae of half width ``shape.ala_width``, with two nostrils on the underside pushed 2.5 mm
-    into the nose. Normals are left to the caller (area-weighted).
+    into the nose, tessellated by ``rings`` x ``sectors``. Normals are left to the caller
+    (area-weighted).
     """
     d = np.array([0.0, -0.25, 1.0])
     d /= np.linalg.norm(d)
@@ -200,7 +212,7 @@ def nose_mesh(tip: np.ndarray, shape: HeadShape):
     ex = np.array([1.0, 0, 0])
     axes = np.stack([13.0 * d, 22.0 * dorsum, 11.0 * ex])
     center = tip - 13.0 * d
-    V, F, _ = ellipsoid(center, axes, 36, 64)
+    V, F, _ = ellipsoid(center, axes, rings, sectors)
     rel = V - center
     a = rel @ d / 13.0  # 1 at the tip, -1 at the back
     h = rel @ dorsum / 22.0  # -1 at the base (columella side), +1 up the bridge
