@@ -101,23 +101,24 @@ def predict(last: np.ndarray, vel: np.ndarray, gap: np.ndarray, reference: np.nd
 
 
 def _plausible_jump(pred: np.ndarray, aligned: np.ndarray, dots: np.ndarray, gate: float, n_aligned: int,
-                    margin: float = 0.25) -> bool:
+                    share: float = 0.5) -> bool:
     """Whether the layout may move from ``pred (K, 2)`` to ``aligned (K, 2)``, which explains
     ``n_aligned`` of this frame's ``dots`` within ``gate``.
 
     A move within ``gate`` (median over the markers) is a correction of the motion prediction.
-    A larger one is a jump of the whole face, and must explain clearly more markers than the
-    prediction left where it is: ``margin`` of them, and at least 3, more. Without this, a frame
-    where a few markers are hidden sent the alignment's search over all dot pairs onto clutter
-    (teeth, nostrils, skin texture): on ``default`` validation seed 8 with the windowed dot fit,
-    the direct view's layout moved 22 px (the nose 44 px) while the face moved 2.5 px, and five
-    markers were lost for the rest of the clip.
+    A larger one is a jump of the whole face, which leaves few dots where the markers were
+    predicted: it is refused when the prediction as it is still explains more than ``share`` as
+    many markers as the move (the face did not jump; clutter lined up with part of the layout).
+    Without this, a frame with a few markers hidden sent the alignment's search over all dot
+    pairs onto clutter (teeth, nostrils, skin texture): on ``default`` validation seed 8 with the
+    windowed dot fit, the direct view's layout moved 22 px (the nose 44 px) while the face moved
+    2.5 px, and five markers were lost for the rest of the clip.
     """
     move = float(np.median(np.linalg.norm(aligned - pred, axis=1)))
     if move <= gate:
         return True
     still = int((assign(pred, dots, np.full(len(pred), gate)) >= 0).sum())
-    return n_aligned >= still + max(3.0, margin * len(pred))
+    return still <= share * n_aligned
 
 
 def shift_group(pred: np.ndarray, dots: np.ndarray, gate: float, tol: float, reach: float,
