@@ -65,7 +65,8 @@ class DotSettings:
         91.5 % on average, 149 -> 132; hard validation seeds 7-10 36.1 -> 57.6 %, 122 -> 66 (hard
         seed 7 alone 61 -> 57 %); ``easy`` seed 7 0.17/0.16 -> 0.17/0.18 px, 100 %. Held out
         (``default`` seeds 11-13): 91.4 / 90.0 / 62.7 -> 93.6 / 93.9 / 83.6 %, over 3 px 0 / 0 /
-        119 -> 30 / 0 / 59 (what remains over 3 px are first-frame identity errors).
+        119 -> 30 / 0 / 59 (seed 11: ``upper_right`` on a wrong dot in both views from frame 29;
+        seed 13: ``lower_corner_left``, unmatched in the first frame, acquired on a wrong dot).
     """
 
     sigma: float = 1.5
