@@ -7,6 +7,7 @@ from lipgen.mesh.procedural import lip_mesh
 from lipgen.subject.decal import place_decal
 from lipgen.subject.face import FaceModel
 from lipgen.subject.inkdots import (
+    DOT_SEPARATION_MM,
     SurfaceDots,
     closest_points,
     dot_positions,
@@ -94,3 +95,19 @@ def test_bad_dots_are_refused():
         SurfaceDots.from_dict({"face": [99], "bary": [[1, 0, 0]]}, n_faces=10)
     with pytest.raises(ValueError, match="offset_mm"):
         place_dots(lip_mesh(1), lip_mesh(0), 0, offset_mm=(2, 1))
+
+
+def test_no_two_dots_overlap():
+    # subject 0 (the default preset's) drew upper_mid and bow_dip 0.92 mm apart: one ink blob
+    model, fine = lip_mesh(0), lip_mesh(1)
+    for subject_seed in (0, 3):
+        truth = shaped_mesh(fine, sample_shape(subject_seed))
+        rng = [subject_seed, 0xD075]                 # as lipgen.subject.motion.default_subject draws them
+        free = dot_positions(place_dots(truth, model, rng, separation_mm=0.0), truth.faces, truth.vertices)
+        P = dot_positions(place_dots(truth, model, rng), truth.faces, truth.vertices)
+        d_free = np.linalg.norm(free[:, None] - free[None], axis=2)[np.triu_indices(len(P), 1)]
+        d = np.linalg.norm(P[:, None] - P[None], axis=2)[np.triu_indices(len(P), 1)]
+        assert d_free.min() < 1.0                    # without the rule these subjects overlap
+        assert d.min() >= DOT_SEPARATION_MM - 1e-9
+    with pytest.raises(ValueError, match="separation_mm"):
+        place_dots(lip_mesh(1), lip_mesh(0), 0, separation_mm=-1.0)

@@ -56,11 +56,17 @@ class DotSettings:
         only where its correlation already found the marker.
     window : float or None
         Weight window of the sub-pixel fit, in ``sigma`` (:func:`refine_centroids`); None: the
-        plain fit. 1.25 halves the centre error on hard-preset frames, but is off by default: it
-        is not better everywhere (hard seed 7: accepted share 61 -> 57 %; default seed 7: 1 -> 3
-        sightings over 3 px). The erased-dot clip of ``tests/test_recording.py`` passes with it;
-        its first-frame mismatches (12 of 17 markers in the real view) are the same with either fit:
-        the rest layout's similarity, fitted to an open mouth with one dot missing, leans on a lure.
+        plain fit. From starts within 0.7 px of the truth, ``default`` validation seeds 7-9 (dots
+        3 mm apart, :data:`lipgen.subject.inkdots.DOT_SEPARATION_MM`) 0.37-0.55 px RMS with the
+        plain fit, 0.18-0.25 px with 1.25 (a dot near the lip line was 0.8-1.7 px off). Its wrong
+        sightings on ``default`` before came from a false global jump of the layout, which
+        :func:`lipgen.recon.association.predict` now refuses. Calibrate, track, triangulate (plain
+        -> 1.25, accepted share, sightings over 3 px both views): ``default`` seeds 7-9 90.6 ->
+        91.5 % on average, 149 -> 132; hard validation seeds 7-10 36.1 -> 57.6 %, 122 -> 66 (hard
+        seed 7 alone 61 -> 57 %); ``easy`` seed 7 0.17/0.16 -> 0.17/0.18 px, 100 %. Held out
+        (``default`` seeds 11-13): 91.4 / 90.0 / 62.7 -> 93.6 / 93.9 / 83.6 %, over 3 px 0 / 0 /
+        119 -> 30 / 0 / 59 (seed 11: ``upper_right`` on a wrong dot in both views from frame 29;
+        seed 13: ``lower_corner_left``, unmatched in the first frame, acquired on a wrong dot).
     """
 
     sigma: float = 1.5
@@ -70,7 +76,7 @@ class DotSettings:
     smoothing: float = 0.6
     min_roundness: float = 0.3
     min_foreshortened_roundness: float = 0.1
-    window: float | None = None
+    window: float | None = 1.25
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.sigma) and 0.3 <= self.sigma <= 50):
