@@ -11,7 +11,8 @@ from scipy.optimize import linear_sum_assignment
 
 from lipgen._validate import as_float_array
 
-__all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected"]
+__all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected",
+           "place_layout", "acquire"]
 
 _BIG = 1e12
 # Trimming (robust=True): a match is an outlier when its residual exceeds _TRIM_K robust standard
@@ -265,14 +266,108 @@ def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio
         Index into ``dots`` for each marker, -1 where none matches.
     """
     match, aligned = register_nonrigid(dots, expected, gate, robust=robust)
+    match[_ambiguous(aligned, dots, match, ratio)] = -1
+    return match
+
+
+def _ambiguous(aligned: np.ndarray, dots: np.ndarray, match: np.ndarray, ratio: float) -> np.ndarray:
+    """(P,) bool: matches whose dot is not clearly their marker's (see :func:`match_to_expected`)."""
+    out = np.zeros(len(match), dtype=bool)
     m = np.flatnonzero(match >= 0)
     if len(m) == 0:
-        return match
+        return out
     d_own = np.linalg.norm(aligned[m] - dots[match[m]], axis=1)
     d_markers = np.linalg.norm(aligned[None, :, :] - dots[match[m]][:, None, :], axis=2)   # (k, P)
     d_markers[np.arange(len(m)), m] = np.inf
     d_dots = np.linalg.norm(aligned[m][:, None, :] - dots[None, :, :], axis=2)            # (k, D)
     d_dots[np.arange(len(m)), match[m]] = np.inf
-    ambiguous = (d_own >= ratio * d_markers.min(1)) | (d_own >= ratio * d_dots.min(1))
-    match[m[ambiguous]] = -1
+    d_markers[~np.isfinite(d_markers)] = np.inf
+    out[m] = (d_own >= ratio * d_markers.min(1)) | (d_own >= ratio * d_dots.min(1))
+    return out
+
+
+def place_layout(expected: np.ndarray, uv: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """Where the markers not seen are, from the layout registered to the markers seen.
+
+    The similarity from the seen markers' layout positions to their positions ``uv``, then each
+    marker moved by the Gaussian-weighted mean of the seen markers' residual offsets (weights by
+    distance in the layout, width one typical marker spacing): :func:`register_nonrigid`'s last
+    step, with the matches known.
+
+    Parameters
+    ----------
+    expected : (P, 2) float
+        The layout.
+    uv : (P, 2) float
+        Positions of the markers, pixels; used where ``seen``.
+    seen : (P,) bool
+        At least 3.
+
+    Returns
+    -------
+    (P, 2) float
+        The registered layout; equal to ``uv`` where ``seen``.
+    """
+    expected = as_float_array(expected, "expected", (None, 2))
+    uv = as_float_array(uv, "uv", (len(expected), 2), finite=False)
+    seen = np.asarray(seen, dtype=bool)
+    if seen.shape != (len(expected),) or seen.sum() < 3 or not np.all(np.isfinite(uv[seen])):
+        raise ValueError(f"seen must be a ({len(expected)},) bool mask of at least 3 finite uv rows, "
+                         f"got shape {seen.shape} with {int(seen.sum())} set")
+    s, R, t = similarity_2d(expected[seen], uv[seen])
+    base = s * expected @ R.T + t
+    d = np.linalg.norm(expected[:, None] - expected[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    width = float(np.median(d.min(1)))
+    w = np.exp(-0.5 * (np.linalg.norm(expected[:, None] - expected[seen][None], axis=2) / width) ** 2)
+    out = base + (w @ (uv[seen] - base[seen])) / np.maximum(w.sum(1, keepdims=True), 1e-300)
+    out[seen] = uv[seen]
+    return out
+
+
+def acquire(aligned: np.ndarray, dots: np.ndarray, wanted: np.ndarray, free: np.ndarray, gate: float,
+            ratio: float = 0.6) -> np.ndarray:
+    """Match the ``wanted`` markers to free dots near the registered layout, unambiguously.
+
+    The first-frame rules of :func:`match_to_expected` on a later frame: one-to-one assignment of
+    the wanted markers' positions ``aligned`` to the ``free`` dots within ``gate``, and a match is
+    kept only when the dot is closer to its marker than ``ratio`` times its distance to any other
+    marker's position, and than ``ratio`` times the distance from the marker to any other dot
+    (taken or free).
+
+    Parameters
+    ----------
+    aligned : (P, 2) float
+        Every marker's position: seen markers where they are, the others from
+        :func:`place_layout`.
+    dots : (k, 2) float
+        This frame's dots.
+    wanted : (P,) bool
+        Markers to acquire.
+    free : (k,) bool
+        Dots no marker has taken.
+    gate : float
+        Largest distance (pixels) from a marker's position to its dot.
+    ratio : float
+        Ambiguity ratio.
+
+    Returns
+    -------
+    (P,) int
+        Index into ``dots`` for the wanted markers acquired, -1 elsewhere.
+    """
+    aligned = as_float_array(aligned, "aligned", (None, 2), finite=False)
+    dots = as_float_array(dots, "dots", (None, 2))
+    wanted, free = np.asarray(wanted, dtype=bool), np.asarray(free, dtype=bool)
+    if wanted.shape != (len(aligned),) or free.shape != (len(dots),):
+        raise ValueError(f"wanted must have shape ({len(aligned)},) and free ({len(dots)},), "
+                         f"got {wanted.shape} and {free.shape}")
+    gates = np.where(wanted & np.all(np.isfinite(aligned), axis=1), float(gate), 0.0)
+    match = np.full(len(aligned), -1, dtype=np.int64)
+    if not free.any() or not (gates > 0).any():
+        return match
+    idx = np.flatnonzero(free)
+    sub = assign(np.where((gates > 0)[:, None], aligned, np.nan), dots[idx], gates)
+    match[sub >= 0] = idx[sub[sub >= 0]]
+    match[_ambiguous(aligned, dots, match, ratio)] = -1
     return match

@@ -45,7 +45,7 @@ from lipgen.recon.association import (
 )
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
-from lipgen.recon.pointreg import assign
+from lipgen.recon.pointreg import acquire, assign, place_layout
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
 __all__ = [
@@ -96,6 +96,7 @@ class MarkerTracker:
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._rejected: list[np.ndarray] = []        # per image: sightings taken back by reject()
+        self.acquired = np.zeros(P, dtype=bool)      # in the last image: markers seen for the first time
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -140,9 +141,31 @@ class MarkerTracker:
             ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
         return uv[ok], idx[ok]
 
+    def _acquire(self, uv: np.ndarray, status: np.ndarray, dots: np.ndarray, strength: np.ndarray) -> None:
+        """Take dots for markers not seen yet where the layout, registered to this image's sightings,
+        puts them (``settings.acquire_gate``); updates ``uv``, ``status`` and :attr:`acquired` in place."""
+        cfg = self.cfg
+        self.acquired = np.zeros(len(uv), dtype=bool)
+        wanted = (status == LOST) & ~np.all(np.isfinite(self.last), axis=1) & ~self.twins
+        seen = np.isin(status, (TRACKED, RECOVERED))
+        if cfg.acquire_gate is None or self.reference is None or not wanted.any() or seen.sum() < 3 \
+                or len(dots) == 0:
+            return
+        aligned = place_layout(self.reference, uv, seen)
+        free = np.linalg.norm(dots[:, None] - uv[status != LOST][None], axis=2).min(1, initial=np.inf) \
+            >= cfg.dots.separation / 2
+        known = np.isfinite(self.strength) & seen
+        if known.any():   # as dark as the markers' dots, not a texture blob
+            free &= strength >= cfg.min_strength_ratio * float(np.median(self.strength[known]))
+        match = acquire(aligned, dots, wanted, free, cfg.acquire_gate, cfg.acquire_ratio)
+        got = match >= 0
+        uv[got], status[got] = dots[match[got]], RECOVERED
+        self.acquired = got
+
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
+        self.acquired = np.zeros(P, dtype=bool)
         if self._out:
             # Carried only now, after any outside check took back sightings of the last image:
             # a wrong dot's jump must not drag its lost neighbours along.
@@ -165,7 +188,8 @@ class MarkerTracker:
             status[seen] = TRACKED
         else:
             gap = self.gap
-            pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
+            layout = self.reference if cfg.acquire_gate is None else None    # else: _acquire
+            pred = predict(self.last, self.vel, gap, layout, dots, cfg.recovery_gate)
             pred, shifted = shift_group(pred, dots, cfg.recovery_gate, cfg.gate, 3 * cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
@@ -213,6 +237,7 @@ class MarkerTracker:
             status[trust] = CORRELATION_ONLY
             drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
+            self._acquire(uv, status, dots[round_], strength[round_])
         status[self.twins] = LOST
         uv[self.twins] = np.nan
         if self.reference is not None:
@@ -241,8 +266,10 @@ class MarkerTracker:
 
     @property
     def reacquired(self) -> np.ndarray:
-        """(P,) bool: markers that were not seen in the image before the last one."""
-        return self._before[1] > 0 if self._out else np.zeros(len(self.init), dtype=bool)
+        """(P,) bool: markers that were not seen in the image before the last one, or never before."""
+        if not self._out:
+            return np.zeros(len(self.init), dtype=bool)
+        return (self._before[1] > 0) | self.acquired
 
     def reject(self, markers) -> None:
         """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
@@ -264,6 +291,17 @@ class MarkerTracker:
             self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
             self.templates[i] = templates[i]
             self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
+            self.acquired[i] = False
+
+    def withdraw(self, markers) -> None:
+        """Take back the last image's acquisitions of ``markers`` (indices) as :meth:`reject` does,
+        but not as rejected sightings: an acquisition the other view does not confirm was a guess."""
+        idx = np.asarray(markers, dtype=np.int64).ravel()
+        if not self._out or len(idx) == 0:
+            return
+        before = self._rejected[-1][idx].copy()
+        self.reject(idx)
+        self._rejected[-1][idx] = before
 
     def tracks(self) -> Tracks:
         """Everything tracked so far."""

@@ -61,6 +61,8 @@ class TrackerSettings:
     motion_penalty: float = 0.3
     twin_distance: float | None = None
     min_strength_ratio: float = 0.5
+    acquire_gate: float | None = 6.0
+    acquire_ratio: float = 0.6
 
     @property
     def twins(self) -> float:
