@@ -12,7 +12,7 @@ from scipy.optimize import linear_sum_assignment
 from lipgen._validate import as_float_array
 
 __all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected",
-           "place_layout", "acquire"]
+           "place_layout", "acquire", "acquire_layout"]
 
 _BIG = 1e12
 # Trimming (robust=True): a match is an outlier when its residual exceeds _TRIM_K robust standard
@@ -371,3 +371,60 @@ def acquire(aligned: np.ndarray, dots: np.ndarray, wanted: np.ndarray, free: np.
     match[sub >= 0] = idx[sub[sub >= 0]]
     match[_ambiguous(aligned, dots, match, ratio)] = -1
     return match
+
+
+def acquire_layout(expected: np.ndarray, uv: np.ndarray, seen: np.ndarray, wanted: np.ndarray,
+                   dots: np.ndarray, free: np.ndarray, gate: float, ratio: float = 0.6,
+                   iterations: int = 5) -> np.ndarray:
+    """Acquire the ``wanted`` markers on free dots where the layout, registered to the seen ones, puts them.
+
+    A group of markers missing together (the lower lip's side, with the mouth open) is placed
+    badly by its seen neighbours alone, which are mostly on the other lip. So, as in
+    :func:`register_nonrigid`: alternately place the layout (:func:`place_layout`) from the seen
+    markers and the wanted markers' tentative dots, and assign the wanted markers one-to-one to
+    free dots within a gate shrinking from ``3 * gate`` to ``gate``. The final matches are then
+    made by :func:`acquire` with each wanted marker placed from all the others (itself left out),
+    so its own tentative dot cannot vouch for itself.
+
+    Parameters
+    ----------
+    expected : (P, 2) float
+        The layout.
+    uv : (P, 2) float
+        Positions of the seen markers, pixels.
+    seen : (P,) bool
+        At least 3.
+    wanted, dots, free, gate, ratio
+        As in :func:`acquire`.
+    iterations : int
+        Placement steps.
+
+    Returns
+    -------
+    (P,) int
+        Index into ``dots`` for the wanted markers acquired, -1 elsewhere.
+    """
+    wanted, free = np.asarray(wanted, dtype=bool), np.asarray(free, dtype=bool)
+    seen = np.asarray(seen, dtype=bool)
+    idx = np.flatnonzero(free)
+    tent = np.full(len(expected), -1, dtype=np.int64)
+
+    def placed() -> np.ndarray:
+        """Each wanted marker placed from the seen markers and the other wanted markers' tentative dots."""
+        at = np.where((tent >= 0)[:, None], dots[np.maximum(tent, 0)], uv)
+        out = place_layout(expected, at, seen)
+        for i in np.flatnonzero(wanted):
+            others = seen | (tent >= 0)
+            others[i] = False
+            if (tent >= 0).any():
+                out[i] = place_layout(expected, at, others)[i]
+        return out
+
+    pos = placed()
+    if len(idx):
+        for k in range(max(iterations, 1)):
+            g = gate * (3.0 - 2.0 * k / max(iterations - 1, 1))
+            sub = assign(np.where(wanted[:, None], pos, np.nan), dots[idx], np.where(wanted, g, 0.0))
+            tent = np.where(sub >= 0, idx[np.maximum(sub, 0)], -1)
+            pos = placed()
+    return acquire(pos, dots, wanted, free, gate, ratio)

@@ -104,7 +104,7 @@ class ReconstructSettings:
     ray_gap_k: float | None = 8.0
     min_ray_gap_px: float = 1.0
     first_frame_lures: bool = False
-    robust_first_frame: bool = False
+    robust_first_frame: bool = True
     step_k: float | None = 4.0
     min_step: float = 1.0
 

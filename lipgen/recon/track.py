@@ -45,7 +45,7 @@ from lipgen.recon.association import (
 )
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
-from lipgen.recon.pointreg import acquire, assign, place_layout
+from lipgen.recon.pointreg import acquire_layout, assign
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
 __all__ = [
@@ -151,13 +151,13 @@ class MarkerTracker:
         if cfg.acquire_gate is None or self.reference is None or not wanted.any() or seen.sum() < 3 \
                 or len(dots) == 0:
             return
-        aligned = place_layout(self.reference, uv, seen)
         free = np.linalg.norm(dots[:, None] - uv[status != LOST][None], axis=2).min(1, initial=np.inf) \
             >= cfg.dots.separation / 2
         known = np.isfinite(self.strength) & seen
         if known.any():   # as dark as the markers' dots, not a texture blob
             free &= strength >= cfg.min_strength_ratio * float(np.median(self.strength[known]))
-        match = acquire(aligned, dots, wanted, free, cfg.acquire_gate, cfg.acquire_ratio)
+        match = acquire_layout(self.reference, uv, seen, wanted, dots, free, cfg.acquire_gate,
+                               cfg.acquire_ratio)
         got = match >= 0
         uv[got], status[got] = dots[match[got]], RECOVERED
         self.acquired = got
