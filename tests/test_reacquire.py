@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from synthetic_images import background, frame
 
-from lipgen.recon.pointreg import acquire, place_layout, similarity_2d
+from lipgen.recon.acquire import acquire, place_layout
+from lipgen.recon.pointreg import similarity_2d
 from lipgen.recon.track import MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
 from lipgen.rig.pinhole import PinholeCamera

@@ -73,20 +73,24 @@ class ReconstructSettings:
         Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
     first_frame_lures : bool
         Drop first-frame matches on dots that no dot of the other view places near the marker
-        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default: on hard
-        validation seed 8 it took the accepted share from 22 % to 60 %, but a correct match it
-        drops is left to the tracker's later acquisition, which on short clips (8 frames of
-        ``easy`` through H.264) never came, and a marker was lost.
+        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default: with the
+        later acquisition (``TrackerSettings.acquire_gate``) and ``robust_first_frame`` it cuts
+        the accepted sightings over 3 px on the validation sets (hard 7-10, default, easy, noise
+        32 seeds 7-10, the erased-dot clip) from 132 to 90, but it takes fewer sightings (67.7 ->
+        63.1 % accepted) and is worse on hard seed 9 (16 -> 55 over 3 px) and on the erased-dot
+        clip.
     robust_first_frame : bool
         Match the first frame with the trimmed registration (``robust`` of
         :func:`lipgen.recon.pointreg.match_to_expected`): matches whose residual is an outlier
-        are left out of the similarity fit and of the deformation. Measured (calibrate, track,
-        triangulate; px RMS mirror/direct, accepted share): easy and default seed 7 unchanged
-        (0.17/0.16 px, 100 %; 0.44/0.37 px, 77.5 %); hard validation seeds 7-10 accepted share
-        61.2/17.4/58.4/7.5 % -> 63.7/39.7/58.4/7.8 %. Off by default: on 8-frame clips the
-        markers it leaves unmatched are not acquired later (the erased-dot clip also loses
-        corner_left and lower_corner_left; the H.264 ``easy`` clip: 82 % of sightings in both
-        views instead of > 85 %).
+        are left out of the similarity fit and of the deformation; the markers it leaves
+        unmatched are acquired on later frames (``TrackerSettings.acquire_gate``). On by default
+        since the acquisition came. Measured (calibrate, track, triangulate, scored against the
+        truth; accepted share, accepted sightings over 3 px in both views), before the
+        acquisition -> with the acquisition and this switch: hard validation seeds 7-10 61.2 /
+        17.4 / 58.4 / 7.5 % -> 67.1 / 46.8 / 59.1 / 44.2 %, over 3 px 9 / 38 / 10 / 65 -> 19 /
+        27 / 16 / 67; noise 32 seeds 7-9 66.2 / 71.5 / 69.0 % -> 74.5 / 78.0 / 74.9 %, over 3
+        px 12 / 7 / 18 -> 2 / 7 / 1; easy and default seed 7 0.17/0.16 px, 100 % and 77.5 % ->
+        unchanged and 78.5 %; the 8-frame erased-dot clip 78.7 % -> 91.2 %, over 3 px 2 -> 0.
     step_k : float or None
         A sighting whose 3-D point moved farther from the marker's last accepted point than
         ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
@@ -141,7 +145,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     cameras : (virtual, real) PinholeCamera, optional
         The calibrated views. With them, a first-frame match whose two rays pass farther apart
         than ``settings.max_ray_gap`` is dropped in both views (one of the two is another
-        marker's dot or no marker's); the tracker acquires the marker later from the layout.
+        marker's dot or no marker's); the tracker acquires the marker later from the layout,
+        and every acquisition stands only when the other view confirms it
+        (:func:`lipgen.recon.viewcheck.check_views`).
     names : sequence of str, optional
         Marker names, for the log.
     rest_points : (P, 3) float, optional

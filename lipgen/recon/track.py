@@ -15,6 +15,11 @@ GUI (§3). Here the GUI is replaced by two things:
   neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
   that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
   shift (:func:`lipgen.recon.association.shift_group`).
+* **Acquisition**: a marker not seen yet (unmatched in the first frame, or its first-frame match
+  taken back) is searched for in every later frame where the layout, registered to the markers
+  seen in that frame, puts it, by the first frame's rules (one-to-one, unambiguous;
+  :func:`lipgen.recon.acquire.acquire_layout`). With two views, an acquisition stands only when
+  the other view confirms it (:func:`lipgen.recon.viewcheck.check_views`).
 * **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
   in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
   blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
@@ -31,6 +36,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.acquire import acquire_layout
 from lipgen.recon.association import (
     CORRELATION_ONLY,
     LOST,
@@ -45,7 +51,7 @@ from lipgen.recon.association import (
 )
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
-from lipgen.recon.pointreg import acquire_layout, assign
+from lipgen.recon.pointreg import assign
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
 __all__ = [
