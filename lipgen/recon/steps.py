@@ -76,9 +76,9 @@ class ReconstructSettings:
         layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default: with the
         later acquisition (``TrackerSettings.acquire_gate``) and ``robust_first_frame`` it cuts
         the accepted sightings over 3 px on the validation sets (hard 7-10, default, easy, noise
-        32 seeds 7-10, the erased-dot clip) from 132 to 90, but it takes fewer sightings (67.7 ->
-        63.1 % accepted) and is worse on hard seed 9 (16 -> 55 over 3 px) and on the erased-dot
-        clip.
+        32 seeds 7-10, the erased-dot clip) from 141 to 99 and the wrong first-frame matches from
+        20 to 4, but it accepts fewer sightings (66.7 -> 63.9 %) and is worse on hard seed 9
+        (16 -> 55 over 3 px).
     robust_first_frame : bool
         Match the first frame with the trimmed registration (``robust`` of
         :func:`lipgen.recon.pointreg.match_to_expected`): matches whose residual is an outlier
@@ -89,8 +89,11 @@ class ReconstructSettings:
         acquisition -> with the acquisition and this switch: hard validation seeds 7-10 61.2 /
         17.4 / 58.4 / 7.5 % -> 67.1 / 46.8 / 59.1 / 44.2 %, over 3 px 9 / 38 / 10 / 65 -> 19 /
         27 / 16 / 67; noise 32 seeds 7-9 66.2 / 71.5 / 69.0 % -> 74.5 / 78.0 / 74.9 %, over 3
-        px 12 / 7 / 18 -> 2 / 7 / 1; easy and default seed 7 0.17/0.16 px, 100 % and 77.5 % ->
-        unchanged and 78.5 %; the 8-frame erased-dot clip 78.7 % -> 91.2 %, over 3 px 2 -> 0.
+        px 12 / 7 / 18 -> 2 / 7 / 1 (seed 10: 38.8 %, 1, unchanged); easy and default seed 7
+        0.17/0.16 px, 100 % and 77.5 % -> unchanged and 78.5 %; the 8-frame erased-dot clip
+        78.7 % -> 91.2 %, over 3 px 2 -> 0. In total 57.9 -> 66.7 % accepted, 163 -> 141 over
+        3 px. The acquisition alone (this switch off) accepts 62.6 %, but 221 over 3 px: on hard
+        seeds 8 and 10 it builds on wrong first-frame matches.
     step_k : float or None
         A sighting whose 3-D point moved farther from the marker's last accepted point than
         ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
