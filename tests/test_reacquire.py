@@ -100,7 +100,7 @@ def _clip(settings, seed=4, n_frames=14):
 
 
 def test_a_marker_appearing_later_is_acquired_at_its_appearance_and_a_lure_never_is():
-    tracks, uv, guesses = _clip(TrackerSettings())
+    tracks, uv, guesses = _clip(TrackerSettings(acquire_gate=6.0))
     assert guesses[1, 1:APPEARS, LATE].all() and guesses[:, 1:, NEVER].all(), "the lures were tried"
     for v in range(2):
         tr = tracks[v]
@@ -128,7 +128,8 @@ def test_acquisition_without_a_layout_or_when_switched_off_does_nothing():
     base = background((120, 160), rng)
     init = pts.copy()
     init[3] = np.nan
-    for settings, ref in ((TrackerSettings(), None), (replace(TrackerSettings(), acquire_gate=None), pts)):
+    on, off = TrackerSettings(acquire_gate=6.0), replace(TrackerSettings(), acquire_gate=None)
+    for settings, ref in ((on, None), (off, pts)):
         tr = MarkerTracker(init, settings, reference_uv=ref)
         for _ in range(3):
             tr.step(frame(base, pts, rng))

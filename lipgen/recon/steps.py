@@ -74,7 +74,7 @@ class ReconstructSettings:
     first_frame_lures : bool
         Drop first-frame matches on dots that no dot of the other view places near the marker
         layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default: with the
-        later acquisition (``TrackerSettings.acquire_gate``) and ``robust_first_frame`` it cuts
+        later acquisition (``TrackerSettings.acquire_gate=6``) and ``robust_first_frame`` it cuts
         the accepted sightings over 3 px on the validation sets (hard 7-10, default, easy, noise
         32 seeds 7-10, the erased-dot clip) from 141 to 99 and the wrong first-frame matches from
         20 to 4, but it accepts fewer sightings (66.7 -> 63.9 %) and is worse on hard seed 9
@@ -83,8 +83,11 @@ class ReconstructSettings:
         Match the first frame with the trimmed registration (``robust`` of
         :func:`lipgen.recon.pointreg.match_to_expected`): matches whose residual is an outlier
         are left out of the similarity fit and of the deformation; the markers it leaves
-        unmatched are acquired on later frames (``TrackerSettings.acquire_gate``). On by default
-        since the acquisition came. Measured (calibrate, track, triangulate, scored against the
+        unmatched are acquired on later frames if ``TrackerSettings.acquire_gate`` is set. Off by
+        default: with the acquisition it is better on every validation set in total (below), but
+        the recording tutorial's 20-frame ``easy`` H.264 clip (seed 2) then leaves five lower-lip
+        markers unmatched in the first frame and never acquires ``lower_mid`` (exit status 3).
+        Measured (calibrate, track, triangulate, scored against the
         truth; accepted share, accepted sightings over 3 px in both views), before the
         acquisition -> with the acquisition and this switch: hard validation seeds 7-10 61.2 /
         17.4 / 58.4 / 7.5 % -> 67.1 / 46.8 / 59.1 / 44.2 %, over 3 px 9 / 38 / 10 / 65 -> 19 /
@@ -94,6 +97,9 @@ class ReconstructSettings:
         78.7 % -> 91.2 %, over 3 px 2 -> 0. In total 57.9 -> 66.7 % accepted, 163 -> 141 over
         3 px. The acquisition alone (this switch off) accepts 62.6 %, but 221 over 3 px: on hard
         seeds 8 and 10 it builds on wrong first-frame matches.
+        Test seeds hard 11-13 (looked at once, at the end): 23.2 -> 30.8 % accepted, 160 -> 160
+        over 3 px; seed 12 collapses (29.7 -> 3.1 %: the mirror view loses almost every marker
+        from frame 2).
     step_k : float or None
         A sighting whose 3-D point moved farther from the marker's last accepted point than
         ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
@@ -111,7 +117,7 @@ class ReconstructSettings:
     ray_gap_k: float | None = 8.0
     min_ray_gap_px: float = 1.0
     first_frame_lures: bool = False
-    robust_first_frame: bool = True
+    robust_first_frame: bool = False
     step_k: float | None = 4.0
     min_step: float = 1.0
 
