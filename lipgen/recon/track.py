@@ -15,11 +15,12 @@ GUI (§3). Here the GUI is replaced by two things:
   neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
   that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
   shift (:func:`lipgen.recon.association.shift_group`).
-* **Acquisition** (opt-in, ``TrackerSettings.acquire_gate``): a marker not seen yet (unmatched in the first frame, or its first-frame match
-  taken back) is searched for in every later frame where the layout, registered to the markers
-  seen in that frame, puts it, by the first frame's rules (one-to-one, unambiguous;
-  :func:`lipgen.recon.acquire.acquire_layout`). With two views, an acquisition stands only when
-  the other view confirms it (:func:`lipgen.recon.viewcheck.check_views`).
+* **Acquisition** (opt-in, ``TrackerSettings.acquire_gate``): a marker not seen yet (unmatched
+  in the first frame, or its first-frame match taken back) is searched for in every later frame
+  where the layout, registered to the markers seen in that frame, puts it, by the first frame's
+  rules (one-to-one, unambiguous; :func:`lipgen.recon.acquire.acquire_layout`). With two views,
+  an acquisition stands only when the other view confirms it
+  (:func:`lipgen.recon.viewcheck.check_views`).
 * **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
   in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
   blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
