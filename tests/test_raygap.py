@@ -57,8 +57,8 @@ def test_a_wrong_dot_within_the_fixed_gap_is_taken_back_by_the_learned_limit():
     # epipolar line, which runs along the rows) takes its place. Its rays pass ~1.5 mm apart: the
     # fixed 2 mm limit accepts a sighting 4 px off; the limit learned from the right sightings
     # (a few hundredths of a mm apart, floored at 1 px) takes it back.
-    from lipgen.recon.steps import _check_views
     from lipgen.recon.track import MarkerTracker
+    from lipgen.recon.viewcheck import check_views as _check_views
     from lipgen.rig.pinhole import triangulate
 
     cams = _two_views()
@@ -105,8 +105,8 @@ def test_a_dot_another_lost_marker_explains_better_is_not_accepted_unchecked():
     # where mark 1 was). A right sighting of mark 0 beside a lost mark 1 (a dot hidden in one
     # view) is kept, and so is everything when mark 1 is seen.
     from lipgen.recon.association import LOST
-    from lipgen.recon.steps import _check_views
     from lipgen.recon.track import MarkerTracker
+    from lipgen.recon.viewcheck import check_views as _check_views
     from lipgen.rig.pinhole import triangulate
 
     cams = _two_views()

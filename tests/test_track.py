@@ -246,8 +246,8 @@ def test_a_sighting_the_other_view_contradicts_is_taken_back():
     # Two calibrated views of six 3-D marks. From frame 6 mark 0's dot is hidden in view 1 and a
     # round blob 6 px above it (off the epipolar line) takes its place; alone, that view's
     # tracker follows the blob. Checked against view 0, the sighting is refused instead.
-    from lipgen.recon.steps import _check_views
     from lipgen.recon.track import MarkerTracker
+    from lipgen.recon.viewcheck import check_views as _check_views
     from lipgen.rig.pinhole import PinholeCamera
     K = np.array([[400.0, 0, 80], [0, 400.0, 60], [0, 0, 1]])
     a = np.deg2rad(20)

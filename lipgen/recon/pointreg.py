@@ -265,14 +265,21 @@ def match_to_expected(dots: np.ndarray, expected: np.ndarray, gate: float, ratio
         Index into ``dots`` for each marker, -1 where none matches.
     """
     match, aligned = register_nonrigid(dots, expected, gate, robust=robust)
+    match[_ambiguous(aligned, dots, match, ratio)] = -1
+    return match
+
+
+def _ambiguous(aligned: np.ndarray, dots: np.ndarray, match: np.ndarray, ratio: float) -> np.ndarray:
+    """(P,) bool: matches whose dot is not clearly their marker's (see :func:`match_to_expected`)."""
+    out = np.zeros(len(match), dtype=bool)
     m = np.flatnonzero(match >= 0)
     if len(m) == 0:
-        return match
+        return out
     d_own = np.linalg.norm(aligned[m] - dots[match[m]], axis=1)
     d_markers = np.linalg.norm(aligned[None, :, :] - dots[match[m]][:, None, :], axis=2)   # (k, P)
     d_markers[np.arange(len(m)), m] = np.inf
     d_dots = np.linalg.norm(aligned[m][:, None, :] - dots[None, :, :], axis=2)            # (k, D)
     d_dots[np.arange(len(m)), match[m]] = np.inf
-    ambiguous = (d_own >= ratio * d_markers.min(1)) | (d_own >= ratio * d_dots.min(1))
-    match[m[ambiguous]] = -1
-    return match
+    d_markers[~np.isfinite(d_markers)] = np.inf
+    out[m] = (d_own >= ratio * d_markers.min(1)) | (d_own >= ratio * d_dots.min(1))
+    return out

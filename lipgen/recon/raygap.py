@@ -13,7 +13,7 @@ passes it but with a chance of ~1e-7 for Gaussian pixel errors), never below ``f
 fixed ``max_ray_gap``.
 
 An error along the epipolar line does not change the gap: no two-view test sees it. For those,
-:func:`lipgen.recon.steps._check_views` also asks whether a lost marker explains the dot better
+:func:`lipgen.recon.viewcheck.check_views` also asks whether a lost marker explains the dot better
 (depth against each marker's last accepted 3-D point). Noise 32, validation seeds 7-10 (60 frames
 each), accepted sightings more than 3 px off (both views): fixed 2 mm limit 21 / 1 / 5 / 12 ->
 learned limit 0 / 0 / 3 / 17 -> with the identity check 10 / 0 / 0 / 0 (the 10: a lip corner's

@@ -15,6 +15,12 @@ GUI (§3). Here the GUI is replaced by two things:
   neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
   that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
   shift (:func:`lipgen.recon.association.shift_group`).
+* **Acquisition** (opt-in, ``TrackerSettings.acquire_gate``): a marker not seen yet (unmatched
+  in the first frame, or its first-frame match taken back) is searched for in every later frame
+  where the layout, registered to the markers seen in that frame, puts it, by the first frame's
+  rules (one-to-one, unambiguous; :func:`lipgen.recon.acquire.acquire_layout`). With two views,
+  an acquisition stands only when the other view confirms it
+  (:func:`lipgen.recon.viewcheck.check_views`).
 * **Foreshortened dots**: a dot on skin turning away from the camera (the lip corner pulled back
   in a side view) is an ellipse that the detector's roundness test rejects, and the nearest round
   blob may then be no marker at all (the dark end of the mouth opening). For a marker with no
@@ -27,11 +33,11 @@ GUI (§3). Here the GUI is replaced by two things:
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
 
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.acquire import acquire_layout
 from lipgen.recon.association import (
     CORRELATION_ONLY,
     LOST,
@@ -45,8 +51,9 @@ from lipgen.recon.association import (
     shift_group,
 )
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
-from lipgen.recon.dots import DotSettings, _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
+from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
+from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
@@ -56,117 +63,6 @@ __all__ = [
 # Per-frame status of a marker (lipgen.recon.association): TRACKED, correlation agreed with a detected
 # dot; RECOVERED, correlation failed and the dot was found from the motion prediction;
 # CORRELATION_ONLY, no dot detected but a confident correlation peak; LOST, not found.
-
-
-@dataclass(frozen=True)
-class TrackerSettings:
-    """Tracking parameters (pixels unless stated).
-
-    Attributes
-    ----------
-    dots : DotSettings
-        How the ink dots look.
-    template_radius : int
-        Half-size of the correlation template.
-    search_radius : int
-        Half-size of the correlation search window around the prediction.
-    min_correlation : float
-        A correlation peak below this counts as a failure.
-    confident_correlation : float
-        A peak at least this high is accepted even without a detected dot there.
-    gate : float
-        Largest distance from the correlation peak to the dot it is snapped to.
-    recovery_gate : float
-        Largest distance from the prediction to a dot when correlation failed; it grows by
-        ``gate`` for each of the first three frames the marker has been lost.
-    max_jump : float
-        A correlation peak farther than this from the prediction is a failure.
-    motion_penalty : float
-        Correlation given up for a match at the edge of the search window (quadratic in the
-        distance from the prediction); breaks ties between look-alike dots.
-    min_strength_ratio : float
-        A dot must be at least this fraction as dark as the marker's dot has been.
-    twin_distance : float, optional
-        Markers closer than this in the reference layout cannot be told apart in this view (their
-        dots merge); they are never tracked there. Defaults to ``2.5 * dots.sigma``.
-    """
-
-    dots: DotSettings = DotSettings()
-    template_radius: int = 7
-    search_radius: int = 14
-    min_correlation: float = 0.5
-    confident_correlation: float = 0.95
-    gate: float = 3.0
-    recovery_gate: float = 8.0
-    max_jump: float = 12.0
-    motion_penalty: float = 0.3
-    twin_distance: float | None = None
-    min_strength_ratio: float = 0.5
-
-    @property
-    def twins(self) -> float:
-        return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
-
-
-@dataclass(frozen=True, eq=False)
-class Tracks:
-    """Tracked 2-D marker positions in one view.
-
-    Attributes
-    ----------
-    uv : (F, P, 2) float
-        Positions (column, row) in pixels; NaN where the marker is not visible.
-    visible : (F, P) bool
-    status : (F, P) int8
-        ``TRACKED``, ``RECOVERED``, ``CORRELATION_ONLY`` or ``LOST``.
-    score : (F, P) float
-        Correlation peak (NaN in the first frame and where no search was made).
-    rejected : (F, P) bool, optional
-        Sightings taken back by an outside check (:meth:`MarkerTracker.reject`, e.g. the other
-        view disagreed); they are ``LOST`` in ``status``. None: no such record.
-    """
-
-    uv: np.ndarray
-    visible: np.ndarray
-    status: np.ndarray
-    score: np.ndarray
-    rejected: np.ndarray | None = None
-
-    @property
-    def n_frames(self) -> int:
-        return self.uv.shape[0]
-
-    @property
-    def n_markers(self) -> int:
-        return self.uv.shape[1]
-
-
-
-def twin_partners(reference, threshold: float) -> tuple[np.ndarray, np.ndarray]:
-    """Markers too close to a neighbour in the layout to be told apart (their dots merge).
-
-    Parameters
-    ----------
-    reference : (P, 2) float
-        The expected layout, pixels.
-    threshold : float
-        Markers nearer than this to another are twins (``TrackerSettings.twins``).
-
-    Returns
-    -------
-    partner : (P,) int
-        The nearest other marker of each twin, -1 for markers that are not twins.
-    distance : (P,) float
-        Distance to it, pixels (NaN for non-twins).
-    """
-    ref = as_float_array(reference, "reference", (None, 2))
-    partner, dist = np.full(len(ref), -1), np.full(len(ref), np.nan)
-    if len(ref) > 1:
-        d = np.linalg.norm(ref[:, None] - ref[None], axis=2)
-        np.fill_diagonal(d, np.inf)
-        twin = d.min(1) < threshold
-        partner[twin], dist[twin] = d.argmin(1)[twin], d.min(1)[twin]
-    return partner, dist
 
 
 class MarkerTracker:
@@ -207,6 +103,7 @@ class MarkerTracker:
         self.templates: list[tuple[np.ndarray, np.ndarray] | None] = [None] * P
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._rejected: list[np.ndarray] = []        # per image: sightings taken back by reject()
+        self.acquired = np.zeros(P, dtype=bool)      # in the last image: markers seen for the first time
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -251,9 +148,31 @@ class MarkerTracker:
             ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
         return uv[ok], idx[ok]
 
+    def _acquire(self, uv: np.ndarray, status: np.ndarray, dots: np.ndarray, strength: np.ndarray) -> None:
+        """Take dots for markers not seen yet where the layout, registered to this image's sightings,
+        puts them (``settings.acquire_gate``); updates ``uv``, ``status`` and :attr:`acquired` in place."""
+        cfg = self.cfg
+        self.acquired = np.zeros(len(uv), dtype=bool)
+        wanted = (status == LOST) & ~np.all(np.isfinite(self.last), axis=1) & ~self.twins
+        seen = np.isin(status, (TRACKED, RECOVERED))
+        if cfg.acquire_gate is None or self.reference is None or not wanted.any() or seen.sum() < 3 \
+                or len(dots) == 0:
+            return
+        free = np.linalg.norm(dots[:, None] - uv[status != LOST][None], axis=2).min(1, initial=np.inf) \
+            >= cfg.dots.separation / 2
+        known = np.isfinite(self.strength) & seen
+        if known.any():   # as dark as the markers' dots, not a texture blob
+            free &= strength >= cfg.min_strength_ratio * float(np.median(self.strength[known]))
+        match = acquire_layout(self.reference, uv, seen, wanted, dots, free, cfg.acquire_gate,
+                               cfg.acquire_ratio)
+        got = match >= 0
+        uv[got], status[got] = dots[match[got]], RECOVERED
+        self.acquired = got
+
     def step(self, image) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
+        self.acquired = np.zeros(P, dtype=bool)
         if self._out:
             # Carried only now, after any outside check took back sightings of the last image:
             # a wrong dot's jump must not drag its lost neighbours along.
@@ -276,7 +195,8 @@ class MarkerTracker:
             status[seen] = TRACKED
         else:
             gap = self.gap
-            pred = predict(self.last, self.vel, gap, self.reference, dots, cfg.recovery_gate)
+            layout = self.reference if cfg.acquire_gate is None else None    # else: _acquire
+            pred = predict(self.last, self.vel, gap, layout, dots, cfg.recovery_gate)
             pred, shifted = shift_group(pred, dots, cfg.recovery_gate, cfg.gate, 3 * cfg.recovery_gate)
             cand, gates, corr_ok = pred.copy(), np.zeros(P), np.zeros(P, dtype=bool)
             for i in np.flatnonzero(np.all(np.isfinite(pred), axis=1)):
@@ -324,6 +244,7 @@ class MarkerTracker:
             status[trust] = CORRELATION_ONLY
             drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
+            self._acquire(uv, status, dots[round_], strength[round_])
         status[self.twins] = LOST
         uv[self.twins] = np.nan
         if self.reference is not None:
@@ -352,8 +273,10 @@ class MarkerTracker:
 
     @property
     def reacquired(self) -> np.ndarray:
-        """(P,) bool: markers that were not seen in the image before the last one."""
-        return self._before[1] > 0 if self._out else np.zeros(len(self.init), dtype=bool)
+        """(P,) bool: markers that were not seen in the image before the last one, or never before."""
+        if not self._out:
+            return np.zeros(len(self.init), dtype=bool)
+        return (self._before[1] > 0) | self.acquired
 
     def reject(self, markers) -> None:
         """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
@@ -375,6 +298,17 @@ class MarkerTracker:
             self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
             self.templates[i] = templates[i]
             self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
+            self.acquired[i] = False
+
+    def withdraw(self, markers) -> None:
+        """Take back the last image's acquisitions of ``markers`` (indices) as :meth:`reject` does,
+        but not as rejected sightings: an acquisition the other view does not confirm was a guess."""
+        idx = np.asarray(markers, dtype=np.int64).ravel()
+        if not self._out or len(idx) == 0:
+            return
+        before = self._rejected[-1][idx].copy()
+        self.reject(idx)
+        self._rejected[-1][idx] = before
 
     def tracks(self) -> Tracks:
         """Everything tracked so far."""

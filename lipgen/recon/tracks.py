@@ -1,0 +1,145 @@
+"""What marker tracking is set with and what it gives: :class:`TrackerSettings`, :class:`Tracks`.
+
+Also the layout test for markers too close together to be told apart (:func:`twin_partners`),
+which the tracker (:mod:`lipgen.recon.track`), the twin model (:mod:`lipgen.recon.twins`) and the
+account of lost markers (:mod:`lipgen.recon.account`) share.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lipgen._validate import as_float_array
+from lipgen.recon.dots import DotSettings
+
+__all__ = ["TrackerSettings", "Tracks", "twin_partners"]
+
+
+@dataclass(frozen=True)
+class TrackerSettings:
+    """Tracking parameters (pixels unless stated).
+
+    Attributes
+    ----------
+    dots : DotSettings
+        How the ink dots look.
+    template_radius : int
+        Half-size of the correlation template.
+    search_radius : int
+        Half-size of the correlation search window around the prediction.
+    min_correlation : float
+        A correlation peak below this counts as a failure.
+    confident_correlation : float
+        A peak at least this high is accepted even without a detected dot there.
+    gate : float
+        Largest distance from the correlation peak to the dot it is snapped to.
+    recovery_gate : float
+        Largest distance from the prediction to a dot when correlation failed; it grows by
+        ``gate`` for each of the first three frames the marker has been lost.
+    max_jump : float
+        A correlation peak farther than this from the prediction is a failure.
+    motion_penalty : float
+        Correlation given up for a match at the edge of the search window (quadratic in the
+        distance from the prediction); breaks ties between look-alike dots.
+    min_strength_ratio : float
+        A dot must be at least this fraction as dark as the marker's dot has been.
+    twin_distance : float, optional
+        Markers closer than this in the reference layout cannot be told apart in this view (their
+        dots merge); they are never tracked there. Defaults to ``2.5 * dots.sigma``.
+    acquire_gate : float, optional
+        A marker not seen yet (unmatched in the first frame, or its match taken back) is searched
+        for in every later frame where the layout, registered to the markers seen in that frame,
+        puts it, and takes a free dot within this distance by the first frame's rules
+        (:func:`lipgen.recon.acquire.acquire_layout`: one-to-one, unambiguous by
+        ``acquire_ratio``, round, about as dark as the markers' dots). With two views such an
+        acquisition stands only when the other view confirms it
+        (:func:`lipgen.recon.viewcheck.check_views`). None (the default): a marker not seen yet is
+        placed by the local offsets of its nearest neighbours in the motion prediction and taken
+        like a lost one. 6 px (the first frame's gate) is measured in
+        ``ReconstructSettings.robust_first_frame``: alone it accepts 62.6 % of the validation
+        sightings instead of 57.9 %, but 221 over 3 px instead of 163 (on hard seeds 8 and 10 it
+        builds on wrong first-frame matches); with the robust first frame 66.7 % and 141.
+    acquire_ratio : float
+        Ambiguity ratio of an acquisition.
+    """
+
+    dots: DotSettings = DotSettings()
+    template_radius: int = 7
+    search_radius: int = 14
+    min_correlation: float = 0.5
+    confident_correlation: float = 0.95
+    gate: float = 3.0
+    recovery_gate: float = 8.0
+    max_jump: float = 12.0
+    motion_penalty: float = 0.3
+    twin_distance: float | None = None
+    min_strength_ratio: float = 0.5
+    acquire_gate: float | None = None
+    acquire_ratio: float = 0.6
+
+    @property
+    def twins(self) -> float:
+        return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
+
+
+@dataclass(frozen=True, eq=False)
+class Tracks:
+    """Tracked 2-D marker positions in one view.
+
+    Attributes
+    ----------
+    uv : (F, P, 2) float
+        Positions (column, row) in pixels; NaN where the marker is not visible.
+    visible : (F, P) bool
+    status : (F, P) int8
+        ``TRACKED``, ``RECOVERED``, ``CORRELATION_ONLY`` or ``LOST``.
+    score : (F, P) float
+        Correlation peak (NaN in the first frame and where no search was made).
+    rejected : (F, P) bool, optional
+        Sightings taken back by an outside check (:meth:`MarkerTracker.reject`, e.g. the other
+        view disagreed); they are ``LOST`` in ``status``. None: no such record.
+    """
+
+    uv: np.ndarray
+    visible: np.ndarray
+    status: np.ndarray
+    score: np.ndarray
+    rejected: np.ndarray | None = None
+
+    @property
+    def n_frames(self) -> int:
+        return self.uv.shape[0]
+
+    @property
+    def n_markers(self) -> int:
+        return self.uv.shape[1]
+
+
+
+def twin_partners(reference, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Markers too close to a neighbour in the layout to be told apart (their dots merge).
+
+    Parameters
+    ----------
+    reference : (P, 2) float
+        The expected layout, pixels.
+    threshold : float
+        Markers nearer than this to another are twins (``TrackerSettings.twins``).
+
+    Returns
+    -------
+    partner : (P,) int
+        The nearest other marker of each twin, -1 for markers that are not twins.
+    distance : (P,) float
+        Distance to it, pixels (NaN for non-twins).
+    """
+    ref = as_float_array(reference, "reference", (None, 2))
+    partner, dist = np.full(len(ref), -1), np.full(len(ref), np.nan)
+    if len(ref) > 1:
+        d = np.linalg.norm(ref[:, None] - ref[None], axis=2)
+        np.fill_diagonal(d, np.inf)
+        twin = d.min(1) < threshold
+        partner[twin], dist[twin] = d.argmin(1)[twin], d.min(1)[twin]
+    return partner, dist
