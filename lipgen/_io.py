@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 import shutil
+import struct
 import tempfile
 import zipfile
+import zlib
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
@@ -192,34 +193,48 @@ def load_npz(path: str | os.PathLike, kind: str, schema: int,
     return out
 
 
+_PNG_COLOUR_TYPE = {1: 0, 3: 2, 4: 6}  # channels -> PNG colour type: grey, RGB, RGBA
+
+
+def _png_chunk(tag: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(data, zlib.crc32(tag)))
+
+
 def png_bytes(image: np.ndarray, level: int) -> bytes:
-    """A PNG file's bytes, encoded by OpenCV's libpng with zlib's RLE strategy when OpenCV is
-    installed (0.6x the CPU of Pillow's encoder at level 1 on a noisy 640x480 frame, and 0.77x the
-    bytes), else by Pillow. Lossless either way: the pixels decode the same.
+    """A standard 8-bit PNG file's bytes: every row with PNG's "Up" filter (its difference to the
+    row above, mod 256), deflated by zlib with the RLE strategy at ``level``, in one IDAT chunk.
+
+    Lossless: any PNG reader decodes the same pixels. The filter is one numpy subtraction rather
+    than libpng's per-row choice among five filters (which is most of libpng's time at level 1):
+    on a noisy 640x480 frame 0.45x the CPU of OpenCV's libpng at level 1 with the RLE strategy,
+    for 1.06x its bytes (a label mask: long runs of zeros after the filter, a few kB).
 
     Parameters
     ----------
-    image : (H, W) or (H, W, 3) uint8
-        Grey or RGB.
+    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8
+        Grey, RGB or RGBA.
     level : int
-        zlib compression level, 0-9.
+        zlib compression level, 0 (stored) to 9.
 
     Returns
     -------
     bytes
     """
-    try:
-        import cv2
-    except ImportError:
-        cv2 = None
-    if cv2 is not None:
-        bgr = np.ascontiguousarray(image[..., ::-1] if image.ndim == 3 else image)
-        ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, int(level),
-                                             cv2.IMWRITE_PNG_STRATEGY, cv2.IMWRITE_PNG_STRATEGY_RLE])
-        if ok:
-            return buf.tobytes()
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(image).save(buf, format="PNG", compress_level=level)
-    return buf.getvalue()
+    image = np.asarray(image)
+    channels = 1 if image.ndim == 2 else (image.shape[2] if image.ndim == 3 else 0)
+    if image.dtype != np.uint8 or channels not in _PNG_COLOUR_TYPE or 0 in image.shape[:2]:
+        raise ValueError(f"image must be a non-empty (H, W) or (H, W, 1|3|4) uint8 array, got {image.dtype} "
+                         f"of shape {image.shape}")
+    if isinstance(level, bool) or int(level) != level or not 0 <= level <= 9:
+        raise ValueError(f"PNG compression level must be a whole number in [0, 9], got {level!r}")
+    h, w = image.shape[:2]
+    a = image.reshape(h, w * channels)
+    rows = np.empty((h, w * channels + 1), np.uint8)
+    rows[:, 0] = 2  # filter type Up
+    rows[0, 1:] = a[0]  # the row above the first is zeros
+    np.subtract(a[1:], a[:-1], out=rows[1:, 1:])  # uint8: mod 256
+    deflate = zlib.compressobj(int(level), zlib.DEFLATED, 15, 9, zlib.Z_RLE)
+    data = deflate.compress(rows) + deflate.flush()
+    header = struct.pack(">IIBBBBB", w, h, 8, _PNG_COLOUR_TYPE[channels], 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + _png_chunk(b"IDAT", data)
+            + _png_chunk(b"IEND", b""))
