@@ -3,7 +3,8 @@
 Issue 22's target is ``generate`` at 1.5x the frames per second per core of the code when the
 issue was filed (:data:`BASE_COMMIT`). That code is taken from this checkout's git history
 (``git archive``, only its ``lipgen`` package, into a temporary folder), and both trees run the
-same ``generate`` call in fresh subprocesses, alternating round by round (base, new, base, ...)
+same ``generate`` call in fresh subprocesses started at the same time, so both see the same load
+(the load of a shared machine drifts by more than the differences measured), round after round,
 on the default settings (``GenerateSettings(frames=F, calib_frames=0)``: 640x480, ideal camera,
 noise 1, PNG level 1), with 1 and with 2 worker processes.
 
@@ -73,17 +74,32 @@ def base_tree(dest: str | os.PathLike, commit: str = BASE_COMMIT) -> Path | None
     return dest
 
 
-def _one_run(tree: Path, out: Path, frames: int, workers: int, env: dict | None = None) -> dict:
+def _start(tree: Path, out: Path, frames: int, workers: int, env: dict | None) -> subprocess.Popen:
     env = dict(os.environ, **(env or {}), PYTHONPATH=str(tree))
-    done = subprocess.run([sys.executable, "-c", _DRIVER, str(out), str(frames), str(workers)], env=env,
-                          capture_output=True, text=True, timeout=3600, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"generate in {tree} failed: {done.stderr.strip()[-2000:]}")
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return subprocess.Popen([sys.executable, "-c", _DRIVER, str(out), str(frames), str(workers)], env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _finish(proc: subprocess.Popen, tree: Path) -> dict:
+    stdout, stderr = proc.communicate(timeout=3600)
+    if proc.returncode != 0:
+        raise RuntimeError(f"generate in {tree} failed: {stderr.strip()[-2000:]}")
+    return json.loads(stdout.strip().splitlines()[-1])
+
+
+def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, frames: int, workers: int,
+          together: bool) -> dict[str, dict]:
+    """One run of every tree: all at once (``together``: the same load for each), or one by one."""
+    names = list(trees)
+    if together:
+        procs = {n: _start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n)) for n in names}
+        return {n: _finish(p, trees[n]) for n, p in procs.items()}
+    return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n)), trees[n])
+            for n in names}
 
 
 def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_short: int, frames_long: int,
-                 rounds: int, envs: dict[str, dict] | None = None) -> dict:
+                 rounds: int, envs: dict[str, dict] | None = None, together: bool = True) -> dict:
     """Frames per CPU second of ``generate`` in each of ``trees``, interleaved, and ratios to ``baseline``.
 
     Parameters
@@ -100,6 +116,10 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
         Rounds; each runs every tree twice.
     envs : dict of str to dict, optional
         Extra environment variables of a name's runs.
+    together : bool
+        Start the trees' runs of a round at the same time, so that each sees the same load (the
+        machine's load drifts by more than the differences measured); else one after the other,
+        in an order that alternates round by round.
 
     Returns
     -------
@@ -114,16 +134,16 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     load_before = load_average()
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(rounds):
-            for name, tree in trees.items():
-                env = (envs or {}).get(name)
-                short = _one_run(tree, Path(tmp) / f"{name}-{r}-s", frames_short, workers, env)
-                long = _one_run(tree, Path(tmp) / f"{name}-{r}-l", frames_long, workers, env)
-                extra = max(long["cpu_s"] - short["cpu_s"], 1e-9)
+            order = dict(list(trees.items())[:: 1 if r % 2 == 0 else -1])
+            short = _runs(order, envs or {}, Path(tmp), f"{r}-s", frames_short, workers, together)
+            long = _runs(order, envs or {}, Path(tmp), f"{r}-l", frames_long, workers, together)
+            for name in trees:
+                extra = max(long[name]["cpu_s"] - short[name]["cpu_s"], 1e-9)
                 per[name]["marginal"].append((frames_long - frames_short) / extra)
-                per[name]["whole"].append(frames_long / long["cpu_s"])
-                per[name]["wall"].append(frames_long / long["wall_s"])
+                per[name]["whole"].append(frames_long / long[name]["cpu_s"])
+                per[name]["wall"].append(frames_long / long[name]["wall_s"])
     out: dict = {"workers": workers, "frames": [frames_short, frames_long], "rounds": rounds,
-                 "load_average": [load_before, load_average()]}
+                 "together": together, "load_average": [load_before, load_average()]}
     base = {k: np.asarray(v) for k, v in per[baseline].items()}
     for name, v in per.items():
         row = {"frames_per_cpu_s": float(np.median(v["marginal"])),
