@@ -200,14 +200,25 @@ def _png_chunk(tag: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(data, zlib.crc32(tag)))
 
 
+def _deflate_module():
+    """zlib-ng's zlib-compatible module when installed (``pip install zlib-ng``), else zlib."""
+    try:
+        from zlib_ng import zlib_ng
+    except ImportError:
+        return zlib
+    return zlib_ng
+
+
 def png_bytes(image: np.ndarray, level: int) -> bytes:
     """A standard 8-bit PNG file's bytes: every row with PNG's "Up" filter (its difference to the
-    row above, mod 256), deflated by zlib with the RLE strategy at ``level``, in one IDAT chunk.
+    row above, mod 256), deflated with the RLE strategy at ``level``, in one IDAT chunk.
 
     Lossless: any PNG reader decodes the same pixels. The filter is one numpy subtraction rather
-    than libpng's per-row choice among five filters (which is most of libpng's time at level 1):
-    on a noisy 640x480 frame 0.45x the CPU of OpenCV's libpng at level 1 with the RLE strategy,
-    for 1.06x its bytes (a label mask: long runs of zeros after the filter, a few kB).
+    than libpng's per-row choice among five filters (which is most of libpng's time at level 1).
+    On a noisy 640x480 frame, against OpenCV's libpng at level 1 with the RLE strategy (the
+    encoder before): 0.45x its CPU with zlib, 0.26x with zlib-ng (``lipgen[render]``, used when
+    installed: the same size, other bytes), for 1.06x its bytes; a label mask has long runs of
+    zeros after the filter and takes a few kB.
 
     Parameters
     ----------
@@ -233,7 +244,8 @@ def png_bytes(image: np.ndarray, level: int) -> bytes:
     rows[:, 0] = 2  # filter type Up
     rows[0, 1:] = a[0]  # the row above the first is zeros
     np.subtract(a[1:], a[:-1], out=rows[1:, 1:])  # uint8: mod 256
-    deflate = zlib.compressobj(int(level), zlib.DEFLATED, 15, 9, zlib.Z_RLE)
+    z = _deflate_module()
+    deflate = z.compressobj(int(level), z.DEFLATED, 15, 9, z.Z_RLE)
     data = deflate.compress(rows) + deflate.flush()
     header = struct.pack(">IIBBBBB", w, h, 8, _PNG_COLOUR_TYPE[channels], 0, 0, 0)
     return (b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + _png_chunk(b"IDAT", data)

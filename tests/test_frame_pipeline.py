@@ -21,9 +21,24 @@ def _decoders(data: bytes) -> list[np.ndarray]:
     return out + [back]
 
 
+@pytest.fixture(params=["zlib", "zlib-ng"])
+def deflate(request, monkeypatch):
+    """Both deflate back ends: zlib-ng when installed, and the standard library's zlib."""
+    import zlib
+
+    from lipgen import _io
+
+    if request.param == "zlib":
+        monkeypatch.setattr(_io, "_deflate_module", lambda: zlib)
+    else:
+        pytest.importorskip("zlib_ng")
+        assert _io._deflate_module() is not zlib
+    return request.param
+
+
 @pytest.mark.parametrize("shape", [(30, 40, 3), (30, 40), (1, 1), (17, 5, 4), (3, 8, 1)])
 @pytest.mark.parametrize("level", [0, 1, 9])
-def test_generate_png_is_lossless(shape, level):
+def test_generate_png_is_lossless(shape, level, deflate):
     from lipgen._io import png_bytes
 
     image = np.random.default_rng(1).integers(0, 256, shape, dtype=np.uint8)
@@ -31,7 +46,7 @@ def test_generate_png_is_lossless(shape, level):
         assert back.dtype == np.uint8 and np.array_equal(back, image.reshape(back.shape))
 
 
-def test_png_of_a_frame_and_a_mask():
+def test_png_of_a_frame_and_a_mask(deflate):
     """Smooth content with noise (a frame) and long runs (a label mask) decode exactly; the mask
     stays small (the filter leaves runs of zeros for the RLE strategy)."""
     from lipgen._io import png_bytes
