@@ -92,8 +92,16 @@ def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, frames: int, 
     """One run of every tree: all at once (``together``: the same load for each), or one by one."""
     names = list(trees)
     if together:
-        procs = {n: _start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n)) for n in names}
-        return {n: _finish(p, trees[n]) for n, p in procs.items()}
+        procs = {}
+        try:
+            for n in names:
+                procs[n] = _start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n))
+            return {n: _finish(p, trees[n]) for n, p in procs.items()}
+        finally:  # an error or Ctrl-C in one run: the others do not run on
+            for p in procs.values():
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
     return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n)), trees[n])
             for n in names}
 
