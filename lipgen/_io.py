@@ -86,13 +86,15 @@ def remove_stale_temporaries(dest: str | os.PathLike, folder: bool = False) -> l
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, suffix: str | None = None, clean: bool = True) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; rename it onto ``path`` only on success.
 
     A crash or exception leaves the destination untouched and removes the temporary file; the
     leftovers of a writer that was killed (SIGKILL runs no clean-up) are removed by the next
     write of the same destination. ``suffix`` defaults to the destination's own (writers that
-    choose a format by extension need it).
+    choose a format by extension need it). ``clean=False`` skips that look for leftovers (a scan of
+    the folder: a writer of many files into one folder, such as ``generate``, clears them once
+    before it starts instead of once per file).
     """
     dest = Path(path)
     parent = dest.parent if str(dest.parent) else Path(".")
@@ -103,7 +105,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     if not os.access(parent, os.W_OK):
         raise PermissionError(f"cannot write {dest}: folder {parent} is not writable")
     ext = suffix if suffix is not None else dest.suffix
-    remove_stale_temporaries(dest)
+    if clean:
+        remove_stale_temporaries(dest)
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}{_TMP_TAG}{os.getpid()}-", suffix=ext, dir=parent)
     os.close(fd)
     tmp_path = Path(tmp)
@@ -123,9 +126,10 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (flushed and fsynced before the rename)."""
-    with atomic_path(path) as tmp:
+def atomic_write_bytes(path: str | os.PathLike, data: bytes, clean: bool = True) -> None:
+    """Write ``data`` to ``path`` atomically (flushed and fsynced before the rename); ``clean``:
+    see :func:`atomic_path`."""
+    with atomic_path(path, clean=clean) as tmp:
         with open(tmp, "wb") as fh:
             fh.write(data)
             fh.flush()
@@ -138,10 +142,10 @@ def atomic_write_json(path: str | os.PathLike, obj) -> None:
 
 
 def save_npz(path: str | os.PathLike, kind: str, schema: int, arrays: Mapping[str, np.ndarray],
-             compress: bool = True) -> None:
+             compress: bool = True, clean: bool = True) -> None:
     """Save ``arrays`` to ``path`` with a ``kind`` tag and ``schema`` version, atomically.
 
-    Object arrays are refused so that files load without pickle.
+    Object arrays are refused so that files load without pickle. ``clean``: see :func:`atomic_path`.
     """
     for key, val in arrays.items():
         if np.asarray(val).dtype == object:
@@ -149,7 +153,7 @@ def save_npz(path: str | os.PathLike, kind: str, schema: int, arrays: Mapping[st
     payload = {"__kind__": np.array(kind), "__schema__": np.array(schema, dtype=np.int64)}
     payload.update({k: np.asarray(v) for k, v in arrays.items()})
     writer = np.savez_compressed if compress else np.savez
-    with atomic_path(path, suffix=".npz") as tmp:
+    with atomic_path(path, suffix=".npz", clean=clean) as tmp:
         with open(tmp, "wb") as fh:
             writer(fh, **payload)
             fh.flush()

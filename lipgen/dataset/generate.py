@@ -207,6 +207,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     try:
         if workers == 1 or len(jobs) <= 1:
             _init_worker(ctx)
+            _WORKER["clean"] = False  # prepare_dataset has just removed a killed run's temporaries
             # encode and write frame k in a thread while frame k + 1 renders (PNG/zlib release the GIL)
             writer = ThreadPoolExecutor(1)
             try:

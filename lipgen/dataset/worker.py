@@ -69,6 +69,7 @@ def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
     die_with_parent(parent_pid)
     limit_worker_threads(1)
     _init_worker(ctx)
+    _WORKER["clean"] = False  # generate's own pool: the folder was cleaned when prepared
 
 
 def _init_worker(ctx: _Context, renderer=None) -> None:
@@ -162,24 +163,31 @@ def _render_job(job: tuple[str, int]):
 
 
 def _extras(rendered, depth_path: Path, mask_path: Path, level: int) -> list:
-    """The optional depth and mask files of a frame, as ``(path, writer)`` pairs."""
+    """The optional depth and mask files of a frame, as ``(path, writer(path, clean))`` pairs."""
     out = []
     if rendered.depth is not None:
         z = np.where(rendered.depth > 0, rendered.depth, np.nan).astype(np.float32)  # 0: nothing drawn
-        out.append((depth_path, lambda p: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z})))
+        out.append((depth_path, lambda p, clean: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z}, clean=clean)))
     if rendered.labels is not None:
         mask = png_bytes(rendered.labels.astype(np.uint8), level)
-        out.append((mask_path, lambda p: atomic_write_bytes(p, mask)))
+        out.append((mask_path, lambda p, clean: atomic_write_bytes(p, mask, clean=clean)))
     return out
 
 
 def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
     """Write a frame's depth and mask (if asked), its PNG, then its truth, each atomically; the frame
-    counts as written once the truth exists, so the truth goes last."""
+    counts as written once the truth exists, so the truth goes last.
+
+    Within ``generate`` (``_WORKER["clean"]`` False) no write scans its folder for a killed run's
+    temporary files: the folder's preparation has just removed them
+    (:func:`lipgen.dataset.folder.prepare_folder`), and a scan per file grows with the folder (about
+    2 ms per file at 3000 frames). :func:`render_jobs` (campaign chunks, perhaps a retry of a killed
+    worker's chunk without a new preparation) keeps the scan of each file's own leftovers."""
+    clean = _WORKER.get("clean", True)
     for path, write in extras:
-        write(path)
-    atomic_write_bytes(png, png_bytes(image, level))
-    save_npz(npz, kind_tag, SCHEMA, truth)
+        write(path, clean)
+    atomic_write_bytes(png, png_bytes(image, level), clean=clean)
+    save_npz(npz, kind_tag, SCHEMA, truth, clean=clean)
 
 
 def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
