@@ -126,3 +126,41 @@ def test_a_size_that_cannot_calibrate_fails_before_any_write(tmp_path, capsys):
                  "--no-progress"]) == 1
     assert "board poses" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_generate_writes_scan_no_folder_but_a_chunk_retry_cleans_its_files(small, tmp_path, monkeypatch):
+    """generate's own writes do not look for leftovers file by file (the folder was cleaned when
+    prepared; a scan per file grows with the folder), with 1 worker; a campaign chunk
+    (``render_jobs``, perhaps retrying a killed worker's frames) still removes a dead writer's
+    temporary file of each frame it writes."""
+    from lipgen import _io
+    from lipgen.dataset import generate as gen
+
+    scans = []
+    real = _io.remove_stale_temporaries
+    monkeypatch.setattr(_io, "remove_stale_temporaries",
+                        lambda dest, folder=False: scans.append((Path(dest), folder)) or real(dest, folder))
+    out = gen.generate(tmp_path / "one", SMALL, progress=False)
+    per_file = [d for d, folder in scans if not folder and d.parent.name in ("raw", "truth", "calib")]
+    assert per_file == []
+    assert _files_equal(out, small)
+
+    ds = _copy(small, tmp_path / "retry")
+    dead = 2**22 + 54321  # above the default pid_max: never a running process
+    left = ds / "raw" / f".000001.png.tmp-{dead}-abc.png"
+    left.write_bytes(b"half a frame")
+    (ds / "truth" / "000001.npz").unlink()
+    ctx, jobs = gen.prepare_dataset(ds, SMALL, resume=True)  # cleans the folder ...
+    assert jobs == [("frame", 1)] and not left.exists()
+    left.write_bytes(b"half a frame")  # ... and a worker killed after the preparation leaves one again
+    try:
+        assert gen.render_jobs(ctx, jobs) == 1
+    finally:
+        gen._close_worker()
+    assert not left.exists() and _files_equal(ds, small)
+
+
+def _files_equal(a: Path, b: Path) -> bool:
+    names = {p.relative_to(a) for p in a.rglob("*") if p.is_file()}
+    return names == {p.relative_to(b) for p in b.rglob("*") if p.is_file()} and all(
+        (a / n).read_bytes() == (b / n).read_bytes() for n in names if n.name != "manifest.json")

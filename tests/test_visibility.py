@@ -38,3 +38,22 @@ def test_no_points_or_no_triangles():
     cam = PinholeCamera.look_at([0, 0, 300.0], [0, 0, 0], 160, 120, 200.0)
     assert visibility.occluded(cam, np.zeros((0, 3)), np.zeros((3, 3, 3))).shape == (0,)
     assert not visibility.occluded(cam, np.zeros((2, 3)), np.zeros((0, 3, 3))).any()
+
+
+@pytest.mark.parametrize("block", [None, 1, 50])
+def test_box_pairs_are_every_point_in_every_box(monkeypatch, block):
+    """The sorted search finds exactly the pairs of an all-pairs test: ties in x, points on box
+    edges, infinite boxes, empty boxes, and blocks of any size."""
+    if block is not None:
+        monkeypatch.setattr(visibility, "_PAIR_BLOCK", block)
+    rng = np.random.default_rng(7)
+    q = rng.integers(0, 20, size=(60, 2)).astype(float)  # many ties; some points on box edges
+    a, b = rng.integers(0, 20, size=(2, 2, 80)).astype(float)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    lo[:, :3], hi[:, :3] = -np.inf, np.inf  # boxes over everything (a vertex behind the camera)
+    lo[0, 3], hi[0, 3] = 5.0, 4.0  # an empty box
+    i, j = visibility._box_pairs(q, lo, hi)
+    inside = ((q[:, :1] >= lo[0]) & (q[:, :1] <= hi[0]) & (q[:, 1:] >= lo[1]) & (q[:, 1:] <= hi[1]))
+    want = set(zip(*np.nonzero(inside), strict=True))
+    assert len(i) == len(want) == len(set(zip(i, j, strict=True)))
+    assert set(zip(i.tolist(), j.tolist(), strict=True)) == want

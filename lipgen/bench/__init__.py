@@ -34,6 +34,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.mesh",
     "lipgen.bench.render",
     "lipgen.bench.preset_frames",
+    "lipgen.bench.generate_cpu",
     "lipgen.bench.cycles",
     "lipgen.bench.blender",
     "lipgen.bench.startup",

@@ -6,8 +6,8 @@
 * :mod:`~lipgen.dataset.presets`: ``--preset easy|default|hard``.
 * :mod:`~lipgen.dataset.simulation`: the subject's motion and each frame's truth, before rendering.
 * :mod:`~lipgen.dataset.generate`: ``lipgen generate``: simulate, render and write a dataset
-  (:mod:`~lipgen.dataset.folder`: the folder it writes into; :mod:`~lipgen.dataset.film`: image
-  conditions per frame).
+  (:mod:`~lipgen.dataset.worker`: rendering and writing one frame; :mod:`~lipgen.dataset.folder`:
+  the folder it writes into; :mod:`~lipgen.dataset.film`: image conditions per frame).
 * :mod:`~lipgen.dataset.footage`: a user's own recording in the same layout.
 """
 

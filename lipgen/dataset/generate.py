@@ -1,11 +1,11 @@
 """Writing a synthetic camera-mirror dataset (``lipgen generate``).
 
 The subject (:mod:`lipgen.subject.motion`) is simulated once in the parent process; the frames are
-then rendered and written by ``workers`` processes, each with its own OpenGL (EGL) context.
-Every file is written atomically and depends only on the settings and its frame number (each
-random choice is seeded from the dataset seed and the frame), so a run killed at any point
-continues with ``resume=True`` where it stopped, and two runs with the same settings write
-the same bytes.
+then rendered and written by ``workers`` processes, each with its own OpenGL (EGL) context
+(:mod:`lipgen.dataset.worker`). Every file is written atomically and depends only on the settings
+and its frame number (each random choice is seeded from the dataset seed and the frame), so a run
+killed at any point continues with ``resume=True`` where it stopped, and two runs with the same
+settings write the same bytes.
 """
 
 from __future__ import annotations
@@ -17,211 +17,43 @@ import os
 import signal
 import threading
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from lipgen import __version__
-from lipgen._io import (
-    atomic_write_bytes,
-    atomic_write_json,
-    png_bytes,
-    save_npz,
-)
-from lipgen._threads import single_threaded
-from lipgen.dataset.film import (
-    exposure_offsets,
-    film_frame,
-    lighting_record,
-    realize,
-    rig_for,
-    sub_frame_states,
-)
+from lipgen._io import atomic_write_json
+from lipgen.dataset.film import lighting_record, realize, rig_for
 from lipgen.dataset.folder import prepare_folder
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
     FRAME_KIND,
-    SCHEMA,
     GenerateSettings,
     calib_paths,
     extra_paths,
     frame_paths,
     intact,
 )
-from lipgen.dataset.simulation import face_look, frame_truth, simulate_motion, speech_phones
-from lipgen.rig.camera import VIEWS, MirrorRig, default_rig
-from lipgen.rig.imaging import on_mirror
-from lipgen.rig.noise import add_rounded_gaussian
-from lipgen.rig.render import RenderedFrame
-from lipgen.subject.face import FaceModel, look_record
+from lipgen.dataset.simulation import face_look, simulate_motion, speech_phones
+from lipgen.dataset.worker import (  # noqa: F401  (the private names: bench and tests drive a worker)
+    _CALIB_STREAM,
+    _WORKER,
+    _close_worker,
+    _Context,
+    _init_pool_worker,
+    _init_worker,
+    _render_job,
+    _run_job,
+    _write,
+    render_jobs,
+)
+from lipgen.rig.camera import default_rig
+from lipgen.subject.face import look_record
 
 __all__ = ["generate", "prepare_dataset", "render_jobs"]
 
 log = logging.getLogger(__name__)
-
-_NOISE_STREAM, _CALIB_STREAM = 3, 4
-
-
-def _age(i: int, s: GenerateSettings) -> float:
-    """How far through the clip frame ``i`` is (0 first, 1 last)."""
-    return i / max(s.frames - 1, 1)
-
-
-@dataclass
-class _Context:
-    """What a worker needs to render and write any frame."""
-
-    out: str
-    settings: dict
-    vertices: np.ndarray
-    poses: np.ndarray
-    activations: np.ndarray
-    mesh_path: str
-    dots: dict | None = None
-
-
-_WORKER: dict = {}
-
-
-def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
-    """A pool process: it ends when the generating process is killed; one BLAS thread (its
-    siblings use the other cores); then it prepares to render."""
-    from lipgen._lifeline import die_with_parent
-    from lipgen._threads import limit_worker_threads
-
-    die_with_parent(parent_pid)
-    limit_worker_threads(1)
-    _init_worker(ctx)
-
-
-def _init_worker(ctx: _Context, renderer=None) -> None:
-    from lipgen.mesh.lipmesh import LipMesh
-    from lipgen.rig.backends import open_renderer
-    from lipgen.rig.target import Chessboard
-
-    s = GenerateSettings.from_dict(ctx.settings)
-    c = s.conditions
-    rig = rig_for(s.size, c, default_rig)
-    mesh = LipMesh.load(ctx.mesh_path)
-    dots = None
-    if ctx.dots is not None:
-        from lipgen.subject.inkdots import SurfaceDots
-
-        dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
-    face = FaceModel(mesh, face_look(s), dots=dots)
-    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
-                   renderer=renderer or open_renderer(s.renderer, rig, c, s.cycles_samples, s.seed % 2**31))
-    if not c.is_ideal:
-        from lipgen.rig.imaging import FrameFormer
-
-        light = realize(c, s.seed)
-        _WORKER.update(lights=light["lights"], former=FrameFormer(rig, c, light["exposure"],
-                                                                   light["white_balance"]))
-
-
-def _noisy(image: np.ndarray, sigma: float, rng: np.random.Generator) -> np.ndarray:
-    """``clip(round(image + sigma * z), 0, 255)``, drawn as integers (:mod:`lipgen.rig.noise`)."""
-    return add_rounded_gaussian(image, sigma, rng)
-
-
-def _run_job(job: tuple[str, int]) -> tuple[str, int]:
-    """Render and write one frame (or calibration frame)."""
-    _write(*_render_job(job))
-    return job
-
-
-@single_threaded  # many small numpy calls (truth, visibility): 2 BLAS threads only wait under load
-def _render_job(job: tuple[str, int]):
-    """The image, truth and destination of one job (nothing written yet)."""
-    w = _WORKER
-    ctx, s, rig = w["ctx"], w["s"], w["rig"]
-    kind, i = job
-    out = Path(ctx.out)
-    rng = np.random.default_rng([s.seed, _NOISE_STREAM, 0 if kind == "frame" else 1, i])
-    c = s.conditions
-    if kind == "frame":
-        V, P = ctx.vertices[i], ctx.poses[i]
-        if c.is_ideal:
-            rendered = w["renderer"].render(w["face"].scene(V, P, age=_age(i, s)), depth=s.depth,
-                                            labels=s.masks)
-        else:
-            ends = sub_frame_states(ctx.vertices, ctx.poses, i, c.sub_frame_offsets[[0, -1]])
-            uv_ends = [rig.project(w["face"].marks(Vs, Ps)[0])[0] for Vs, Ps in ends]
-            span = np.nanmax(np.linalg.norm(uv_ends[1] - uv_ends[0], axis=-1), initial=0.0)
-            offsets = exposure_offsets(c, float(span))
-            states = sub_frame_states(ctx.vertices, ctx.poses, i, offsets)
-            rendered = RenderedFrame(*film_frame(w["renderer"], w["former"], w["face"], states, w["lights"],
-                                                 rng, s.depth, s.masks, age=_age(i, s)))
-        image = _noisy(rendered.image, s.noise, rng)
-        extras = _extras(rendered, *extra_paths(out, i), s.png_compress_level)
-        truth = frame_truth(rig, w["face"], V, P, c.mirror_extent_mm)
-        if c.shutter > 0:  # where the marks were while the shutter was open (start, end)
-            truth["uv_exposure"] = np.stack(uv_ends)
-        names = np.array(list(w["mesh"].marker_names) + ["nose"])
-        truth.update(index=np.int64(i), time=np.float64(i / s.fps), vertices=V, pose=P,
-                     activations=ctx.activations[i], mark_names=names, views=np.array(VIEWS),
-                     marks_model=w["face"].marks(V)[0])  # identity pose: the model frame
-        png, npz, kind_tag = *frame_paths(out, i), FRAME_KIND
-    else:
-        from lipgen.rig.target import board_scene
-
-        P = _calib_poses(rig, w["board"], s)[i]
-        if c.is_ideal:
-            image = w["renderer"].render(board_scene(w["board"], P)).image
-        else:
-            views = w["renderer"].render_views(board_scene(w["board"], P))
-            image = w["former"].form([(views[0][0], views[1][0])], rng)
-        image = _noisy(image, s.noise, rng)
-        obj = w["board"].object_points()
-        Xw = obj @ P[:3, :3].T + P[:3, 3]
-        uv, _, inside = rig.project(Xw)
-        inside[0] &= on_mirror(rig, c.mirror_extent_mm, Xw)
-        truth = {"index": np.int64(i), "A": P[:3, :3], "b": P[:3, 3], "pose": P, "corners_board": obj,
-                 "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
-                 "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
-        png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
-        extras = []
-    return image, truth, png, npz, kind_tag, s.png_compress_level, extras
-
-
-def _extras(rendered, depth_path: Path, mask_path: Path, level: int) -> list:
-    """The optional depth and mask files of a frame, as ``(path, writer)`` pairs."""
-    out = []
-    if rendered.depth is not None:
-        z = np.where(rendered.depth > 0, rendered.depth, np.nan).astype(np.float32)  # 0: nothing drawn
-        out.append((depth_path, lambda p: save_npz(p, DEPTH_KIND, SCHEMA, {"depth": z})))
-    if rendered.labels is not None:
-        mask = png_bytes(rendered.labels.astype(np.uint8), level)
-        out.append((mask_path, lambda p: atomic_write_bytes(p, mask)))
-    return out
-
-
-def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
-    """Write a frame's depth and mask (if asked), its PNG, then its truth, each atomically; the frame
-    counts as written once the truth exists, so the truth goes last."""
-    for path, write in extras:
-        write(path)
-    atomic_write_bytes(png, png_bytes(image, level))
-    save_npz(npz, kind_tag, SCHEMA, truth)
-
-
-def _frame_intact(out: Path, i: int, s: GenerateSettings) -> bool:
-    files = list(zip(frame_paths(out, i), (None, FRAME_KIND), strict=True))
-    depth, mask = extra_paths(out, i)
-    files += ([(depth, DEPTH_KIND)] if s.depth else []) + ([(mask, None)] if s.masks else [])
-    return all(intact(p, k) for p, k in files)
-
-
-def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
-    from lipgen.rig.target import board_poses
-
-    key = ("calib_poses", s.calib_frames)
-    if key not in _WORKER:
-        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        _WORKER[key] = board_poses(rig, board, s.calib_frames, seed=rng)
-    return _WORKER[key]
 
 
 def _write_speech(out: Path, phones, audio) -> None:
@@ -235,6 +67,13 @@ def _write_speech(out: Path, phones, audio) -> None:
         "source": phones.source, "confidence": phones.confidence})
     if audio is not None:
         write_wav(out / "speech" / "audio.wav", audio)
+
+
+def _frame_intact(out: Path, i: int, s: GenerateSettings) -> bool:
+    files = list(zip(frame_paths(out, i), (None, FRAME_KIND), strict=True))
+    depth, mask = extra_paths(out, i)
+    files += ([(depth, DEPTH_KIND)] if s.depth else []) + ([(mask, None)] if s.masks else [])
+    return all(intact(p, k) for p, k in files)
 
 
 def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
@@ -312,40 +151,6 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     return ctx, jobs
 
 
-def render_jobs(ctx: _Context, jobs) -> int:
-    """Render and write ``jobs`` (from :func:`prepare_dataset`) in this process; returns how many.
-
-    The renderer is kept for the next call with the same context (a worker that renders many
-    chunks of one dataset opens one GL context), and for another dataset of the same size and
-    image conditions, cleared (making one costs about 3 frames' rendering).
-    """
-    if _WORKER.get("key") != (ctx.out, ctx.mesh_path):
-        rig_key = (tuple(ctx.settings["size"]), repr(ctx.settings.get("conditions")),
-                   ctx.settings.get("renderer", "pyrender"))
-        keep = _WORKER.pop("renderer", None) if _WORKER.get("rig_key") == rig_key else None
-        if keep is not None and not hasattr(keep, "clear"):  # Cycles: a new scene per dataset
-            keep.close()
-            keep = None
-        if keep is not None:
-            keep.clear()
-        _close_worker()
-        _init_worker(ctx, keep)
-        _WORKER.update(key=(ctx.out, ctx.mesh_path), rig_key=rig_key)
-    _WORKER["ctx"] = ctx
-    n = 0
-    for job in jobs:
-        _write(*_render_job(tuple(job)))
-        n += 1
-    return n
-
-
-def _close_worker() -> None:
-    renderer = _WORKER.pop("renderer", None)
-    if renderer is not None:
-        renderer.close()
-    _WORKER.clear()
-
-
 @contextlib.contextmanager
 def _deferred_sigint():
     """Ctrl-C sets a flag (the yielded list) instead of raising wherever the main thread is.
@@ -402,6 +207,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     try:
         if workers == 1 or len(jobs) <= 1:
             _init_worker(ctx)
+            _WORKER["clean"] = False  # prepare_dataset has just removed a killed run's temporaries
             # encode and write frame k in a thread while frame k + 1 renders (PNG/zlib release the GIL)
             writer = ThreadPoolExecutor(1)
             try:
@@ -461,4 +267,3 @@ def _write_video(out: Path, s: GenerateSettings) -> None:
 
     log.info("encoding %d frames as %s video", s.frames, s.conditions.video_codec)
     write_video(out / VIDEO_FILE, frames(), s.fps, s.conditions.video_codec, s.conditions.video_crf)
-

@@ -2,8 +2,8 @@
 
 The dataset's visibility truth comes from here, not from the renderer, so it is exact geometry
 and independent of the rasteriser. Each triangle's pixel bounding box culls the points whose line
-of sight could cross it before the exact Moller-Trumbore test (few points, many triangles: one
-vectorised point-in-box test per pair).
+of sight could cross it before the exact Moller-Trumbore test (few points, many triangles: the
+points sorted by x, each box's run of them found by binary search, then tested in y).
 """
 
 from __future__ import annotations
@@ -56,7 +56,44 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-_PAIR_BLOCK = 1 << 22  # point-box tests per block (bools): bounds the memory of the candidate search
+_PAIR_BLOCK = 1 << 22  # candidate pairs per block: bounds the memory of the search
+
+
+def _box_pairs(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every ``(i, j)`` with ``lo[:, j] <= q[i] <= hi[:, j]`` (both coordinates), as two index arrays.
+
+    The points are sorted by x, so the points inside box ``j``'s x-range are one run of that order
+    (two binary searches per box); only those are tested in y. The same pairs as testing every
+    point against every box, at a cost in the boxes and the pairs found rather than their product.
+
+    Parameters
+    ----------
+    q : (p, 2) float
+        Points (finite).
+    lo, hi : (2, m) float
+        Box corners (may be infinite).
+    """
+    order = np.argsort(q[:, 0], kind="stable")
+    xs = q[order, 0]
+    start = np.searchsorted(xs, lo[0], side="left")  # the first point with x >= lo
+    counts = np.searchsorted(xs, hi[0], side="right") - start  # ... and x <= hi
+    pair_q, pair_t = [], []
+    ends = np.cumsum(counts)
+    b0 = 0
+    while b0 < len(counts):  # blocks of boxes holding at most _PAIR_BLOCK candidates (at least one box)
+        b1 = max(int(np.searchsorted(ends, (ends[b0 - 1] if b0 else 0) + _PAIR_BLOCK, side="right")), b0 + 1)
+        c = counts[b0:b1]
+        box = np.repeat(np.arange(b0, b1), c)
+        first = np.repeat(start[b0:b1] - (np.cumsum(c) - c), c)  # run start, less the run's offset
+        i = order[first + np.arange(len(box))]
+        y = q[i, 1]
+        ok = (y >= lo[1][box]) & (y <= hi[1][box])
+        pair_q.append(i[ok])
+        pair_t.append(box[ok])
+        b0 = b1
+    if not pair_q:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return np.concatenate(pair_q), np.concatenate(pair_t)
 
 
 def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) -> np.ndarray:
@@ -84,8 +121,9 @@ def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) ->
     nan = np.isnan(uv)
     behind = nan.any(axis=(1, 2))
     uv[nan] = 0.0  # those boxes are replaced below
-    lo = np.where(behind[:, None], -np.inf, uv.min(axis=1) - 1.0)
-    hi = np.where(behind[:, None], np.inf, uv.max(axis=1) + 1.0)
+    c0, c1, c2 = uv[:, 0], uv[:, 1], uv[:, 2]
+    lo = np.where(behind[:, None], -np.inf, np.minimum(np.minimum(c0, c1), c2) - 1.0)
+    hi = np.where(behind[:, None], np.inf, np.maximum(np.maximum(c0, c1), c2) + 1.0)
     off_image = (hi[:, 0] < -1) | (hi[:, 1] < -1) | (lo[:, 0] > camera.width) | (lo[:, 1] > camera.height)
     keep = np.flatnonzero(~off_image)
     lo, hi = lo[keep].T.copy(), hi[keep].T.copy()
@@ -93,17 +131,8 @@ def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) ->
     q = camera.project(points)
     valid = np.isfinite(q).all(axis=1) & camera.inside(q, margin=-1.0)
     qi = np.flatnonzero(valid)
-    step = max(1, _PAIR_BLOCK // max(len(keep), 1))
-    pair_q, pair_t = [], []
-    for b in range(0, len(qi), step):
-        qb = q[qi[b:b + step]]
-        x, y = qb[:, :1], qb[:, 1:]
-        inside = (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1])
-        i, j = np.nonzero(inside)
-        pair_q.append(qi[b:b + step][i])
-        pair_t.append(keep[j])
-    pair_q = np.concatenate(pair_q) if pair_q else np.zeros(0, np.int64)
-    pair_t = np.concatenate(pair_t) if pair_t else np.zeros(0, np.int64)
+    pair_q, pair_t = _box_pairs(q[qi], lo, hi)
+    pair_q, pair_t = qi[pair_q], keep[pair_t]
     hit = segment_hits(np.broadcast_to(camera.center, (len(pair_q), 3)), points[pair_q], tris[pair_t],
                        end_gap)
     out[pair_q[hit]] = True
