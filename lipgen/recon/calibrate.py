@@ -123,13 +123,15 @@ def _project(X: np.ndarray, f: np.ndarray, c: np.ndarray, k: np.ndarray) -> np.n
 
 
 _DIST_MASK = {"none": np.zeros(4), "radial": np.array([1.0, 1, 0, 0]), "full": np.ones(4)}
-_TANGENTIAL_GAIN = 1.05  # keep p1, p2 only if they cut the RMS by 5 % (noise alone: ~0.1 %)
+_TANGENTIAL_GAIN = 1.05  # keep p1, p2 if they cut the RMS by 5 % (noise alone: ~0.1 %) ...
+_TANGENTIAL_CHI2 = 50.0  # ... or cut the squared residuals by 50 noise variances (noise alone: chi2(2), mean 2)
 
 
-def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
+def _bundle_adjust(objs, obs, K, dist, poses, n0, d0, distortion):
     """Refine intrinsics, mirror (n, d) and board poses on all corners; returns the fit.
 
-    ``distortion`` is "none", "radial" (k1, k2) or "full" (k1, k2, p1, p2)."""
+    ``objs[k]`` are image k's board corners; ``distortion`` is "none", "radial" (k1, k2) or
+    "full" (k1, k2, p1, p2)."""
     mask = _DIST_MASK[distortion]
     dist = np.asarray(dist, float)[:4] * mask
     from scipy.optimize import least_squares
@@ -155,7 +157,7 @@ def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
         f, c, kk, n, d, Rb, tb = unpack(x)
         out = []
         for k, view, uv in views:
-            X = obj @ Rb[index[k]].T + tb[index[k]]
+            X = objs[k] @ Rb[index[k]].T + tb[index[k]]
             if view == "virtual":
                 X = X - 2.0 * (X @ n - d)[:, None] * n
             out.append((_project(X, f, c, kk) - uv).ravel())
@@ -163,7 +165,7 @@ def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
 
     fit = least_squares(residuals, x0, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=4000)
     f, c, kk, n, d, Rb, tb = unpack(fit.x)
-    res = fit.fun.reshape(-1, len(obj), 2)
+    res = np.split(fit.fun.reshape(-1, 2), np.cumsum([len(uv) for _, _, uv in views])[:-1])
     which = np.array([view for _, view, _ in views])
     return f, c, kk, n, d, {k: (Rb[i], tb[i]) for k, i in index.items()}, res, which
 
@@ -206,12 +208,14 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         Too few usable frames, or no board in the reference frame's direct view.
     """
     require("cv2", "chessboard calibration")
+    raw_frames = list(raw_frames)
+    boards = _boards(board, len(raw_frames))
     obs: list[dict[str, np.ndarray]] = []
-    for raw in raw_frames:
+    for raw, b in zip(raw_frames, boards, strict=True):
         virt, real = layout.split_views(np.asarray(raw))
         per = {}
         for view, img in (("virtual", virt), ("real", real)):
-            uv = find_corners(img, board)
+            uv = find_corners(img, b)
             if uv is not None:
                 per[view] = layout.to_raw(view, uv)
         obs.append(per)
@@ -228,9 +232,10 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
     if distortion not in (True, False, "radial", "full"):
         raise ValueError(f"distortion must be True, False, 'radial' or 'full', got {distortion!r}")
     obs = [dict(per) for per in obs]  # outlier views are dropped from a copy, not the caller's list
+    board = _boards(board, len(obs))
     cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
     keys = [(k, view) for k, per in enumerate(obs) for view in per]
-    per_view = np.sqrt(sq.mean(1))
+    per_view = np.sqrt([q.mean() for q in sq])
     limit = max(outlier_factor * float(np.median(per_view)), outlier_floor_px)
     bad = [(k, view, float(r)) for (k, view), r in zip(keys, per_view, strict=True) if r > limit]
     if bad:
@@ -240,7 +245,7 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
             del obs[k][view]
         cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
         keys = [(k, view) for k, per in enumerate(obs) for view in per]
-        per_view = np.sqrt(sq.mean(1))
+        per_view = np.sqrt([q.mean() for q in sq])
     table = {k: {"image": k, "virtual": None, "real": None} for k in range(len(obs))}
     for (k, view), r in zip(keys, per_view, strict=True):
         table[k][view] = float(r)
@@ -248,12 +253,25 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
                           tuple({"image": k, "view": v, "rms_px": r} for k, v, r in bad))
 
 
-def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[RigCalibration, np.ndarray]:
-    """The joint fit of :func:`calibrate_rig` on the found corners ``obs`` (per image: view -> (n, 2));
-    returns the calibration and the squared residuals (image views in ``obs`` order, n corners)."""
+def _boards(board, n: int) -> list[Chessboard]:
+    """One board per calibration image: ``board`` itself, or its ``n`` entries."""
+    if isinstance(board, Chessboard):
+        return [board] * n
+    boards = list(board)
+    if len(boards) != n or not all(isinstance(b, Chessboard) for b in boards):
+        raise ValueError(f"board must be a Chessboard or one per calibration image ({n}), got "
+                         f"{len(boards)} items of types {sorted({type(b).__name__ for b in boards})}")
+    return boards
+
+
+def _fit_rig(obs, layout, boards, reference, distortion, min_images) -> tuple[RigCalibration, list]:
+    """The joint fit of :func:`calibrate_rig` on the found corners ``obs`` (per image: view -> (n, 2))
+    of ``boards`` (one per image); returns the calibration and the squared residuals (one (n,)
+    array per image view, in ``obs`` order)."""
     cv2 = require("cv2", "chessboard calibration")
     W, H = layout.camera.width, layout.camera.height
-    obj = board.object_points()
+    objs = [b.object_points() for b in boards]
+    board = boards[reference] if 0 <= reference < len(boards) else boards[0]
     counts = {v: sum(v in per for per in obs) for v in VIEWS} | {"both": sum(len(p) == 2 for p in obs)}
     log.info("calibration: board found in %s of %d frames", counts, len(obs))
     if min(counts.values()) < min_images:
@@ -269,7 +287,7 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
         flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2
     real_k = [k for k, per in enumerate(obs) if "real" in per]
     rms_alone, K, dist, rvecs, tvecs = cv2.calibrateCamera(
-        [obj.astype(np.float32)] * len(real_k), [obs[k]["real"].astype(np.float32) for k in real_k],
+        [objs[k].astype(np.float32) for k in real_k], [obs[k]["real"].astype(np.float32) for k in real_k],
         (W, H), None, None, flags=flags)
     dist = dist.ravel()
     poses = {k: (cv2.Rodrigues(r)[0], t.ravel()) for k, r, t in zip(real_k, rvecs, tvecs, strict=True)}
@@ -278,23 +296,25 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
     D = np.diag([1.0, -1.0, 1.0])
     S_sum, d_terms = np.zeros((3, 3)), []
     for k in (k for k in real_k if "virtual" in obs[k]):
-        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+        _, rv, tv = cv2.solvePnP((objs[k] @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K,
+                                 dist)
         S_k = cv2.Rodrigues(rv)[0] @ D @ poses[k][0].T
         S_sum += S_k
         d_terms.append((tv.ravel() - S_k @ poses[k][1], S_k))
     w, vecs = np.linalg.eigh(0.5 * (S_sum + S_sum.T) / max(len(d_terms), 1))
     n0 = vecs[:, 0]
     d0 = float(np.mean([n0 @ dt / 2.0 for dt, _ in d_terms]))
-    for k in (k for k in range(len(obs)) if k not in poses):         # seen only in the mirror
-        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+    for k in (k for k in range(len(obs)) if k not in poses and obs[k]):  # seen only in the mirror
+        _, rv, tv = cv2.solvePnP((objs[k] @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K,
+                                 dist)
         S0 = np.eye(3) - 2 * np.outer(n0, n0)
         poses[k] = (S0 @ cv2.Rodrigues(rv)[0] @ D, S0 @ (tv.ravel() - 2 * d0 * n0))
     model = {True: "radial", False: "none"}.get(distortion, distortion)
-    fit = _bundle_adjust(obj, obs, K, dist, poses, n0, d0, model)
+    fit = _bundle_adjust(objs, obs, K, dist, poses, n0, d0, model)
     if distortion is True:
         K1 = np.array([[fit[0][0], 0.0, fit[1][0]], [0.0, fit[0][1], fit[1][1]], [0.0, 0.0, 1.0]])
-        full = _bundle_adjust(obj, obs, K1, fit[2], dict(fit[5]), fit[3], fit[4], "full")
-        if np.sqrt((fit[6] ** 2).mean()) > _TANGENTIAL_GAIN * np.sqrt((full[6] ** 2).mean()):
+        full = _bundle_adjust(objs, obs, K1, fit[2], dict(fit[5]), fit[3], fit[4], "full")
+        if _rms(fit[6]) > _TANGENTIAL_GAIN * _rms(full[6]) or _drop(fit[6], full[6]) > _TANGENTIAL_CHI2:
             fit, model = full, "full"
     f, c, kk, n, d, poses, res, which = fit
     K_fit = np.array([[f[0], 0.0, c[0]], [0.0, f[1], c[1]], [0.0, 0.0, 1.0]])
@@ -302,10 +322,22 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
     kk = np.r_[kk, 0.0] if model != "none" else None  # OpenCV order (k1, k2, p1, p2, k3)
     cam = PinholeCamera(K_fit, _orthonormal(R_ref), t_ref, W, H, kk, "real")
     rig = MirrorRig(cam, R_ref.T @ n, d - n @ t_ref, layout.mirror_side, layout.split)
-    sq = (res ** 2).sum(-1)
-    rms = {v: float(np.sqrt(sq[which == v].mean())) for v in VIEWS} | {
-        "all": float(np.sqrt(sq.mean())), "real_alone": float(rms_alone)}
+    sq = [(r ** 2).sum(-1) for r in res]
+    rms = {v: _rms([r for r, w in zip(res, which, strict=True) if w == v]) for v in VIEWS} | {
+        "all": _rms(res), "real_alone": float(rms_alone)}
     return RigCalibration(rig, rms, counts, reference), sq
+
+
+def _drop(res_radial: list, res_full: list) -> float:
+    """How much p1, p2 lower the sum of squared residuals, in units of the per-axis noise variance
+    left by the full fit (for noise alone about chi-square with 2 degrees of freedom)."""
+    sq_r, sq_f = (np.concatenate([(r ** 2).sum(-1) for r in res]) for res in (res_radial, res_full))
+    return float((sq_r.sum() - sq_f.sum()) / (sq_f.sum() / (2 * len(sq_f))))
+
+
+def _rms(res: list) -> float:
+    """RMS pixel error of residual arrays ``(n_i, 2)``."""
+    return float(np.sqrt(np.concatenate([(r ** 2).sum(-1) for r in res]).mean()))
 
 
 def _orthonormal(R: np.ndarray) -> np.ndarray:
