@@ -163,7 +163,29 @@ def _bundle_adjust(objs, obs, K, dist, poses, n0, d0, distortion):
             out.append((_project(X, f, c, kk) - uv).ravel())
         return np.concatenate(out)
 
-    fit = least_squares(residuals, x0, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=4000)
+    sizes = [2 * len(uv) for _, _, uv in views]
+    rows = [(slice(a, a + m), index[k]) for (k, _, _), a, m in zip(views, np.cumsum([0] + sizes[:-1]), sizes,
+                                                                     strict=True)]
+
+    def jacobian(x):
+        # forward differences; a view's corners move only with the intrinsics, the mirror and its own
+        # board's pose, so all boards' j-th pose parameter is stepped at once (17 evaluations, not 11 + 6 n)
+        f0, h = residuals(x), 1.49e-8 * np.maximum(np.abs(x), 1.0)
+        J = np.zeros((len(f0), len(x)))
+        for j in range(11):
+            xj = x.copy()
+            xj[j] += h[j]
+            J[:, j] = (residuals(xj) - f0) / h[j]
+        for j in range(6):
+            xj = x.copy()
+            xj[11 + j::6] += h[11 + j::6]
+            df = residuals(xj) - f0
+            for r, i in rows:
+                J[r, 11 + 6 * i + j] = df[r] / h[11 + 6 * i + j]
+        return J
+
+    fit = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12,
+                        max_nfev=4000)
     f, c, kk, n, d, Rb, tb = unpack(fit.x)
     res = np.split(fit.fun.reshape(-1, 2), np.cumsum([len(uv) for _, _, uv in views])[:-1])
     which = np.array([view for _, view, _ in views])

@@ -165,7 +165,8 @@ def lens_poses(rig: MirrorRig, board: Chessboard, n: int, seed=0, mirror_extent=
     even ``i``, the mirror view for odd ``i``: the board stands where the mirror shows it). The
     other view may see the board in part or not at all. Each pose is tilted up to
     ``max_tilt_deg`` about the view's x and y axes (and a quarter of it about z), placed so that
-    the pattern spans a fraction in ``fill`` of the view's width or height (the larger), and
+    the pattern with its quiet border spans about a fraction in ``fill`` of the view's width or
+    height (the larger; perspective changes it a little), and
     shifted at random within the view.
 
     Parameters
