@@ -134,10 +134,12 @@ def _run(args) -> int:
         speech=args.speech, speech_text=args.text or args.speech_text,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, lens_frames=args.lens_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed,
+        calib_frames=args.calib_frames, lens_frames=args.lens_frames, depth=args.depth, masks=args.masks,
+        subject_seed=args.subject_seed,
         renderer=args.renderer, cycles_samples=args.cycles_samples, **video)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
     lens = f", {settings.lens_frames} of them lens frames" if settings.lens_frames else ""
-    sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames{lens})\n")
+    sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration "
+                     f"frames{lens})\n")
     return 0

@@ -182,7 +182,8 @@ def _render_job(job: tuple[str, int]):
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
         if lens:  # a lens frame: the board it shows, and the view it fills
-            truth.update(lens_view=np.array(lens), board=np.array([board.inner_cols, board.inner_rows, board.square], float))
+            truth.update(lens_view=np.array(lens),
+                         board=np.array([board.inner_cols, board.inner_rows, board.square], float))
         png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
         extras = []
     return image, truth, png, npz, kind_tag, s.png_compress_level, extras

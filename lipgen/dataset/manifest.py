@@ -200,8 +200,8 @@ def _validate_manifest(m, where) -> None:
         for key in ("raw", "truth"):
             if key in f:
                 check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
-        if f.get("board", "board") not in ("board", "lens_board") or not isinstance(cal.get(f.get("board", "board")),
-                                                                                     dict):
+        which = f.get("board", "board")
+        if which not in ("board", "lens_board") or not isinstance(cal.get(which), dict):
             raise DatasetError(f"{where}: calibration.frames[{i}].board must name 'board' or 'lens_board' "
                                f"described in calibration; got {f.get('board')!r}")
     board = cal["board"]

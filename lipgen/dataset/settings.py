@@ -87,7 +87,8 @@ class GenerateSettings:
                 "motion_sources": p.motion.sources,
                 "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
         given = {k: v for k, v in overrides.items() if v is not None}
-        if p.image.conditions.lens_distortion is not None and not {"calib_frames", "lens_frames"} & set(given):
+        distorted = p.image.conditions.lens_distortion is not None
+        if distorted and not {"calib_frames", "lens_frames"} & set(given):
             base.update(calib_frames=PRESET_CALIB_FRAMES, lens_frames=PRESET_LENS_FRAMES)
         if not p.subject.own_shape and given.get("subject_seed") is not None:
             raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
@@ -162,7 +163,8 @@ class GenerateSettings:
         for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
             if d[key] is None:
                 del d[key]
-        for k, unset in (("lens_frames", 0), ("subject_seed", None), ("truth_physics", "linear"), ("motion_sources", "gestures"),
+        for k, unset in (("lens_frames", 0), ("subject_seed", None), ("truth_physics", "linear"),
+                         ("motion_sources", "gestures"),
                          ("preset", None), ("renderer", "pyrender")):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]

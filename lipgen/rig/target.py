@@ -19,8 +19,8 @@ from scipy.spatial.transform import Rotation
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.scene import Light, Material, MeshItem, Scene
 
-__all__ = ["Chessboard", "board_item", "board_scene", "board_poses", "board_outline", "LENS_BOARD", "lens_poses",
-           "lens_view", "calibration_targets"]
+__all__ = ["Chessboard", "board_item", "board_scene", "board_poses", "board_outline", "LENS_BOARD",
+           "lens_poses", "lens_view", "calibration_targets"]
 
 _MARGIN = 2  # white squares around the pattern (a quiet zone for corner detectors)
 _BLACK = Material("board_black", (0.03, 0.03, 0.03), 0.9, label=4)
