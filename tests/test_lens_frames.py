@@ -106,3 +106,23 @@ def test_calibration_targets_keep_the_both_view_poses_and_settings_record_lens_f
         from lipgen.recon.calibrate import calibrate_from_corners
 
         calibrate_from_corners([{}] * 3, rig, [BOARD] * 2)
+
+
+@pytest.mark.render
+def test_generate_writes_lens_frames_and_says_which(tmp_path):
+    pytest.importorskip("lipgen.rig.render")
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import Dataset
+
+    s = GenerateSettings(frames=1, calib_frames=3, lens_frames=2, size=(160, 120), seed=2)
+    ds = Dataset(generate(tmp_path / "ds", s, workers=1, progress=False))
+    cal = ds.manifest["calibration"]
+    assert ds.settings.lens_frames == 2 and cal["lens_board"]["inner_cols"] == LENS_BOARD.inner_cols
+    assert [f.get("fills") for f in cal["frames"]] == [None, "real", "virtual"]
+    assert ds.calibration_boards() == [Chessboard(*s.board), LENS_BOARD, LENS_BOARD]
+    frames = ds.calibration()
+    assert "lens_view" not in frames[0].truth
+    for f, view in zip(frames[1:], ("real", "virtual"), strict=True):
+        assert str(f.truth["lens_view"]) == view
+        assert f.truth["in_image"][VIEWS.index(view)].all()  # the board is whole in the view it fills
+        assert len(f.truth["corners_board"]) == len(LENS_BOARD.object_points())
