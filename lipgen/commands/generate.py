@@ -75,7 +75,11 @@ def add_parser(sub) -> None:
     opt("--workers", type=int, default=1, help="local rendering processes (default 1)")
     opt("--resume", action="store_true", help="continue an interrupted dataset with the same settings")
     opt("--fps", type=float, default=30.0, help="frame rate (default 30)")
-    opt("--calib-frames", type=int, default=10, help="chessboard calibration frames (default 10)")
+    opt("--calib-frames", type=int, default=None,
+        help="chessboard calibration frames (default 10; 40 with a distorted lens: default, hard)")
+    opt("--lens-frames", type=int, default=None,
+        help="how many of the calibration frames are lens frames, a large board filling one view "
+        "(default 0; 30 with default and hard, unless --calib-frames is given)")
     opt("--video", default=None, metavar="CODEC",
         help="also deliver the frames as one video, video.mp4 (codec: h264)")
     opt("--video-crf", type=int, default=None, help="video quality, x264 CRF 0 (lossless)..51 (default 18)")
@@ -130,9 +134,12 @@ def _run(args) -> int:
         speech=args.speech, speech_text=args.text or args.speech_text,
         subject_resolution=args.subject_resolution, head_rotation_deg=args.head_rotation,
         head_translation_mm=args.head_translation, noise=args.noise, dot_diameter=args.dot_diameter,
-        calib_frames=args.calib_frames, depth=args.depth, masks=args.masks, subject_seed=args.subject_seed,
+        calib_frames=args.calib_frames, lens_frames=args.lens_frames, depth=args.depth, masks=args.masks,
+        subject_seed=args.subject_seed,
         renderer=args.renderer, cycles_samples=args.cycles_samples, **video)
     out = generate(args.out, settings, workers=args.workers, resume=args.resume,
                    progress=not args.no_progress)
-    sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration frames)\n")
+    lens = f", {settings.lens_frames} of them lens frames" if settings.lens_frames else ""
+    sys.stdout.write(f"wrote {out} ({settings.frames} frames, {settings.calib_frames} calibration "
+                     f"frames{lens})\n")
     return 0

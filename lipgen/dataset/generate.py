@@ -126,10 +126,11 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
                              "crf": s.conditions.video_crf, "frames": s.frames,
                              "content": "the raw frames in order, H.264 (yuv420p)"}
     if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
-        from lipgen.rig.target import Chessboard, board_poses
+        from lipgen.rig.target import Chessboard, calibration_targets
 
         rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        board_poses(rig, Chessboard(*s.board), s.calib_frames, seed=rng)
+        calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames, s.lens_frames, rng,
+                            s.conditions.mirror_extent_mm)
     if not prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):

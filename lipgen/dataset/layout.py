@@ -268,6 +268,18 @@ class Dataset:
         b = self.manifest["calibration"]["board"]
         return Chessboard(b["inner_cols"], b["inner_rows"], b["square"])
 
+    def calibration_boards(self) -> list:
+        """Per calibration frame, its :class:`~lipgen.rig.target.Chessboard`: :meth:`board`, or the
+        lens board (``manifest['calibration']['lens_board']``) for a frame whose entry says so."""
+        from lipgen.rig.target import Chessboard
+
+        cal = self.manifest["calibration"]
+        out = []
+        for f in cal["frames"]:
+            b = cal[f["board"]] if "board" in f else cal["board"]
+            out.append(Chessboard(b["inner_cols"], b["inner_rows"], b["square"]))
+        return out
+
 
 def save_annotated(ds: Dataset, index: int, out, tracked=None) -> Path:
     """Save a picture of raw frame ``index`` with the truth projections of the marks in both halves.

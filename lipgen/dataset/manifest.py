@@ -106,8 +106,28 @@ def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str]
             "pose_convention": "world X = A p + b for board points p",
             "truth": {"kind": CALIB_KIND, "schema": SCHEMA},
             "frames": [{"index": i, "raw": f"calib/{i:06d}.png", "truth": f"calib/{i:06d}.npz"}
-                       for i in range(s.calib_frames)]},
+                       | _lens_entry(s, i) for i in range(s.calib_frames)]} | _lens_board(s),
     }
+
+
+def _lens_entry(s: GenerateSettings, i: int) -> dict:
+    """A lens frame's manifest entry: the board it shows and the view it fills (else nothing)."""
+    from lipgen.rig.target import lens_view
+
+    k = i - (s.calib_frames - s.lens_frames)
+    return {"board": "lens_board", "fills": lens_view(k)} if k >= 0 else {}
+
+
+def _lens_board(s: GenerateSettings) -> dict:
+    """The lens frames' board, when there are lens frames."""
+    from lipgen.rig.target import LENS_BOARD
+
+    if not s.lens_frames:
+        return {}
+    b = LENS_BOARD
+    return {"lens_board": {"type": "chessboard", "inner_cols": b.inner_cols, "inner_rows": b.inner_rows,
+                           "square": b.square, "margin_squares": 2,
+                           "frames": "the last settings.lens_frames calibration frames (board: lens_board)"}}
 
 
 def validate_manifest(m, where="manifest") -> None:
@@ -180,6 +200,10 @@ def _validate_manifest(m, where) -> None:
         for key in ("raw", "truth"):
             if key in f:
                 check_relative(f[key], f"{where}: calibration.frames[{i}].{key}")
+        which = f.get("board", "board")
+        if which not in ("board", "lens_board") or not isinstance(cal.get(which), dict):
+            raise DatasetError(f"{where}: calibration.frames[{i}].board must name 'board' or 'lens_board' "
+                               f"described in calibration; got {f.get('board')!r}")
     board = cal["board"]
     if not isinstance(board, dict) or not {"inner_cols", "inner_rows", "square"} <= set(board):
         raise DatasetError(f"{where}: calibration.board needs inner_cols, inner_rows, square")

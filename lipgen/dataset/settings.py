@@ -8,7 +8,12 @@ import numpy as np
 
 from lipgen.rig.conditions import ImageConditions
 
-__all__ = ["GenerateSettings"]
+__all__ = ["GenerateSettings", "PRESET_CALIB_FRAMES", "PRESET_LENS_FRAMES"]
+
+PRESET_CALIB_FRAMES = 40
+"""Calibration frames of a preset with a distorted lens (``default``, ``hard``) ..."""
+PRESET_LENS_FRAMES = 30
+"""... and how many of them are lens frames (:attr:`GenerateSettings.lens_frames`)."""
 
 
 @dataclass(frozen=True)
@@ -28,6 +33,12 @@ class GenerateSettings:
     """Sensor noise, standard deviation in 8-bit grey levels."""
     dot_diameter: float = 2.0
     calib_frames: int = 10
+    lens_frames: int = 0
+    """How many of the calibration frames (the last ones) are lens frames: a large dense board
+    (:data:`lipgen.rig.target.LENS_BOARD`) filling the direct or the mirror view in turn, so that the
+    calibration recovers the lens's tangential terms (:func:`lipgen.rig.target.lens_poses`). The
+    presets with a distorted lens have 40 calibration frames, 30 of them lens frames, unless
+    ``calib_frames`` or ``lens_frames`` is given."""
     board: tuple[int, int, float] = (9, 6, 8.0)
     """Chessboard inner corners (cols, rows) and square size, mm."""
     png_compress_level: int = 1
@@ -76,6 +87,9 @@ class GenerateSettings:
                 "motion_sources": p.motion.sources,
                 "subject_seed": p.subject.default_subject_seed if p.subject.own_shape else None}
         given = {k: v for k, v in overrides.items() if v is not None}
+        distorted = p.image.conditions.lens_distortion is not None
+        if distorted and not {"calib_frames", "lens_frames"} & set(given):
+            base.update(calib_frames=PRESET_CALIB_FRAMES, lens_frames=PRESET_LENS_FRAMES)
         if not p.subject.own_shape and given.get("subject_seed") is not None:
             raise ValueError(f"preset {name!r} films the model's own shape; a subject seed needs preset "
                              "'default' or 'hard'")
@@ -92,6 +106,10 @@ class GenerateSettings:
         whole("seed", 0, 2**63 - 1)
         whole("subject_resolution", 1, 4)
         whole("calib_frames", 0, 1000)
+        whole("lens_frames", 0, 1000)
+        if self.lens_frames and self.calib_frames - self.lens_frames < 1:
+            raise ValueError(f"lens_frames ({self.lens_frames}) must leave at least one of the calib_frames "
+                             f"({self.calib_frames}) with the board seen in both views (the world frame)")
         whole("png_compress_level", 0, 9)
         whole("cycles_samples", 1, 4096)
         from lipgen.rig.backends import RENDERERS
@@ -145,7 +163,8 @@ class GenerateSettings:
         for key in ("speech", "speech_text"):  # absent, as in manifests written before they existed
             if d[key] is None:
                 del d[key]
-        for k, unset in (("subject_seed", None), ("truth_physics", "linear"), ("motion_sources", "gestures"),
+        for k, unset in (("lens_frames", 0), ("subject_seed", None), ("truth_physics", "linear"),
+                         ("motion_sources", "gestures"),
                          ("preset", None), ("renderer", "pyrender")):
             if d[k] == unset:  # unset: the manifest of such data is as it always was
                 del d[k]

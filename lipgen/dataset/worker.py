@@ -143,20 +143,23 @@ def _render_job(job: tuple[str, int]):
     else:
         from lipgen.rig.target import board_scene
 
-        P = _calib_poses(rig, w["board"], s)[i]
+        board, P, lens = _calib_poses(rig, w["board"], s)[i]
         if c.is_ideal:
-            image = w["renderer"].render(board_scene(w["board"], P)).image
+            image = w["renderer"].render(board_scene(board, P)).image
         else:
-            views = w["renderer"].render_views(board_scene(w["board"], P))
+            views = w["renderer"].render_views(board_scene(board, P))
             image = w["former"].form([(views[0][0], views[1][0])], rng)
         image = _noisy(image, s.noise, rng)
-        obj = w["board"].object_points()
+        obj = board.object_points()
         Xw = obj @ P[:3, :3].T + P[:3, 3]
         uv, _, inside = rig.project(Xw)
         inside[0] &= on_mirror(rig, c.mirror_extent_mm, Xw)
         truth = {"index": np.int64(i), "A": P[:3, :3], "b": P[:3, 3], "pose": P, "corners_board": obj,
                  "corners_world": Xw, "uv": uv, "in_image": inside, "views": np.array(VIEWS),
                  "uv_raw": np.stack([rig.to_raw(view, uv[v]) for v, view in enumerate(VIEWS)])}
+        if lens:  # a lens frame: the board it shows, and the view it fills
+            truth.update(lens_view=np.array(lens),
+                         board=np.array([board.inner_cols, board.inner_rows, board.square], float))
         png, npz, kind_tag = *calib_paths(out, i), CALIB_KIND
         extras = []
     return image, truth, png, npz, kind_tag, s.png_compress_level, extras
@@ -190,13 +193,15 @@ def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
     save_npz(npz, kind_tag, SCHEMA, truth, clean=clean)
 
 
-def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> np.ndarray:
-    from lipgen.rig.target import board_poses
+def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> list:
+    """Per calibration frame: (board, pose, view a lens frame fills or None)."""
+    from lipgen.rig.target import calibration_targets
 
-    key = ("calib_poses", s.calib_frames)
+    key = ("calib_poses", s.calib_frames, s.lens_frames)
     if key not in _WORKER:
         rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        _WORKER[key] = board_poses(rig, board, s.calib_frames, seed=rng)
+        _WORKER[key] = calibration_targets(rig, board, s.calib_frames - s.lens_frames, s.lens_frames, rng,
+                                           s.conditions.mirror_extent_mm)
     return _WORKER[key]
 
 

@@ -15,14 +15,15 @@ The world frame of the result is the board's frame in the ``reference`` image (o
 inner corner 0, x along the corner rows, y along the columns, z = x × y), so a board placed at
 a known pose there gives cameras in that known frame.
 
-Tangential distortion (p1, p2) of a real lens's size (about 1e-3) is nearly unidentifiable from a
-board this small against the field of view: apart from a camera turn and a principal-point
-shift (absorbed exactly), what p2 adds across one board is a curvature of a few thousandths of a
-pixel, which each board's pose absorbs. Measured on the hard preset's lens (-0.15, 0.10, 0.0012,
--0.0008) with exact corners plus 0.1 px noise, 10-30 board poses: k1 within 2 %, k2 within
-15 %, but p1 and p2 anywhere from 1 % to 50 % off, by the poses; the pixels are right all the
-same (0.1-0.2 px over the face volume). Ten times larger tangential terms are recovered within
-5 % from rendered frames (``tests/test_calib_tangential.py``).
+Tangential distortion (p1, p2) of a real lens's size (about 1e-3) is nearly unidentifiable from
+boards small enough to be seen whole in both views: apart from a camera turn and a principal-point
+shift, what p2 adds across one board is a curvature of a few hundredths of a pixel, which each
+board's pose absorbs (hard preset's lens, rendered frames, seeds 0-2: p1, p2 9-75 % off). Lens
+frames fix that, as in real lens calibration: a dense board (:data:`lipgen.rig.target.LENS_BOARD`)
+fills the direct or the mirror view (the principal point is at the split, so each view covers
+half the sensor); such a frame, seen in one view only, constrains the shared intrinsics and its
+own pose in the same joint fit. With 30 lens frames beside 10 both-view frames, p1 and p2 come
+within about 10 % (k1, k2 within 2 %). ``board`` may therefore be one board per image.
 
 OpenCV (``opencv-python-headless``) is imported when a calibration runs.
 """
@@ -123,13 +124,15 @@ def _project(X: np.ndarray, f: np.ndarray, c: np.ndarray, k: np.ndarray) -> np.n
 
 
 _DIST_MASK = {"none": np.zeros(4), "radial": np.array([1.0, 1, 0, 0]), "full": np.ones(4)}
-_TANGENTIAL_GAIN = 1.05  # keep p1, p2 only if they cut the RMS by 5 % (noise alone: ~0.1 %)
+_TANGENTIAL_GAIN = 1.05  # keep p1, p2 if they cut the RMS by 5 % (noise alone: ~0.1 %) ...
+_TANGENTIAL_CHI2 = 50.0  # ... or cut the squared residuals by 50 noise variances (noise alone: chi2(2))
 
 
-def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
+def _bundle_adjust(objs, obs, K, dist, poses, n0, d0, distortion):
     """Refine intrinsics, mirror (n, d) and board poses on all corners; returns the fit.
 
-    ``distortion`` is "none", "radial" (k1, k2) or "full" (k1, k2, p1, p2)."""
+    ``objs[k]`` are image k's board corners; ``distortion`` is "none", "radial" (k1, k2) or
+    "full" (k1, k2, p1, p2)."""
     mask = _DIST_MASK[distortion]
     dist = np.asarray(dist, float)[:4] * mask
     from scipy.optimize import least_squares
@@ -155,15 +158,37 @@ def _bundle_adjust(obj, obs, K, dist, poses, n0, d0, distortion):
         f, c, kk, n, d, Rb, tb = unpack(x)
         out = []
         for k, view, uv in views:
-            X = obj @ Rb[index[k]].T + tb[index[k]]
+            X = objs[k] @ Rb[index[k]].T + tb[index[k]]
             if view == "virtual":
                 X = X - 2.0 * (X @ n - d)[:, None] * n
             out.append((_project(X, f, c, kk) - uv).ravel())
         return np.concatenate(out)
 
-    fit = least_squares(residuals, x0, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=4000)
+    sizes = [2 * len(uv) for _, _, uv in views]
+    rows = [(slice(a, a + m), index[k]) for (k, _, _), a, m in zip(views, np.cumsum([0] + sizes[:-1]), sizes,
+                                                                     strict=True)]
+
+    def jacobian(x):
+        # forward differences; a view's corners move only with the intrinsics, the mirror and its own
+        # board's pose, so all boards' j-th pose parameter is stepped at once (17 evaluations, not 11 + 6 n)
+        f0, h = residuals(x), 1.49e-8 * np.maximum(np.abs(x), 1.0)
+        J = np.zeros((len(f0), len(x)))
+        for j in range(11):
+            xj = x.copy()
+            xj[j] += h[j]
+            J[:, j] = (residuals(xj) - f0) / h[j]
+        for j in range(6):
+            xj = x.copy()
+            xj[11 + j::6] += h[11 + j::6]
+            df = residuals(xj) - f0
+            for r, i in rows:
+                J[r, 11 + 6 * i + j] = df[r] / h[11 + 6 * i + j]
+        return J
+
+    fit = least_squares(residuals, x0, jac=jacobian, method="lm", x_scale="jac", xtol=1e-12, ftol=1e-12,
+                        max_nfev=4000)
     f, c, kk, n, d, Rb, tb = unpack(fit.x)
-    res = fit.fun.reshape(-1, len(obj), 2)
+    res = np.split(fit.fun.reshape(-1, 2), np.cumsum([len(uv) for _, _, uv in views])[:-1])
     which = np.array([view for _, view, _ in views])
     return f, c, kk, n, d, {k: (Rb[i], tb[i]) for k, i in index.items()}, res, which
 
@@ -179,15 +204,17 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         Raw camera-mirror frames of the board in different poses.
     layout : MirrorRig
         Used only for the image layout (size, split column, mirror side), never for its cameras.
-    board : Chessboard
+    board : Chessboard or sequence of Chessboard
+        The board, or one per frame (lens frames may show a larger one).
     reference : int
         The frame whose board pose defines the world frame; the board must be whole in its
         direct view.
     distortion : bool or str
         The lens model: ``"radial"`` (k1, k2), ``"full"`` (k1, k2 and tangential p1, p2),
         ``False`` (none), or ``True``: radial, and the tangential terms too when they lower the
-        reprojection RMS by more than 5 % (two parameters fitted to noise alone gain about 0.1 %;
-        free p1, p2 trade off against the principal point, so they are kept only when needed).
+        reprojection RMS by more than 5 %, or the sum of squared residuals by more than 50 times
+        the per-axis noise variance (for noise alone that drop is chi-square with 2 degrees of
+        freedom; measured 0.7-2.2 on ideal and mild lenses, far above 50 with lens frames).
     min_images : int
         Fewest frames with the whole board in the direct view, and in the mirror.
     outlier_factor, outlier_floor_px : float
@@ -206,12 +233,14 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         Too few usable frames, or no board in the reference frame's direct view.
     """
     require("cv2", "chessboard calibration")
+    raw_frames = list(raw_frames)
+    boards = _boards(board, len(raw_frames))
     obs: list[dict[str, np.ndarray]] = []
-    for raw in raw_frames:
+    for raw, b in zip(raw_frames, boards, strict=True):
         virt, real = layout.split_views(np.asarray(raw))
         per = {}
         for view, img in (("virtual", virt), ("real", real)):
-            uv = find_corners(img, board)
+            uv = find_corners(img, b)
             if uv is not None:
                 per[view] = layout.to_raw(view, uv)
         obs.append(per)
@@ -228,9 +257,10 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
     if distortion not in (True, False, "radial", "full"):
         raise ValueError(f"distortion must be True, False, 'radial' or 'full', got {distortion!r}")
     obs = [dict(per) for per in obs]  # outlier views are dropped from a copy, not the caller's list
+    board = _boards(board, len(obs))
     cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
     keys = [(k, view) for k, per in enumerate(obs) for view in per]
-    per_view = np.sqrt(sq.mean(1))
+    per_view = np.sqrt([q.mean() for q in sq])
     limit = max(outlier_factor * float(np.median(per_view)), outlier_floor_px)
     bad = [(k, view, float(r)) for (k, view), r in zip(keys, per_view, strict=True) if r > limit]
     if bad:
@@ -240,7 +270,7 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
             del obs[k][view]
         cal, sq = _fit_rig(obs, layout, board, reference, distortion, min_images)
         keys = [(k, view) for k, per in enumerate(obs) for view in per]
-        per_view = np.sqrt(sq.mean(1))
+        per_view = np.sqrt([q.mean() for q in sq])
     table = {k: {"image": k, "virtual": None, "real": None} for k in range(len(obs))}
     for (k, view), r in zip(keys, per_view, strict=True):
         table[k][view] = float(r)
@@ -248,12 +278,25 @@ def calibrate_from_corners(obs: Sequence[dict], layout: MirrorRig, board: Chessb
                           tuple({"image": k, "view": v, "rms_px": r} for k, v, r in bad))
 
 
-def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[RigCalibration, np.ndarray]:
-    """The joint fit of :func:`calibrate_rig` on the found corners ``obs`` (per image: view -> (n, 2));
-    returns the calibration and the squared residuals (image views in ``obs`` order, n corners)."""
+def _boards(board, n: int) -> list[Chessboard]:
+    """One board per calibration image: ``board`` itself, or its ``n`` entries."""
+    if isinstance(board, Chessboard):
+        return [board] * n
+    boards = list(board)
+    if len(boards) != n or not all(isinstance(b, Chessboard) for b in boards):
+        raise ValueError(f"board must be a Chessboard or one per calibration image ({n}), got "
+                         f"{len(boards)} items of types {sorted({type(b).__name__ for b in boards})}")
+    return boards
+
+
+def _fit_rig(obs, layout, boards, reference, distortion, min_images) -> tuple[RigCalibration, list]:
+    """The joint fit of :func:`calibrate_rig` on the found corners ``obs`` (per image: view -> (n, 2))
+    of ``boards`` (one per image); returns the calibration and the squared residuals (one (n,)
+    array per image view, in ``obs`` order)."""
     cv2 = require("cv2", "chessboard calibration")
     W, H = layout.camera.width, layout.camera.height
-    obj = board.object_points()
+    objs = [b.object_points() for b in boards]
+    board = boards[reference] if 0 <= reference < len(boards) else boards[0]
     counts = {v: sum(v in per for per in obs) for v in VIEWS} | {"both": sum(len(p) == 2 for p in obs)}
     log.info("calibration: board found in %s of %d frames", counts, len(obs))
     if min(counts.values()) < min_images:
@@ -269,7 +312,7 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
         flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2
     real_k = [k for k, per in enumerate(obs) if "real" in per]
     rms_alone, K, dist, rvecs, tvecs = cv2.calibrateCamera(
-        [obj.astype(np.float32)] * len(real_k), [obs[k]["real"].astype(np.float32) for k in real_k],
+        [objs[k].astype(np.float32) for k in real_k], [obs[k]["real"].astype(np.float32) for k in real_k],
         (W, H), None, None, flags=flags)
     dist = dist.ravel()
     poses = {k: (cv2.Rodrigues(r)[0], t.ravel()) for k, r, t in zip(real_k, rvecs, tvecs, strict=True)}
@@ -278,23 +321,25 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
     D = np.diag([1.0, -1.0, 1.0])
     S_sum, d_terms = np.zeros((3, 3)), []
     for k in (k for k in real_k if "virtual" in obs[k]):
-        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+        _, rv, tv = cv2.solvePnP((objs[k] @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K,
+                                 dist)
         S_k = cv2.Rodrigues(rv)[0] @ D @ poses[k][0].T
         S_sum += S_k
         d_terms.append((tv.ravel() - S_k @ poses[k][1], S_k))
     w, vecs = np.linalg.eigh(0.5 * (S_sum + S_sum.T) / max(len(d_terms), 1))
     n0 = vecs[:, 0]
     d0 = float(np.mean([n0 @ dt / 2.0 for dt, _ in d_terms]))
-    for k in (k for k in range(len(obs)) if k not in poses):         # seen only in the mirror
-        _, rv, tv = cv2.solvePnP((obj @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K, dist)
+    for k in (k for k in range(len(obs)) if k not in poses and obs[k]):  # seen only in the mirror
+        _, rv, tv = cv2.solvePnP((objs[k] @ D).astype(np.float32), obs[k]["virtual"].astype(np.float32), K,
+                                 dist)
         S0 = np.eye(3) - 2 * np.outer(n0, n0)
         poses[k] = (S0 @ cv2.Rodrigues(rv)[0] @ D, S0 @ (tv.ravel() - 2 * d0 * n0))
     model = {True: "radial", False: "none"}.get(distortion, distortion)
-    fit = _bundle_adjust(obj, obs, K, dist, poses, n0, d0, model)
+    fit = _bundle_adjust(objs, obs, K, dist, poses, n0, d0, model)
     if distortion is True:
         K1 = np.array([[fit[0][0], 0.0, fit[1][0]], [0.0, fit[0][1], fit[1][1]], [0.0, 0.0, 1.0]])
-        full = _bundle_adjust(obj, obs, K1, fit[2], dict(fit[5]), fit[3], fit[4], "full")
-        if np.sqrt((fit[6] ** 2).mean()) > _TANGENTIAL_GAIN * np.sqrt((full[6] ** 2).mean()):
+        full = _bundle_adjust(objs, obs, K1, fit[2], dict(fit[5]), fit[3], fit[4], "full")
+        if _rms(fit[6]) > _TANGENTIAL_GAIN * _rms(full[6]) or _drop(fit[6], full[6]) > _TANGENTIAL_CHI2:
             fit, model = full, "full"
     f, c, kk, n, d, poses, res, which = fit
     K_fit = np.array([[f[0], 0.0, c[0]], [0.0, f[1], c[1]], [0.0, 0.0, 1.0]])
@@ -302,10 +347,22 @@ def _fit_rig(obs, layout, board, reference, distortion, min_images) -> tuple[Rig
     kk = np.r_[kk, 0.0] if model != "none" else None  # OpenCV order (k1, k2, p1, p2, k3)
     cam = PinholeCamera(K_fit, _orthonormal(R_ref), t_ref, W, H, kk, "real")
     rig = MirrorRig(cam, R_ref.T @ n, d - n @ t_ref, layout.mirror_side, layout.split)
-    sq = (res ** 2).sum(-1)
-    rms = {v: float(np.sqrt(sq[which == v].mean())) for v in VIEWS} | {
-        "all": float(np.sqrt(sq.mean())), "real_alone": float(rms_alone)}
+    sq = [(r ** 2).sum(-1) for r in res]
+    rms = {v: _rms([r for r, w in zip(res, which, strict=True) if w == v]) for v in VIEWS} | {
+        "all": _rms(res), "real_alone": float(rms_alone)}
     return RigCalibration(rig, rms, counts, reference), sq
+
+
+def _drop(res_radial: list, res_full: list) -> float:
+    """How much p1, p2 lower the sum of squared residuals, in units of the per-axis noise variance
+    left by the full fit (for noise alone about chi-square with 2 degrees of freedom)."""
+    sq_r, sq_f = (np.concatenate([(r ** 2).sum(-1) for r in res]) for res in (res_radial, res_full))
+    return float((sq_r.sum() - sq_f.sum()) / (sq_f.sum() / (2 * len(sq_f))))
+
+
+def _rms(res: list) -> float:
+    """RMS pixel error of residual arrays ``(n_i, 2)``."""
+    return float(np.sqrt(np.concatenate([(r ** 2).sum(-1) for r in res]).mean()))
 
 
 def _orthonormal(R: np.ndarray) -> np.ndarray:

@@ -238,7 +238,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
     with blas_threads(1):  # a small bundle adjustment
-        cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.board())
+        cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.calibration_boards())
     t_cal = time.perf_counter()
     T = lab_frame(cal)
     lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])

@@ -19,7 +19,8 @@ from scipy.spatial.transform import Rotation
 from lipgen.rig.camera import MirrorRig
 from lipgen.rig.scene import Light, Material, MeshItem, Scene
 
-__all__ = ["Chessboard", "board_item", "board_scene", "board_poses", "board_outline"]
+__all__ = ["Chessboard", "board_item", "board_scene", "board_poses", "board_outline", "LENS_BOARD",
+           "lens_poses", "lens_view", "calibration_targets"]
 
 _MARGIN = 2  # white squares around the pattern (a quiet zone for corner detectors)
 _BLACK = Material("board_black", (0.03, 0.03, 0.03), 0.9, label=4)
@@ -139,3 +140,130 @@ def board_poses(rig: MirrorRig, board: Chessboard, n: int, seed=0, center=(0.0, 
                          f"{board.inner_cols}x{board.inner_rows} board of {board.square} mm squares may be "
                          "too big for this rig, or the tilt/shift ranges too wide")
     return np.stack(out)
+
+
+LENS_BOARD = Chessboard(17, 24, 6.0)
+"""The lens frames' board: 17 x 24 inner corners of 6 mm (132 x 174 mm with its margin, about
+A5), portrait, dense, and large enough to fill half the frame near the face. Its 408 corners per
+frame matter: at a real lens's size, what p1 and p2 add across one board that its pose cannot
+absorb is a few hundredths of a pixel (see :mod:`lipgen.recon.calibrate`)."""
+
+
+def lens_view(i: int) -> str:
+    """The view lens frame ``i`` fills: ``"real"`` for even ``i``, ``"virtual"`` (the mirror) for odd."""
+    return "real" if i % 2 == 0 else "virtual"
+
+
+def lens_poses(rig: MirrorRig, board: Chessboard, n: int, seed=0, mirror_extent=(0.0, 0.0),
+               max_tilt_deg: float = 40.0, fill=(0.7, 0.95), quiet_squares: float = 0.5,
+               margin_px: float = 4.0, min_square: float = 0.02) -> np.ndarray:
+    """``n`` lens-frame poses (4, 4), board to world: the board fills one view of the raw frame.
+
+    Real lens calibration films a board that fills the image in varied tilts, so that the lens
+    is seen over the whole sensor. Here the principal point is at the split, so each view covers
+    half the sensor: lens frame ``i`` fills the view :func:`lens_view` names (the direct view for
+    even ``i``, the mirror view for odd ``i``: the board stands where the mirror shows it). The
+    other view may see the board in part or not at all. Each pose is tilted up to
+    ``max_tilt_deg`` about the view's x and y axes (and a quarter of it about z), placed so that
+    the pattern with its quiet border spans about a fraction in ``fill`` of the view's width or
+    height (the larger; perspective changes it a little), and
+    shifted at random within the view.
+
+    Parameters
+    ----------
+    rig : MirrorRig
+    board : Chessboard
+        Usually :data:`LENS_BOARD`.
+    n : int
+        Poses wanted.
+    seed : int or numpy.random.Generator
+    mirror_extent : (2,) float
+        Half sizes of the mirror, mm (:func:`lipgen.rig.imaging.on_mirror`); zeros: infinite.
+    max_tilt_deg : float
+    fill : (2,) float
+        Range of the pattern's extent over the view's, drawn uniformly.
+    quiet_squares : float
+        White border around the pattern (in squares) that must be seen as well, for the corner
+        detector.
+    margin_px : float
+        Distance from the view's edges, px.
+    min_square : float
+        Shortest side of a projected square, as a fraction of the view's height (a strongly
+        foreshortened board is not found by the corner detector).
+
+    Returns
+    -------
+    (n, 4, 4) float
+
+    Raises
+    ------
+    ValueError
+        If no pose fills a view (e.g. a board too large for the rig).
+    """
+    from lipgen.rig.imaging import on_mirror
+
+    rng = np.random.default_rng(seed)
+    s, q = board.square, quiet_squares + 1.0
+    edge = np.array([[-q * s, -q * s, 0], [(board.inner_cols - 1 + q) * s, -q * s, 0],
+                     [(board.inner_cols - 1 + q) * s, (board.inner_rows - 1 + q) * s, 0],
+                     [-q * s, (board.inner_rows - 1 + q) * s, 0]])
+    obj = board.object_points()
+    pts = np.vstack([edge, obj])
+    mid = obj.mean(axis=0)
+    whole = np.vstack([board_outline(board), pts])
+    out = []
+    for _ in range(400 * max(n, 1)):
+        if len(out) == n:
+            break
+        view = lens_view(len(out))
+        cam = rig.real_view if view == "real" else rig.virtual_view
+        tilt = np.radians(rng.uniform(-1, 1, 3) * max_tilt_deg * np.array([1.0, 1.0, 0.25]))
+        A_cam = Rotation.from_euler("xyz", tilt).as_matrix()  # board x, y along the image's, z away
+        A = cam.R.T @ A_cam
+        uv0 = np.array([cam.width, cam.height]) * rng.uniform(0.3, 0.7, 2)
+        ray = cam.R.T @ np.linalg.solve(cam.K, np.r_[uv0, 1.0])
+        b1 = cam.center + 300.0 * ray / np.linalg.norm(ray) - A @ mid
+        uv = cam.project(pts @ A.T + b1)
+        span = np.ptp(uv, axis=0) / np.array([cam.width, cam.height])
+        if not np.isfinite(span).all():
+            continue
+        depth = 300.0 * span.max() / rng.uniform(*fill)
+        b = cam.center + depth * ray / np.linalg.norm(ray) - A @ mid
+        X = pts @ A.T + b
+        if not (cam.center - X[0]) @ A[:, 2] < 0 or not cam.in_view(X, margin_px).all():
+            continue
+        grid = cam.project(X[len(edge):]).reshape(board.inner_rows, board.inner_cols, 2)
+        side = min(np.linalg.norm(np.diff(grid, axis=a), axis=-1).min() for a in (0, 1))
+        if side < min_square * cam.height:
+            continue
+        if (rig.mirror_distance(whole @ A.T + b) <= 0).any():
+            continue
+        if view == "virtual" and not on_mirror(rig, mirror_extent, X).all():
+            continue
+        P = np.eye(4)
+        P[:3, :3], P[:3, 3] = A, b
+        out.append(P)
+    if len(out) < n:
+        raise ValueError(f"found only {len(out)} of {n} lens-frame poses that fill a view; the "
+                         f"{board.inner_cols}x{board.inner_rows} board of {board.square} mm squares may be "
+                         "too big for this rig")
+    return np.stack(out)
+
+
+def calibration_targets(rig: MirrorRig, board: Chessboard, n_both: int, n_lens: int = 0, seed=0,
+                        mirror_extent=(0.0, 0.0)) -> list[tuple[Chessboard, np.ndarray, str | None]]:
+    """The boards of a dataset's calibration frames: ``n_both`` poses of ``board`` seen whole in both
+    views (:func:`board_poses`), then ``n_lens`` lens frames of :data:`LENS_BOARD` (:func:`lens_poses`),
+    all drawn in turn from one generator (so the first poses do not depend on ``n_lens``).
+
+    Returns
+    -------
+    list of (Chessboard, (4, 4) pose, view or None)
+        Per frame: its board, its pose (board to world) and, for a lens frame, the view it fills.
+    """
+    rng = np.random.default_rng(seed)
+    out = [(board, P, None) for P in board_poses(rig, board, n_both, seed=rng)] if n_both else []
+    if n_lens:
+        L = lens_poses(rig, LENS_BOARD, n_lens, seed=rng, mirror_extent=mirror_extent)
+        out += [(LENS_BOARD, P, lens_view(i)) for i, P in enumerate(L)]
+    return out
