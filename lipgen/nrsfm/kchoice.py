@@ -155,8 +155,14 @@ def shrink_unreliable_depth(W, rec: Reconstruction, visible=None, **options) -> 
     -------
     Reconstruction
         With ``info["depth_reliability"]`` (``rho``, the halves' ``k``, ``reason``) and, when shrunk,
-        ``info["depth_factor"]``.
+        ``info["depth_factor"]``. An exact K-shape fit (``info["shapes"] == "rank-K fit"``) is returned
+        as it is, with ``rho`` 1.
     """
+    if rec.info.get("shapes") == "rank-K fit":
+        # tracks explained exactly by K shapes (noise-free low-rank data) need no neighbouring frames
+        # to agree: such frames may be unrelated in time, which the halves' comparison assumes
+        rec.info["depth_reliability"] = {"rho": 1.0, "k": None, "reason": "exact K-shape fit: depth kept"}
+        return rec
     rho, reliability = split_half_reliability(W, int(rec.k), visible, **options)
     out = shrink_depth(rec, rho)
     out.info["depth_reliability"] = reliability
