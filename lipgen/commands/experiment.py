@@ -106,9 +106,11 @@ def add_parser(sub) -> None:
         "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
         "and on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation), beside "
         "the flat zero-depth baseline; write benchmarks.md, benchmarks.json and the "
-        "curves to --out. Takes minutes (two development bodies at 80 frames, fresh seeds 400-410); "
-        "--full runs eight bodies at 300 frames and fresh seeds 300-310 and 400-410 at 300 and 80 frames "
-        "(about an hour of CPU).",
+        "curves to --out. Takes minutes (two development bodies at 80 frames; the check of dai's "
+        "automatic K against the flat baseline on fresh seeds 800-819, --check-seeds); --full runs eight "
+        "bodies at 300 frames and the development seeds 300-310 and 400-410 at 300 and 80 frames (about an "
+        "hour of CPU). Example: lipgen experiment nrsfm --sequences --no-synthetic --check-seeds 800 801 "
+        "(the check alone).",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     n.add_argument("--out", default="renders/nrsfm", help="output folder")
@@ -120,7 +122,12 @@ def add_parser(sub) -> None:
     n.add_argument("--no-synthetic", action="store_true",
                    help="skip the held-out validation set of synthetic human bodies")
     n.add_argument("--full", action="store_true",
-                   help="the complete run: bodies 100-107 at 300 frames, fresh seeds at 300 and 80 frames")
+                   help="the complete run: bodies 100-107 at 300 frames, check seeds at 300 and 80 frames")
+    n.add_argument("--sequences", nargs="*", default=None, metavar="NAME",
+                   help="standard sequences to run (default: drink jaws; none: skip them)")
+    n.add_argument("--check-seeds", nargs="*", type=int, default=None, metavar="SEED",
+                   help="seeds of the check of dai's automatic K against the flat baseline (80-frame "
+                   "bodies; default 800-819, --full: 300-310 and 400-410; none: skip it)")
     add_force(n, "the report files in --out")
     n.set_defaults(func=_nrsfm)
     ls = exp.add_parser(
@@ -215,6 +222,10 @@ def _nrsfm(args) -> int:
             raise FileNotFoundError(f"--data {args.data} is not a folder (it holds drink.npz, jaws.npz)")
         os.environ["LIPGEN_NRSFM_DATA"] = args.data  # read by data_dir(), in this process only
     changes = {"methods": tuple(args.methods)} | ({"validation_seeds": ()} if args.no_synthetic else {})
+    if args.sequences is not None:
+        changes["sequences"] = tuple(args.sequences)
+    if args.check_seeds is not None:
+        changes["check_seeds"] = tuple(args.check_seeds)
     settings = NrsfmBenchSettings.full(**changes) if args.full else NrsfmBenchSettings(**changes)
     run_nrsfm_benchmarks(args.out, settings)
     sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")

@@ -26,7 +26,8 @@ Methods:
   dai      Dai, Li & He 2012 (default): rotations from one corrective triple, shapes of least
            trace norm that reproject exactly, cut to rank K. Fast.
   dai-ba   dai, then low-rank bundle adjustment (Levenberg-Marquardt on the reprojection
-           error). More accurate, slower; exact on noise-free low-rank data, with missing points.
+           error), kept only if its rotations get smoother and its depth does not inflate;
+           else dai's answer. Slower; exact on noise-free low-rank data, with missing points.
   em-ppca  Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): a mean shape plus K Gaussian
            deformation modes, fitted by EM from a rigid start; handles missing points. Here
            K counts the modes BEYOND the mean shape, so em-ppca --k 2 has 3 basis shapes (the
@@ -40,7 +41,9 @@ Methods:
 --k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
 rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
 noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
-plotted.
+plotted. The depth is then multiplied by its split-half reliability (the correlation of the depth
+of the odd frames, reconstructed alone, with that of the even frames), printed: depth that the
+halves do not reproduce moves towards zero.
 em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 8, 12
 (modes; up to --kmax), printed.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
@@ -150,6 +153,7 @@ def _run(args) -> int:
         for kk, rough, exact in zip(choice["ks"], choice["rotation_roughness"], choice["exact"], strict=True):
             write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}\n")
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
+        write(f"depth multiplied by its split-half reliability {rec.info['depth_reliability']['rho']:.4f}\n")
         plot_k_choice(choice, plot)
         write(f"wrote {plot}\n")
     elif k == "auto" and args.method == "em-pnd":

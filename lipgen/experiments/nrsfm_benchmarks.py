@@ -15,6 +15,7 @@ import numpy as np
 
 from lipgen._io import atomic_write_bytes, atomic_write_json
 from lipgen._threads import single_threaded
+from lipgen.experiments.nrsfm_report import PUBLISHED, markdown
 
 __all__ = ["DEFAULT_DATA", "PUBLISHED", "NrsfmBenchSettings", "run_nrsfm_benchmarks", "data_dir",
            "hide_points"]
@@ -24,13 +25,6 @@ log = logging.getLogger(__name__)
 DEFAULT_DATA = "benchmarks/nrsfm"
 """Where the benchmark sequences live unless ``LIPGEN_NRSFM_DATA`` says otherwise: relative to the
 source tree's root (no machine's own path ships in the package)."""
-
-PUBLISHED = {
-    "drink": [("Akhter et al. 2008, trajectory basis", 13, 0.025),
-              ("Dai, Li & He 2012, block matrix method", 12, 0.027)],
-    "jaws": [],
-}
-"""Published e3D figures per sequence: (source, K, e3D)."""
 
 SEQUENCE_KS = {"drink": (12, 13), "jaws": (2, 3)}
 """K tried besides the automatic choice: the published Ks for drink; for jaws K = 2 (as it is
@@ -62,9 +56,9 @@ class NrsfmBenchSettings:
     """What ``lipgen experiment nrsfm`` runs: methods, sequences and basis sizes.
 
     The defaults take minutes: two development bodies (walk, pickup) at 80 frames and the held-out
-    check on fresh seeds 400-410 at 80 frames (``dai``'s automatic K runs ``dai`` at K = 1..15,
+    check on fresh seeds 800-819 at 80 frames (``dai``'s automatic K runs ``dai`` at K = 1..15,
     about 40-60 s of CPU on an 80-frame body under load). :meth:`full` is the complete run (eight
-    development bodies at 300 frames; fresh seeds 300-310 and 400-410 at 300 and 80 frames; em-ppca
+    development bodies at 300 frames; seeds 300-310 and 400-410 at 300 and 80 frames; em-ppca
     also with 2000 EM iterations on drink and jaws), about an hour of CPU.
     """
     methods: tuple[str, ...] = ("bregler", "dai", "dai-ba", "em-ppca")
@@ -72,7 +66,7 @@ class NrsfmBenchSettings:
     validation_seeds: tuple[int, ...] = (100, 101)
     validation_ks: tuple[int, ...] = (4, 8)
     validation_frames: int = 80
-    check_seeds: tuple[int, ...] = tuple(range(400, 411))
+    check_seeds: tuple[int, ...] = tuple(range(800, 820))
     check_frames: tuple[int, ...] = (80,)
     kmax: int = 13
     rtol: float = 0.01
@@ -155,14 +149,18 @@ def _run_one(W, S, k, method, cache: _DaiRuns | None = None, **options) -> dict:
     label = method + "".join(f" ({key}={value})" for key, value in options.items())
     if cache is not None and not options and method in ("dai", "dai-ba"):
         if k == "auto":
+            from lipgen.nrsfm.kchoice import shrink_unreliable_depth
+
             chosen, record, seconds, cpu = cache.auto()
-            if method == "dai":
-                rec = cache.get(chosen)[0]
-            else:
-                t0, c0 = time.perf_counter(), time.process_time()
-                rec = reconstruct(W, chosen, method=method)
-                seconds, cpu = seconds + time.perf_counter() - t0, cpu + time.process_time() - c0
-            return _record(rec, W, S, seconds, cpu, label)
+            t0, c0 = time.perf_counter(), time.process_time()
+            rec = cache.get(chosen)[0] if method == "dai" else reconstruct(W, chosen, method=method)
+            unshrunk = rec
+            rec = shrink_unreliable_depth(W, rec)  # as reconstruct(W, "auto") ends
+            seconds, cpu = seconds + time.perf_counter() - t0, cpu + time.process_time() - c0
+            out = _record(rec, W, S, seconds, cpu, label)
+            out["depth_factor"] = rec.info["depth_reliability"]["rho"]
+            out["e3d_unshrunk"] = _record(unshrunk, W, S, 0.0, 0.0, label)["e3d"]
+            return out
         if method == "dai":
             rec, seconds, cpu = cache.get(int(k))
             return _record(rec, W, S, seconds, cpu, label)
@@ -287,95 +285,13 @@ def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings(
         for frames in settings.check_frames:
             seq = human_sequence(seed, frames)
             r = _run_one(seq.W, seq.S, "auto", "dai", _DaiRuns(seq.W))
-            result["check"].append({"name": f"{seq.name} ({frames} frames)",
+            result["check"].append({"name": f"{seq.name} ({frames} frames)", "seed": seed,
                                     "flat_e3d": flat_e3d(seq.W, seq.S), "k": r["k"], "e3d": r["e3d"],
+                                    "e3d_unshrunk": r["e3d_unshrunk"], "depth_factor": r["depth_factor"],
                                     "cpu_seconds": r["cpu_seconds"]})
             log.info("check %s: dai K=auto (%d) e3D %.4f, flat %.4f", result["check"][-1]["name"], r["k"],
                      r["e3d"], result["check"][-1]["flat_e3d"])
     result["load_after"] = os.getloadavg()
     atomic_write_json(out / "benchmarks.json", result)
-    atomic_write_bytes(out / "benchmarks.md", _markdown(result, settings).encode())
+    atomic_write_bytes(out / "benchmarks.md", markdown(result, settings).encode())
     return result
-
-
-def _markdown(result: dict, settings: NrsfmBenchSettings) -> str:
-    lines = ["# Non-rigid SfM on the standard sequences", "",
-             "e3D as defined in `shared/benchmarks/nrsfm/README.md` (normalised by s, rows centred, one "
-             "orthogonal 3x3 with reflection over all frames, mean per-frame mean point distance). "
-             "Times are CPU and wall-clock seconds, one BLAS thread, on a shared 2-core machine "
-             f"(load average {result['load_before'][0]:.1f} before, {result['load_after'][0]:.1f} after); "
-             "compare them as ratios. *auto* marks the K the method chooses itself: for `dai` and `dai-ba` "
-             "the K with the smoothest rotations (among them the smallest fitted exactly by K shapes) "
-             "(`lipgen.nrsfm.kchoice`; its time is that of `dai` at every K it tries, plus `dai-ba`'s "
-             "refinement at the chosen K); for `bregler` the reprojection-curve rule. `em-ppca` counts K as "
-             "deformation modes beyond the mean shape, so it has "
-             "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
-             ""]
-    for name, seq in result["sequences"].items():
-        lines += [f"## {name} ({seq['frames']} frames x {seq['points']} points)", ""]
-        pub = PUBLISHED.get(name, [])
-        if pub:
-            lines += ["Published: " + "; ".join(f"{src}: **{e:.3f}** (K = {k})" for src, k, e in pub), ""]
-        else:
-            lines += ["No published e3D is given for this file in the benchmark README, and we found no "
-                      "citable one: the tables of Akhter et al. 2008/2011, Dai et al. 2012/2014 and "
-                      "Gotardo & Martinez 2011, which report on Torresani's shark, were not available to "
-                      "us in readable form, so no published figure is claimed here.", ""]
-        lines += [f"Flat baseline (the tracks with zero depth): **{seq['flat_e3d']:.4f}**.", "",
-                  "| method | K | shapes | e3D | RMS reprojection (% of tracks) | CPU (s) | wall (s) |",
-                  "|---|---|---|---|---|---|---|"]
-        for r in seq["runs"]:
-            k = f"{r['k']} (auto)" if r["auto"] else str(r["k"])
-            lines.append(f"| {r.get('label', r['method'])} | {k} | {r['n_basis']} | {r['e3d']:.4f} | "
-                         f"{100 * r['relative_reprojection']:.3g} "
-                         f"| {r.get('cpu_seconds', float('nan')):.2f} | {r['seconds']:.2f} |")
-        c = seq["curve"]
-        lines += ["", f"Reprojection curve (`dai`, `{name}_curve.png`): K = {c['ks'][0]}..{c['ks'][-1]}, "
-                  "relative RMS " + ", ".join(f"{100 * v:.3g}%" for v in c["relative"])
-                  + f". Rule: {c['rule']}; chosen K = {c['chosen']}.", ""]
-    if result.get("missing"):
-        base = result["missing"][0]["cpu_seconds"]
-        lines += ["## Missing points: drink, `dai` K = 12", "",
-                  "Points hidden at random or in gaps of 20-60 frames of one point "
-                  "(`hide_points`, seed 0); the hidden entries are filled by the rank-3K model and the "
-                  "point's track interpolated in time (`lipgen.nrsfm.completion`).", "",
-                  "| hidden | fraction | e3D | CPU (s) | CPU / complete |", "|---|---|---|---|---|"]
-        lines += [f"| {r['hidden']} | {r['fraction']:.3f} | {r['e3d']:.4f} | {r['cpu_seconds']:.2f} | "
-                  f"{r['cpu_seconds'] / base:.2f} |" for r in result["missing"]]
-        lines += [""]
-    if result["validation"]:
-        ks = [*map(str, settings.validation_ks), "auto"]
-        lines += ["## Development bodies: synthetic human bodies (`lipgen.nrsfm.validation`)", "",
-                  f"{settings.validation_frames} frames each, orthographic, no noise; no method's code was "
-                  "fitted to them, but they are not held out (see the last sentence). e3D (CPU seconds); "
-                  "K counts basis shapes (em-ppca: K - 1 modes + the mean); "
-                  "*auto*: the method's own K (`dai`, `dai-ba`: the smoothest rotations; the others: the "
-                  "reprojection curve). These seeds were used to choose the automatic-K rule.", "",
-                  "| sequence | P | deg/frame | flat | " + " | ".join(f"{m} K={k}" for m in settings.methods
-                                                               for k in ks) + " |",
-                  "|---" * (4 + len(settings.methods) * len(ks)) + "|"]
-        for entry in result["validation"]:
-            cells = [f"{r['e3d']:.3f} ({r['cpu_seconds']:.1f})" + (f" K={r['k']}" if r["auto"] else "")
-                     for r in entry["runs"]]
-            lines.append(f"| {entry['name']} | {entry['points']} | {entry['degrees_per_frame']:.1f} | "
-                         f"{entry['flat_e3d']:.3f} | " + " | ".join(cells) + " |")
-        worse = [(e["name"], r["method"], r["k"]) for e in result["validation"] for r in e["runs"]
-                 if r["e3d"] > e["flat_e3d"]]
-        listed = ", ".join(f"{n} {m} K={k}" for n, m, k in worse) if worse else "none"
-        lines += ["", f"Runs worse than the flat baseline: {listed}.", ""]
-    if result.get("check"):
-        worse = [c["name"] for c in result["check"] if c["e3d"] > c["flat_e3d"]]
-        seeds = sorted({int(c["name"].split(" ")[0].rsplit("-", 1)[1]) for c in result["check"]})
-        lines += ["## Fresh check: `dai` with K = auto on seeds not used to choose the rule", "",
-                  f"Seeds {', '.join(map(str, seeds))}. Seeds 300-310 were looked at before (walk-304 "
-                  "changed the rule; pickup-305 at 80 frames was worse than flat); seeds 400-410 had never "
-                  "been run before this report.", "",
-                  "| sequence | flat | dai K=auto | K | CPU (s) |", "|---|---|---|---|---|"]
-        lines += [f"| {c['name']} | {c['flat_e3d']:.3f} | {c['e3d']:.3f} | {c['k']} | "
-                  f"{c['cpu_seconds']:.1f} |" for c in result["check"]]
-        lines += ["", f"Worse than the flat baseline: {', '.join(worse) if worse else 'none'}.", ""]
-    if any(r.get("label", r["method"]) != r["method"] for seq in result["sequences"].values()
-           for r in seq["runs"]):
-        lines += ["Rows labelled `(em_iter=N)` rerun em-ppca with N EM iterations instead of the default "
-                  "cap: EM creeps, and its e3D keeps improving well past the default.", ""]
-    return "\n".join(lines)

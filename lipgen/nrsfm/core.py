@@ -36,8 +36,10 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         Number of basis shapes K, or ``"auto"``: for ``"dai"`` and ``"dai-ba"`` the K whose
         rotations are smoothest in time, preferring among those the smallest K that explains
         noise-free tracks exactly (:func:`lipgen.nrsfm.kchoice.smooth_k`, kept in
-        ``info["k_choice"]``); for the others K from the reprojection curve
-        (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in ``info["k_curve"]``). For
+        ``info["k_choice"]``), and the depth then shrunk by its split-half reliability
+        (:mod:`lipgen.nrsfm.reliability`, ``info["depth_reliability"]``); for the others K from the
+        reprojection curve (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in
+        ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
         shapes): em-ppca with K modes spans the same rank-3(K + 1) model as ``"dai"`` with K + 1.
         ``"em-pnd"`` counts modes likewise; its ``"auto"`` is the least BIC of its own likelihood

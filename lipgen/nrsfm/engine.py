@@ -13,7 +13,7 @@ from lipgen.nrsfm.bregler import bregler_factorization
 from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.lowrank import fit_rank_k
-from lipgen.nrsfm.plausibility import plausible, shape_figures
+from lipgen.nrsfm.plausibility import plausible, rotation_roughness, shape_figures
 from lipgen.nrsfm.record import Reconstruction, check_method_k
 from lipgen.nrsfm.refine import bundle_adjust
 
@@ -178,15 +178,23 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         if method == "dai-ba":
             Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *_tidy(*fitted), mask, max_iter=refine_iter)
             ba = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
-            keep = plausible(ba, ref)
+            # kept only if the smoothness of the rotations (the criterion that chooses K) improves on
+            # the start's (the answer dai gives), its depth does not inflate beyond the start's, and it
+            # stays plausible against Dai's shapes; else the start is returned as it is
+            rough = {"start": rotation_roughness(R), "refined": rotation_roughness(Rb)}
+            start = shape_figures(R, np.einsum("fk,kip->fip", C, B))
+            keep = (rough["refined"] < rough["start"] and ba["depth_ratio"] <= start["depth_ratio"]
+                    and plausible(ba, ref))
             info.update(ba_cost=[history[0], history[-1]], ba_steps=len(history) - 1, ba_shapes=ba,
-                        ba_kept=bool(keep))
+                        ba_start_shapes=start, ba_rotation_roughness=rough, ba_kept=bool(keep))
             if keep:
                 R, C, B, t = Rb, Cb, Bb, tb
             else:
-                log.info("bundle adjustment rejected (depth ratio %.3g, depth roughness %.3g against the "
-                         "trace-norm shapes' %.3g, %.3g): returning its start", ba["depth_ratio"],
-                         ba["depth_roughness"], ref["depth_ratio"], ref["depth_roughness"])
+                log.info("bundle adjustment rejected (rotation roughness %.3g against its start's %.3g; "
+                         "depth ratio %.3g against its start's %.3g; depth roughness %.3g against the "
+                         "trace-norm shapes' %.3g): returning its start", rough["refined"],
+                         rough["start"], ba["depth_ratio"], start["depth_ratio"], ba["depth_roughness"],
+                         ref["depth_roughness"])
     rms = _reprojection_rms(tracks, R, C, B, t)
     return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                           reprojection_rms=rms, info=info)

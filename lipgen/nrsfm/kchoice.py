@@ -28,9 +28,10 @@ from lipgen.nrsfm._tracks import check_tracks
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
+from lipgen.nrsfm.reliability import shrink_depth, split_half_reliability
 
 __all__ = ["curve_values", "choose_k", "smooth_k", "candidate_ks", "reconstruct_auto", "SMOOTH_TOL",
-           "SMOOTH_METHODS"]
+           "SMOOTH_METHODS", "shrink_unreliable_depth"]
 
 log = logging.getLogger(__name__)
 
@@ -96,7 +97,8 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, **options)
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
-    (kept in ``info["k_choice"]``); for ``dai-ba`` the refinement then runs at that K. Other
+    (kept in ``info["k_choice"]``); for ``dai-ba`` the refinement then runs at that K; then the
+    depth is shrunk by its split-half reliability (:func:`shrink_unreliable_depth`). Other
     methods: K from the reprojection curve (:func:`curve_values`, :func:`choose_k`; kept in
     ``info["k_curve"]``).
 
@@ -130,8 +132,41 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, **options)
     chosen, record = smooth_k(runs)
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
     rec = runs[ks.index(chosen)] if method == "dai" else reconstruct_k(W, chosen, method, visible, **options)
+    rec = shrink_unreliable_depth(W, rec, visible, **options)
     rec.info["k_choice"] = record
     return rec
+
+
+def shrink_unreliable_depth(W, rec: Reconstruction, visible=None, **options) -> Reconstruction:
+    """The last step of ``k="auto"`` for ``dai`` and ``dai-ba``: ``rec``'s depth times its split-half
+    reliability (:func:`lipgen.nrsfm.reliability.split_half_reliability` at ``rec.k``), so that depth
+    the even and the odd frames do not reproduce moves towards the flat answer.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+        The tracks ``rec`` was reconstructed from.
+    rec : Reconstruction
+    visible : (F, P) array_like of bool, optional
+    **options
+        As :func:`lipgen.nrsfm.reconstruct`.
+
+    Returns
+    -------
+    Reconstruction
+        With ``info["depth_reliability"]`` (``rho``, the halves' ``k``, ``reason``) and, when shrunk,
+        ``info["depth_factor"]``. An exact K-shape fit (``info["shapes"] == "rank-K fit"``) is returned
+        as it is, with ``rho`` 1.
+    """
+    if rec.info.get("shapes") == "rank-K fit":
+        # tracks explained exactly by K shapes (noise-free low-rank data) need no neighbouring frames
+        # to agree: such frames may be unrelated in time, which the halves' comparison assumes
+        rec.info["depth_reliability"] = {"rho": 1.0, "k": None, "reason": "exact K-shape fit: depth kept"}
+        return rec
+    rho, reliability = split_half_reliability(W, int(rec.k), visible, **options)
+    out = shrink_depth(rec, rho)
+    out.info["depth_reliability"] = reliability
+    return out
 
 
 @single_threaded(always=True)
