@@ -41,9 +41,7 @@ Methods:
 --k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
 rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
 noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
-plotted. The depth is then multiplied by its split-half reliability (the correlation of the depth
-of the odd frames, reconstructed alone, with that of the even frames), printed: depth that the
-halves do not reproduce moves towards zero.
+plotted.
 em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 8, 12
 (modes; up to --kmax), printed.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
@@ -153,7 +151,6 @@ def _run(args) -> int:
         for kk, rough, exact in zip(choice["ks"], choice["rotation_roughness"], choice["exact"], strict=True):
             write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}\n")
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
-        write(f"depth multiplied by its split-half reliability {rec.info['depth_reliability']['rho']:.4f}\n")
         plot_k_choice(choice, plot)
         write(f"wrote {plot}\n")
     elif k == "auto" and args.method == "em-pnd":

@@ -111,22 +111,22 @@ def markdown(result: dict, settings) -> str:
         lines += ["", f"Runs worse than the flat baseline: {listed}.", ""]
     if result.get("check"):
         worse = [c["name"] for c in result["check"] if c["e3d"] > c["flat_e3d"]]
-        worse_before = [c["name"] for c in result["check"] if c["e3d_unshrunk"] > c["flat_e3d"]]
+        worse_shrunk = [c["name"] for c in result["check"] if c["e3d_shrunk"] > c["flat_e3d"]]
         seen = sorted({c["seed"] for c in result["check"] if c["seed"] in SEEN_SEEDS})
         lines += ["## Check: `dai` with K = auto beside the flat baseline", "",
                   "Seeds run while the rules were chosen (the automatic K, the split-half depth shrinkage): "
                   f"{_ranges(sorted(SEEN_SEEDS))}; of the seeds below, "
                   + (f"{', '.join(map(str, seen))} were among them" if seen else "none was")
-                  + " (column *fresh*). *before*: the e3D before the depth is shrunk by its split-half "
-                  "reliability (*factor*, `lipgen.nrsfm.reliability`).", "",
-                  "| sequence | fresh | flat | dai K=auto | K | factor | before | CPU (s) |",
+                  + " (column *fresh*). *shrunk*: the e3D with the depth multiplied by its split-half "
+                  "reliability (*factor*, `lipgen.nrsfm.kchoice.shrink_unreliable_depth`, opt-in).", "",
+                  "| sequence | fresh | flat | dai K=auto | K | factor | shrunk | CPU (s) |",
                   "|---|---|---|---|---|---|---|---|"]
         lines += [f"| {c['name']} | {'no' if c['seed'] in SEEN_SEEDS else 'yes'} | {c['flat_e3d']:.3f} | "
-                  f"{c['e3d']:.3f} | {c['k']} | {c['depth_factor']:.3f} | {c['e3d_unshrunk']:.3f} | "
+                  f"{c['e3d']:.3f} | {c['k']} | {c['depth_factor']:.3f} | {c['e3d_shrunk']:.3f} | "
                   f"{c['cpu_seconds']:.1f} |" for c in result["check"]]
         lines += ["", f"Worse than the flat baseline: {len(worse)} of {len(result['check'])}"
                   + (f" ({', '.join(worse)})" if worse else "")
-                  + f"; before the shrinkage {len(worse_before)}.",
+                  + f"; with the depth shrunk {len(worse_shrunk)}.",
                   ""]
     if any(r.get("label", r["method"]) != r["method"] for seq in result["sequences"].values()
            for r in seq["runs"]):

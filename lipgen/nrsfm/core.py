@@ -36,8 +36,8 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         Number of basis shapes K, or ``"auto"``: for ``"dai"`` and ``"dai-ba"`` the K whose
         rotations are smoothest in time, preferring among those the smallest K that explains
         noise-free tracks exactly (:func:`lipgen.nrsfm.kchoice.smooth_k`, kept in
-        ``info["k_choice"]``), and the depth then shrunk by its split-half reliability
-        (:mod:`lipgen.nrsfm.reliability`, ``info["depth_reliability"]``); for the others K from the
+        ``info["k_choice"]``; shrinking the depth by its split-half reliability is opt-in,
+        :func:`lipgen.nrsfm.kchoice.shrink_unreliable_depth`); for the others K from the
         reprojection curve (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in
         ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis
