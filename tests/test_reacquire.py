@@ -6,12 +6,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from synthetic_images import background, frame
+from test_raygap import _two_views
 
 from lipgen.recon.acquire import acquire, place_layout
 from lipgen.recon.pointreg import similarity_2d
 from lipgen.recon.track import MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
-from lipgen.rig.pinhole import PinholeCamera
 
 
 def test_place_layout_is_exact_under_a_similarity_and_keeps_the_seen_markers():
@@ -51,14 +51,6 @@ def test_acquire_takes_only_free_unambiguous_dots_within_the_gate():
     assert acquire(aligned, dots, wanted, free, gate=6.0)[0] == -1
     with pytest.raises(ValueError, match="wanted must have shape"):
         acquire(aligned, dots, wanted[:2], free, gate=6.0)
-
-
-def _two_views():
-    K = np.array([[800.0, 0, 80], [0, 800.0, 60], [0, 0, 1]])
-    a = np.deg2rad(20)
-    Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-    return (PinholeCamera(K, np.eye(3), np.array([0, 0, 300.0]), 160, 120),
-            PinholeCamera(K, Ry, np.array([0, 0, 300.0]), 160, 120))
 
 
 LATE, NEVER, APPEARS = 5, 6, 6
