@@ -13,33 +13,15 @@ import pytest
 
 pytest.importorskip("pxr")
 
-from lipgen import Physics, TopologyMismatchError, dofs, lip_mesh
+from usd_common import expected_points  # noqa: E402
+
+from lipgen import TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh  # noqa: E402
 from lipgen.modes.model import ModeModel  # noqa: E402
 from lipgen.usd import export as usd  # noqa: E402
 
 pytestmark = pytest.mark.usd
 U32 = 2.0**-24
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return lip_mesh(0)
-
-
-@pytest.fixture(scope="module")
-def fitted(mesh):
-    """A ModeModel trained as the thesis did (least-strain fields reaching random marker goals,
-    through the FEM), and the weights of 24 held-out frames."""
-    rng = np.random.default_rng(7)
-    physics = Physics(mesh)
-    model = ModeModel(n_modes=10).fit_from_markers(physics, rng.normal(scale=2.0, size=(80, 16, 3)))
-    held_out, _ = physics.reach(dofs(mesh.markers), rng.normal(scale=2.0, size=(24, 48)))
-    return model, model.project(held_out)
-
-
-def _expected(mesh, model, weights):
-    return mesh.vertices + model.synthesize(weights)
 
 
 def _float32_bound(mesh, model, weights, shapes):
@@ -53,31 +35,31 @@ def _float32_bound(mesh, model, weights, shapes):
 
 @pytest.mark.parametrize("ext,weight_range", [(".usda", "signed"), (".usdc", "signed"),
                                               (".usdz", "signed"), (".usdc", "unit")])
-def test_usdskel_points_equal_synthesize(tmp_path, mesh, fitted, ext, weight_range):
-    model, weights = fitted
-    path = usd.export_usd(tmp_path / f"lips{ext}", mesh, model, weights, fps=24,
+def test_usdskel_points_equal_synthesize(tmp_path, usd_mesh, usd_fitted, ext, weight_range):
+    model, weights = usd_fitted
+    path = usd.export_usd(tmp_path / f"lips{ext}", usd_mesh, model, weights, fps=24,
                           weight_range=weight_range)
     anim = usd.read_animation(path)
-    want = _expected(mesh, model, weights)
+    want = expected_points(usd_mesh, model, weights)
     assert anim.skinned and anim.points.shape == want.shape
     assert np.array_equal(anim.times, np.arange(len(weights)))
     err = np.abs(anim.points - want)
     shapes = 10 if weight_range == "signed" else 20
-    assert np.all(err <= _float32_bound(mesh, model, weights, shapes)), err.max()
+    assert np.all(err <= _float32_bound(usd_mesh, model, weights, shapes)), err.max()
     assert err.max() / np.abs(want).max() < 1e-6
     # The markers are bound to the same skeleton and follow the lips exactly as well.
     marks = usd.read_animation(path, prim="/Lips/markers")
-    assert np.abs(marks.points - want[:, mesh.markers]).max() <= err.max() + 1e-12
+    assert np.abs(marks.points - want[:, usd_mesh.markers]).max() <= err.max() + 1e-12
 
 
-def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
+def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, usd_mesh, usd_fitted):
     """A second UsdSkel route (BlendShapeQuery, no skinning) gives the same points."""
     from pxr import Usd, UsdSkel, Vt
 
-    model, weights = fitted
-    path = usd.export_usd(tmp_path / "lips.usdc", mesh, model, weights)
+    model, weights = usd_fitted
+    path = usd.export_usd(tmp_path / "lips.usdc", usd_mesh, model, weights)
     stage = Usd.Stage.Open(str(path))
-    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
+    binding = UsdSkel.BindingAPI(stage.GetPrimAtPath(f"/Lips/{usd_mesh.name}"))
     query = UsdSkel.BlendShapeQuery(binding)
     anim = UsdSkel.Animation(stage.GetPrimAtPath("/Lips/Skel/Anim"))
     assert list(anim.GetBlendShapesAttr().Get()) == [f"mode{i:02d}" for i in range(10)]
@@ -101,12 +83,12 @@ def test_blend_shape_query_agrees_with_baked_skinning(tmp_path, mesh, fitted):
     assert np.allclose(got, model.components_ * std[:, None], atol=4 * U32 * np.abs(got).max())
 
 
-def test_baked_points_extents_and_stage_metadata(tmp_path, mesh, fitted):
+def test_baked_points_extents_and_stage_metadata(tmp_path, usd_mesh, usd_fitted):
     from pxr import Usd, UsdGeom
 
-    model, weights = fitted
-    points = _expected(mesh, model, weights) + 0.3  # any animation, not only the model's
-    path = usd.export_usd(tmp_path / "both.usda", mesh, model, weights, points, fps=25, start=1)
+    model, weights = usd_fitted
+    points = expected_points(usd_mesh, model, weights) + 0.3  # any animation, not only the model's
+    path = usd.export_usd(tmp_path / "both.usda", usd_mesh, model, weights, points, fps=25, start=1)
     anim = usd.read_animation(path)  # the default variant: blend shapes
     assert anim.skinned and np.array_equal(anim.times, np.arange(1, 25))
     stage = Usd.Stage.Open(str(path))
@@ -118,13 +100,13 @@ def test_baked_points_extents_and_stage_metadata(tmp_path, mesh, fitted):
     vset = root.GetVariantSets().GetVariantSet("encoding")
     assert vset.GetVariantNames() == ["bakedPoints", "blendShapes"]
     assert vset.GetVariantSelection() == "blendShapes"
-    meshp = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Lips/{mesh.name}"))
+    meshp = UsdGeom.Mesh(stage.GetPrimAtPath(f"/Lips/{usd_mesh.name}"))
     assert meshp.GetSubdivisionSchemeAttr().Get() == "none"
     subsets = UsdGeom.Subset.GetGeomSubsets(meshp, "face", "region")
-    assert sorted(s.GetPrim().GetName() for s in subsets) == sorted(mesh.region_names)
+    assert sorted(s.GetPrim().GetName() for s in subsets) == sorted(usd_mesh.region_names)
     assert UsdGeom.Subset.ValidateFamily(meshp, "face", "region")[0]
     assert sorted(np.concatenate([np.asarray(s.GetIndicesAttr().Get()) for s in subsets])) == list(
-        range(mesh.n_faces))
+        range(usd_mesh.n_faces))
     # The SkelRoot's extent contains every frame of the UsdSkel evaluation.
     box = np.asarray(UsdGeom.Boundable(root).GetExtentAttr().Get(), np.float64)
     assert np.all(anim.points >= box[0]) and np.all(anim.points <= box[1])
@@ -140,27 +122,28 @@ def test_baked_points_extents_and_stage_metadata(tmp_path, mesh, fitted):
         lo, hi = np.asarray(ext.Get(t), np.float64)
         assert np.all(baked.points[f] >= lo) and np.all(baked.points[f] <= hi)
     marks = usd.read_animation(tmp_path / "baked.usda", prim="/Lips/markers")
-    assert np.array_equal(marks.points, baked.points[:, mesh.markers])
+    assert np.array_equal(marks.points, baked.points[:, usd_mesh.markers])
 
 
 @pytest.mark.parametrize("kind", ["modes", "baked", "both", "still"])
-def test_validators_report_no_errors(tmp_path, mesh, fitted, kind):
-    model, weights = fitted
-    points = _expected(mesh, model, weights)
+def test_validators_report_no_errors(tmp_path, usd_mesh, usd_fitted, kind):
+    model, weights = usd_fitted
+    points = expected_points(usd_mesh, model, weights)
     args = {"modes": (model, weights, None), "baked": (None, None, points),
             "both": (model, weights, points), "still": (model, None, None)}[kind]
     for ext in (".usda", ".usd", ".usdz"):
-        path = usd.export_usd(tmp_path / f"{kind}{ext}", mesh, *args)
+        path = usd.export_usd(tmp_path / f"{kind}{ext}", usd_mesh, *args)
         issues = usd.validate(path)
         assert not [str(i) for i in issues if i.is_error]
 
 
-def test_validate_checks_every_variant(tmp_path, mesh, fitted):
+def test_validate_checks_every_variant(tmp_path, usd_mesh, usd_fitted):
     """A fault planted only in the variant that is not selected is still found."""
     from pxr import Usd, UsdGeom
 
-    model, weights = fitted
-    path = usd.export_usd(tmp_path / "both.usda", mesh, model, weights, _expected(mesh, model, weights))
+    model, weights = usd_fitted
+    points = expected_points(usd_mesh, model, weights)
+    path = usd.export_usd(tmp_path / "both.usda", usd_mesh, model, weights, points)
     stage = Usd.Stage.Open(str(path))
     vset = stage.GetDefaultPrim().GetVariantSets().GetVariantSet("encoding")
     vset.SetVariantSelection("bakedPoints")
@@ -233,8 +216,8 @@ def test_read_animation_other_files_with_joints_units_and_transforms(tmp_path):
     assert np.allclose(anim_out.points, want, atol=1e-5)
 
 
-def test_writes_are_atomic(tmp_path, mesh, fitted, monkeypatch):
-    model, weights = fitted
+def test_writes_are_atomic(tmp_path, usd_mesh, usd_fitted, monkeypatch):
+    model, weights = usd_fitted
     for ext in (".usda", ".usdz"):
         dest = tmp_path / f"keep{ext}"
         dest.write_bytes(b"previous file")
@@ -245,16 +228,16 @@ def test_writes_are_atomic(tmp_path, mesh, fitted, monkeypatch):
 
         monkeypatch.setattr(usd, "_write_layer", broken)
         with pytest.raises(OSError, match="simulated"):
-            usd.export_usd(dest, mesh, model, weights)
+            usd.export_usd(dest, usd_mesh, model, weights)
         monkeypatch.undo()
         assert dest.read_bytes() == b"previous file"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.usda", "keep.usdz"]
-    usd.export_usd(tmp_path / "keep.usda", mesh, model, weights)  # a later write replaces it whole
-    assert usd.read_animation(tmp_path / "keep.usda").points.shape == (len(weights), mesh.n_nodes, 3)
+    usd.export_usd(tmp_path / "keep.usda", usd_mesh, model, weights)  # a later write replaces it whole
+    assert usd.read_animation(tmp_path / "keep.usda").points.shape == (len(weights), usd_mesh.n_nodes, 3)
 
 
-def test_bad_inputs_are_named_and_write_nothing(tmp_path, mesh, fitted):
-    model, weights = fitted
+def test_bad_inputs_are_named_and_write_nothing(tmp_path, usd_mesh, usd_fitted):
+    model, weights = usd_fitted
     cases = [
         (dict(path=tmp_path / "x.obj"), ValueError, r"unknown extension '\.obj'.*\.usda"),
         (dict(weights=weights[:, :7]), ValueError, r"shape \(F, 10\).*10 modes.*\(24, 7\)"),
@@ -262,13 +245,13 @@ def test_bad_inputs_are_named_and_write_nothing(tmp_path, mesh, fitted):
          r"weights has 24 non-finite.*index \(0, 3\)"),
         (dict(weights=weights[0]), ValueError, r"shape \(F, 10\).*\(10,\)"),
         (dict(points=np.zeros((24, 5, 3))), ValueError, r"points must have shape"),
-        (dict(points=np.zeros((3, mesh.n_nodes, 3))), ValueError, "24 frames but points has 3"),
+        (dict(points=np.zeros((3, usd_mesh.n_nodes, 3))), ValueError, "24 frames but points has 3"),
         (dict(model=None), ValueError, "weights were given without a model"),
         (dict(fps=0), ValueError, "fps must be a positive"),
         (dict(weight_range="clamped"), ValueError, "weight_range must be"),
     ]
     for override, exc, pattern in cases:
-        kw = dict(path=tmp_path / "out.usda", mesh=mesh, model=model, weights=weights)
+        kw = dict(path=tmp_path / "out.usda", mesh=usd_mesh, model=model, weights=weights)
         kw.update(override)
         with pytest.raises(exc, match=pattern):
             usd.export_usd(**kw)
@@ -299,14 +282,14 @@ def _blender(tmp_path, usd_path, widen=False):
 
 
 @pytest.mark.blender
-def test_blender_imports_shape_keys_with_animation(tmp_path, mesh, fitted):
+def test_blender_imports_shape_keys_with_animation(tmp_path, usd_mesh, usd_fitted):
     """Blender imports the blend shapes as shape keys with their weight curves; its evaluated
     vertices (depsgraph, object space) match synthesize within the float32 bound of its own
     shape-key sum (twice the USD bound: Blender first stores basis + offset as each key)."""
-    model, weights = fitted
-    want = _expected(mesh, model, weights)
+    model, weights = usd_fitted
+    want = expected_points(usd_mesh, model, weights)
     for weight_range, widen in (("unit", False), ("signed", True)):
-        path = usd.export_usd(tmp_path / f"lips_{weight_range}.usdc", mesh, model, weights, fps=24,
+        path = usd.export_usd(tmp_path / f"lips_{weight_range}.usdc", usd_mesh, model, weights, fps=24,
                               weight_range=weight_range)
         got = _blender(tmp_path, path, widen=widen)
         shapes = 10 if weight_range == "signed" else 20
@@ -315,105 +298,16 @@ def test_blender_imports_shape_keys_with_animation(tmp_path, mesh, fitted):
         assert list(got["key_names"]) == ["Basis", *names]
         assert np.array_equal(got["frames"], np.arange(len(weights)))
         err = np.abs(got["coords"] - want)
-        assert np.all(err <= 2 * _float32_bound(mesh, model, weights, shapes)), err.max()
+        assert np.all(err <= 2 * _float32_bound(usd_mesh, model, weights, shapes)), err.max()
         # Units and axes go to the object transform: mm -> m and y-up -> Blender's z-up.
         R = np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]]) * 0.001
         assert np.allclose(got["world"][:3, :3], R)
 
 
 @pytest.mark.blender
-def test_blender_imports_baked_points(tmp_path, mesh, fitted):
-    model, weights = fitted
-    points = _expected(mesh, model, weights) - 0.2
-    path = usd.export_usd(tmp_path / "baked.usda", mesh, points=points, fps=24)
+def test_blender_imports_baked_points(tmp_path, usd_mesh, usd_fitted):
+    model, weights = usd_fitted
+    points = expected_points(usd_mesh, model, weights) - 0.2
+    path = usd.export_usd(tmp_path / "baked.usda", usd_mesh, points=points, fps=24)
     got = _blender(tmp_path, path)
     assert np.array_equal(got["coords"], points.astype(np.float32))
-
-
-def test_command_line_export(tmp_path, mesh, fitted, capsys):
-    from lipgen.cli import main
-
-    model, weights = fitted
-    mesh.save(tmp_path / "mesh.npz")
-    model.save(tmp_path / "model.npz")
-    np.save(tmp_path / "w.npy", weights)
-    np.savez(tmp_path / "p.npz", points=_expected(mesh, model, weights))
-    out = tmp_path / "lips.usda"
-    code = main(["export-usd", "--mesh", str(tmp_path / "mesh.npz"), "--model", str(tmp_path / "model.npz"),
-                 "--weights", str(tmp_path / "w.npy"), "--points", str(tmp_path / "p.npz"), "--fps", "25",
-                 "--out", str(out)])
-    text = capsys.readouterr().out
-    assert code == 0, text
-    assert "24 frame(s) at 25 fps, blend shapes + baked points" in text and "0 error(s)" in text
-    anim = usd.read_animation(out)
-    assert anim.fps == 25 and np.abs(anim.points - _expected(mesh, model, weights)).max() < 1e-4
-    np.save(tmp_path / "bad.npy", weights[:, :4])
-    code = main(["export-usd", "--mesh", str(tmp_path / "mesh.npz"), "--model", str(tmp_path / "model.npz"),
-                 "--weights", str(tmp_path / "bad.npy"), "--out", str(tmp_path / "bad.usdc")])
-    err = capsys.readouterr().err
-    assert code == 1 and "weights must have shape (F, 10)" in err and not (tmp_path / "bad.usdc").exists()
-    with pytest.raises(SystemExit) as exit_info:
-        main(["export-usd", "--help"])
-    assert exit_info.value.code == 0 and "--weight-range" in capsys.readouterr().out
-
-
-def test_command_line_viseme_script(tmp_path, mesh, fitted, capsys):
-    """--script: visemes -> activations -> the synthetic subject -> projected on the modes. The
-    blend-shape animation is then the least-squares fit of the simulated motion within the modes'
-    span: its residual against the baked simulation (--bake) is orthogonal to every mode."""
-    from pxr import Usd
-
-    from lipgen.cli import main
-
-    model, _ = fitted
-    model.save(tmp_path / "model.npz")
-    out = tmp_path / "speech.usdc"
-    code = main(["export-usd", "--model", str(tmp_path / "model.npz"), "--script", "AA:0.3 EE OO M",
-                 "--bake", "--fps", "30", "--out", str(out)])
-    assert code == 0, capsys.readouterr()
-    assert "27 frame(s) at 30 fps, blend shapes + baked points" in capsys.readouterr().out
-    skel = usd.read_animation(out).points
-    stage = Usd.Stage.Open(str(out))
-    stage.GetDefaultPrim().GetVariantSets().GetVariantSet("encoding").SetVariantSelection("bakedPoints")
-    stage.GetRootLayer().Export(str(tmp_path / "baked.usdc"))
-    truth = usd.read_animation(tmp_path / "baked.usdc").points
-    assert np.abs(truth - mesh.vertices).max() > 1.0  # the lips really move (mm)
-    residual = (truth - skel).reshape(len(truth), -1)
-    along_modes = residual @ model.components_.T
-    assert np.abs(along_modes).max() < 1e-4 * np.abs(residual).max() + 1e-4
-    mesh.save(tmp_path / "m.npz")
-    assert main(["export-usd", "--model", str(tmp_path / "model.npz"), "--script", "AA", "--mesh",
-                 str(tmp_path / "m.npz"), "--out", str(tmp_path / "x.usda")]) == 1
-    assert "--script needs the procedural lips" in capsys.readouterr().err
-
-
-def test_command_line_dataset_ground_truth(tmp_path, mesh, fitted, capsys):
-    """--dataset: the ground-truth vertices of a (tiny) generated dataset, baked, at its fps;
-    a model of another mesh is refused with the reason."""
-    from lipgen.cli import main
-    from lipgen.dataset.generate import generate
-    from lipgen.dataset.layout import Dataset, GenerateSettings
-
-    root = generate(tmp_path / "ds", GenerateSettings(frames=3, seed=2, size=(160, 120), calib_frames=0,
-                                                      fps=25), progress=False)
-    ds = Dataset(root)
-    truth = np.stack([f.truth["vertices"] for f in ds])
-    out = tmp_path / "truth.usdc"
-    assert main(["export-usd", "--dataset", str(root), "--out", str(out)]) == 0
-    assert "3 frame(s) at 25 fps, baked points" in capsys.readouterr().out
-    anim = usd.read_animation(out)
-    assert anim.fps == 25 and not anim.skinned
-    assert np.array_equal(anim.points, truth.astype(np.float32).astype(np.float64))
-    model, _ = fitted  # fitted on lip_mesh(0); the dataset's subject is the finer lip_mesh(1)
-    model.save(tmp_path / "model.npz")
-    code = main(["export-usd", "--dataset", str(root), "--model", str(tmp_path / "model.npz"),
-                 "--out", str(tmp_path / "x.usdc")])
-    assert code == 1 and "nodes" in capsys.readouterr().err and not (tmp_path / "x.usdc").exists()
-    # A model of the subject's own mesh: the truth also goes onto its modes (2 modes span 3 frames,
-    # so the blend shapes give the truth back).
-    ModeModel(2).fit(truth - ds.mesh.vertices, mesh=ds.mesh).save(tmp_path / "own.npz")
-    assert main(["export-usd", "--dataset", str(root), "--model", str(tmp_path / "own.npz"),
-                 "--out", str(tmp_path / "both.usdc")]) == 0
-    assert "blend shapes + baked points" in capsys.readouterr().out
-    skel = usd.read_animation(tmp_path / "both.usdc")
-    assert skel.skinned and np.abs(skel.points - truth).max() < 1e-4
