@@ -67,6 +67,19 @@ class PipelineSettings:
     calib_frames: int = 10
     preset: str = "default"
     workers: int = 1
+    rest: str = "quiet"
+    """Where displacements are measured from, and the scale: ``"quiet"``, the subject's rest from
+    the training recording's quiet frames at the rig's metric scale (:mod:`lipgen.recon.rest`; the
+    other subject's from its own recording), or ``"model"``, the model's rest markers with the scale
+    of a similarity fitted on the most neutral frame (as before)."""
+    learning: str = "measured"
+    """``"measured"``: the learned estimators learn from the measured markers only
+    (:meth:`ModeModel.fit_measured`) and ignore markers never measured in training; ``"all"``: from
+    the fields as they are (fills included)."""
+    noise: str = "measured"
+    """Observation noise of the learned estimators' LLSE: ``"measured"``, each marker DOF's
+    second-difference noise in the training recording (:func:`lipgen.modes.missing.second_difference_noise`),
+    or ``"none"`` (the thesis's interpolating LLSE)."""
     utterance_reference: str = "train"
     """The normalisation reference of the utterance split's test recording: ``"train"``, the training
     recording's (:func:`lipgen.recon.rereference.renormalize`: one subject, one frame of reference,
@@ -80,6 +93,10 @@ class PipelineSettings:
         if self.utterance_reference not in ("train", "own"):
             raise ValueError(f"utterance_reference must be 'train' or 'own', got "
                              f"{self.utterance_reference!r}")
+        for name, allowed in (("rest", ("quiet", "model")), ("learning", ("measured", "all")),
+                              ("noise", ("measured", "none"))):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
         if self.preset not in ("default", "hard"):
             raise ValueError(f"preset must be 'default' or 'hard' (a subject seed needs its own shape), got "
                              f"{self.preset!r}")
@@ -118,7 +135,8 @@ def _renamed(table: dict, n_modes: int) -> dict:
             for row, cells in table.items()}
 
 
-def score_window(model, physics, combined, recon, frames, true_fields, n_modes: int = 10) -> dict:
+def score_window(model, physics, combined, recon, frames, true_fields, n_modes: int = 10, noise=0.0,
+                 rest=None) -> dict:
     """One test window's table ``{row: {estimator: {ref: mm²}}}`` (table51-splits' names).
 
     Parameters
@@ -134,6 +152,10 @@ def score_window(model, physics, combined, recon, frames, true_fields, n_modes: 
     true_fields : (F, n, 3) float
         True displacement of the model's nodes in every frame of the test dataset, mm.
     n_modes : int
+    noise : float or (P, 3) float
+        Observation-noise variance of the learned estimators (mm²).
+    rest : (P, 3) float, optional
+        The rest the test recording's displacements are measured from (default the model's).
     """
     from lipgen.evaluate.scoring import table51
 
@@ -141,8 +163,8 @@ def score_window(model, physics, combined, recon, frames, true_fields, n_modes: 
     ok = np.all(np.isfinite(recon.fields[frames].reshape(len(frames), -1)), axis=1)
     if not ok.any():
         raise ValueError(f"no frame of the test window {frames.tolist()} has a reconstructed field")
-    return _renamed(table51(model, physics, recon, frames[ok], true_fields, n_modes, combined=combined),
-                    n_modes)
+    return _renamed(table51(model, physics, recon, frames[ok], true_fields, n_modes, combined=combined,
+                            noise=noise, rest=rest), n_modes)
 
 
 def _make(path: Path, gs, workers: int, progress: bool):
@@ -207,27 +229,41 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     train = recons["train"]
     physics = Physics(model_mesh(train.info["mesh_source"])) if physics is None else physics
     mesh = physics.mesh
-    if s.utterance_reference == "train":
-        from lipgen.recon.rereference import renormalize
-
-        recons["utterance"] = renormalize(recons["utterance"], train, physics)
+    recons, rests = _normalised(s, recons, physics)
+    train = recons["train"]
     F = len(train.fields)
     ok = np.flatnonzero(np.all(np.isfinite(train.fields.reshape(F, -1)), axis=1))
     if len(ok) <= s.n_modes:
         raise ValueError(f"subject seed {seed}: only {len(ok)} of {F} training frames have a reconstructed "
                          f"field, need more than {s.n_modes}")
-    model = ModeModel(s.n_modes).fit(train.fields[ok], mesh=mesh)
+    from lipgen.modes.missing import second_difference_noise
+    from lipgen.recon.rest import measured_markers
+
+    measured = measured_markers(train)
+    if s.learning == "measured":
+        model = ModeModel(s.n_modes).fit_measured(train.fields[ok], measured[ok], physics)
+    else:
+        model = ModeModel(s.n_modes).fit(train.fields[ok], mesh=mesh)
     combined = CombinedModel(model, physics).fit(train.fields[ok])
+    P = len(mesh.markers)
+    noise = np.zeros((P, 3))
+    if s.noise == "measured":
+        noise = second_difference_noise(train.markers.reshape(F, -1), np.repeat(measured, 3, axis=1)).reshape(P, 3)
+        noise = np.where(np.isfinite(noise), noise, np.nanmedian(noise, axis=0))  # never measured: typical
     record = {"seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
               "train_frames": len(ok), "test_mean_square_mm2": {}, "test_frames": {},
               "combined_kind": combined.kind,
               "accepted_share": {part: float(np.mean(r.visible)) for part, r in recons.items()},
-              "marker_error_mm": {part: _marker_error(recons[part], datasets[part], mesh) for part in recons}}
+              "marker_error_mm": {part: _marker_error(recons[part], datasets[part], mesh, rests[part])
+                                  for part in recons},
+              "noise_mm2": [float(v) for v in np.median(noise, axis=0)],
+              "markers_never_measured": [mesh.marker_names[j] for j in np.flatnonzero(~measured.any(0))]}
     for split in SPLITS:
         ds, recon = datasets[split], recons[split]
         true = _true_fields(load_truth(ds), mesh, ds.mesh.vertices)
         windows = [s.lead_in + w * s.window + np.arange(s.window) for w in range(s.n_windows)]
-        tables = [score_window(model, physics, combined, recon, f, true, s.n_modes) for f in windows]
+        tables = [score_window(model, physics, combined, recon, f, true, s.n_modes, noise, rests[split])
+                  for f in windows]
         record[split] = _mean_tables(tables)
         frames = np.concatenate(windows)
         record["test_mean_square_mm2"][split] = float(np.mean(true[frames] ** 2))
@@ -235,16 +271,41 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     return record
 
 
-def _marker_error(recon, ds, mesh) -> dict:
-    """RMS error (mm) of the reconstructed marker displacements (normalised markers minus the
-    model's rest) against the true ones (model-frame marks minus the subject's rest) over the
+def _normalised(s: PipelineSettings, recons: dict, physics) -> tuple[dict, dict]:
+    """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
+    the model's): ``rest="quiet"`` re-normalises at scale 1 from the training recording's quiet
+    rest (the other subject from its own), else as reconstructed (the utterance re-normalised with
+    the training reference if ``utterance_reference="train"``)."""
+    from lipgen.recon.rereference import renormalize
+    from lipgen.recon.rest import metric_renormalize
+
+    out = dict(recons)
+    if s.rest == "model":
+        if s.utterance_reference == "train":
+            out["utterance"] = renormalize(recons["utterance"], recons["train"], physics)
+        return out, dict.fromkeys(recons)
+    out["train"], rest = metric_renormalize(recons["train"], physics)
+    rests = {"train": rest}
+    if s.utterance_reference == "train":
+        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
+                                                                  reference=recons["train"])
+    else:
+        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics)
+    out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
+    return out, rests
+
+
+def _marker_error(recon, ds, mesh, rest=None) -> dict:
+    """RMS error (mm) of the reconstructed marker displacements (normalised markers minus ``rest``,
+    default the model's rest) against the true ones (model-frame marks minus the subject's rest) over the
     accepted sightings; ``"after_offset"``: once each marker's mean error over the frames (a
     constant offset, e.g. from the normalisation's reference frame) is taken out."""
     from lipgen.evaluate.scoring import load_truth
 
     P = len(mesh.markers)
     truth = load_truth(ds)
-    err = (recon.markers - mesh.vertices[mesh.markers]) - (truth["marks_model"][:, :P] - ds.rest_marks()[:P])
+    rest = mesh.vertices[mesh.markers] if rest is None else rest
+    err = (recon.markers - rest) - (truth["marks_model"][:, :P] - ds.rest_marks()[:P])
     err = np.where(recon.visible[..., None], err, np.nan)
     seen = np.any(recon.visible, axis=0)
     offset = np.zeros((P, 3))
