@@ -122,7 +122,8 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     R = np.broadcast_to(np.asarray(noise, dtype=np.float64), (P, 3)) if np.ndim(noise) < 2 else \
         np.asarray(noise, dtype=np.float64)
     if R.shape != (P, 3) or not np.all(np.isfinite(R)) or (R < 0).any():
-        raise ValueError(f"noise must be a variance >= 0 (mm²), scalar or ({P}, 3), got shape {np.shape(noise)}")
+        raise ValueError(f"noise must be a variance >= 0 (mm²), scalar or ({P}, 3), got shape "
+                         f"{np.shape(noise)}")
     coverage = getattr(model, "marker_coverage_", None)
     learned = np.ones(P, bool) if coverage is None else np.asarray(coverage) > 0
     learned_cols = (f"{n_modes} modes", "full covariance")

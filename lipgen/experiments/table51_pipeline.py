@@ -167,29 +167,6 @@ def score_window(model, physics, combined, recon, frames, true_fields, n_modes: 
                             noise=noise, rest=rest), n_modes)
 
 
-def _make(path: Path, gs, workers: int, progress: bool):
-    from lipgen.dataset.generate import generate
-    from lipgen.dataset.layout import Dataset
-
-    started = (path / "manifest.json").is_file()
-    if not started or Dataset(path).missing(truth=True):
-        generate(path, gs, workers=workers, resume=started, progress=progress)
-    return Dataset(path)
-
-
-def _reconstruct(path: Path, progress: bool):
-    from lipgen.recon.pipeline import Reconstruction, reconstruct_dataset
-
-    file = path.with_suffix(".recon.npz")
-    if file.is_file():
-        return Reconstruction.load(file)
-    from lipgen.dataset.layout import Dataset
-
-    recon = reconstruct_dataset(path, progress=progress, reference_frames=range(len(Dataset(path))))
-    recon.save(file)
-    return recon
-
-
 def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bool = True) -> dict:
     """One subject seed's record: its datasets made and reconstructed in folder ``work`` (reused
     when there), the models trained, and each split's table (mean over its windows).
@@ -214,6 +191,7 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
         ``"combined_kind"``, ``"accepted_share"`` ({part: share of marker sightings accepted}).
     """
     from lipgen.evaluate.scoring import _true_fields, load_truth
+    from lipgen.experiments.table51_pipeline_data import make_dataset, marker_error, normalised, reconstruct
     from lipgen.fem import Physics
     from lipgen.modes.combined import CombinedModel
     from lipgen.modes.model import ModeModel
@@ -224,12 +202,12 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     recons, datasets = {}, {}
     for part, gs in dataset_settings(s, seed).items():
         path = work / f"s{seed}_{part}"
-        datasets[part] = _make(path, gs, s.workers, progress)
-        recons[part] = _reconstruct(path, progress)
+        datasets[part] = make_dataset(path, gs, s.workers, progress)
+        recons[part] = reconstruct(path, progress)
     train = recons["train"]
     physics = Physics(model_mesh(train.info["mesh_source"])) if physics is None else physics
     mesh = physics.mesh
-    recons, rests = _normalised(s, recons, physics)
+    recons, rests = normalised(s, recons, physics)
     train = recons["train"]
     F = len(train.fields)
     ok = np.flatnonzero(np.all(np.isfinite(train.fields.reshape(F, -1)), axis=1))
@@ -248,13 +226,14 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     P = len(mesh.markers)
     noise = np.zeros((P, 3))
     if s.noise == "measured":
-        noise = second_difference_noise(train.markers.reshape(F, -1), np.repeat(measured, 3, axis=1)).reshape(P, 3)
+        noise = second_difference_noise(train.markers.reshape(F, -1),
+                                        np.repeat(measured, 3, axis=1)).reshape(P, 3)
         noise = np.where(np.isfinite(noise), noise, np.nanmedian(noise, axis=0))  # never measured: typical
     record = {"seed": seed, "variance_captured": float(np.sum(model.explained_variance_ratio_)),
               "train_frames": len(ok), "test_mean_square_mm2": {}, "test_frames": {},
               "combined_kind": combined.kind,
               "accepted_share": {part: float(np.mean(r.visible)) for part, r in recons.items()},
-              "marker_error_mm": {part: _marker_error(recons[part], datasets[part], mesh, rests[part])
+              "marker_error_mm": {part: marker_error(recons[part], datasets[part], mesh, rests[part])
                                   for part in recons},
               "noise_mm2": [float(v) for v in np.median(noise, axis=0)],
               "markers_never_measured": [mesh.marker_names[j] for j in np.flatnonzero(~measured.any(0))]}
@@ -269,50 +248,6 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
         record["test_mean_square_mm2"][split] = float(np.mean(true[frames] ** 2))
         record["test_frames"][split] = [int(f) for f in frames]
     return record
-
-
-def _normalised(s: PipelineSettings, recons: dict, physics) -> tuple[dict, dict]:
-    """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
-    the model's): ``rest="quiet"`` re-normalises at scale 1 from the training recording's quiet
-    rest (the other subject from its own), else as reconstructed (the utterance re-normalised with
-    the training reference if ``utterance_reference="train"``)."""
-    from lipgen.recon.rereference import renormalize
-    from lipgen.recon.rest import metric_renormalize
-
-    out = dict(recons)
-    if s.rest == "model":
-        if s.utterance_reference == "train":
-            out["utterance"] = renormalize(recons["utterance"], recons["train"], physics)
-        return out, dict.fromkeys(recons)
-    out["train"], rest = metric_renormalize(recons["train"], physics)
-    rests = {"train": rest}
-    if s.utterance_reference == "train":
-        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
-                                                                  reference=recons["train"])
-    else:
-        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics)
-    out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
-    return out, rests
-
-
-def _marker_error(recon, ds, mesh, rest=None) -> dict:
-    """RMS error (mm) of the reconstructed marker displacements (normalised markers minus ``rest``,
-    default the model's rest) against the true ones (model-frame marks minus the subject's rest) over the
-    accepted sightings; ``"after_offset"``: once each marker's mean error over the frames (a
-    constant offset, e.g. from the normalisation's reference frame) is taken out."""
-    from lipgen.evaluate.scoring import load_truth
-
-    P = len(mesh.markers)
-    truth = load_truth(ds)
-    rest = mesh.vertices[mesh.markers] if rest is None else rest
-    err = (recon.markers - rest) - (truth["marks_model"][:, :P] - ds.rest_marks()[:P])
-    err = np.where(recon.visible[..., None], err, np.nan)
-    seen = np.any(recon.visible, axis=0)
-    offset = np.zeros((P, 3))
-    offset[seen] = np.nanmean(err[:, seen], axis=0)
-    with np.errstate(invalid="ignore"):
-        return {"rms": float(np.sqrt(np.nanmean(np.sum(err**2, axis=-1)))),
-                "after_offset": float(np.sqrt(np.nanmean(np.sum((err - offset) ** 2, axis=-1))))}
 
 
 def run_pipeline(settings: PipelineSettings | None = None, work=None, progress: bool = True) -> dict:

@@ -299,7 +299,8 @@ class ModeModel:
             "n_frames": np.int64(self.n_frames_), "topology_id": np.array(self.topology_id_),
             "method": np.array(self.method),
             **({} if self.provenance_ is None else {"provenance": np.array(json.dumps(self.provenance_))}),
-            **({} if self.marker_coverage_ is None else {"marker_coverage": np.asarray(self.marker_coverage_)}),
+            **({} if self.marker_coverage_ is None
+               else {"marker_coverage": np.asarray(self.marker_coverage_)}),
         })
 
     @classmethod
