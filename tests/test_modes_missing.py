@@ -110,3 +110,37 @@ def test_fit_measured_ignores_the_fill_of_an_unmeasured_marker(physics):
     err_plain = np.abs(plain.mean_[node] - full.mean_[node]).max()
     assert err_em < 0.1 * err_plain
     assert em.marker_coverage_[0] == pytest.approx(meas[:, 0].mean())
+
+
+def test_noise_mixture_with_one_noise_level_is_the_textbook_llse():
+    from lipgen.modes.llse import LowRankCovariance
+    from lipgen.modes.mixture import noise_mixture
+
+    rng = np.random.default_rng(6)
+    B = rng.normal(size=(4, 30))
+    mean = rng.normal(size=30)
+    dofs = np.array([0, 3, 4, 7, 11, 12, 20])
+    y = rng.normal(size=(5, len(dofs)))
+    r = rng.uniform(0.1, 0.3, len(dofs))
+    est = noise_mixture(LowRankCovariance(B), dofs, mean, r, unit=2.0, shares=[0.25])
+    C = B.T @ B
+    want = mean + (C[:, dofs] @ np.linalg.solve(C[np.ix_(dofs, dofs)] + np.diag(r + 0.5), (y - mean[dofs]).T)).T
+    hid = np.setdiff1d(np.arange(30), dofs)  # at the observed DOFs the extra scatter counts as field
+    np.testing.assert_allclose(est.estimate(y).reshape(5, -1)[:, hid], want[:, hid], atol=1e-10)
+
+
+def test_noise_mixture_weighs_a_gross_outlier_as_noise():
+    # A frame far outside the prior puts its weight on the large noise levels and is shrunk toward
+    # the mean; a frame drawn from the prior keeps the small ones.
+    from lipgen.modes.llse import LowRankCovariance
+    from lipgen.modes.mixture import noise_mixture
+
+    rng = np.random.default_rng(7)
+    B = rng.normal(size=(3, 24))
+    dofs = np.arange(0, 24, 2)
+    mix = noise_mixture(LowRankCovariance(B), dofs, np.zeros(24), 0.01, unit=1.0)
+    good = (rng.normal(size=3) @ B)[dofs]
+    bad = good + rng.normal(0, 20, len(dofs))
+    w = mix.weights(np.stack([good, bad]))
+    grid = 1.0 * np.logspace(-4, 1, 21)
+    assert w[0] @ np.log(grid) < w[1] @ np.log(grid) - 3

@@ -90,7 +90,7 @@ def _true_fields(truth: dict, mesh, rest: np.ndarray | None = None) -> np.ndarra
 
 
 def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_modes: int = 10,
-            combined: bool = True, noise=0.0, rest=None) -> dict:
+            combined: bool = True, noise=0.0, rest=None, robust: bool = False) -> dict:
     """Reconstruction error per DOF of the held-out frames (thesis Table 5.1), mm².
 
     For each row (which observed DOFs) and column (prior), the LLSE (eq 4.7) estimates every
@@ -113,7 +113,8 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     training markers); 0 is the thesis's interpolating LLSE. A marker the model never learned from
     (``model.marker_coverage_`` 0: never measured in training) is not observed by the learned
     columns (its prior there is the physics' fill, not a measurement). ``rest`` (P, 3) is the rest
-    the displacements are measured from (default the model's marker nodes).
+    the displacements are measured from (default the model's marker nodes). ``robust``: the learned
+    columns weigh extra noise of unknown size per frame (:func:`lipgen.modes.mixture.noise_mixture`).
     """
     from lipgen.fem import dofs as node_dofs
 
@@ -129,6 +130,13 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     learned_cols = (f"{n_modes} modes", "full covariance")
     columns = {learned_cols[0]: lambda d, r: model.llse(d, n_modes=n_modes, noise=r),
                learned_cols[1]: lambda d, r: model.llse(d, n_modes="full", noise=r)}
+    if robust:
+        from lipgen.modes.mixture import noise_mixture
+
+        unit = float(np.mean(model.covariance("full").diag_blocks(markers).diagonal(axis1=1, axis2=2)))
+        priors = {learned_cols[0]: model.covariance(n_modes), learned_cols[1]: model.covariance("full")}
+        columns = {name: (lambda d, r, c=c: noise_mixture(c, d, model.mean_, r, unit))
+                   for name, c in priors.items()}
     if combined is not False and combined is not None:
         try:
             from lipgen.modes.combined import CombinedModel
