@@ -124,7 +124,8 @@ def test_noise_mixture_with_one_noise_level_is_the_textbook_llse():
     r = rng.uniform(0.1, 0.3, len(dofs))
     est = noise_mixture(LowRankCovariance(B), dofs, mean, r, unit=2.0, shares=[0.25])
     C = B.T @ B
-    want = mean + (C[:, dofs] @ np.linalg.solve(C[np.ix_(dofs, dofs)] + np.diag(r + 0.5), (y - mean[dofs]).T)).T
+    gain = np.linalg.solve(C[np.ix_(dofs, dofs)] + np.diag(r + 0.5), (y - mean[dofs]).T)
+    want = mean + (C[:, dofs] @ gain).T
     hid = np.setdiff1d(np.arange(30), dofs)  # at the observed DOFs the extra scatter counts as field
     np.testing.assert_allclose(est.estimate(y).reshape(5, -1)[:, hid], want[:, hid], atol=1e-10)
 

@@ -76,10 +76,11 @@ class PipelineSettings:
     """``"measured"``: the learned estimators learn from the measured markers only
     (:meth:`ModeModel.fit_measured`) and ignore markers never measured in training; ``"all"``: from
     the fields as they are (fills included)."""
-    noise: str = "measured"
+    noise: str = "robust"
     """Observation noise of the learned estimators' LLSE: ``"measured"``, each marker DOF's
-    second-difference noise in the training recording (:func:`lipgen.modes.missing.second_difference_noise`),
-    or ``"none"`` (the thesis's interpolating LLSE)."""
+    second-difference noise in the training recording (:func:`lipgen.modes.missing.second_difference_noise`);
+    ``"robust"``, that plus extra noise of unknown size weighed per frame by its own observations
+    (:func:`lipgen.modes.mixture.noise_mixture`); or ``"none"`` (the thesis's interpolating LLSE)."""
     utterance_reference: str = "train"
     """The normalisation reference of the utterance split's test recording: ``"train"``, the training
     recording's (:func:`lipgen.recon.rereference.renormalize`: one subject, one frame of reference,
@@ -94,7 +95,7 @@ class PipelineSettings:
             raise ValueError(f"utterance_reference must be 'train' or 'own', got "
                              f"{self.utterance_reference!r}")
         for name, allowed in (("rest", ("quiet", "model")), ("learning", ("measured", "all")),
-                              ("noise", ("measured", "none"))):
+                              ("noise", ("robust", "measured", "none"))):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
         if self.preset not in ("default", "hard"):
@@ -136,7 +137,7 @@ def _renamed(table: dict, n_modes: int) -> dict:
 
 
 def score_window(model, physics, combined, recon, frames, true_fields, n_modes: int = 10, noise=0.0,
-                 rest=None) -> dict:
+                 rest=None, robust: bool = False) -> dict:
     """One test window's table ``{row: {estimator: {ref: mm²}}}`` (table51-splits' names).
 
     Parameters
@@ -156,6 +157,8 @@ def score_window(model, physics, combined, recon, frames, true_fields, n_modes: 
         Observation-noise variance of the learned estimators (mm²).
     rest : (P, 3) float, optional
         The rest the test recording's displacements are measured from (default the model's).
+    robust : bool
+        The learned estimators weigh extra noise per frame (:func:`lipgen.modes.mixture.noise_mixture`).
     """
     from lipgen.evaluate.scoring import table51
 
@@ -164,7 +167,7 @@ def score_window(model, physics, combined, recon, frames, true_fields, n_modes: 
     if not ok.any():
         raise ValueError(f"no frame of the test window {frames.tolist()} has a reconstructed field")
     return _renamed(table51(model, physics, recon, frames[ok], true_fields, n_modes, combined=combined,
-                            noise=noise, rest=rest), n_modes)
+                            noise=noise, rest=rest, robust=robust), n_modes)
 
 
 def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bool = True) -> dict:
@@ -225,7 +228,7 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
     combined = CombinedModel(model, physics).fit(train.fields[ok])
     P = len(mesh.markers)
     noise = np.zeros((P, 3))
-    if s.noise == "measured":
+    if s.noise != "none":
         noise = second_difference_noise(train.markers.reshape(F, -1),
                                         np.repeat(measured, 3, axis=1)).reshape(P, 3)
         noise = np.where(np.isfinite(noise), noise, np.nanmedian(noise, axis=0))  # never measured: typical
@@ -241,8 +244,8 @@ def seed_record(s: PipelineSettings, seed: int, work, physics=None, progress: bo
         ds, recon = datasets[split], recons[split]
         true = _true_fields(load_truth(ds), mesh, ds.mesh.vertices)
         windows = [s.lead_in + w * s.window + np.arange(s.window) for w in range(s.n_windows)]
-        tables = [score_window(model, physics, combined, recon, f, true, s.n_modes, noise, rests[split])
-                  for f in windows]
+        tables = [score_window(model, physics, combined, recon, f, true, s.n_modes, noise, rests[split],
+                               s.noise == "robust") for f in windows]
         record[split] = _mean_tables(tables)
         frames = np.concatenate(windows)
         record["test_mean_square_mm2"][split] = float(np.mean(true[frames] ** 2))
@@ -343,8 +346,11 @@ def _model_line(s: dict) -> str:
     learn = ("the learned estimators learn the marker DOFs from the measured entries only (EM; a marker "
              "never measured in training is not used by them)" if s.get("learning", "all") == "measured"
              else "the learned estimators learn from the fields as they are (fills included)")
-    noise = ("their LLSE has the training recording's second-difference marker noise as its noise term"
-             if s.get("noise", "none") == "measured" else "their LLSE has no noise term")
+    noise = {"measured": "their LLSE has the training recording's second-difference marker noise as its "
+                         "noise term",
+             "robust": "their LLSE has the training recording's second-difference marker noise plus extra "
+                       "noise of unknown size weighed by each frame's own observations (a scale mixture)",
+             }.get(s.get("noise", "none"), "their LLSE has no noise term")
     return f"{rest}; {learn}; {noise}."
 
 
