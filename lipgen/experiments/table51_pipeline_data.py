@@ -38,7 +38,8 @@ def reconstruct(path: Path, progress: bool):
 def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
     the model's): ``rest="quiet"`` re-normalises at scale 1 from the training recording's quiet
-    rest (the other subject from its own), else as reconstructed (the utterance re-normalised with
+    rest (the other subject from its own), ``"metric"`` at scale 1 from the model's rest, else as
+    reconstructed (the utterance re-normalised with
     the training reference if ``utterance_reference="train"``)."""
     from lipgen.recon.rereference import renormalize
     from lipgen.recon.rest import metric_renormalize
@@ -47,6 +48,13 @@ def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     if s.rest == "model":
         if s.utterance_reference == "train":
             out["utterance"] = renormalize(recons["utterance"], recons["train"], physics)
+        return out, dict.fromkeys(recons)
+    if s.rest == "metric":
+        M = physics.mesh.vertices[physics.mesh.markers]
+        ref = recons["train"] if s.utterance_reference == "train" else None
+        out["train"], _ = metric_renormalize(recons["train"], physics, rest=M)
+        out["utterance"], _ = metric_renormalize(recons["utterance"], physics, rest=M, reference=ref)
+        out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
         return out, dict.fromkeys(recons)
     out["train"], rest = metric_renormalize(recons["train"], physics)
     rests = {"train": rest}
