@@ -103,13 +103,14 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     # a second call reuses the reconstructions on disk and gives the same figures
     again = seed_record(s, 0, tmp_path, physics, progress=False)
     assert again["utterance"] == record["utterance"] and again["subject"] == record["subject"]
-    # the defaults (quiet rest at scale 1, modes from measured markers, measured noise) on the same data
+    # the defaults (metric scale, modes from measured markers) with the measured noise, on the same data
     _check_defaults(tmp_path, physics)
 
 
 def _check_defaults(work, physics):
-    """The default settings' 10-mode and full-covariance cells equal the LLSE with a noise term written
-    out in numpy (Σ_xo (Σ_oo + R)⁻¹), on the recordings normalised and the model fitted as documented."""
+    """The default settings' (with the measured noise only) 10-mode and full-covariance cells equal the
+    LLSE with a noise term written out in numpy (Σ_xo (Σ_oo + R)⁻¹), on the recordings normalised and
+    the model fitted as documented."""
     from lipgen.dataset.layout import Dataset
     from lipgen.experiments.table51_pipeline_data import normalised
     from lipgen.modes.missing import second_difference_noise
@@ -118,7 +119,7 @@ def _check_defaults(work, physics):
     from lipgen.recon.rest import measured_markers
 
     s = PipelineSettings(seeds=(0, 1), n_train=12, n_test=10, lead_in=0, n_modes=4, calib_frames=4,
-                         size=(480, 360))
+                         size=(480, 360), noise="measured")
     record = seed_record(s, 0, work, physics, progress=False)
     recons = {p: Reconstruction.load(work / f"s0_{p}.recon.npz") for p in ("train", *SPLITS)}
     recons, rests = normalised(s, recons, physics)
@@ -145,7 +146,8 @@ def _check_defaults(work, physics):
                 hid = np.setdiff1d(physics.free_dofs, (3 * mesh.markers[seen][:, None] + ax).ravel())
                 use = seen[learned[seen]]
                 d = (3 * mesh.markers[use][:, None] + ax).ravel()
-                y = (recon.markers[f, use] - rests[split][use])[:, ax].ravel()
+                rest = mesh.vertices[mesh.markers] if rests[split] is None else rests[split]
+                y = (recon.markers[f, use] - rest[use])[:, ax].ravel()
                 for k, C in priors.items():
                     Soo = C[np.ix_(d, d)] + np.diag(R[use][:, ax].ravel())
                     gain = np.linalg.solve(Soo, y - model.mean_[d])
@@ -181,6 +183,8 @@ def test_five_seed_pipeline(tmp_path, _egl):
     ({"n_test": 15, "lead_in": 10}, "n_test >= lead_in"),
     ({"n_modes": 150}, "n_modes < n_train"),
     ({"utterance_reference": "test"}, "utterance_reference must be"),
+    ({"rest": "first"}, "rest must be one of"),
+    ({"noise": "big"}, "noise must be one of"),
 ])
 def test_bad_settings(bad, match):
     with pytest.raises(ValueError, match=match):
