@@ -325,6 +325,7 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
     import json
 
     from lipgen.evaluate.metric import ERROR_DEFINITION
+    from lipgen.experiments.table51_pipeline_data import model_line
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -338,7 +339,7 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
              f"another utterance of the same subject ({s['n_test']} frames rendered) and of another subject "
              "(subject seed + 1000), each reconstructed the same way. Each test frame is estimated from "
              "the markers it saw (rows of `lipgen evaluate`: '16 points' is the markers seen of the 16).",
-             "", _reference_line(s.get("utterance_reference", "own")), "", _model_line(s), "",
+             "", _reference_line(s.get("utterance_reference", "own")), "", model_line(s), "",
              f"Error: {ERROR_DEFINITION}. 'vs the least-strain field' is the frame's reconstructed field. "
              "Mean over the seeds and 95 % Student-t interval.", "",
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the variance of the "
@@ -360,24 +361,6 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
     md.write_text("\n".join(lines) + "\n")
     (out / "pipeline.json").write_text(json.dumps(result, indent=1))
     return str(md)
-
-
-def _model_line(s: dict) -> str:
-    """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
-    rest = ("Displacements are measured from the subject's rest estimated on the training recording's "
-            "quiet frames, at the rig's metric scale (the other subject: from its own recording; "
-            "`lipgen.recon.rest`)" if s.get("rest", "model") == "quiet" else
-            "Displacements are measured from the model's rest markers, at the scale of a similarity "
-            "fitted on the reference frame")
-    learn = ("the learned estimators learn the marker DOFs from the measured entries only (EM; a marker "
-             "never measured in training is not used by them)" if s.get("learning", "all") == "measured"
-             else "the learned estimators learn from the fields as they are (fills included)")
-    noise = {"measured": "their LLSE has the training recording's second-difference marker noise as its "
-                         "noise term",
-             "robust": "their LLSE has the training recording's second-difference marker noise plus extra "
-                       "noise of unknown size weighed by each frame's own observations (a scale mixture)",
-             }.get(s.get("noise", "none"), "their LLSE has no noise term")
-    return f"{rest}; {learn}; {noise}."
 
 
 def _reference_line(which: str) -> str:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["make_dataset", "reconstruct", "normalised", "marker_error"]
+__all__ = ["make_dataset", "reconstruct", "normalised", "marker_error", "model_line"]
 
 
 def make_dataset(path: Path, gs, workers: int, progress: bool):
@@ -85,3 +85,23 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
     with np.errstate(invalid="ignore"):
         return {"rms": float(np.sqrt(np.nanmean(np.sum(err**2, axis=-1)))),
                 "after_offset": float(np.sqrt(np.nanmean(np.sum((err - offset) ** 2, axis=-1))))}
+
+
+def model_line(s: dict) -> str:
+    """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
+    rest = {"quiet": "Displacements are measured from the subject's rest estimated on the training recording's "
+                     "quiet frames, at the rig's metric scale (the other subject: from its own recording; "
+                     "`lipgen.recon.rest`)",
+            "metric": "Displacements are measured from the model's rest markers at the rig's metric scale "
+                      "(scale 1, not a similarity fitted on a speaking frame; `lipgen.recon.rest`)",
+            }.get(s.get("rest", "model"), "Displacements are measured from the model's rest markers, at the "
+                                          "scale of a similarity fitted on the reference frame")
+    learn = ("the learned estimators learn the marker DOFs from the measured entries only (EM; a marker "
+             "never measured in training is not used by them)" if s.get("learning", "all") == "measured"
+             else "the learned estimators learn from the fields as they are (fills included)")
+    noise = {"measured": "their LLSE has the training recording's second-difference marker noise as its "
+                         "noise term",
+             "robust": "their LLSE has the training recording's second-difference marker noise plus extra "
+                       "noise of unknown size weighed by each frame's own observations (a scale mixture)",
+             }.get(s.get("noise", "none"), "their LLSE has no noise term")
+    return f"{rest}; {learn}; {noise}."
