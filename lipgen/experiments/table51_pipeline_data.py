@@ -90,8 +90,8 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
 def model_line(s: dict) -> str:
     """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
     rest = {"quiet": "Displacements are measured from the subject's rest estimated on the training "
-                     "recording's quiet frames, at the rig's metric scale (the other subject: from its own recording; "
-                     "`lipgen.recon.rest`)",
+                     "recording's quiet frames, at the rig's metric scale (the other subject: from its own "
+                     "recording; `lipgen.recon.rest`)",
             "metric": "Displacements are measured from the model's rest markers at the rig's metric scale "
                       "(scale 1, not a similarity fitted on a speaking frame; `lipgen.recon.rest`)",
             }.get(s.get("rest", "model"), "Displacements are measured from the model's rest markers, at the "
