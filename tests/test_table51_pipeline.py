@@ -71,7 +71,7 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     from lipgen.recon.pipeline import model_mesh
 
     s = PipelineSettings(seeds=(0, 1), n_train=12, n_test=10, lead_in=0, n_modes=4, calib_frames=4,
-                         size=(480, 360))
+                         size=(480, 360), rest="model", learning="all", noise="none")
     physics = Physics(model_mesh())
     record = seed_record(s, 0, tmp_path, physics, progress=False)
     # the three datasets: subject seed and motion as documented
@@ -103,6 +103,59 @@ def test_seed_record_equals_independent_scoring(tmp_path, _egl):
     # a second call reuses the reconstructions on disk and gives the same figures
     again = seed_record(s, 0, tmp_path, physics, progress=False)
     assert again["utterance"] == record["utterance"] and again["subject"] == record["subject"]
+    # the defaults (metric scale, modes from measured markers) with the measured noise, on the same data
+    _check_defaults(tmp_path, physics)
+
+
+def _check_defaults(work, physics):
+    """The default settings' (with the measured noise only) 10-mode and full-covariance cells equal the
+    LLSE with a noise term written out in numpy (Σ_xo (Σ_oo + R)⁻¹), on the recordings normalised and
+    the model fitted as documented."""
+    from lipgen.dataset.layout import Dataset
+    from lipgen.experiments.table51_pipeline_data import normalised
+    from lipgen.modes.missing import second_difference_noise
+    from lipgen.modes.model import ModeModel
+    from lipgen.recon.pipeline import Reconstruction
+    from lipgen.recon.rest import measured_markers
+
+    s = PipelineSettings(seeds=(0, 1), n_train=12, n_test=10, lead_in=0, n_modes=4, calib_frames=4,
+                         size=(480, 360), noise="measured")
+    record = seed_record(s, 0, work, physics, progress=False)
+    recons = {p: Reconstruction.load(work / f"s0_{p}.recon.npz") for p in ("train", *SPLITS)}
+    recons, rests = normalised(s, recons, physics)
+    train, mesh = recons["train"], physics.mesh
+    F, P = len(train.fields), len(mesh.markers)
+    ok = np.all(np.isfinite(train.fields.reshape(F, -1)), axis=1)
+    meas = measured_markers(train)
+    model = ModeModel(4).fit_measured(train.fields[ok], meas[ok], physics)
+    R = second_difference_noise(train.markers.reshape(F, -1), np.repeat(meas, 3, axis=1)).reshape(P, 3)
+    R = np.where(np.isfinite(R), R, np.nanmedian(R, axis=0))
+    priors = {"modes": model.covariance(4).matrix(), "full": model.covariance("full").matrix()}
+    learned = model.marker_coverage_ > 0
+    for split in SPLITS:
+        recon, ds = recons[split], Dataset(work / f"s0_{split}")
+        n = mesh.n_nodes
+        true = np.stack([np.asarray(f.truth["vertices"])[:n] for f in ds]) - ds.mesh.vertices[:n]
+        for axes in ("xy", "yz"):
+            ax = np.array(["xyz".index(a) for a in axes])
+            out = {k: [] for k in priors}
+            for f in record["test_frames"][split]:
+                seen = np.flatnonzero(recon.visible[f, :P])
+                if len(seen) == 0 or not np.all(np.isfinite(recon.fields[f])):
+                    continue
+                hid = np.setdiff1d(physics.free_dofs, (3 * mesh.markers[seen][:, None] + ax).ravel())
+                use = seen[learned[seen]]
+                d = (3 * mesh.markers[use][:, None] + ax).ravel()
+                rest = mesh.vertices[mesh.markers] if rests[split] is None else rests[split]
+                y = (recon.markers[f, use] - rest[use])[:, ax].ravel()
+                for k, C in priors.items():
+                    Soo = C[np.ix_(d, d)] + np.diag(R[use][:, ax].ravel())
+                    gain = np.linalg.solve(Soo, y - model.mean_[d])
+                    est = model.mean_ + C[:, d] @ gain
+                    out[k].append(np.mean((est[hid] - true[f].ravel()[hid]) ** 2))
+            for k in priors:
+                got = record[split][f"{axes} (16 points)"][k]["truth"]
+                assert got == pytest.approx(float(np.mean(out[k])), rel=1e-6), (split, axes, k)
 
 
 @pytest.mark.slow
@@ -130,6 +183,8 @@ def test_five_seed_pipeline(tmp_path, _egl):
     ({"n_test": 15, "lead_in": 10}, "n_test >= lead_in"),
     ({"n_modes": 150}, "n_modes < n_train"),
     ({"utterance_reference": "test"}, "utterance_reference must be"),
+    ({"rest": "first"}, "rest must be one of"),
+    ({"noise": "big"}, "noise must be one of"),
 ])
 def test_bad_settings(bad, match):
     with pytest.raises(ValueError, match=match):

@@ -90,7 +90,7 @@ def _true_fields(truth: dict, mesh, rest: np.ndarray | None = None) -> np.ndarra
 
 
 def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_modes: int = 10,
-            combined: bool = True) -> dict:
+            combined: bool = True, noise=0.0, rest=None, robust: bool = False) -> dict:
     """Reconstruction error per DOF of the held-out frames (thesis Table 5.1), mm².
 
     For each row (which observed DOFs) and column (prior), the LLSE (eq 4.7) estimates every
@@ -107,23 +107,49 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     from the training fields by :meth:`~lipgen.modes.combined.CombinedModel.fit` (it then uses its
     estimated marker-noise variance). Its estimate is the scale mixture
     (:meth:`~lipgen.modes.combined.CombinedModel.mixture`: the residual variance weighed per frame).
+
+    ``noise`` is the observation-noise variance (mm²) of the learned columns' LLSE: a scalar or
+    ``(P, 3)`` per marker and axis (e.g. :func:`lipgen.modes.missing.second_difference_noise` of the
+    training markers); 0 is the thesis's interpolating LLSE. A marker the model never learned from
+    (``model.marker_coverage_`` 0: never measured in training) is not observed by the learned
+    columns (its prior there is the physics' fill, not a measurement). ``rest`` (P, 3) is the rest
+    the displacements are measured from (default the model's marker nodes). ``robust``: the learned
+    columns weigh extra noise of unknown size per frame (:func:`lipgen.modes.mixture.noise_mixture`).
     """
     from lipgen.fem import dofs as node_dofs
 
-    columns = {f"{n_modes} modes": lambda d: model.llse(d, n_modes=n_modes),
-               "full covariance": lambda d: model.llse(d, n_modes="full")}
+    markers = np.asarray(physics.mesh.markers)
+    P = len(markers)
+    R = np.broadcast_to(np.asarray(noise, dtype=np.float64), (P, 3)) if np.ndim(noise) < 2 else \
+        np.asarray(noise, dtype=np.float64)
+    if R.shape != (P, 3) or not np.all(np.isfinite(R)) or (R < 0).any():
+        raise ValueError(f"noise must be a variance >= 0 (mm²), scalar or ({P}, 3), got shape "
+                         f"{np.shape(noise)}")
+    coverage = getattr(model, "marker_coverage_", None)
+    learned = np.ones(P, bool) if coverage is None else np.asarray(coverage) > 0
+    learned_cols = (f"{n_modes} modes", "full covariance")
+    columns = {learned_cols[0]: lambda d, r: model.llse(d, n_modes=n_modes, noise=r),
+               learned_cols[1]: lambda d, r: model.llse(d, n_modes="full", noise=r)}
+    if robust:
+        from lipgen.modes.mixture import noise_mixture
+
+        unit = float(np.mean(model.covariance("full").diag_blocks(markers).diagonal(axis1=1, axis2=2)))
+        priors = {learned_cols[0]: model.covariance(n_modes), learned_cols[1]: model.covariance("full")}
+        columns = {name: (lambda d, r, c=c: noise_mixture(c, d, model.mean_, r, unit))
+                   for name, c in priors.items()}
     if combined is not False and combined is not None:
         try:
             from lipgen.modes.combined import CombinedModel
 
             comb = combined if isinstance(combined, CombinedModel) else CombinedModel(model, physics)
-            columns["combined"] = comb.mixture
+            columns["combined"] = lambda d, r: comb.mixture(d)
         except ImportError:
             log.warning("lipgen.modes.combined is not available: no combined-model column")
     from lipgen.evaluate.metric import hidden_dofs, per_dof_error, relative_error
 
-    markers = np.asarray(physics.mesh.markers)
-    rest = physics.mesh.vertices[markers]
+    rest = physics.mesh.vertices[markers] if rest is None else np.asarray(rest, dtype=np.float64)
+    if rest.shape != (P, 3):
+        raise ValueError(f"rest must be the ({P}, 3) rest markers, got shape {rest.shape}")
     out = {}
     for row in ROWS:
         count, axes = AXES[row]
@@ -138,7 +164,12 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
             d = node_dofs(markers[seen], axes)
             hid = hidden_dofs(physics.free_dofs, d)
             y = (recon.markers[f, seen] - rest[seen])[:, ax].ravel()
-            ests = {name: build(d).estimate(y) for name, build in columns.items()}
+            lseen = seen[learned[seen]]
+            ld = node_dofs(markers[lseen], axes)
+            ly = (recon.markers[f, lseen] - rest[lseen])[:, ax].ravel()
+            lr = R[lseen][:, ax].ravel()
+            ests = {name: (build(ld, lr).estimate(ly) if name in learned_cols else build(d, None).estimate(y))
+                    for name, build in columns.items() if name not in learned_cols or len(lseen)}
             ests["physics (reach)"] = physics.reach(d, y)[0]
             for name, est in ests.items():
                 cells[name]["vs_reach"].append(per_dof_error(est[None], recon.fields[f][None], hid))

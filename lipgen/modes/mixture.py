@@ -32,7 +32,7 @@ from lipgen._validate import as_float_array
 from lipgen.modes.llse import LLSE, observed_values
 from lipgen.tol import tol
 
-__all__ = ["ScaleMixtureLLSE", "MIXTURE_SHARES"]
+__all__ = ["ScaleMixtureLLSE", "MIXTURE_SHARES", "DiagonalCovariance", "noise_mixture", "NOISE_SHARES"]
 
 MIXTURE_SHARES = np.logspace(-5, 1, 25)
 """σ² grid as a share of the learned variance at the markers (4 per decade; log-uniform prior)."""
@@ -182,3 +182,80 @@ class ScaleMixtureLLSE:
         """(b,) or scalar: the posterior-mean σ² of each frame (mm² per unit of the prior)."""
         return self.weights(values) @ self.variances
 
+
+
+class DiagonalCovariance:
+    """Λ = diag(v): independent scatter per DOF, e.g. observation noise of unknown size.
+
+    Parameters
+    ----------
+    variances : (3n,) float
+        Variance per DOF (mm²), >= 0.
+    """
+
+    def __init__(self, variances):
+        v = as_float_array(variances, "variances", (None,))
+        if len(v) % 3 or (v < 0).any():
+            raise ValueError(f"variances must be 3n values >= 0, got shape {v.shape}")
+        self.variances = v
+        self.n_dofs = len(v)
+
+    def columns(self, dofs) -> np.ndarray:
+        """(3n, d): the columns Λ[:, dofs]."""
+        dofs = np.asarray(dofs, dtype=np.int64)
+        out = np.zeros((self.n_dofs, len(dofs)))
+        out[dofs, np.arange(len(dofs))] = self.variances[dofs]
+        return out
+
+    def diag_blocks(self, nodes=None) -> np.ndarray:
+        """(q, 3, 3) diagonal blocks of Λ (all nodes by default)."""
+        v = self.variances.reshape(-1, 3)
+        v = v if nodes is None else v[np.asarray(nodes)]
+        return np.einsum("qa,ab->qab", v, np.eye(3))
+
+    def matrix(self) -> np.ndarray:
+        """(3n, 3n) dense Λ."""
+        return np.diag(self.variances)
+
+
+NOISE_SHARES = np.logspace(-4, 1, 21)
+"""Grid of the extra observation noise of :func:`noise_mixture`, as a share of the learned variance
+per marker DOF (4 per decade; log-uniform prior)."""
+
+
+def noise_mixture(covariance, dofs, mean, noise, unit: float, shares=None) -> ScaleMixtureLLSE:
+    """The LLSE of a learned prior whose observations carry noise of unknown size, per frame.
+
+    Each frame's observations weigh a log-uniform grid of extra isotropic noise variances
+    ``unit · shares`` on top of the measured ``noise`` (Bayes, the evidence
+    N(y; x̄_o, Λ_oo + noise + s² I)); the estimate is the posterior mean. A frame the learned
+    prior explains keeps the measured noise; a frame it cannot explain (a mis-measured marker, a
+    recording normalised askew) is read as noisier, and its observations are trusted less,
+    instead of being explained by an extreme mode combination. Only the frame's own observations
+    enter (:class:`ScaleMixtureLLSE`). The extra scatter is a diagonal part of the prior, so the
+    hidden DOFs' estimate is exactly the LLSE with that noise; at the observed DOFs it counts as
+    part of the field (the observations are reproduced more closely there).
+
+    Parameters
+    ----------
+    covariance : LowRankCovariance
+        The learned prior (mm²), 3n DOFs.
+    dofs : (d,) int
+        Observed DOFs.
+    mean : (3n,) float
+    noise : float or (d,) float
+        Measured observation-noise variance (mm²).
+    unit : float
+        The learned variance per marker DOF (mm²) the grid is relative to.
+    shares : (J,) float, optional
+        :data:`NOISE_SHARES` by default.
+    """
+    from lipgen.modes.llse import SumCovariance
+
+    shares = NOISE_SHARES if shares is None else np.asarray(shares, dtype=np.float64)
+    D = int(covariance.n_dofs)
+
+    def make(s2):
+        return SumCovariance(covariance, DiagonalCovariance(np.full(D, s2)))
+
+    return ScaleMixtureLLSE.build(make, unit * shares, dofs, mean=mean, noise=noise)

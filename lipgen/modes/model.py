@@ -105,6 +105,9 @@ class ModeModel:
     """
 
     provenance_: dict | None = None
+    marker_coverage_: np.ndarray | None = None
+    """(P,) share of the training frames that measured each marker (set by :meth:`fit_measured`;
+    None when unknown). A marker at 0 was never measured: the learned estimators ignore it."""
 
     def __init__(self, n_modes: int = 10, method: str = "auto"):
         if isinstance(n_modes, bool) or not isinstance(n_modes, int | np.integer) or n_modes < 1:
@@ -150,6 +153,46 @@ class ModeModel:
         self.n_nodes_ = D // 3
         self.n_frames_ = F
         self.topology_id_ = "" if mesh is None else str(mesh.topology_id)
+        return self
+
+    def fit_measured(self, fields, measured, physics) -> ModeModel:
+        """Learn from least-strain fields knowing which markers each frame measured.
+
+        The mean and covariance of the marker DOFs are the EM estimates from the measured entries
+        only, mapped to the fields through the reach map (:func:`lipgen.modes.missing.measured_field_model`);
+        a marker's interpolated value in a frame that did not measure it is not learned from. With
+        every marker measured in every frame this equals :meth:`fit` on ``fields``.
+
+        Parameters
+        ----------
+        fields : (F, n, 3) float
+            Least-strain fields (``Physics.reach`` of each frame's measured markers), mm.
+        measured : (F, P) bool
+            Which of the mesh's P markers were goals of each frame's field.
+        physics : lipgen.Physics
+            The reconstruction model (its mesh's markers).
+        """
+        from lipgen.modes.missing import measured_field_model
+
+        F = len(fields)
+        if F < self.n_modes + 1:
+            raise ValueError(f"{F} frame(s) cannot give {self.n_modes} modes; give at least "
+                             f"{self.n_modes + 1} frames or lower n_modes")
+        out = measured_field_model(fields, measured, physics)
+        _, s, Vt = np.linalg.svd(out["factor"], full_matrices=False)
+        var = s**2
+        keep = var > max(F, var.size) * np.finfo(float).eps * (var[0] if var.size else 0.0)
+        var, S = var[keep], _flip_signs(np.ascontiguousarray(Vt[keep]))
+        k = min(self.n_modes, len(var))
+        total = float(var.sum())
+        self.mean_ = out["mean"]
+        self.full_components_, self.full_variance_ = S, var
+        self.components_, self.explained_variance_ = S[:k], var[:k]
+        self.total_variance_ = total
+        self.explained_variance_ratio_ = var[:k] / total if total > 0 else np.zeros(k)
+        self.n_nodes_, self.n_frames_ = physics.mesh.n_nodes, F
+        self.topology_id_ = str(physics.mesh.topology_id)
+        self.marker_coverage_ = out["coverage"]
         return self
 
     def fit_from_markers(self, physics, goals, markers=None) -> ModeModel:
@@ -256,6 +299,8 @@ class ModeModel:
             "n_frames": np.int64(self.n_frames_), "topology_id": np.array(self.topology_id_),
             "method": np.array(self.method),
             **({} if self.provenance_ is None else {"provenance": np.array(json.dumps(self.provenance_))}),
+            **({} if self.marker_coverage_ is None
+               else {"marker_coverage": np.asarray(self.marker_coverage_)}),
         })
 
     @classmethod
@@ -286,6 +331,8 @@ class ModeModel:
         model.explained_variance_ratio_ = var[:k] / total if total > 0 else np.zeros(k)
         model.n_nodes_, model.n_frames_ = mean.size // 3, int(d["n_frames"])
         model.topology_id_ = str(d["topology_id"])
+        if "marker_coverage" in d:
+            model.marker_coverage_ = np.asarray(d["marker_coverage"], np.float64)
         if "provenance" in d:  # (files written before provenance have none)
             try:
                 model.provenance_ = json.loads(str(d["provenance"]))
