@@ -60,7 +60,8 @@ def test_hard_over_new_is_the_per_round_ratio_with_base_cancelled(monkeypatch, t
 
     monkeypatch.setattr(g, "_runs", runs)
     envs = {"hard": {"LIPGEN_BENCH_PRESET": "hard"}}
-    out = g.generate_cpu({"base": tmp_path, "new": tmp_path, "hard": tmp_path}, "base", 1, 8, 48, 2, envs=envs)
+    trees = {"base": tmp_path, "new": tmp_path, "hard": tmp_path}
+    out = g.generate_cpu(trees, "base", 1, 8, 48, 2, envs=envs)
     assert all(e == envs for e in seen_envs)
     assert out["hard"]["ratio_rounds"] == pytest.approx([0.5, 1.0])
     h = g.hard_over_new(out)
