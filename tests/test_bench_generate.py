@@ -44,3 +44,26 @@ def test_marginal_frames_per_cpu_second_and_ratios(monkeypatch, tmp_path):
     assert out["new"]["frames_per_wall_s"] == pytest.approx(0.5)
     with pytest.raises(ValueError, match="frames_long > frames_short"):
         g.generate_cpu({"base": tmp_path}, "base", 1, 8, 8, 1)
+
+
+def test_hard_over_new_is_the_per_round_ratio_with_base_cancelled(monkeypatch, tmp_path):
+    """Issue 15's figures from one run: hard over the base's default frames, and over today's."""
+    per_frame = {"base": [0.2, 0.25], "new": [0.1, 0.125], "hard": [0.4, 0.25]}  # s per frame, per round
+    seen_envs = []
+    rnd = iter(range(4))
+
+    def runs(trees, envs, tmp, tag, frames, workers, together):
+        seen_envs.append(envs)
+        r = int(tag.split("-")[0])
+        next(rnd)
+        return {n: {"cpu_s": 1.0 + frames * per_frame[n][r], "wall_s": 1.0} for n in trees}
+
+    monkeypatch.setattr(g, "_runs", runs)
+    envs = {"hard": {"LIPGEN_BENCH_PRESET": "hard"}}
+    trees = {"base": tmp_path, "new": tmp_path, "hard": tmp_path}
+    out = g.generate_cpu(trees, "base", 1, 8, 48, 2, envs=envs)
+    assert all(e == envs for e in seen_envs)
+    assert out["hard"]["ratio_rounds"] == pytest.approx([0.5, 1.0])
+    h = g.hard_over_new(out)
+    assert h["ratio_rounds"] == pytest.approx([0.25, 0.5])
+    assert h["ratio"] == pytest.approx(0.375)

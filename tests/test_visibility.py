@@ -14,12 +14,16 @@ def _all_pairs(cam, pts, tris):
     return hit.reshape(n, m).any(axis=1)
 
 
+@pytest.mark.parametrize("dist", [None, (-0.3, 0.1, 0.002, -0.001, 0.0)])
 @pytest.mark.parametrize("block", [None, 7])
-def test_culled_cast_equals_all_pairs_with_triangles_behind_the_camera(monkeypatch, block):
+def test_culled_cast_equals_all_pairs_with_triangles_behind_the_camera(monkeypatch, block, dist):
+    """Also through a strongly distorting lens (the culling boxes are taken in its pinhole image)."""
     if block is not None:  # several candidate blocks (7 point-box tests per block: one point at a time)
         monkeypatch.setattr(visibility, "_PAIR_BLOCK", block)
     rng = np.random.default_rng(4)
     cam = PinholeCamera.look_at([0, 0, 300.0], [0, 0, 0], 160, 120, 200.0)
+    if dist is not None:
+        cam = PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, dist)
     centers = rng.uniform([-40, -30, -20], [40, 30, 20], size=(300, 3))
     tris = centers[:, None, :] + rng.normal(size=(300, 3, 3)) * 4
     # big triangles with a vertex behind the camera, and one passing beside it

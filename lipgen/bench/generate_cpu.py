@@ -8,6 +8,14 @@ same ``generate`` call in fresh subprocesses started at the same time, so both s
 on the default settings (``GenerateSettings(frames=F, calib_frames=0)``: 640x480, ideal camera,
 noise 1, PNG level 1), with 1 and with 2 worker processes.
 
+Issue 15's target is the ``hard`` preset's ``generate`` at 0.5 of the frames per second of the
+default frames when that issue was filed (:data:`ISSUE15_BASE_COMMIT`, whose frame pipeline is
+:data:`BASE_COMMIT`'s). So each round also runs this tree with ``--preset hard`` (``hard``), at the
+same moment as the other two, and the suite reports ``hard`` over ``base`` (issue 15's figure) and
+over ``new`` (``hard_over_new``: against today's default frames, which ``easy`` reproduces). The
+hard run's truth is moved by the linear truth physics: the nonlinear tissue layer is a one-off
+simulation of seconds per frame before any frame is drawn, not the frame pipeline this measures.
+
 CPU is the subprocess's own and its reaped children's (``getrusage``: user + system, every
 thread and pool worker), so a writer thread or a second worker shows as CPU, not as speed.
 Per round and tree, two runs of ``frames_short`` and ``frames_long`` frames give
@@ -41,13 +49,23 @@ __all__ = ["BASE_COMMIT", "base_tree", "generate_cpu", "run"]
 BASE_COMMIT = "16ccdfc^"
 """The code when issue 22 was filed (its first commit's parent)."""
 
+ISSUE15_BASE_COMMIT = "7546620^"
+"""The code when issue 15 was filed (the parent of its first commit, which added the presets). Its
+frame pipeline (``lipgen/rig``, ``lipgen/dataset``) differs from :data:`BASE_COMMIT`'s in docstrings
+only, so ``base``'s default frames are issue 15's "today's default" too."""
+
 _DRIVER = """
-import json, resource, sys, time
+import json, os, resource, sys, time
 from lipgen.dataset.generate import generate
 from lipgen.dataset.layout import GenerateSettings
 out, frames, workers = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+preset = os.environ.get("LIPGEN_BENCH_PRESET")
+if preset:  # a preset's frames, its truth moved by the linear physics (see the module docstring)
+    s = GenerateSettings.from_preset(preset, frames=frames, calib_frames=0, truth_physics="linear")
+else:
+    s = GenerateSettings(frames=frames, calib_frames=0)
 t0 = time.perf_counter()
-generate(out, GenerateSettings(frames=frames, calib_frames=0), workers=workers, progress=False)
+generate(out, s, workers=workers, progress=False)
 wall = time.perf_counter() - t0
 cpu = sum(r.ru_utime + r.ru_stime for r in (resource.getrusage(resource.RUSAGE_SELF),
                                              resource.getrusage(resource.RUSAGE_CHILDREN)))
@@ -165,15 +183,27 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     return out
 
 
+def hard_over_new(result: dict) -> dict:
+    """Issue 15's figure beside issue 22's from one :func:`generate_cpu` result holding ``base``,
+    ``new`` and ``hard``: hard over the current default frames, per round (``base`` cancels) and
+    median; hard over the base's default frames is ``result["hard"]["ratio"]``."""
+    per = np.asarray(result["hard"]["ratio_rounds"]) / np.asarray(result["new"]["ratio_rounds"])
+    return {"ratio": float(np.median(per)), "ratio_rounds": [float(x) for x in per]}
+
+
 def run(quick: bool = False) -> dict:
-    """The suite: this tree against :data:`BASE_COMMIT`, 1 and 2 workers (see the module docstring)."""
+    """The suite: this tree (default and ``hard`` frames) against :data:`BASE_COMMIT`'s default
+    frames, 1 and 2 workers (see the module docstring)."""
     here = Path(__file__).resolve().parents[2]
     frames_short, frames_long, rounds = (4, 12, 1) if quick else (8, 48, 3)
     with tempfile.TemporaryDirectory() as tmp:
         base = base_tree(Path(tmp) / "base")
         if base is None:
             return {"skipped": f"no git history holding {BASE_COMMIT} beside {here}"}
-        trees = {"base": base, "new": here}
-        return {"base_commit": BASE_COMMIT,
-                **{f"workers_{w}": generate_cpu(trees, "base", w, frames_short, frames_long, rounds)
-                   for w in (1, 2)}}
+        trees = {"base": base, "new": here, "hard": here}
+        envs = {"hard": {"LIPGEN_BENCH_PRESET": "hard"}}
+        out: dict = {"base_commit": BASE_COMMIT, "issue15_base_commit": ISSUE15_BASE_COMMIT}
+        for w in (1, 2):
+            res = generate_cpu(trees, "base", w, frames_short, frames_long, rounds, envs=envs)
+            out[f"workers_{w}"] = res | {"hard_over_new": hard_over_new(res)}
+        return out

@@ -57,30 +57,50 @@ def _one_pass_class(pr):
                              pose[:3, 3], (x, y, w, h)))
             GL.glEnable(GL.GL_SCISSOR_TEST)
             program = None
+            lit = {}  # program -> texture units its lights (shadow maps) hold, bound in this pass
+            same_lights = self._lights_fit(scene, flags)
             try:
                 for node in self._sorted_mesh_nodes(scene):
                     if not node.mesh.is_visible:
                         continue
                     pose = scene.get_pose(node)
                     for primitive in node.mesh.primitives:
-                        program = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+                        program = _fast_uniforms(self._get_primitive_program(primitive, flags,
+                                                                              ProgramFlags.USE_MATERIAL))
                         program._bind()
-                        self._bind_lighting(scene, program, node, flags)
+                        if id(program) not in lit or not same_lights:
+                            self._reset_active_textures()
+                            self._bind_lighting(scene, program, node, flags)
+                            lit[id(program)] = self._texture_alloc_idx
                         for V, P, cam_pos, region in cams:
                             GL.glViewport(*region)
                             GL.glScissor(*region)
                             program.set_uniform("V", V)
                             program.set_uniform("P", P)
                             program.set_uniform("cam_pos", cam_pos)
+                            # the material's textures on the units after the shadow maps', view after
+                            # view (from unit 0 they would replace the shadow maps in the next view)
+                            self._texture_alloc_idx = lit[id(program)]
                             self._bind_and_draw_primitive(primitive=primitive, pose=pose, program=program,
                                                           flags=flags)
-                            self._reset_active_textures()
+                        self._reset_active_textures()
                 if program is not None:
                     program._unbind()
             finally:
                 GL.glDisable(GL.GL_SCISSOR_TEST)
             GL.glFlush()
             return self._read_both(W, H)
+
+        def _lights_fit(self, scene, flags) -> bool:
+            """Every light is bound, whatever the node (pyrender sorts lights by their distance from
+            the node only when there are more than its shaders hold): a program's light uniforms
+            and shadow-map units, once bound in a pass, hold for all its primitives."""
+            n_d, n_s, n_p = self._compute_max_n_lights(flags)
+            return (len(scene.directional_light_nodes) <= n_d and len(scene.spot_light_nodes) <= n_s
+                    and len(scene.point_light_nodes) <= n_p)
+
+        def _get_primitive_program(self, primitive, flags, program_flags=ProgramFlags.NONE):
+            return _fast_uniforms(super()._get_primitive_program(primitive, flags, program_flags))
 
         def _read_both(self, W: int, H: int):
             GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
@@ -99,6 +119,47 @@ def _one_pass_class(pr):
             return color, depth
 
     return OnePassRenderer
+
+
+def _set_uniform(self, name, value, unsigned=False):
+    """pyrender 0.1.45's ``ShaderProgram.set_uniform`` (the same GL calls, errors ignored as there),
+    with each uniform's location looked up once per linked program instead of at every call."""
+    from OpenGL import GL
+
+    try:
+        key = (self._program_id, name)
+        loc = self._lipgen_locations.get(key)
+        if loc is None:
+            loc = self._lipgen_locations[key] = GL.glGetUniformLocation(self._program_id, name)
+        if loc == -1:
+            raise ValueError(f"Invalid shader variable: {name}")
+        if isinstance(value, np.ndarray):
+            if value.ndim == 1:
+                if value.dtype.kind == "u" or unsigned:
+                    dtype, value = "u", value.astype(np.uint32)
+                elif value.dtype.kind == "i":
+                    dtype, value = "i", value.astype(np.int32)
+                else:
+                    dtype, value = "f", value.astype(np.float32)
+                self._FUNC_MAP[(value.shape[0], dtype)](loc, 1, value)
+            else:
+                self._FUNC_MAP[(value.shape[0], value.shape[1])](loc, 1, GL.GL_TRUE, value)
+        elif isinstance(value, float):
+            GL.glUniform1f(loc, value)
+        elif isinstance(value, int):
+            (GL.glUniform1ui if unsigned else GL.glUniform1i)(loc, value)
+        else:
+            raise ValueError("Invalid data type")
+    except Exception:  # noqa: BLE001 - pyrender's own behaviour: a uniform the shader lacks is skipped
+        pass
+
+
+def _fast_uniforms(program):
+    """``program`` with :func:`_set_uniform` as its ``set_uniform`` (once per program object)."""
+    if "_lipgen_locations" not in program.__dict__:
+        program._lipgen_locations = {}
+        program.set_uniform = _set_uniform.__get__(program)
+    return program
 
 
 def install(offscreen, pr) -> bool:

@@ -141,7 +141,10 @@ class FrameFormer:
         """
         out = []
         for v in range(2):
-            lin = np.mean([srgb_decode(inst[v]) for inst in instants], axis=0)
+            if len(instants) == 1:  # the mean of one image is that image, bit for bit
+                lin = srgb_decode(instants[0][v])
+            else:
+                lin = np.mean([srgb_decode(inst[v]) for inst in instants], axis=0)
             if self.kernels[v] is not None:
                 lin = self.cv2.filter2D(lin, -1, self.kernels[v], borderType=self.cv2.BORDER_REPLICATE)
             out.append(lin)
@@ -160,11 +163,19 @@ class FrameFormer:
         c, cv2 = self.c, self.cv2
         x = lin * (np.float32(self.exposure) * self.wb)
         if c.full_well > 0 or c.read_noise > 0:
-            # shot (variance = electrons) and read noise, independent Gaussians: one draw
-            var = np.float32((c.read_noise / 255.0) ** 2)
+            # shot (variance = electrons) and read noise, independent Gaussians: one draw. In place,
+            # the same float32 operations as var = read + clip(x) / full_well; x += sqrt(var) * z
+            read = np.float32((c.read_noise / 255.0) ** 2)
             if c.full_well > 0:
-                var = var + np.clip(x, 0, 1) * np.float32(1.0 / c.full_well)
-            x = x + np.sqrt(var) * rng.standard_normal(x.shape, dtype=np.float32)
+                sd = np.clip(x, 0, 1)
+                sd *= np.float32(1.0 / c.full_well)
+                sd += read
+                np.sqrt(sd, out=sd)
+            else:
+                sd = np.sqrt(read)
+            z = rng.standard_normal(x.shape, dtype=np.float32)
+            z *= sd
+            x += z
         img = srgb_encode(x)
         if c.bayer:
             mosaic = np.empty(img.shape[:2], np.uint8)  # RGGB

@@ -23,12 +23,33 @@ def srgb_to_linear(c) -> np.ndarray:
 
 
 def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(n, 3) unit area-weighted vertex normals (zero for vertices in no face)."""
-    tri = vertices[faces]
-    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    out = np.zeros_like(vertices)
-    for k in range(3):
-        np.add.at(out, faces[:, k], nrm)
+    """(n, 3) unit area-weighted vertex normals (zero for vertices in no face).
+
+    Each vertex sums its faces' cross products in the order of ``np.add.at`` over the faces'
+    first, second, then third corners (``np.bincount`` adds its weights in that same order, at a
+    quarter of the CPU): the same bits as that sum.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    """
+    vertices = np.asarray(vertices)
+    faces = np.asarray(faces)
+    if vertices.dtype != np.float64:  # bincount adds in float64: the other types keep np.add.at
+        tri = vertices[faces]
+        nrm3 = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        out = np.zeros_like(vertices)
+        for k in range(3):
+            np.add.at(out, faces[:, k], nrm3)
+        length = np.linalg.norm(out, axis=1, keepdims=True)
+        return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
+    Vt = np.ascontiguousarray(vertices.T)
+    a, b, c = (Vt[:, faces[:, k]] for k in range(3))
+    e1, e2 = b - a, c - a  # np.cross's products and differences, per component
+    nrm = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
+    corners = faces.T.ravel()
+    out = np.stack([np.bincount(corners, np.concatenate([x, x, x]), len(vertices)) for x in nrm], axis=1)
     length = np.linalg.norm(out, axis=1, keepdims=True)
     return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
 

@@ -3,7 +3,9 @@
 The dataset's visibility truth comes from here, not from the renderer, so it is exact geometry
 and independent of the rasteriser. Each triangle's pixel bounding box culls the points whose line
 of sight could cross it before the exact Moller-Trumbore test (few points, many triangles: the
-points sorted by x, each box's run of them found by binary search, then tested in y).
+points sorted by x, each box's run of them found by binary search, then tested in y). The boxes
+are taken in the camera's pinhole image (without lens distortion), where they hold every point
+whose line of sight crosses the triangle.
 """
 
 from __future__ import annotations
@@ -96,6 +98,18 @@ def _box_pairs(q: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarra
     return np.concatenate(pair_q), np.concatenate(pair_t)
 
 
+def _pinhole(camera: PinholeCamera, X: np.ndarray) -> np.ndarray:
+    """(p, 2) pixels of world points ``X`` (p, 3) through ``camera`` without its lens distortion
+    (NaN at or behind the camera)."""
+    R, t = camera.R, camera.t
+    Xc = [X[:, 0] * R[i, 0] + X[:, 1] * R[i, 1] + X[:, 2] * R[i, 2] + t[i] for i in range(3)]
+    z = Xc[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = np.where(z > 0, 1.0 / z, np.nan)
+    K = camera.K
+    return np.stack([Xc[0] * inv * K[0, 0] + K[0, 2], Xc[1] * inv * K[1, 1] + K[1, 2]], axis=1)
+
+
 def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) -> np.ndarray:
     """(p,) bool: is the line of sight from ``camera``'s centre to each point blocked?
 
@@ -116,22 +130,31 @@ def occluded(camera: PinholeCamera, points, triangles, end_gap: float = 0.01) ->
     out = np.zeros(len(points), bool)
     if len(points) == 0 or len(tris) == 0:
         return out
-    # triangles: pixel bounding boxes, 1 px wider (behind-camera vertices make a box over everything)
-    uv = camera.project(tris.reshape(-1, 3)).reshape(-1, 3, 2)
+    # Boxes and points in the pinhole image (the camera without its lens distortion): a central
+    # projection keeps straight lines straight, so a point whose line of sight crosses a triangle
+    # projects inside that triangle's projection, and its box (1 px wider) holds it. Distorted
+    # pixels would bend the triangle's edges out of the box of its corners; undistorted ones also
+    # spare the distortion polynomial on every corner.
+    uv = _pinhole(camera, tris.reshape(-1, 3)).reshape(-1, 3, 2)
     nan = np.isnan(uv)
-    behind = nan.any(axis=(1, 2))
+    behind = nan.any(axis=(1, 2))  # a corner behind the camera: a box over everything
     uv[nan] = 0.0  # those boxes are replaced below
     c0, c1, c2 = uv[:, 0], uv[:, 1], uv[:, 2]
     lo = np.where(behind[:, None], -np.inf, np.minimum(np.minimum(c0, c1), c2) - 1.0)
     hi = np.where(behind[:, None], np.inf, np.maximum(np.maximum(c0, c1), c2) + 1.0)
-    off_image = (hi[:, 0] < -1) | (hi[:, 1] < -1) | (lo[:, 0] > camera.width) | (lo[:, 1] > camera.height)
-    keep = np.flatnonzero(~off_image)
-    lo, hi = lo[keep].T.copy(), hi[keep].T.copy()
-    # points in the image, then every (point, triangle whose box holds it) pair
-    q = camera.project(points)
-    valid = np.isfinite(q).all(axis=1) & camera.inside(q, margin=-1.0)
+    # points in the image (distorted pixels: what the camera sees) ...
+    seen = camera.project(points)
+    valid = np.isfinite(seen).all(axis=1) & camera.inside(seen, margin=-1.0)
     qi = np.flatnonzero(valid)
-    pair_q, pair_t = _box_pairs(q[qi], lo, hi)
+    if len(qi) == 0:
+        return out
+    q = _pinhole(camera, points[qi])
+    # ... and only the triangles whose boxes meet the box of those points
+    q_lo, q_hi = q.min(axis=0), q.max(axis=0)
+    keep = np.flatnonzero((hi[:, 0] >= q_lo[0]) & (lo[:, 0] <= q_hi[0]) & (hi[:, 1] >= q_lo[1])
+                          & (lo[:, 1] <= q_hi[1]))
+    lo, hi = lo[keep].T.copy(), hi[keep].T.copy()
+    pair_q, pair_t = _box_pairs(q, lo, hi)
     pair_q, pair_t = qi[pair_q], keep[pair_t]
     hit = segment_hits(np.broadcast_to(camera.center, (len(pair_q), 3)), points[pair_q], tris[pair_t],
                        end_gap)
