@@ -75,8 +75,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
     """
     found = np.zeros((2, len(trackers[0].init)), dtype=bool)
     if not 0 < gap_share <= 1 or not 0 < strength_ratio <= 1 or not 0 < floor < 1:
-        raise ValueError(f"gap_share, strength_ratio must be in (0, 1] and floor in (0, 1), got {gap_share!r}, "
-                         f"{strength_ratio!r}, {floor!r}")
+        raise ValueError(f"gap_share, strength_ratio must be in (0, 1] and floor in (0, 1), got "
+                         f"{gap_share!r}, {strength_ratio!r}, {floor!r}")
     if not trackers[0]._out or len(trackers[0]._out) < 2:
         return found
     for a in range(2):
@@ -116,8 +116,7 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         # Each peak belongs to the marker predicted nearest to it (a neighbour's dot on the same
         # epipolar line, at the same height in the mirror, is not this marker's).
         placed = np.flatnonzero(np.all(np.isfinite(pred), axis=1))
-        nearest = placed[np.linalg.norm(peaks[:, None] - pred[placed][None], axis=2).argmin(1)] if len(peaks) \
-            else np.zeros(0, dtype=np.int64)
+        nearest = placed[np.linalg.norm(peaks[:, None] - pred[placed][None], axis=2).argmin(1)]
         known = np.isfinite(ta.strength)
         typical = float(np.median(ta.strength[known])) if known.any() else np.nan
         for i, k in enumerate(want):
@@ -128,7 +127,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             idx = np.flatnonzero(near)
             if len(idx) == 0:
                 continue
-            gap = triangulate(cameras[1 - a], np.repeat(uv_b[k][None], len(idx), 0), cameras[a], peaks[idx])[1]
+            ray_b = np.repeat(uv_b[k][None], len(idx), 0)
+            gap = triangulate(cameras[1 - a], ray_b, cameras[a], peaks[idx])[1]
             ok = idx[gap <= gap_share * max_gap]
             # One peak on the line, and a faint one: a dark blob there (the mouth's corner along
             # the lip corner's line) was the detector's to see, and the tracker did not take it.
@@ -150,4 +150,5 @@ def _take(tracker: MarkerTracker, k: int, p: np.ndarray, gray: np.ndarray, stren
     uv[k], status[k] = p, RECOVERED
     tracker.last[k], tracker.vel[k], tracker.gap[k] = p, 0.0, 0
     tracker.templates[k] = (patch_around(gray, p, tracker.cfg.template_radius).copy(), p - np.round(p))
-    tracker.strength[k] = strength if np.isnan(tracker.strength[k]) else 0.8 * tracker.strength[k] + 0.2 * strength
+    old = tracker.strength[k]
+    tracker.strength[k] = strength if np.isnan(old) else 0.8 * old + 0.2 * strength
