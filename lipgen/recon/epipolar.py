@@ -21,8 +21,9 @@ in one view when
 * it is the only such peak, and it is faint: under the detector's ``min_contrast`` (a darker
   blob there was the tracker's to take, and it did not: on hard seed 7 the mouth's dark corner
   lies on the lip corner's line) but at least ``strength_ratio`` as dark as the marker's dot
-  has been in this view (or as this view's markers' median dot), above the image's noise
-  floor, round, and not a dot another marker holds.
+  has been in this view (or as this view's markers' median dot), and at most ``max_ratio`` as
+  dark, above the noise floor of the tracker's search region (``floor`` at least), round, and
+  not a dot another marker holds.
 
 The sighting then enters the ordinary checks (:func:`lipgen.recon.viewcheck.check_views`: ray
 gap, identity, 3-D step) as a re-acquisition, so a wrong one is taken back like any other.
@@ -45,7 +46,7 @@ __all__ = ["recover_along_epipolar"]
 
 def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_gap: float,
                            gap_share: float = 0.5, strength_ratio: float = 0.3,
-                           floor: float = 0.03) -> np.ndarray:
+                           floor: float = 0.03, max_ratio: float = 1.5) -> np.ndarray:
     """Find markers lost in one view on the epipolar line of the other view's sighting (in place).
 
     Call after both trackers' :meth:`~lipgen.recon.track.MarkerTracker.step` on one image pair
@@ -67,6 +68,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         median of this view's markers' dots when the marker's own is not known).
     floor : float
         Least darkness at all (0..1 of full scale), under the detector's ``min_contrast``.
+    max_ratio : float
+        Greatest darkness of the peak, as a share of the same reference.
 
     Returns
     -------
@@ -97,11 +100,15 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         carry_lost_markers(pred, ta._before[0], uv_a, seen_a)
         pred[seen_a] = uv_a[seen_a]
         reach = cfg.gate * (1.0 + np.minimum(ta.gap[want], 3) / 3.0)
-        margin = int(np.ceil(reach.max() + 4 * cfg.dots.sigma))
+        # The tracker's own search region (all markers and a margin), so the noise floor of the
+        # response is the image's, not that of a patch of lip.
         h, w = gray.shape
-        lo = np.maximum(np.floor(np.nanmin(pred[want], 0)).astype(int) - margin, 0)
-        hi = np.minimum(np.ceil(np.nanmax(pred[want], 0)).astype(int) + margin + 1, [w, h])
-        if not np.all(np.isfinite(pred[want])) or np.any(hi - lo < 8):
+        placed = np.all(np.isfinite(pred), axis=1)
+        if not placed[want].all():
+            continue
+        lo = np.maximum(np.floor(pred[placed].min(0) - ta.roi_margin).astype(int), 0)
+        hi = np.minimum(np.ceil(pred[placed].max(0) + ta.roi_margin).astype(int) + 1, [w, h])
+        if np.any(hi - lo < 8):
             continue
         sub = gray[lo[1]:hi[1], lo[0]:hi[0]]
         peaks, strength, roundness = dot_peaks(sub, replace(cfg.dots, min_contrast=floor))
@@ -115,7 +122,7 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             peaks, strength = peaks[free], strength[free]
         # Each peak belongs to the marker predicted nearest to it (a neighbour's dot on the same
         # epipolar line, at the same height in the mirror, is not this marker's).
-        placed = np.flatnonzero(np.all(np.isfinite(pred), axis=1))
+        placed = np.flatnonzero(placed)
         nearest = placed[np.linalg.norm(peaks[:, None] - pred[placed][None], axis=2).argmin(1)]
         known = np.isfinite(ta.strength)
         typical = float(np.median(ta.strength[known])) if known.any() else np.nan
@@ -130,9 +137,10 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             ray_b = np.repeat(uv_b[k][None], len(idx), 0)
             gap = triangulate(cameras[1 - a], ray_b, cameras[a], peaks[idx])[1]
             ok = idx[gap <= gap_share * max_gap]
-            # One peak on the line, and a faint one: a dark blob there (the mouth's corner along
-            # the lip corner's line) was the detector's to see, and the tracker did not take it.
-            if len(ok) != 1 or strength[ok[0]] >= cfg.dots.min_contrast:
+            # One peak on the line, and no darker than the marker's own dot has been: a dark blob
+            # there (the mouth's corner on the lip corner's line) is not a pale dot.
+            if len(ok) != 1 or strength[ok[0]] >= cfg.dots.min_contrast \
+                    or (np.isfinite(own) and strength[ok[0]] > max_ratio * own):
                 continue
             p = refine_centroids(gray, peaks[ok], cfg.dots.sigma, window=cfg.dots.window)[0]
             g = triangulate(cameras[1 - a], uv_b[k][None], cameras[a], p[None])[1][0]
