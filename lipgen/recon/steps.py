@@ -30,6 +30,7 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
+from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
@@ -107,6 +108,11 @@ class ReconstructSettings:
         (:class:`lipgen.recon.jumps.StepLimit`); None: no step check.
     min_step : float
         Least step limit, mm per frame.
+    epipolar_recovery : bool
+        Look for a marker lost in one view on the epipolar line of the other view's sighting,
+        where a faint dot (under the detector's contrast floor: the defocused mirror view of
+        ``hard``) may be taken (:func:`lipgen.recon.epipolar.recover_along_epipolar`); it then
+        passes the same view checks as any re-acquired sighting.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -120,6 +126,7 @@ class ReconstructSettings:
     robust_first_frame: bool = False
     step_k: float | None = 4.0
     min_step: float = 1.0
+    epipolar_recovery: bool = True
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -226,6 +233,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
+            if settings.epipolar_recovery:
+                recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
