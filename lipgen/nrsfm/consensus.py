@@ -50,7 +50,8 @@ def _centred_depth(rec: Reconstruction) -> np.ndarray:
     return z - z.mean(axis=1, keepdims=True)
 
 
-def consensus_depth(candidates: list[Reconstruction], chosen: int, m: int = CONSENSUS_KS) -> tuple[np.ndarray, dict]:
+def consensus_depth(candidates: list[Reconstruction], chosen: int,
+                    m: int = CONSENSUS_KS) -> tuple[np.ndarray, dict]:
     """The shrunk mean depth of the ``m`` smoothest reconstructions (see the module docstring).
 
     Parameters
@@ -79,7 +80,8 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int, m: int = CONS
         raise ValueError(f"m must be a positive integer, got {m!r}")
     shapes = {c.shapes.shape for c in candidates}
     if len(shapes) != 1:
-        raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one sequence")
+        raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
+                         "sequence")
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
     picked = [chosen] + order[: int(m) - 1]
@@ -132,7 +134,8 @@ def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> 
                           reprojection_rms=rec.reprojection_rms, info=rec.info | (info or {}))
 
 
-def consensus_reconstruction(candidates: list[Reconstruction], chosen: int, m: int = CONSENSUS_KS) -> Reconstruction:
+def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
+                             m: int = CONSENSUS_KS) -> Reconstruction:
     """The chosen reconstruction with the consensus depth (:func:`consensus_depth`), or itself when it is
     an exact K-shape fit or ``m`` is 1.
 
