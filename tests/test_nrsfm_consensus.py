@@ -142,21 +142,33 @@ def test_an_exact_fit_is_kept_bit_for_bit():
     assert np.array_equal(out.S, runs[1].S) and np.array_equal(out.weights, runs[1].weights)
 
 
-def test_auto_is_the_consensus_of_dai_at_every_k():
-    """reconstruct(W, "auto") for dai: the chosen K's rotations with the consensus depth, as the pieces give
-    it; consensus=1 gives the chosen K's reconstruction itself."""
-    from lipgen.nrsfm.kchoice import reconstruct_auto
+def test_auto_is_the_consensus_of_dai_at_every_k(monkeypatch):
+    """reconstruct_auto for dai: the chosen K's rotations with the consensus depth of the runs it made;
+    m = 1 gives the chosen K's reconstruction itself."""
+    from threadpoolctl import threadpool_limits
+
+    from lipgen.nrsfm import kchoice
     from lipgen.nrsfm.validation import human_sequence
 
-    s = human_sequence(302, 30)
-    F, P = 30, s.W.shape[1]
-    ks = candidate_ks(F, P, F * P, "dai", 5)
-    runs = [reconstruct_k(s.W, k, "dai") for k in ks]
+    runs = []
+
+    def recording(*args, **kwargs):
+        runs.append(reconstruct_k(*args, **kwargs))
+        return runs[-1]
+
+    monkeypatch.setattr(kchoice, "reconstruct_k", recording)
+    s = human_sequence(302, 20)
+    rec = kchoice.reconstruct_auto(s.W, "dai", kmax=2)
+    ks = [int(r.k) for r in runs]
+    assert ks == candidate_ks(20, s.W.shape[1], s.W.size // 2, "dai", 2)
     chosen, _ = smooth_k(runs)
-    rec = reconstruct_auto(s.W, "dai", kmax=5)
-    expect = consensus_reconstruction(runs, ks.index(chosen))
+    i = ks.index(chosen)
+    with threadpool_limits(1):          # as reconstruct_auto runs it
+        expect = consensus_reconstruction(runs, i)
     assert rec.k == chosen and np.array_equal(rec.S, expect.S)
-    assert rec.info["depth_consensus"]["ks"][0] == chosen and len(rec.info["depth_consensus"]["ks"]) == 4
-    single = reconstruct_auto(s.W, "dai", kmax=5, consensus=1)
-    assert np.array_equal(single.S, runs[ks.index(chosen)].S)
+    assert np.array_equal(rec.rotations, runs[i].rotations)
+    record = rec.info["depth_consensus"]
+    assert record["ks"][0] == chosen and len(record["ks"]) == len(ks)
+    np.testing.assert_allclose(rec.shapes[:, :2], runs[i].shapes[:, :2], atol=1e-9 * np.abs(s.W).max())
+    assert np.array_equal(consensus_reconstruction(runs, i, 1).S, runs[i].S)
     assert np.isfinite(e3d(S_est=rec.S, S_true=s.S))
