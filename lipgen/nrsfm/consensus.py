@@ -23,7 +23,12 @@ at K = 3) is kept as it is: other Ks are not estimates of the same shapes there.
 The rule (4 smoothest Ks, mean, James-Stein factor) was chosen on development bodies of
 :mod:`lipgen.nrsfm.validation` (seeds 300-307, 400, 405-407 and 900-903, 80 frames) against the
 split-half reliability (:mod:`lipgen.nrsfm.reliability`), a cross-K regression slope and constant
-factors, never on drink, jaws or the fresh seeds; the figures are in ``lipgen experiment nrsfm``.
+factors, never on drink, jaws or the fresh seeds (there: worse than flat 5 -> 3 of 16, mean e3D
+0.386 -> 0.364). Run once on fresh seeds 1000-1019 (80 frames) after it was frozen: worse than flat
+3 -> 1 of 20 (dance-1014: 0.562 against flat 0.558), mean e3D 0.322 -> 0.321, median 0.321 -> 0.333;
+it helped 10 bodies and hurt 10 (walk-1000: 0.115 -> 0.218), so it trades accuracy on good sequences
+for fewer failures (``renders/examples/nrsfm/fresh_1000_1019.md``). ``consensus=1`` in
+:func:`lipgen.nrsfm.kchoice.reconstruct_auto` keeps the chosen K's own depth.
 """
 
 from __future__ import annotations
