@@ -134,5 +134,5 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     assert "worse than the flat baseline" in text
     (check,) = result["check"]
     assert check["name"] in text and np.isfinite(check["e3d"]) and check["k"] >= 1
-    assert 0.0 <= check["depth_factor"] <= 1.0 and np.isfinite(check["e3d_shrunk"])
+    assert 0.0 <= check["consensus_factor"] <= 1.0 and np.isfinite(check["e3d_single"])
     assert f"| {check['name']} | no |" in text          # seed 300 was looked at while choosing the rules

@@ -13,9 +13,11 @@ PUBLISHED = {
 }
 """Published e3D figures per sequence: (source, K, e3D)."""
 
-SEEN_SEEDS = frozenset({*range(100, 108), *range(300, 311), *range(400, 411), *range(700, 730)})
+SEEN_SEEDS = frozenset({*range(100, 108), *range(300, 311), *range(400, 411), *range(700, 730),
+                        *range(800, 820), *range(900, 906)})
 """Validation-body seeds looked at while the rules were chosen (the automatic K: 100-107, 300-310;
-the split-half shrinkage: 300-310, 400-410, 700-729): the check marks them not fresh."""
+the split-half shrinkage: 300-310, 400-410, 700-729, then checked once on 800-819; the consensus
+depth: 300-307, 400, 405-407 and 900-903, 900-905 generated): the check marks them not fresh."""
 
 
 def _ranges(seeds: list[int]) -> str:
@@ -52,9 +54,10 @@ def markdown(result: dict, settings) -> str:
              "compare them as ratios. *auto* marks the K the method chooses itself: for `dai` and `dai-ba` "
              "the K with the smoothest rotations (among them the smallest fitted exactly by K shapes) "
              "(`lipgen.nrsfm.kchoice`; its time is that of `dai` at every K it tries, plus `dai-ba`'s "
-             "refinement at the chosen K), its depth then shrunk by its split-half reliability "
-             "(`lipgen.nrsfm.reliability`); for `bregler` the reprojection-curve rule. `em-ppca` counts K as "
-             "deformation modes beyond the mean shape, so it has "
+             "refinement at the chosen K); `dai`'s depth is then the mean of the 4 smoothest Ks' depths, "
+             "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`); for `bregler` "
+             "the reprojection-curve rule. `em-ppca` counts K as deformation modes beyond the mean "
+             "shape, so it has "
              "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
              ""]
     for name, seq in result["sequences"].items():
@@ -111,22 +114,23 @@ def markdown(result: dict, settings) -> str:
         lines += ["", f"Runs worse than the flat baseline: {listed}.", ""]
     if result.get("check"):
         worse = [c["name"] for c in result["check"] if c["e3d"] > c["flat_e3d"]]
-        worse_shrunk = [c["name"] for c in result["check"] if c["e3d_shrunk"] > c["flat_e3d"]]
+        worse_single = [c["name"] for c in result["check"] if c["e3d_single"] > c["flat_e3d"]]
         seen = sorted({c["seed"] for c in result["check"] if c["seed"] in SEEN_SEEDS})
         lines += ["## Check: `dai` with K = auto beside the flat baseline", "",
-                  "Seeds run while the rules were chosen (the automatic K, the split-half depth shrinkage): "
-                  f"{_ranges(sorted(SEEN_SEEDS))}; of the seeds below, "
+                  "Seeds run while the rules were chosen (the automatic K, the split-half depth shrinkage, "
+                  f"the consensus depth): {_ranges(sorted(SEEN_SEEDS))}; of the seeds below, "
                   + (f"{', '.join(map(str, seen))} were among them" if seen else "none was")
-                  + " (column *fresh*). *shrunk*: the e3D with the depth multiplied by its split-half "
-                  "reliability (*factor*, `lipgen.nrsfm.kchoice.shrink_unreliable_depth`, opt-in).", "",
-                  "| sequence | fresh | flat | dai K=auto | K | factor | shrunk | CPU (s) |",
+                  + " (column *fresh*). *dai K=auto*: the default, the consensus depth of the smoothest Ks "
+                  "(`lipgen.nrsfm.consensus`) shrunk by the James-Stein *factor*; *single K*: the chosen K's "
+                  "own depth.", "",
+                  "| sequence | fresh | flat | dai K=auto | K | factor | single K | CPU (s) |",
                   "|---|---|---|---|---|---|---|---|"]
         lines += [f"| {c['name']} | {'no' if c['seed'] in SEEN_SEEDS else 'yes'} | {c['flat_e3d']:.3f} | "
-                  f"{c['e3d']:.3f} | {c['k']} | {c['depth_factor']:.3f} | {c['e3d_shrunk']:.3f} | "
+                  f"{c['e3d']:.3f} | {c['k']} | {c['consensus_factor']:.3f} | {c['e3d_single']:.3f} | "
                   f"{c['cpu_seconds']:.1f} |" for c in result["check"]]
         lines += ["", f"Worse than the flat baseline: {len(worse)} of {len(result['check'])}"
                   + (f" ({', '.join(worse)})" if worse else "")
-                  + f"; with the depth shrunk {len(worse_shrunk)}.",
+                  + f"; with the chosen K's own depth {len(worse_single)}.",
                   ""]
     if any(r.get("label", r["method"]) != r["method"] for seq in result["sequences"].values()
            for r in seq["runs"]):

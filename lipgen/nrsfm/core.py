@@ -36,7 +36,10 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         Number of basis shapes K, or ``"auto"``: for ``"dai"`` and ``"dai-ba"`` the K whose
         rotations are smoothest in time, preferring among those the smallest K that explains
         noise-free tracks exactly (:func:`lipgen.nrsfm.kchoice.smooth_k`, kept in
-        ``info["k_choice"]``; shrinking the depth by its split-half reliability is opt-in,
+        ``info["k_choice"]``); ``"dai"`` then takes as depth the mean of the 4 smoothest Ks' depths,
+        shrunk towards flat by the James-Stein factor of their spread
+        (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, ``info["depth_consensus"]``; an exact
+        K-shape fit is kept as it is; shrinking the depth by its split-half reliability is opt-in,
         :func:`lipgen.nrsfm.kchoice.shrink_unreliable_depth`); for the others K from the
         reprojection curve (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in
         ``info["k_curve"]``). For

@@ -25,6 +25,7 @@ import numpy as np
 
 from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
+from lipgen.nrsfm.consensus import CONSENSUS_KS, consensus_reconstruction
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
@@ -93,14 +94,17 @@ def smooth_k(candidates: list[Reconstruction], tol: float = SMOOTH_TOL) -> tuple
 
 
 @single_threaded(always=True)
-def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, **options) -> Reconstruction:
+def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus: int = CONSENSUS_KS,
+                     **options) -> Reconstruction:
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
-    (kept in ``info["k_choice"]``); for ``dai-ba`` the refinement then runs at that K. The depth
-    is not shrunk by its split-half reliability (:func:`shrink_unreliable_depth`, opt-in): on fresh
-    bodies (seeds 800-819, 80 frames) that helped 5 and hurt 6, the mean e3D rose from 0.347 to
-    0.367, and the two bodies worse than flat stayed worse. Other
+    (kept in ``info["k_choice"]``). ``dai`` then replaces the chosen K's depth by the consensus of the
+    ``consensus`` smoothest Ks, shrunk by the James-Stein factor of their disagreement
+    (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, kept in ``info["depth_consensus"]``;
+    an exact K-shape fit is kept as it is). ``dai-ba``'s refinement runs at the chosen K, without the
+    consensus. The split-half shrinkage (:func:`shrink_unreliable_depth`) stays opt-in: on fresh
+    bodies (seeds 800-819, 80 frames) it helped 5 and hurt 6. Other
     methods: K from the reprojection curve (:func:`curve_values`, :func:`choose_k`; kept in
     ``info["k_curve"]``).
 
@@ -111,6 +115,8 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, **options)
     visible : (F, P) array_like of bool, optional
     kmax : int
         Largest K tried.
+    consensus : int
+        ``dai``: number of the smoothest Ks whose depths are averaged (1: the chosen K's depth as it is).
     **options
         As :func:`lipgen.nrsfm.reconstruct`.
 
@@ -133,7 +139,10 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, **options)
     runs = [reconstruct_k(W, k, "dai", visible, **options) for k in ks]
     chosen, record = smooth_k(runs)
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
-    rec = runs[ks.index(chosen)] if method == "dai" else reconstruct_k(W, chosen, method, visible, **options)
+    if method == "dai":
+        rec = consensus_reconstruction(runs, ks.index(chosen), consensus)
+    else:
+        rec = reconstruct_k(W, chosen, method, visible, **options)
     rec.info["k_choice"] = record
     return rec
 

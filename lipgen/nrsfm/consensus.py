@@ -1,0 +1,165 @@
+"""Depth by consensus of the smoothest Ks, shrunk by how much they disagree: the last step of
+``k="auto"`` for ``dai``.
+
+``k="auto"`` runs ``dai`` at every K (:mod:`lipgen.nrsfm.kchoice`) and keeps one. Under orthography
+the image gives x and y; only the camera-frame depth is inferred, and on short or weakly rotating
+sequences it can be wrong enough that the flat answer (zero depth) is closer to the truth. The
+reconstructions at the Ks whose rotations are smoothest are several estimates of the same depth, and
+their errors differ from K to K (after Lee et al., "Consensus of non-rigid reconstructions", CVPR
+2016: parts that many reconstructions agree on are the reliable ones). :func:`consensus_depth` takes
+the :data:`CONSENSUS_KS` smoothest Ks (always with the chosen one), aligns each depth's sign (a
+global reflection) with the chosen K's, and averages them: depth they agree on is kept, depth they
+do not agree on partly cancels.
+
+The mean is then shrunk towards zero by the positive-part James-Stein factor
+``a = max(0, 1 - (s2 / m) / |zbar|^2)``: ``zbar`` the mean depth (all frames and points), ``s2`` the
+summed squared spread of the ``m`` depths about it over ``m - 1``, so ``s2 / m`` estimates the noise
+left in the mean and ``a`` the signal over signal plus noise. The spread of reconstructions of the same
+tracks underestimates their error (they share the data), so ``a`` errs towards keeping the depth.
+
+An exact K-shape fit (``info["shapes"] == "rank-K fit"``: noise-free tracks explained exactly, as jaws
+at K = 3) is kept as it is: other Ks are not estimates of the same shapes there.
+
+The rule (4 smoothest Ks, mean, James-Stein factor) was chosen on development bodies of
+:mod:`lipgen.nrsfm.validation` (seeds 300-307, 400, 405-407 and 900-903, 80 frames) against the
+split-half reliability (:mod:`lipgen.nrsfm.reliability`), a cross-K regression slope and constant
+factors, never on drink, jaws or the fresh seeds (there: worse than flat 5 -> 3 of 16, mean e3D
+0.386 -> 0.364). Run once on fresh seeds 1000-1019 (80 frames) after it was frozen: worse than flat
+3 -> 1 of 20 (dance-1014: 0.562 against flat 0.558), mean e3D 0.322 -> 0.321, median 0.321 -> 0.333;
+it helped 10 bodies and hurt 10 (walk-1000: 0.115 -> 0.218), so it trades accuracy on good sequences
+for fewer failures (``renders/examples/nrsfm/fresh_1000_1019.md``). ``consensus=1`` in
+:func:`lipgen.nrsfm.kchoice.reconstruct_auto` keeps the chosen K's own depth.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from lipgen.nrsfm.plausibility import rotation_roughness
+from lipgen.nrsfm.record import Reconstruction
+
+__all__ = ["CONSENSUS_KS", "consensus_depth", "with_depth", "consensus_reconstruction"]
+
+log = logging.getLogger(__name__)
+
+CONSENSUS_KS = 4
+"""How many of the smoothest Ks' depths are averaged (3, 4, 5 and 6 were tried on the development
+bodies: 4 left the fewest sequences worse than flat and hurt the fewest)."""
+
+
+def _centred_depth(rec: Reconstruction) -> np.ndarray:
+    z = rec.shapes[:, 2]
+    return z - z.mean(axis=1, keepdims=True)
+
+
+def consensus_depth(candidates: list[Reconstruction], chosen: int,
+                    m: int = CONSENSUS_KS) -> tuple[np.ndarray, dict]:
+    """The shrunk mean depth of the ``m`` smoothest reconstructions (see the module docstring).
+
+    Parameters
+    ----------
+    candidates : list of Reconstruction
+        ``dai`` at several K on the same tracks (F frames, P points).
+    chosen : int
+        Index into ``candidates`` of the K that was chosen; always among the averaged ones, and the
+        reference of the depths' signs.
+    m : int
+        Number of depths averaged (at least 1; 1 returns the chosen depth, unshrunk; fewer
+        candidates than ``m``: all of them).
+
+    Returns
+    -------
+    z : (F, P) float
+        Camera-frame depth, centred in each frame.
+    record : dict
+        ``ks`` (averaged), ``factor`` (the James-Stein factor), ``spread`` (``s2 / m`` over ``|zbar|^2``).
+    """
+    if not candidates:
+        raise ValueError("consensus_depth needs at least one reconstruction")
+    if not 0 <= chosen < len(candidates):
+        raise ValueError(f"chosen must index the {len(candidates)} candidates, got {chosen}")
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+        raise ValueError(f"m must be a positive integer, got {m!r}")
+    shapes = {c.shapes.shape for c in candidates}
+    if len(shapes) != 1:
+        raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
+                         "sequence")
+    rough = np.array([rotation_roughness(c.rotations) for c in candidates])
+    order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
+    picked = [chosen] + order[: int(m) - 1]
+    ref = _centred_depth(candidates[chosen])
+    Z = []
+    for i in picked:
+        z = _centred_depth(candidates[i])
+        Z.append(z if float(np.sum(z * ref)) >= 0 else -z)
+    Z = np.stack(Z)
+    zbar = Z.mean(axis=0)
+    power = float(np.sum(zbar**2))
+    if len(picked) == 1 or power == 0.0:
+        spread, factor = 0.0, 1.0
+    else:
+        spread = float(np.sum((Z - zbar) ** 2)) / (len(picked) - 1) / len(picked) / power
+        factor = max(0.0, 1.0 - spread)
+    ks = [int(candidates[i].k) for i in picked]
+    log.info("consensus depth of K = %s: James-Stein factor %.3f", ks, factor)
+    return factor * zbar, {"ks": ks, "factor": factor, "spread": spread}
+
+
+def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> Reconstruction:
+    """``rec`` with its camera-frame depth replaced by ``z`` (x, y, rotations and translations kept).
+
+    Parameters
+    ----------
+    rec : Reconstruction
+    z : (F, P) array_like
+        New camera-frame depth; each frame's mean depth of ``rec`` is kept.
+    info : dict, optional
+        Merged into ``rec.info``.
+
+    Returns
+    -------
+    Reconstruction
+        The new object-frame shapes ``R_f^T S_f`` as weights (F, r) times basis (r, 3, P), r their
+        numerical rank (as Dai's trace-norm shapes).
+    """
+    cam = rec.shapes.copy()
+    z = np.asarray(z, dtype=np.float64)
+    if z.shape != cam[:, 2].shape:
+        raise ValueError(f"z must be (F, P) = {cam[:, 2].shape}, got shape {z.shape}")
+    cam[:, 2] = z + cam[:, 2].mean(axis=1, keepdims=True)
+    obj = np.einsum("fji,fjp->fip", rec.rotations, cam)          # R_f^T S_f
+    F, _, P = obj.shape
+    U, s, Vt = np.linalg.svd(obj.reshape(F, -1), full_matrices=False)
+    r = max(int((s > 1e-9 * s[0]).sum()), 1) if s[0] > 0 else 1
+    return Reconstruction(rotations=rec.rotations, weights=U[:, :r] * s[:r], basis=Vt[:r].reshape(r, 3, P),
+                          translation=rec.translation, method=rec.method, k=rec.k,
+                          reprojection_rms=rec.reprojection_rms, info=rec.info | (info or {}))
+
+
+def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
+                             m: int = CONSENSUS_KS) -> Reconstruction:
+    """The chosen reconstruction with the consensus depth (:func:`consensus_depth`), or itself when it is
+    an exact K-shape fit or ``m`` is 1.
+
+    Parameters
+    ----------
+    candidates : list of Reconstruction
+    chosen : int
+    m : int
+
+    Returns
+    -------
+    Reconstruction
+        With ``info["depth_consensus"]`` (``ks``, ``factor``, ``spread``, ``reason``).
+    """
+    rec = candidates[chosen]
+    if rec.info.get("shapes") == "rank-K fit" or m == 1:
+        reason = "exact K-shape fit: depth kept" if m != 1 else "m = 1: depth kept"
+        record = {"ks": [int(rec.k)], "factor": 1.0, "spread": 0.0, "reason": reason}
+        return replace(rec, info=rec.info | {"depth_consensus": record})   # the same arrays, bit for bit
+    z, record = consensus_depth(candidates, chosen, m)
+    return with_depth(rec, z, {"depth_consensus": record | {"reason": f"mean of the {len(record['ks'])} "
+                                                                      "smoothest Ks, James-Stein shrunk"}})

@@ -1,0 +1,174 @@
+"""The consensus depth of the smoothest Ks, shrunk by the James-Stein factor of their spread
+(lipgen.nrsfm.consensus), the last step of k="auto" for dai."""
+
+import numpy as np
+import pytest
+
+from lipgen.nrsfm import e3d
+from lipgen.nrsfm._rotation import expm_so3
+from lipgen.nrsfm.consensus import consensus_depth, consensus_reconstruction, with_depth
+from lipgen.nrsfm.engine import reconstruct_k
+from lipgen.nrsfm.kchoice import candidate_ks, smooth_k
+from lipgen.nrsfm.record import Reconstruction
+from lipgen.nrsfm.synthetic import low_rank_sequence
+
+
+def _rotations(F, rate, rng):
+    """Smooth rotations turning by ``rate`` rad per frame about a random axis (roughness grows with rate)."""
+    axis = rng.standard_normal(3)
+    axis /= np.linalg.norm(axis)
+    return expm_so3(np.arange(F)[:, None] * rate * axis)
+
+
+def _record(cam, R, k, shapes="trace-norm"):
+    """A Reconstruction whose camera-frame shapes are ``cam`` (F, 3, P) seen by rotations R."""
+    F = cam.shape[0]
+    return Reconstruction(rotations=R, weights=np.eye(F), basis=np.einsum("fji,fjp->fip", R, cam),
+                          translation=np.zeros((F, 2)), method="dai", k=k, reprojection_rms=0.0,
+                          info={"shapes": shapes})
+
+
+def _centre(a):
+    return a - a.mean(axis=-1, keepdims=True)
+
+
+def test_identical_depths_are_kept_and_signs_aligned():
+    rng = np.random.default_rng(0)
+    F, P = 12, 9
+    cam = _centre(rng.standard_normal((F, 3, P)))
+    flipped = cam * np.array([1.0, 1.0, -1.0])[None, :, None]        # the same depth, globally reflected
+    recs = [_record(c, _rotations(F, 0.01 * (i + 1), rng), i + 1) for i, c in enumerate((cam, flipped, cam))]
+    z, record = consensus_depth(recs, 0, m=3)
+    np.testing.assert_allclose(z, cam[:, 2], atol=1e-12)
+    assert record["factor"] == 1.0 and record["ks"] == [1, 2, 3]
+
+
+def test_james_stein_factor_closed_form():
+    """Two depths z + d and z - d with d orthogonal to z: mean z, spread |d|^2 (sum over 1 degree of
+    freedom, over m = 2), factor 1 - |d|^2 / |z|^2."""
+    rng = np.random.default_rng(1)
+    F, P = 10, 8
+    cam = _centre(rng.standard_normal((F, 3, P)))
+    z = cam[:, 2]
+    d = _centre(rng.standard_normal((F, P)))
+    d -= z * np.sum(d * z) / np.sum(z * z)
+    d *= 0.5 * np.sqrt(np.sum(z * z) / np.sum(d * d))                 # |d|^2 = |z|^2 / 4
+    a, b = cam.copy(), cam.copy()
+    a[:, 2], b[:, 2] = z + d, z - d
+    recs = [_record(a, _rotations(F, 0.01, rng), 3), _record(b, _rotations(F, 0.02, rng), 4)]
+    out, record = consensus_depth(recs, 0, m=2)
+    assert record["factor"] == pytest.approx(0.75, abs=1e-12)
+    np.testing.assert_allclose(out, 0.75 * z, atol=1e-12)
+    # three unrelated depths (orthogonal, equal norms): the spread explains all of the mean, factor 0
+    q, _ = np.linalg.qr(rng.standard_normal((F * P, 3)))
+    cams = []
+    for i in range(3):
+        c = cam.copy()
+        c[:, 2] = q[:, i].reshape(F, P)
+        c[:, 2] -= c[:, 2].mean(axis=1, keepdims=True)
+        cams.append(c)
+    g = np.stack([c[:, 2].ravel() for c in cams])
+    g = np.linalg.qr(g.T)[0].T                                  # re-orthonormalise after centring
+    for c, row in zip(cams, g, strict=True):
+        c[:, 2] = row.reshape(F, P)
+    recs = [_record(c, _rotations(F, 0.01 * (i + 1), rng), i + 1) for i, c in enumerate(cams)]
+    out, record = consensus_depth(recs, 0, m=3)
+    assert record["factor"] == pytest.approx(0.0, abs=1e-9) and np.abs(out).max() < 1e-9
+
+
+def test_the_smoothest_are_averaged_with_the_chosen():
+    rng = np.random.default_rng(2)
+    F, P = 15, 7
+    cams = [_centre(rng.standard_normal((F, 3, P))) for _ in range(4)]
+    rates = [0.05, 0.2, 0.01, 0.02]          # roughness order: 2, 3, 0, 1
+    recs = [_record(c, _rotations(F, r, rng), k + 1)
+            for k, (c, r) in enumerate(zip(cams, rates, strict=True))]
+    _, record = consensus_depth(recs, 1, m=3)
+    assert record["ks"] == [2, 3, 4]        # the chosen K first, then the two smoothest others
+
+
+def test_shrinking_noisy_depths_lowers_the_error():
+    """Depths = truth + independent noise as large as the truth: the shrunk mean of four is closer to the
+    truth than any one of them, and than the flat answer (the James-Stein property)."""
+    rng = np.random.default_rng(3)
+    F, P = 40, 30
+    truth = _centre(rng.standard_normal((F, 3, P)))
+    recs = []
+    for i in range(4):
+        cam = truth.copy()
+        cam[:, 2] += _centre(rng.standard_normal((F, P)))
+        recs.append(_record(cam, _rotations(F, 0.01 * (i + 1), rng), i + 1))
+    z, record = consensus_depth(recs, 0, m=4)
+    err = np.sum((z - truth[:, 2]) ** 2)
+    assert 0.3 < record["factor"] < 0.95
+    assert err < min(np.sum((r.shapes[:, 2] - truth[:, 2]) ** 2) for r in recs)
+    assert err < np.sum(truth[:, 2] ** 2)
+
+
+def test_with_depth_changes_the_depth_alone():
+    rng = np.random.default_rng(4)
+    F, P = 9, 6
+    cam = _centre(rng.standard_normal((F, 3, P)))
+    rec = _record(cam, _rotations(F, 0.1, rng), 2)
+    z = _centre(rng.standard_normal((F, P)))
+    out = with_depth(rec, z, {"note": 1})
+    np.testing.assert_allclose(out.shapes[:, :2], cam[:, :2], atol=1e-12)
+    np.testing.assert_allclose(out.shapes[:, 2], z, atol=1e-12)
+    assert np.array_equal(out.rotations, rec.rotations) and out.info["note"] == 1
+    with pytest.raises(ValueError, match=r"z must be \(F, P\) = \(9, 6\), got shape \(6, 9\)"):
+        with_depth(rec, z.T)
+
+
+def test_bad_arguments():
+    rng = np.random.default_rng(5)
+    rec = _record(_centre(rng.standard_normal((5, 3, 4))), _rotations(5, 0.1, rng), 1)
+    other = _record(_centre(rng.standard_normal((6, 3, 4))), _rotations(6, 0.1, rng), 2)
+    with pytest.raises(ValueError, match="at least one"):
+        consensus_depth([], 0)
+    with pytest.raises(ValueError, match="chosen must index the 1 candidates, got 3"):
+        consensus_depth([rec], 3)
+    with pytest.raises(ValueError, match="m must be a positive integer, got 0"):
+        consensus_depth([rec], 0, m=0)
+    with pytest.raises(ValueError, match="shapes differ"):
+        consensus_depth([rec, other], 0)
+
+
+def test_an_exact_fit_is_kept_bit_for_bit():
+    W, S, _ = low_rank_sequence(40, 15, 2, np.random.default_rng(4))
+    runs = [reconstruct_k(W, k, "dai") for k in (1, 2, 3)]
+    assert runs[1].info["shapes"] == "rank-K fit"
+    out = consensus_reconstruction(runs, 1)
+    assert out.info["depth_consensus"]["factor"] == 1.0
+    assert np.array_equal(out.S, runs[1].S) and np.array_equal(out.weights, runs[1].weights)
+
+
+def test_auto_is_the_consensus_of_dai_at_every_k(monkeypatch):
+    """reconstruct_auto for dai: the chosen K's rotations with the consensus depth of the runs it made;
+    m = 1 gives the chosen K's reconstruction itself."""
+    from threadpoolctl import threadpool_limits
+
+    from lipgen.nrsfm import kchoice
+    from lipgen.nrsfm.validation import human_sequence
+
+    runs = []
+
+    def recording(*args, **kwargs):
+        runs.append(reconstruct_k(*args, **kwargs))
+        return runs[-1]
+
+    monkeypatch.setattr(kchoice, "reconstruct_k", recording)
+    s = human_sequence(302, 20)
+    rec = kchoice.reconstruct_auto(s.W, "dai", kmax=2)
+    ks = [int(r.k) for r in runs]
+    assert ks == candidate_ks(20, s.W.shape[1], s.W.size // 2, "dai", 2)
+    chosen, _ = smooth_k(runs)
+    i = ks.index(chosen)
+    with threadpool_limits(1):          # as reconstruct_auto runs it
+        expect = consensus_reconstruction(runs, i)
+    assert rec.k == chosen and np.array_equal(rec.S, expect.S)
+    assert np.array_equal(rec.rotations, runs[i].rotations)
+    record = rec.info["depth_consensus"]
+    assert record["ks"][0] == chosen and len(record["ks"]) == len(ks)
+    np.testing.assert_allclose(rec.shapes[:, :2], runs[i].shapes[:, :2], atol=1e-9 * np.abs(s.W).max())
+    assert np.array_equal(consensus_reconstruction(runs, i, 1).S, runs[i].S)
+    assert np.isfinite(e3d(S_est=rec.S, S_true=s.S))
