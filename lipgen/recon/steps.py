@@ -30,8 +30,8 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
+from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
-from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import MarkerTracker, TrackerSettings, Tracks
@@ -120,6 +120,8 @@ class ReconstructSettings:
     robust_first_frame: bool = False
     step_k: float | None = 4.0
     min_step: float = 1.0
+    first_frame_layout: bool = True
+    first_frame_dark: float | None = 0.4
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -180,7 +182,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         views = layout.split_views(np.asarray(raw))
         if t == 0:
             inits, n_dots = [], []
-            found = [detect_dots(img, settings.tracker.dots)[0] for img in views]
+            detected = [detect_dots(img, settings.tracker.dots) for img in views]
+            found = [d[0] for d in detected]
             keep = [np.ones(len(d), dtype=bool) for d in found]
             if cameras is not None and rest_points is not None and settings.first_frame_lures:
                 keep = layout_dots(found[0], found[1], cameras, rest_points)
@@ -188,8 +191,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 init = np.full(exp[v].shape, np.nan)
                 match = np.full(len(ok), -1)
-                match[ok] = match_to_expected(dots, exp[v][ok], settings.init_gate,
-                                               robust=settings.robust_first_frame)
+                match[ok] = match_first_frame(dots, detected[v][1], exp[v][ok], settings.init_gate,
+                                              settings.robust_first_frame, settings.first_frame_dark)
                 # Matched on all dots (a dot removed would leave its marker to a neighbour's), but
                 # a match on a lure is dropped.
                 lure = (match >= 0) & ~keep[v][np.maximum(match, 0)]
@@ -211,6 +214,13 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                     log.info("first frame: %d marker match(es) inconsistent between the views dropped",
                              int(bad.sum()))
                     inits[0][bad] = inits[1][bad] = np.nan
+                if rest_points is not None and settings.first_frame_layout:
+                    inits, moved = check_layout(inits, found, cameras, rest_points, settings.max_ray_gap)
+                    if moved.any():
+                        log.info("first frame: %d match(es) out of place in the 3-D layout changed or dropped "
+                                 "(%s)", int(moved.sum()), ", ".join(
+                                     f"{VIEWS[v]} {i if names is None else names[i]}"
+                                     for v, i in zip(*np.nonzero(moved), strict=True)))
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
