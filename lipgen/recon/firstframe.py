@@ -130,8 +130,9 @@ def _residuals(model, points, use, width, k, floor, rounds: int = 3) -> tuple[np
     return pred, r, limit
 
 
-def check_layout(inits: list[np.ndarray], dots: list[np.ndarray], cameras: tuple[PinholeCamera, PinholeCamera],
-                 model_points, max_gap: float, k: float = 4.0, floor: float = 1.0, px_tol: float = 2.0,
+def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
+                 cameras: tuple[PinholeCamera, PinholeCamera], model_points, max_gap: float,
+                 k: float = 4.0, floor: float = 1.0, px_tol: float = 2.0,
                  ratio: float = 0.6) -> tuple[list[np.ndarray], np.ndarray]:
     """Check the first frame's matches of both views jointly against the 3-D layout; fix or drop the wrong.
 
@@ -151,7 +152,7 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray], cameras: tuple
         ``k`` robust standard deviations (1.4826 x median) of the residuals and than ``floor`` mm.
     px_tol : float
         A view's match stands when its dot is within this many pixels of the prediction's
-        projection... (or when the other view's dot is farther still, see below).
+        projection; the view farther from it loses its match (both when both are farther).
     ratio : float
         A replacement pair must be nearer its prediction than ``ratio`` times the next pair.
 
@@ -196,7 +197,8 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray], cameras: tuple
         free = ~taken[0][pairs[:, 0]] & ~taken[1][pairs[:, 1]] if len(pairs) else np.zeros(0, dtype=bool)
         dist = np.linalg.norm(cand_X[free] - pred[i], axis=1) if free.any() else np.zeros(0)
         order = np.argsort(dist)
-        if len(order) and dist[order[0]] <= limit and (len(order) == 1 or dist[order[0]] < ratio * dist[order[1]]):
+        clear = len(order) == 1 or (len(order) > 1 and dist[order[0]] < ratio * dist[order[1]])
+        if len(order) and dist[order[0]] <= limit and clear:
             pv, pr = pairs[free][order[0]]
             new = [dots[0][pv], dots[1][pr]]
             for v in range(2):

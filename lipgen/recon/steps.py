@@ -217,8 +217,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 if rest_points is not None and settings.first_frame_layout:
                     inits, moved = check_layout(inits, found, cameras, rest_points, settings.max_ray_gap)
                     if moved.any():
-                        log.info("first frame: %d match(es) out of place in the 3-D layout changed or dropped "
-                                 "(%s)", int(moved.sum()), ", ".join(
+                        log.info("first frame: %d match(es) out of place in the 3-D layout changed or "
+                                 "dropped (%s)", int(moved.sum()), ", ".join(
                                      f"{VIEWS[v]} {i if names is None else names[i]}"
                                      for v, i in zip(*np.nonzero(moved), strict=True)))
             for v in range(2):
