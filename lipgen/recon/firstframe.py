@@ -15,10 +15,14 @@ rigid or smoothly deforming template):
   all residuals (and than ``floor`` mm) is out of place. The view whose dot is far from the
   prediction's projection lost it; where the other view's dot is near the prediction's
   projection, that view's match stands.
-* The out-of-place marker takes the pair of dots (rays within ``max_gap``) whose 3-D point is
-  nearest its prediction when that is within the residual limit and unambiguous (nearer than
+* The out-of-place marker takes the pair of free dots (rays within ``max_gap``) whose 3-D point
+  is nearest its prediction when that is within the residual limit and unambiguous (nearer than
   ``ratio`` times the next pair); otherwise its wrong view is left unmatched and the tracker
-  acquires the marker later (``TrackerSettings.acquire_gate``).
+  acquires the marker later (``TrackerSettings.acquire_gate``). Where the mouth is open in the
+  first frame, the limit is wide (the layout at rest predicts the lower lip 3-5 mm off); so any
+  checked marker over ``floor`` also takes such a pair when it is nearer its prediction than
+  ``ratio`` times the match's own residual (a lure at 9 px along the epipolar line at 7.7 mm,
+  the marker's own pair nearer).
 """
 
 from __future__ import annotations
@@ -180,11 +184,10 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
     # A marker far from all others (the nose) is not predicted by their offsets: not checked.
     near = np.linalg.norm(model[:, None] - model[both][None], axis=2)
     near[near == 0] = np.inf
-    bad = both & (r > limit) & (near.min(1) <= 2.5 * width)
-    if not bad.any():
-        return out, changed
+    checked = both & (near.min(1) <= 2.5 * width)
+    bad = checked & (r > limit)
     cand_X, pairs = stereo_candidates(dots[0], dots[1], cameras, max_gap)
-    for i in np.flatnonzero(bad):
+    for i in np.flatnonzero(checked & (r > floor)):
         proj = [cameras[v].project(pred[i][None])[0] for v in range(2)]
         err = np.array([np.linalg.norm(out[v][i] - proj[v]) for v in range(2)])
         # Dots the other markers hold are not free.
@@ -198,12 +201,16 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
         dist = np.linalg.norm(cand_X[free] - pred[i], axis=1) if free.any() else np.zeros(0)
         order = np.argsort(dist)
         clear = len(order) == 1 or (len(order) > 1 and dist[order[0]] < ratio * dist[order[1]])
-        if len(order) and dist[order[0]] <= limit and clear:
+        # A pair of free dots much nearer the prediction than the match (within the limit, or
+        # under ``ratio`` times the match's own residual) replaces it.
+        if len(order) and clear and dist[order[0]] <= (limit if bad[i] else ratio * r[i]):
             pv, pr = pairs[free][order[0]]
             new = [dots[0][pv], dots[1][pr]]
             for v in range(2):
                 if not np.allclose(new[v], out[v][i]):
                     out[v][i], changed[v, i] = new[v], True
+            continue
+        if not bad[i]:
             continue
         # No clear replacement: the view whose dot is off the prediction loses its match (both if
         # neither is near).

@@ -107,6 +107,16 @@ class ReconstructSettings:
         (:class:`lipgen.recon.jumps.StepLimit`); None: no step check.
     min_step : float
         Least step limit, mm per frame.
+    first_frame_layout : bool
+        Check the first frame's matches of both views jointly in 3-D against the model's marker
+        layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
+        out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
+        of free dots nearest where the other markers put it, or its wrong view is left unmatched.
+    first_frame_dark : float or None
+        Match each view's first frame on the dots at least this fraction as dark as the median
+        of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
+        On ``default`` the lures near the lips are skin blobs at 0.29-0.36 of the markers'
+        median darkness, the faintest marker dots at 0.45-0.62 (validation seeds 7, 8).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
