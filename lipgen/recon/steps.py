@@ -31,8 +31,8 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
+from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
-from lipgen.recon.pointreg import match_to_expected
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import MarkerTracker, TrackerSettings, Tracks
@@ -74,8 +74,9 @@ class ReconstructSettings:
         Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
     first_frame_lures : bool
         Drop first-frame matches on dots that no dot of the other view places near the marker
-        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default: with the
-        later acquisition (``TrackerSettings.acquire_gate=6``) and ``robust_first_frame`` it cuts
+        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default; measured
+        before ``first_frame_dark`` and ``first_frame_layout`` existed: with the later
+        acquisition (``TrackerSettings.acquire_gate=6``) and ``robust_first_frame`` it cut
         the accepted sightings over 3 px on the validation sets (hard 7-10, default, easy, noise
         32 seeds 7-10, the erased-dot clip) from 141 to 99 and the wrong first-frame matches from
         20 to 4, but it accepts fewer sightings (66.7 -> 63.9 %) and is worse on hard seed 9
@@ -84,8 +85,9 @@ class ReconstructSettings:
         Match the first frame with the trimmed registration (``robust`` of
         :func:`lipgen.recon.pointreg.match_to_expected`): matches whose residual is an outlier
         are left out of the similarity fit and of the deformation; the markers it leaves
-        unmatched are acquired on later frames if ``TrackerSettings.acquire_gate`` is set. Off by
-        default: with the acquisition it is better on every validation set in total (below), but
+        unmatched are acquired on later frames (``TrackerSettings.acquire_gate``, on by default).
+        Off by default; measured before ``first_frame_dark`` and ``first_frame_layout`` existed:
+        with the acquisition it was better on every validation set in total (below), but
         the recording tutorial's 20-frame ``easy`` H.264 clip (seed 2) then leaves five lower-lip
         markers unmatched in the first frame and never acquires ``lower_mid`` (exit status 3).
         Measured (calibrate, track, triangulate, scored against the
@@ -113,6 +115,16 @@ class ReconstructSettings:
         where a faint dot (under the detector's contrast floor: the defocused mirror view of
         ``hard``) may be taken (:func:`lipgen.recon.epipolar.recover_along_epipolar`); it then
         passes the same view checks as any re-acquired sighting.
+    first_frame_layout : bool
+        Check the first frame's matches of both views jointly in 3-D against the model's marker
+        layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
+        out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
+        of free dots nearest where the other markers put it, or its wrong view is left unmatched.
+    first_frame_dark : float or None
+        Match each view's first frame on the dots at least this fraction as dark as the median
+        of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
+        On ``default`` the lures near the lips are skin blobs at 0.29-0.36 of the markers'
+        median darkness, the faintest marker dots at 0.45-0.62 (validation seeds 7, 8).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -127,6 +139,8 @@ class ReconstructSettings:
     step_k: float | None = 4.0
     min_step: float = 1.0
     epipolar_recovery: bool = True
+    first_frame_layout: bool = True
+    first_frame_dark: float | None = 0.4
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -187,7 +201,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         views = layout.split_views(np.asarray(raw))
         if t == 0:
             inits, n_dots = [], []
-            found = [detect_dots(img, settings.tracker.dots)[0] for img in views]
+            detected = [detect_dots(img, settings.tracker.dots) for img in views]
+            found = [d[0] for d in detected]
             keep = [np.ones(len(d), dtype=bool) for d in found]
             if cameras is not None and rest_points is not None and settings.first_frame_lures:
                 keep = layout_dots(found[0], found[1], cameras, rest_points)
@@ -195,8 +210,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 init = np.full(exp[v].shape, np.nan)
                 match = np.full(len(ok), -1)
-                match[ok] = match_to_expected(dots, exp[v][ok], settings.init_gate,
-                                               robust=settings.robust_first_frame)
+                match[ok] = match_first_frame(dots, detected[v][1], exp[v][ok], settings.init_gate,
+                                              settings.robust_first_frame, settings.first_frame_dark)
                 # Matched on all dots (a dot removed would leave its marker to a neighbour's), but
                 # a match on a lure is dropped.
                 lure = (match >= 0) & ~keep[v][np.maximum(match, 0)]
@@ -218,6 +233,13 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                     log.info("first frame: %d marker match(es) inconsistent between the views dropped",
                              int(bad.sum()))
                     inits[0][bad] = inits[1][bad] = np.nan
+                if rest_points is not None and settings.first_frame_layout:
+                    inits, moved = check_layout(inits, found, cameras, rest_points, settings.max_ray_gap)
+                    if moved.any():
+                        log.info("first frame: %d match(es) out of place in the 3-D layout changed or "
+                                 "dropped (%s)", int(moved.sum()), ", ".join(
+                                     f"{VIEWS[v]} {i if names is None else names[i]}"
+                                     for v, i in zip(*np.nonzero(moved), strict=True)))
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))

@@ -15,7 +15,7 @@ GUI (§3). Here the GUI is replaced by two things:
   neighbours (a neighbour just re-acquired counts with its whole jump), and a group of markers
   that jumped together beyond the search (the lower lip dropping) is moved onto its dots by one
   shift (:func:`lipgen.recon.association.shift_group`).
-* **Acquisition** (opt-in, ``TrackerSettings.acquire_gate``): a marker not seen yet (unmatched
+* **Acquisition** (``TrackerSettings.acquire_gate``, on by default): a marker not seen yet (unmatched
   in the first frame, or its first-frame match taken back) is searched for in every later frame
   where the layout, registered to the markers seen in that frame, puts it, by the first frame's
   rules (one-to-one, unambiguous; :func:`lipgen.recon.acquire.acquire_layout`). With two views,
