@@ -122,8 +122,9 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         f, J = _model(x, theta)
         r = (val - f) * w
         Jw = J * w[..., None]
-        A = np.einsum("npi,npj->nij", Jw, Jw)
-        b = np.einsum("npi,np->ni", Jw, r)
+        JwT = Jw.transpose(0, 2, 1)
+        A = JwT @ Jw
+        b = (JwT @ r[..., None])[..., 0]
         cost = (r ** 2).sum(1)
         A = A + lam[:, None, None] * np.einsum("nii->ni", A)[:, :, None] * np.eye(7)
         try:
@@ -136,6 +137,8 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         better = cost_t < cost
         theta = np.where(better[:, None], trial, theta)
         lam = np.where(better, lam * 0.3, lam * 10.0)
+        if (np.abs(step[:, :2]) < 1e-4).all() and better.all():  # converged: a step of 1e-4 px
+            break
     moved = np.linalg.norm(theta[:, :2] - c0, axis=1)
     s = np.abs(theta[:, 4])
     ok &= np.isfinite(theta).all(1) & (moved <= max_move) & (s < 0.5 * radius)
