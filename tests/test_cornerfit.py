@@ -22,7 +22,8 @@ def _board(rng, rows=4, cols=5, blur=1.2, noise=2.0, size=(110, 130), ss=16):
     ys, xs = np.mgrid[0:H * ss, 0:W * ss]
     P = np.stack([(xs + 0.5) / ss - 0.5, (ys + 0.5) / ss - 0.5], -1) - origin  # pixel (0, 0) at its centre
     q = P @ np.linalg.inv(A).T
-    img = 0.1 + 0.8 * ((np.floor(q[..., 0]) + np.floor(q[..., 1])) % 2 == 0).reshape(H, ss, W, ss).mean((1, 3))
+    black = (np.floor(q[..., 0]) + np.floor(q[..., 1])) % 2 == 0
+    img = 0.1 + 0.8 * black.reshape(H, ss, W, ss).mean((1, 3))
     if blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), blur)
     img = img + rng.normal(0, noise / 255, img.shape)

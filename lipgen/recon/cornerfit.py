@@ -35,7 +35,8 @@ _G = np.sqrt(2.0 / np.pi)
 
 
 def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float = 14.0,
-                iterations: int = 12, max_move: float = 1.5, smooth: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+                iterations: int = 12, max_move: float = 1.5,
+                smooth: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
     """Refine chessboard corners by fitting the blurred X-junction model.
 
     Parameters
