@@ -33,9 +33,11 @@ def find_corners(image, board: Chessboard, refine: str = "fit") -> np.ndarray | 
     On rendered ``hard`` calibration frames (validation seed 0, 10 frames, against the truth
     projections) the fit takes the corners' RMS error from 0.125 to 0.044 px in the direct view,
     and their scatter about each board's mean from 0.18 to 0.05 px in the mirror view; on the
-    same frames without defocus, noise, Bayer, JPEG and ghost, from 0.11-0.13 to 0.055 px
-    (``cornerSubPix``'s own error on the rendered edges). The mirror view's ghost (a faint
-    copy a few pixels off) shifts every corner of a board by about 0.09 px, with either method.
+    same frames without defocus, noise, Bayer, JPEG and ghost, from 0.11-0.13 to 0.04 px
+    (``cornerSubPix``'s own error on the rendered edges, which noise, Bayer and JPEG barely add
+    to). What is left in the mirror view is the glass's front-surface ghost (4 %, 7.3 px to the
+    side in ``hard``): it shifts every corner of a board by about 0.09 px, with either method
+    (towards the ghost with ``cornerSubPix``, away from it with the fit), and it is not modelled.
 
     Parameters
     ----------
