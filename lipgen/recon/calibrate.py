@@ -2,7 +2,8 @@
 
 The thesis calibrated its real and virtual cameras with Azarbayejani and Pentland's method.
 Here a planar chessboard is filmed in several poses. Each raw frame is split into its (virtual,
-real) views and the board's inner corners are found to sub-pixel (OpenCV). The rig is then
+real) views and the board's inner corners are found (OpenCV) and fitted to sub-pixel
+(:func:`lipgen.recon.cornerfit.fit_corners`). The rig is then
 fitted as what it physically is, ONE camera and ONE mirror: the virtual view is the real
 camera looking at the reflected board, so both views share the intrinsics (focal lengths,
 principal point, radial k1 k2 and tangential p1 p2), and the mirror plane adds 3 parameters.

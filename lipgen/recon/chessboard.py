@@ -8,27 +8,55 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen._optional import require
+from lipgen.recon.cornerfit import fit_corners
 from lipgen.recon.dots import as_gray
 from lipgen.rig.target import Chessboard
 
-__all__ = ["find_corners"]
+__all__ = ["find_corners", "REFINERS"]
+
+REFINERS = ("fit", "subpix")
+"""Ways :func:`find_corners` refines the corners: ``"fit"`` (the blurred X-junction model,
+:func:`lipgen.recon.cornerfit.fit_corners`, started from ``"subpix"``), or ``"subpix"`` (OpenCV's
+``cornerSubPix`` alone)."""
 
 
-def find_corners(image, board: Chessboard) -> np.ndarray | None:
+def find_corners(image, board: Chessboard, refine: str = "fit") -> np.ndarray | None:
     """Sub-pixel inner corners of ``board`` in ``image``, or ``None`` if it is not found whole.
 
     OpenCV's detector (the classic one, then the sector-based one) finds the grid; the corners
-    are refined with ``cornerSubPix`` in a window of about half a square; and the numbering is
+    are refined with ``cornerSubPix`` in a window of about half a square, then (``refine="fit"``)
+    by fitting a blurred X-junction to every pixel of a disc reaching 0.7 of the way to the
+    neighbouring corners (:func:`lipgen.recon.cornerfit.fit_corners`); and the numbering is
     made unambiguous by the board's colours: corner 0 is the one whose outer diagonal square
     is black (see :class:`Chessboard`).
+
+    On rendered ``hard`` calibration frames (validation seed 0, 10 frames, against the truth
+    projections) the fit takes the corners' RMS error from 0.125 to 0.044 px in the direct view,
+    and their scatter about each board's mean from 0.18 to 0.05 px in the mirror view; on the
+    same frames without defocus, noise, Bayer, JPEG and ghost, from 0.11-0.13 to 0.04 px
+    (``cornerSubPix``'s own error on the rendered edges, which noise, Bayer and JPEG barely add
+    to). What is left in the mirror view is the glass's front-surface ghost (4 %, 7.3 px to the
+    side in ``hard``): it shifts every corner of a board by about 0.09 px, with either method
+    (towards the ghost with ``cornerSubPix``, away from it with the fit), and it is not modelled.
+
+    Parameters
+    ----------
+    image : (H, W[, 3]) array
+        One view (not a raw frame).
+    board : Chessboard
+    refine : str
+        One of :data:`REFINERS`.
 
     Returns
     -------
     (inner_cols * inner_rows, 2) float or None
         Pixel positions (column, row), in :meth:`Chessboard.object_points` order.
     """
+    if refine not in REFINERS:
+        raise ValueError(f"refine must be one of {REFINERS}, got {refine!r}")
     cv2 = require("cv2", "chessboard calibration")
-    gray = np.clip(np.round(as_gray(image) * 255), 0, 255).astype(np.uint8)
+    gray_f = as_gray(image)
+    gray = np.clip(np.round(gray_f * 255), 0, 255).astype(np.uint8)
     size = (board.inner_cols, board.inner_rows)
     found, corners = cv2.findChessboardCorners(
         gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
@@ -45,6 +73,8 @@ def find_corners(image, board: Chessboard) -> np.ndarray | None:
     refined = cv2.cornerSubPix(gray, pts.reshape(-1, 1, 2).astype(np.float32), (half, half), (-1, -1),
                                (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
     pts = refined.reshape(-1, 2).astype(np.float64)
+    if refine == "fit":
+        pts = fit_corners(gray_f, pts, (board.inner_rows, board.inner_cols))[0]
     return pts if _origin_is_black(gray, pts, board) else pts[::-1].copy()
 
 
