@@ -109,7 +109,7 @@ def _measured_tracks(uv, seen, shape):
     return np.where(seen[..., None], uv, np.nan), seen
 
 
-def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFAULT_METHOD,
+def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str = DEFAULT_METHOD,
                         marks=None, use_visibility: bool = True, uv=None, seen=None) -> dict:
     """Reconstruct one view of a dataset by NRSfM and score it against the true marks.
 
@@ -119,8 +119,8 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
         Dataset folder.
     view : str
         ``"real"`` or ``"virtual"``.
-    k : int
-        Number of basis shapes.
+    k : int or "auto"
+        Number of basis shapes, or ``"auto"``: chosen by the method (:func:`lipgen.nrsfm.reconstruct`).
     method : str
         See :data:`lipgen.nrsfm.METHODS`.
     marks : sequence of int, optional
@@ -161,7 +161,9 @@ def evaluate_on_dataset(path, view: str = "real", k: int = 2, method: str = DEFA
               "relief": data["relief"], "tracks": source,
               "tracking_rms_px": data["pixels_rms"] if uv is not None else 0.0}
     result["markdown"] = (
-        f"**Monocular NRSfM ({method}, K = {rec.k}) on the {view} view**: {F} frames x {P} marks "
+        f"**Monocular NRSfM ({method}, K = {rec.k}{' (chosen)' if k == 'auto' else ''})"
+        f" on the {view} view**: "
+        f"{F} frames x {P} marks "
         f"({100 * result['observed_fraction']:.1f} % observed). e3D = **{err:.4f}** "
         f"(mean 3D error {result['mean_error_mm']:.3f} mm after one global rotation/reflection; "
         f"a flat reconstruction, the tracks with zero depth, scores {flat_err:.4f}), "
