@@ -19,6 +19,7 @@ import numpy as np
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.recon.calibrate import compare_to_truth
 from lipgen.recon.normalize import lip_subsets, normalize_markers
+from lipgen.recon.rest import measured_markers
 from lipgen.recon.split import default_test_frames
 from lipgen.rig.camera import VIEWS
 
@@ -66,9 +67,7 @@ def accepted_sightings(recon) -> np.ndarray:
     normalisation as outliers (the nose: its rays agree)."""
     P = recon.visible.shape[1]
     out = np.zeros(recon.ray_gap.shape, dtype=bool)
-    out[:, :P] = recon.visible
-    for f, j in recon.info.get("normalisation", {}).get("outliers", []):
-        out[f, j] = False
+    out[:, :P] = measured_markers(recon)
     max_gap = recon.info.get("ray_gap_limit_mm", recon.info.get("settings", {}).get("max_ray_gap", np.inf))
     with np.errstate(invalid="ignore"):
         out[:, P:] = recon.ray_gap[:, P:] <= max_gap

@@ -122,10 +122,11 @@ def em_gaussian(X, observed, max_iter: int = 200, tol: float = 1e-9) -> Gaussian
     which = which.ravel()
     lls = [_loglik(X, patterns, which, mean, cov)]
     converged = False
+    complete = bool(obs.all())   # nothing missing: one step is the sample mean and covariance
     it = 0
     while it < max_iter:
         it += 1
-        Xhat = np.where(obs, X, 0.0)
+        Xhat = Xz.copy()
         C = np.zeros((D, D))
         for k, o in enumerate(patterns):
             rows = np.flatnonzero(which == k)
@@ -145,7 +146,7 @@ def em_gaussian(X, observed, max_iter: int = 200, tol: float = 1e-9) -> Gaussian
         cov = (R.T @ R + C) / F
         cov = 0.5 * (cov + cov.T)
         lls.append(_loglik(X, patterns, which, mean, cov))
-        if obs.all() or abs(lls[-1] - lls[-2]) <= tol * max(abs(lls[-1]), 1.0):
+        if complete or abs(lls[-1] - lls[-2]) <= tol * max(abs(lls[-1]), 1.0):
             converged = True
             break
     if not converged:

@@ -38,6 +38,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from lipgen.nrsfm.engine import _as_basis
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import Reconstruction
 
@@ -131,10 +132,8 @@ def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> 
         raise ValueError(f"z must be (F, P) = {cam[:, 2].shape}, got shape {z.shape}")
     cam[:, 2] = z + cam[:, 2].mean(axis=1, keepdims=True)
     obj = np.einsum("fji,fjp->fip", rec.rotations, cam)          # R_f^T S_f
-    F, _, P = obj.shape
-    U, s, Vt = np.linalg.svd(obj.reshape(F, -1), full_matrices=False)
-    r = max(int((s > 1e-9 * s[0]).sum()), 1) if s[0] > 0 else 1
-    return Reconstruction(rotations=rec.rotations, weights=U[:, :r] * s[:r], basis=Vt[:r].reshape(r, 3, P),
+    weights, basis = _as_basis(obj)
+    return Reconstruction(rotations=rec.rotations, weights=weights, basis=basis,
                           translation=rec.translation, method=rec.method, k=rec.k,
                           reprojection_rms=rec.reprojection_rms, info=rec.info | (info or {}))
 

@@ -161,7 +161,7 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
               "relief": data["relief"], "tracks": source,
               "tracking_rms_px": data["pixels_rms"] if uv is not None else 0.0}
     result["markdown"] = (
-        f"**Monocular NRSfM ({method}, K = {rec.k}{' (chosen)' if k == 'auto' else ''})"
+        f"**Monocular NRSfM ({method}, K = {rec.k}{' (chosen)' if isinstance(k, str) else ''})"
         f" on the {view} view**: "
         f"{F} frames x {P} marks "
         f"({100 * result['observed_fraction']:.1f} % observed). e3D = **{err:.4f}** "

@@ -26,6 +26,7 @@ blocks average over it. Measured on rendered ``hard`` calibration frames in
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import gaussian_filter
 from scipy.special import erf
 
 __all__ = ["fit_corners"]
@@ -79,8 +80,6 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
     if c0.shape != (rows * cols, 2):
         raise ValueError(f"corners must be ({rows * cols}, 2) for a {rows}x{cols} grid, got shape {c0.shape}")
     if smooth > 0:
-        from scipy.ndimage import gaussian_filter
-
         g = gaussian_filter(g, smooth, mode="nearest")
     grid = c0.reshape(rows, cols, 2)
     # edge directions from the neighbours (central differences, one-sided at the border)
@@ -104,7 +103,6 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
     off = np.column_stack([ox.ravel(), oy.ravel()]).astype(float)  # (P, 2)
     H, W = g.shape
     theta = np.column_stack([c0, phi1, phi2, np.ones(n), np.zeros(n), np.zeros(n)])  # c, phi1, phi2, s, m, a
-    ok = np.ones(n, bool)
     lam = np.full(n, 1e-3)
     first = True
     for _ in range(iterations):
@@ -133,7 +131,7 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         except np.linalg.LinAlgError:
             step = np.stack([np.linalg.lstsq(Ai, bi, rcond=None)[0] for Ai, bi in zip(A, b, strict=True)])
         trial = theta + step
-        ft = _model(x, trial)[0]
+        ft = trial[:, 5:6] + trial[:, 6:7] * _parts(x, trial)[0]  # the model's values, no Jacobian
         cost_t = (((val - ft) * w) ** 2).sum(1)
         better = cost_t < cost
         theta = np.where(better[:, None], trial, theta)
@@ -142,7 +140,7 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
             break
     moved = np.linalg.norm(theta[:, :2] - c0, axis=1)
     s = np.abs(theta[:, 4])
-    ok &= np.isfinite(theta).all(1) & (moved <= max_move) & (s < 0.5 * radius)
+    ok = np.isfinite(theta).all(1) & (moved <= max_move) & (s < 0.5 * radius)
     ok &= (theta[:, 0] >= 0) & (theta[:, 0] <= W - 1) & (theta[:, 1] >= 0) & (theta[:, 1] <= H - 1)
     ok &= np.abs(theta[:, 6]) > 1e-6
     out = np.where(ok[:, None], theta[:, :2], c0)

@@ -55,9 +55,8 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
-from lipgen.recon.correlate import patch_around
 from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
-from lipgen.recon.track import MarkerTracker
+from lipgen.recon.track import MarkerTracker, search_box
 from lipgen.rig.pinhole import triangulate
 
 __all__ = ["recover_along_epipolar"]
@@ -99,13 +98,13 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
     if not 0 < gap_share <= 1 or not 0 < strength_ratio <= 1 or not 0 < floor < 1:
         raise ValueError(f"gap_share, strength_ratio must be in (0, 1] and floor in (0, 1), got "
                          f"{gap_share!r}, {strength_ratio!r}, {floor!r}")
-    if not trackers[0]._out or len(trackers[0]._out) < 2:
+    if len(trackers[0]._out) < 2:
         return found
     for a in range(2):
         ta, tb = trackers[a], trackers[1 - a]
         uv_a, st_a, _ = ta._out[-1]
         uv_b, st_b, _ = tb._out[-1]
-        continuing = np.isin(st_b, (TRACKED, RECOVERED)) & (tb._before[1] == 0) & ~tb.reacquired
+        continuing = np.isin(st_b, (TRACKED, RECOVERED)) & ~tb.reacquired
         want = np.flatnonzero((st_a == LOST) & continuing & np.all(np.isfinite(ta._before[0]), axis=1)
                               & ~ta.twins)
         if len(want) == 0:
@@ -121,14 +120,13 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         reach = cfg.gate * (1.0 + np.minimum(ta.gap[want], 3) / 3.0)
         # The tracker's own search region (all markers and a margin), so the noise floor of the
         # response is the image's, not that of a patch of lip.
-        h, w = gray.shape
         placed = np.all(np.isfinite(pred), axis=1)
         if not placed[want].all():
             continue
-        lo = np.maximum(np.floor(pred[placed].min(0) - ta.roi_margin).astype(int), 0)
-        hi = np.minimum(np.ceil(pred[placed].max(0) + ta.roi_margin).astype(int) + 1, [w, h])
-        if np.any(hi - lo < 8):
+        box = search_box(pred[placed], ta.roi_margin, gray.shape)
+        if box is None:
             continue
+        lo, hi = box
         sub = gray[lo[1]:hi[1], lo[0]:hi[0]]
         peaks, strength, roundness = dot_peaks(sub, replace(cfg.dots, min_contrast=floor))
         keep = roundness >= cfg.dots.min_roundness
@@ -165,17 +163,6 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             g = triangulate(cameras[1 - a], uv_b[k][None], cameras[a], p[None])[1][0]
             if not (np.linalg.norm(p - peaks[ok[0]]) <= cfg.gate and g <= gap_share * max_gap):
                 continue
-            _take(ta, k, p, gray, float(strength[ok[0]]))
+            ta.take(k, p, gray, float(strength[ok[0]]))
             found[a, k] = True
     return found
-
-
-def _take(tracker: MarkerTracker, k: int, p: np.ndarray, gray: np.ndarray, strength: float) -> None:
-    """Set marker ``k``'s sighting in the tracker's last image to ``p (2,)``, as the tracker's
-    own step would have (a re-acquisition: position, no velocity, template, darkness)."""
-    uv, status, _ = tracker._out[-1]
-    uv[k], status[k] = p, RECOVERED
-    tracker.last[k], tracker.vel[k], tracker.gap[k] = p, 0.0, 0
-    tracker.templates[k] = (patch_around(gray, p, tracker.cfg.template_radius).copy(), p - np.round(p))
-    old = tracker.strength[k]
-    tracker.strength[k] = strength if np.isnan(old) else 0.8 * old + 0.2 * strength

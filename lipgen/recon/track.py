@@ -57,7 +57,7 @@ from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
 __all__ = [
     "TrackerSettings", "Tracks", "TRACKED", "RECOVERED", "CORRELATION_ONLY", "LOST",
-    "normalized_correlation", "MarkerTracker", "track_markers", "twin_partners",
+    "normalized_correlation", "MarkerTracker", "track_markers", "twin_partners", "search_box",
 ]
 
 # Per-frame status of a marker (lipgen.recon.association): TRACKED, correlation agreed with a detected
@@ -114,12 +114,10 @@ class MarkerTracker:
         known = np.all(np.isfinite(self.last), axis=1)
         lo = np.zeros(2, dtype=int)
         sub = gray
-        if self._out and known.any():
-            h, w = gray.shape
-            a = np.maximum(np.floor(self.last[known].min(0) - self.roi_margin).astype(int), 0)
-            b = np.minimum(np.ceil(self.last[known].max(0) + self.roi_margin).astype(int) + 1, [w, h])
-            if np.all(b - a >= 8):
-                lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
+        box = search_box(self.last[known], self.roi_margin, gray.shape) if self._out and known.any() else None
+        if box is not None:
+            a, b = box
+            lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
         peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
         round_ = roundness >= self.cfg.dots.min_roundness
         uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
@@ -265,8 +263,7 @@ class MarkerTracker:
         if got.any():
             near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
             mine = strength[near.argmin(1)]
-            seen_before = np.isfinite(self.strength[got])
-            self.strength[got] = np.where(seen_before, 0.8 * self.strength[got] + 0.2 * mine, mine)
+            self.strength[got] = _darkness(self.strength[got], mine)
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score
@@ -277,6 +274,16 @@ class MarkerTracker:
         if not self._out:
             return np.zeros(len(self.init), dtype=bool)
         return (self._before[1] > 0) | self.acquired
+
+    def take(self, k: int, p: np.ndarray, gray: np.ndarray, strength: float) -> None:
+        """Set marker ``k``'s sighting in the last image to ``p (2,)`` from outside (a check that
+        found it there), as the tracker's own step would have re-acquired it: position, no
+        velocity, template from ``gray`` (the ink image), darkness ``strength``."""
+        uv, status, _ = self._out[-1]
+        uv[k], status[k] = p, RECOVERED
+        self.last[k], self.vel[k], self.gap[k] = p, 0.0, 0
+        self.templates[k] = (patch_around(gray, p, self.cfg.template_radius).copy(), p - np.round(p))
+        self.strength[k] = _darkness(self.strength[k], strength)
 
     def reject(self, markers) -> None:
         """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
@@ -343,3 +350,32 @@ def track_markers(frames: Iterable, initial_uv: np.ndarray,
     if not tracker._out:
         raise ValueError("track_markers got no frames")
     return tracker.tracks()
+
+
+def search_box(points: np.ndarray, margin: float,
+               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The image region searched around some points: their bounding box grown by ``margin``.
+
+    Parameters
+    ----------
+    points : (K, 2) float
+        Pixel positions (x, y), finite.
+    margin : float
+        Pixels added on every side.
+    shape : (H, W) int
+        The image's shape; the box is clipped to it.
+
+    Returns
+    -------
+    (lo, hi) : two (2,) int, or None
+        Corners (x, y; ``hi`` exclusive); None when the box is under 8 px on a side.
+    """
+    h, w = shape
+    lo = np.maximum(np.floor(points.min(0) - margin).astype(int), 0)
+    hi = np.minimum(np.ceil(points.max(0) + margin).astype(int) + 1, [w, h])
+    return None if np.any(hi - lo < 8) else (lo, hi)
+
+
+def _darkness(old, new):
+    """The markers' running darkness: the first sighting's, then 0.8 old + 0.2 new."""
+    return np.where(np.isfinite(old), 0.8 * old + 0.2 * new, new)

@@ -65,8 +65,7 @@ def _one_pass_class(pr):
                         continue
                     pose = scene.get_pose(node)
                     for primitive in node.mesh.primitives:
-                        program = _fast_uniforms(self._get_primitive_program(primitive, flags,
-                                                                              ProgramFlags.USE_MATERIAL))
+                        program = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
                         program._bind()
                         if id(program) not in lit or not same_lights:
                             self._reset_active_textures()
