@@ -101,3 +101,49 @@ def test_bad_reference(model, recordings):
     with pytest.raises(ValueError, match="reference.scale"):
         normalize_markers(X, N, up, lo, M, model_nose=mesh.nose,
                           reference=Similarity(0.0, np.eye(3), np.zeros(3)))
+
+
+def _reconstruction(X, N, mesh):
+    """A Reconstruction of lab marks X (F, P, 3) and nose N (F, 3), every marker accepted."""
+    from lipgen.recon.pipeline import Reconstruction
+
+    F, P = X.shape[:2]
+    return Reconstruction(fields=np.full((F, len(mesh.vertices), 3), np.nan),
+                          markers=np.full((F, P, 3), np.nan), visible=np.ones((F, P), bool),
+                          lab_points=np.concatenate([X, N[:, None]], axis=1), ray_gap=np.zeros((F, P + 1)),
+                          uv=np.zeros((2, F, P + 1, 2)), status=np.zeros((2, F, P + 1), np.int8),
+                          score=np.ones((2, F, P + 1)), frame_index=np.arange(F), lab_to_board=np.eye(4),
+                          similarity=np.eye(4), rotations=np.tile(np.eye(3), (F, 1, 1)),
+                          info={"normalisation": {"method": "least-force"}})
+
+
+def test_renormalize_reaches_fields_from_the_rest_given(model, recordings):
+    """rest=None reaches from the model's markers; rest=(P, 3) from those (NaN rows: the model's);
+    metric_renormalize is scale 1 with the quiet rest of its own frames."""
+    from lipgen.recon.rereference import renormalize
+    from lipgen.recon.rest import metric_renormalize, quiet_rest
+    from lipgen.recon.steps import reach_fields
+
+    mesh, physics = model
+    M = mesh.vertices[mesh.markers]
+    X, N, true = recordings["A"]
+    recon = _reconstruction(X, N, mesh)
+    unit = Similarity(1.0, rotation_matrix([0.2, -0.6, 0.3]).T, np.zeros(3))
+    plain = renormalize(recon, unit, physics)
+    assert "rest" not in plain.info
+    rest = true[0].copy()  # A's first frame is the subject's rest
+    rest[3] = np.nan
+    given = renormalize(recon, unit, physics, rest=rest)
+    used = np.asarray(given.info["rest"])
+    assert np.array_equal(used[3], M[3]) and np.array_equal(np.delete(used, 3, 0), np.delete(rest, 3, 0))
+    assert np.array_equal(given.markers, plain.markers)
+    expect = reach_fields(physics, given.markers - used, given.visible, mesh.markers, 4)
+    assert np.allclose(given.fields, expect, equal_nan=True, atol=1e-12)
+    assert not np.allclose(given.fields, plain.fields, equal_nan=True)
+    metric, quiet = metric_renormalize(recon, physics)
+    assert metric.info["normalisation"]["scale"] == 1.0
+    assert np.allclose(quiet, quiet_rest(metric.markers, metric.visible), equal_nan=True)
+    with pytest.raises(TypeError, match="rest must be numeric"):
+        renormalize(recon, unit, physics, rest="quiet")
+    with pytest.raises(ValueError, match="rest"):
+        renormalize(recon, unit, physics, rest=np.zeros((3, 3)))

@@ -139,20 +139,21 @@ class ModeModel:
         w, S = _spectrum(A, self.method)
         var = w / (F - 1)
         total = float(np.einsum("ij,ij->", A, A)) / (F - 1)
-        k = min(self.n_modes, len(var))
-        if k < self.n_modes:
+        if min(self.n_modes, len(var)) < self.n_modes:
             log.warning("the frames span only %d independent directions; keeping %d of the %d modes asked",
-                        len(var), k, self.n_modes)
+                        len(var), len(var), self.n_modes)
+        return self._set_fitted(mean, S, var, total, D // 3, F, "" if mesh is None else str(mesh.topology_id))
+
+    def _set_fitted(self, mean, S, var, total, n_nodes, n_frames, topology_id) -> ModeModel:
+        """Store the fitted attributes: mean (3n,), all components S (r, 3n) and variances (r,)."""
+        k = min(self.n_modes, len(var))
         self.mean_ = mean
-        self.full_components_ = S
-        self.full_variance_ = var
-        self.components_ = S[:k]
-        self.explained_variance_ = var[:k]
+        self.full_components_, self.full_variance_ = S, var
+        self.components_, self.explained_variance_ = S[:k], var[:k]
         self.total_variance_ = total
         self.explained_variance_ratio_ = var[:k] / total if total > 0 else np.zeros(k)
-        self.n_nodes_ = D // 3
-        self.n_frames_ = F
-        self.topology_id_ = "" if mesh is None else str(mesh.topology_id)
+        self.n_nodes_, self.n_frames_ = n_nodes, n_frames
+        self.topology_id_ = topology_id
         return self
 
     def fit_measured(self, fields, measured, physics) -> ModeModel:
@@ -183,15 +184,8 @@ class ModeModel:
         var = s**2
         keep = var > max(F, var.size) * np.finfo(float).eps * (var[0] if var.size else 0.0)
         var, S = var[keep], _flip_signs(np.ascontiguousarray(Vt[keep]))
-        k = min(self.n_modes, len(var))
-        total = float(var.sum())
-        self.mean_ = out["mean"]
-        self.full_components_, self.full_variance_ = S, var
-        self.components_, self.explained_variance_ = S[:k], var[:k]
-        self.total_variance_ = total
-        self.explained_variance_ratio_ = var[:k] / total if total > 0 else np.zeros(k)
-        self.n_nodes_, self.n_frames_ = physics.mesh.n_nodes, F
-        self.topology_id_ = str(physics.mesh.topology_id)
+        self._set_fitted(out["mean"], S, var, float(var.sum()), physics.mesh.n_nodes, F,
+                         str(physics.mesh.topology_id))
         self.marker_coverage_ = out["coverage"]
         return self
 

@@ -35,6 +35,7 @@ import dataclasses
 
 import numpy as np
 
+from lipgen._validate import as_float_array
 from lipgen.recon.normalize import lip_subsets, normalize_markers
 from lipgen.recon.similarity import Similarity
 from lipgen.recon.steps import reach_fields
@@ -64,7 +65,7 @@ def reference_similarity(recon) -> Similarity:
     return Similarity(s, S[:3, :3] / s, S[:3, 3].copy())
 
 
-def renormalize(recon, reference, physics=None):
+def renormalize(recon, reference, physics=None, rest=None):
     """``recon`` normalised with the reference of another reconstruction, its fields re-reached.
 
     Parameters
@@ -77,13 +78,19 @@ def renormalize(recon, reference, physics=None):
         :func:`reference_similarity`. Passing ``recon`` itself gives its own result again.
     physics : lipgen.fem.Physics, optional
         Of the model mesh ``recon`` was reconstructed with (built from its ``mesh_source`` if None).
+    rest : (P, 3) float or callable, optional
+        The rest markers (model frame, mm) the fields are reached from; NaN rows fall back to the
+        model's. A callable is given the renormalised markers (F, P, 3) and the measured mask
+        (F, P) and returns them (e.g. :func:`lipgen.recon.rest.quiet_rest`). None (default): the
+        model's rest markers.
 
     Returns
     -------
     Reconstruction
         ``recon`` with new ``markers`` (F, P, 3), ``fields`` (F, n, 3), ``similarity`` (4, 4) and
         ``rotations`` (F, 3, 3); ``info["normalisation"]`` records the reference
-        (``reference_frame`` -1, ``reference_from`` the reference's dataset).
+        (``reference_frame`` -1, ``reference_from`` the reference's dataset); with ``rest`` given,
+        ``info["rest"]`` is the rest used.
     """
     from lipgen._threads import blas_threads
 
@@ -109,7 +116,9 @@ def renormalize(recon, reference, physics=None):
                                  visible=recon.visible, method=method, physics=physics, reference=sim)
         outliers = np.zeros(recon.visible.shape, bool) if norm.outliers is None else norm.outliers
         min_visible = int(info.get("settings", {}).get("min_visible", 4))
-        fields = reach_fields(physics, norm.markers - M, recon.visible & ~outliers, mesh.markers, min_visible)
+        measured = recon.visible & ~outliers
+        base = M if rest is None else _rest_markers(rest, norm.markers, measured, M)
+        fields = reach_fields(physics, norm.markers - base, measured, mesh.markers, min_visible)
     S = np.eye(4)
     S[:3, :3] = norm.similarity.scale * norm.similarity.rotation
     S[:3, 3] = norm.similarity.translation
@@ -119,5 +128,15 @@ def renormalize(recon, reference, physics=None):
                                           "reference_from": source, "fit_rms_mm": float("nan"),
                                           "borrowed_frames": int(norm.borrowed.sum()),
                                           "outliers": np.argwhere(outliers).tolist()}}
+    if rest is not None:
+        new_info["rest"] = base.tolist()
     return dataclasses.replace(recon, fields=fields, markers=norm.markers, similarity=S,
                                rotations=norm.rotations, info=new_info)
+
+
+def _rest_markers(rest, markers, measured, model_markers):
+    """(P, 3) float: ``rest`` checked (or computed from ``markers``), NaN rows from the model's."""
+    if callable(rest):
+        rest = rest(markers, measured)
+    rest = as_float_array(rest, "rest", model_markers.shape, finite=False)
+    return np.where(np.isfinite(rest), rest, model_markers)

@@ -33,8 +33,6 @@ quiet. So ``table51-pipeline`` measures from the model's rest at scale 1 by defa
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from lipgen._validate import as_float_array
@@ -143,17 +141,8 @@ def metric_renormalize(recon, physics, rest=None, reference=None):
     """
     from lipgen.recon.rereference import reference_similarity, renormalize
     from lipgen.recon.similarity import Similarity
-    from lipgen.recon.steps import reach_fields
 
     ref = reference_similarity(recon if reference is None else reference)
-    out = renormalize(recon, Similarity(1.0, ref.rotation, ref.translation), physics)
-    meas = measured_markers(out)
-    if rest is None:
-        rest = quiet_rest(out.markers, meas)
-    rest = as_float_array(rest, "rest", (len(physics.mesh.markers), 3), finite=False)
-    M = physics.mesh.vertices[physics.mesh.markers]
-    rest = np.where(np.isfinite(rest), rest, M)
-    min_visible = int(recon.info.get("settings", {}).get("min_visible", 4))
-    fields = reach_fields(physics, out.markers - rest, meas, physics.mesh.markers, min_visible)
-    info = {**out.info, "rest": rest.tolist()}
-    return dataclasses.replace(out, fields=fields, info=info), rest
+    out = renormalize(recon, Similarity(1.0, ref.rotation, ref.translation), physics,
+                      rest=quiet_rest if rest is None else rest)
+    return out, np.asarray(out.info["rest"], dtype=np.float64)
