@@ -29,13 +29,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.backfill import backfill
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.stereo_init import layout_dots
-from lipgen.recon.track import MarkerTracker, TrackerSettings, Tracks
+from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
 from lipgen.recon.twins import resolve_twins
 from lipgen.recon.viewcheck import check_views
 from lipgen.rig.camera import VIEWS, MirrorRig
@@ -125,6 +126,10 @@ class ReconstructSettings:
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
         On ``default`` the lures near the lips are skin blobs at 0.29-0.36 of the markers'
         median darkness, the faintest marker dots at 0.45-0.62 (validation seeds 7, 8).
+    backfill : bool
+        With the calibrated cameras, a marker first seen in a view after the first frame is
+        tracked back from there to the frames before it, each sighting confirmed by the other view
+        (:func:`lipgen.recon.backfill.backfill`).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -141,6 +146,7 @@ class ReconstructSettings:
     epipolar_recovery: bool = True
     first_frame_layout: bool = True
     first_frame_dark: float | None = 0.4
+    backfill: bool = True
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -260,6 +266,12 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
+        seen = np.stack([tr._out[-1][1] != LOST for tr in trackers]) & ~np.stack([tr.twins for tr in trackers])
+        if t == 0:
+            ever = seen
+        elif cameras is not None and settings.backfill and (seen & ~ever).any():
+            backfill(trackers, cameras, seen & ~ever, gap_limit.limit(), steps, names=names)
+        ever |= seen
         if progress is not None:
             progress(t)
     if not trackers:

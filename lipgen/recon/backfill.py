@@ -1,0 +1,181 @@
+"""Tracking a marker back from the frame it was first seen in, to the frames before it.
+
+A marker the first frame does not match (its dot beside a lure, or its match taken back) is
+acquired on a later frame (:func:`lipgen.recon.acquire.acquire_layout`, confirmed by the other
+view). Acquisition is strict, since a wrong dot taken then would be followed: on the demo's
+``easy`` clip the direct view's ``lower_right`` first passes it at frame 7, so frames 1-6 were
+lost (98.9 % accepted instead of 99.1 %). Once the marker is known, its earlier frames are no
+longer a search: :func:`backfill` walks back from its first sighting one frame at a time. It
+predicts the marker from its position in the later frame moved as its tracked neighbours moved
+(Gaussian weights by layout distance), takes the nearest free dot of that frame (the tracker's
+own round dots, :attr:`lipgen.recon.track.MarkerTracker.dot_history`) within the acquisition
+gate, when it is unambiguous, about as dark as the marker's dot, and confirmed by the other view:
+the two rays meet (the sequence's ray-gap limit) and the 3-D point does not jump from the later
+frame's (:class:`lipgen.recon.jumps.StepLimit`). A marker new in both views is walked back in both
+together. The walk stops after ``max_misses`` frames in a row without a confirmed dot.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from lipgen.recon.jumps import StepLimit
+from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
+from lipgen.rig.pinhole import triangulate
+
+__all__ = ["backfill", "neighbour_motion"]
+
+log = logging.getLogger(__name__)
+
+
+def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarray, ok: np.ndarray,
+                     i: int) -> np.ndarray | None:
+    """How marker ``i``'s neighbours moved between two frames: their Gaussian-weighted mean offset.
+
+    Parameters
+    ----------
+    reference : (P, 2) float
+        The layout; weights fall off with distance in it (width: the median distance from a
+        marker to its nearest neighbour).
+    uv_from, uv_to : (P, 2) float
+        Marker positions in the two frames, pixels.
+    ok : (P,) bool
+        Markers seen in both frames (``i`` itself is left out).
+    i : int
+        The marker.
+
+    Returns
+    -------
+    (2,) float or None
+        The weighted mean of ``uv_to - uv_from`` over the neighbours; None when none is seen.
+    """
+    ok = np.asarray(ok, dtype=bool).copy()
+    ok[i] = False
+    if not ok.any():
+        return None
+    d = np.linalg.norm(reference[:, None] - reference[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    width = float(np.median(d.min(1)))
+    w = np.exp(-0.5 * (np.linalg.norm(reference[ok] - reference[i], axis=1) / width) ** 2)
+    if w.sum() <= 1e-12:
+        return None
+    return (w @ (uv_to[ok] - uv_from[ok])) / w.sum()
+
+
+def _candidate(tracker: MarkerTracker, t: int, i: int, pred: np.ndarray, gate: float) -> np.ndarray | None:
+    """The free, dark, unambiguous dot of frame ``t`` nearest ``pred`` within ``gate``, or None."""
+    cfg = tracker.cfg
+    hist = tracker.dot_history[t]
+    if hist is None or len(hist[0]) == 0:
+        return None
+    dots, strength = hist
+    uv, status, _ = tracker._out[t]
+    taken = uv[(status != LOST) & (np.arange(len(uv)) != i)]
+    free = np.ones(len(dots), dtype=bool)
+    if len(taken):
+        free = np.linalg.norm(dots[:, None] - taken[None], axis=2).min(1) >= cfg.dots.separation / 2
+    if np.isfinite(tracker.strength[i]):
+        free &= strength >= cfg.min_strength_ratio * tracker.strength[i]
+    r = np.linalg.norm(dots - pred, axis=1)
+    if not free.any():
+        return None
+    j = int(np.argmin(np.where(free, r, np.inf)))
+    if r[j] > gate:
+        return None
+    rest = np.delete(r, j)
+    if len(rest) and r[j] >= cfg.acquire_ratio * rest.min():       # another dot nearly as near
+        return None
+    if len(taken) and r[j] >= cfg.acquire_ratio * np.linalg.norm(taken - dots[j], axis=1).min():
+        return None
+    return dots[j]
+
+
+def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit: float,
+             steps: StepLimit | None = None, max_misses: int = 2, names=None) -> np.ndarray:
+    """Fill the frames before each marker's first sighting in a view, walking back from it.
+
+    Parameters
+    ----------
+    trackers : (virtual, real) MarkerTracker
+        After the current image's step and view checks; their ``dot_history`` must hold the
+        earlier frames' dots (kept while a marker has not been seen).
+    cameras : (virtual, real) PinholeCamera
+    new : (2, P) bool
+        Markers seen in the current image for the first time, per view.
+    gap_limit : float
+        Largest distance between the two rays, mm.
+    steps : StepLimit, optional
+        The 3-D step limits; without it, only the ray gap confirms.
+    max_misses : int
+        Frames in a row without a confirmed dot after which the walk stops.
+    names : sequence of str, optional
+        Marker names, for the log.
+
+    Returns
+    -------
+    (2, P) int
+        Frames filled per view and marker. The filled sightings are ``RECOVERED`` (and no longer
+        counted as rejected) in the trackers' output.
+    """
+    new = np.asarray(new, dtype=bool)
+    filled = np.zeros(new.shape, dtype=np.int64)
+    k = len(trackers[0]._out) - 1
+    limits = None if steps is None else steps.limits()
+    for i in np.flatnonzero(new.any(0)):
+        views = [v for v in range(2) if new[v, i]]
+        cur = {v: trackers[v]._out[k][0][i].copy() for v in range(2)}
+        ref_t = {v: k for v in range(2)}
+        pt = _point(cameras, cur[0], cur[1])
+        pt_t, misses = k, 0
+        for t in range(k - 1, -1, -1):
+            if misses > max_misses:
+                break
+            cand = {}
+            for v in range(2):
+                uv_t, st_t, _ = trackers[v]._out[t]
+                if v not in views:
+                    if st_t[i] != LOST:
+                        cand[v] = uv_t[i]
+                    continue
+                if t >= len(trackers[v].dot_history):
+                    continue
+                uv_r, st_r, _ = trackers[v]._out[ref_t[v]]
+                move = neighbour_motion(trackers[v].reference, uv_r, uv_t, (st_r != LOST) & (st_t != LOST), i)
+                if move is None:
+                    continue
+                gate = trackers[v].cfg.acquire_gate or trackers[v].cfg.recovery_gate
+                c = _candidate(trackers[v], t, i, cur[v] + move, gate)
+                if c is not None:
+                    cand[v] = c
+            ok = len(cand) == 2 and any(v in cand for v in views)
+            if ok:
+                x, gap = triangulate(cameras[1], cand[1][None], cameras[0], cand[0][None])
+                ok = float(gap[0]) <= gap_limit
+                if ok and limits is not None and np.all(np.isfinite(pt)):
+                    ok = np.linalg.norm(x[0] - pt) / np.sqrt(pt_t - t) <= limits[i]
+            if not ok:
+                misses += 1
+                continue
+            misses = 0
+            pt, pt_t = x[0], t
+            for v in views:
+                uv_t, st_t, _ = trackers[v]._out[t]
+                if v in cand:
+                    uv_t[i], st_t[i] = cand[v], RECOVERED
+                    trackers[v]._rejected[t][i] = False
+                    cur[v], ref_t[v] = cand[v].copy(), t
+                    filled[v, i] += 1
+    if filled.any():
+        log.info("tracked back from the first sighting: %s", ", ".join(
+            f"{'virtual' if v == 0 else 'real'} {i if names is None else names[i]} {filled[v, i]} frame(s)"
+            for v, i in zip(*np.nonzero(filled), strict=True)))
+    return filled
+
+
+def _point(cameras, uv0: np.ndarray, uv1: np.ndarray) -> np.ndarray:
+    """(3,) the ray-midpoint of one marker's two sightings; NaN if a view has none."""
+    if not (np.all(np.isfinite(uv0)) and np.all(np.isfinite(uv1))):
+        return np.full(3, np.nan)
+    return triangulate(cameras[1], uv1[None], cameras[0], uv0[None])[0][0]
