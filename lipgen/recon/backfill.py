@@ -11,8 +11,12 @@ predicts the marker from its position in the later frame moved as its tracked ne
 own round dots, :attr:`lipgen.recon.track.MarkerTracker.dot_history`) within the acquisition
 gate, when it is unambiguous, about as dark as the marker's dot, and confirmed by the other view:
 the two rays meet (the sequence's ray-gap limit) and the 3-D point does not jump from the later
-frame's (:class:`lipgen.recon.jumps.StepLimit`). A marker new in both views is walked back in both
-together. The walk stops after ``max_misses`` frames in a row without a confirmed dot.
+frame's (:class:`lipgen.recon.jumps.StepLimit`; a marker with too few accepted steps of its own
+gets the limit of all markers' steps pooled, since a lure along the epipolar line passes the ray
+gap and only its depth gives it away). A marker new in both views is walked back in both
+together. The walk stops at the first frame without a confirmed dot (``max_misses``: after that many
+frames in a row; a step over a missed frame is checked against the limit times the square root
+of the frames elapsed, which a lure close along the epipolar line can pass).
 """
 
 from __future__ import annotations
@@ -93,7 +97,7 @@ def _candidate(tracker: MarkerTracker, t: int, i: int, pred: np.ndarray, gate: f
 
 
 def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit: float,
-             steps: StepLimit | None = None, max_misses: int = 2, names=None) -> np.ndarray:
+             steps: StepLimit | None = None, max_misses: int = 0, names=None) -> np.ndarray:
     """Fill the frames before each marker's first sighting in a view, walking back from it.
 
     Parameters
@@ -122,7 +126,7 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     new = np.asarray(new, dtype=bool)
     filled = np.zeros(new.shape, dtype=np.int64)
     k = len(trackers[0]._out) - 1
-    limits = None if steps is None else steps.limits()
+    limits = None if steps is None else _step_limits(steps)
     for i in np.flatnonzero(new.any(0)):
         views = [v for v in range(2) if new[v, i]]
         cur = {v: trackers[v]._out[k][0][i].copy() for v in range(2)}
@@ -172,6 +176,19 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
             f"{'virtual' if v == 0 else 'real'} {i if names is None else names[i]} {filled[v, i]} frame(s)"
             for v, i in zip(*np.nonzero(filled), strict=True)))
     return filled
+
+
+def _step_limits(steps: StepLimit) -> np.ndarray:
+    """(P,) each marker's step limit, mm per frame. A marker with too few accepted steps of its own
+    (one never accepted before: the usual case here) gets the limit of all markers' steps pooled
+    (``k`` times their ``quantile``, within ``[floor, max_step]``), once they are enough."""
+    lim = steps.limits()
+    own = np.array([len(s) >= steps.min_samples for s in steps._steps])
+    pooled = np.concatenate([np.asarray(s, dtype=float) for s in steps._steps] + [np.zeros(0)])
+    if len(pooled) >= steps.min_samples:
+        common = float(np.clip(steps.k * np.quantile(pooled, steps.quantile), steps.floor, steps.max_step))
+        lim = np.where(own, lim, common)
+    return lim
 
 
 def _point(cameras, uv0: np.ndarray, uv1: np.ndarray) -> np.ndarray:
