@@ -29,7 +29,7 @@ from lipgen.recon.jumps import StepLimit
 from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["backfill", "neighbour_motion"]
+__all__ = ["backfill", "walk_back", "step_limits", "neighbour_motion"]
 
 log = logging.getLogger(__name__)
 
@@ -103,8 +103,8 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     Parameters
     ----------
     trackers : (virtual, real) MarkerTracker
-        After the current image's step and view checks; their ``dot_history`` must hold the
-        earlier frames' dots (kept while a marker has not been seen).
+        After the current image's step and view checks; their ``dot_history`` holds the
+        earlier frames' dots.
     cameras : (virtual, real) PinholeCamera
     new : (2, P) bool
         Markers seen in the current image for the first time, per view.
@@ -126,51 +126,10 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     new = np.asarray(new, dtype=bool)
     filled = np.zeros(new.shape, dtype=np.int64)
     k = len(trackers[0]._out) - 1
-    limits = None if steps is None else _step_limits(steps)
+    limits = None if steps is None else step_limits(steps)
     for i in np.flatnonzero(new.any(0)):
-        views = [v for v in range(2) if new[v, i]]
-        cur = {v: trackers[v]._out[k][0][i].copy() for v in range(2)}
-        ref_t = {v: k for v in range(2)}
-        pt = _point(cameras, cur[0], cur[1])
-        pt_t, misses = k, 0
-        for t in range(k - 1, -1, -1):
-            if misses > max_misses:
-                break
-            cand = {}
-            for v in range(2):
-                uv_t, st_t, _ = trackers[v]._out[t]
-                if v not in views:
-                    if st_t[i] != LOST:
-                        cand[v] = uv_t[i]
-                    continue
-                if t >= len(trackers[v].dot_history):
-                    continue
-                uv_r, st_r, _ = trackers[v]._out[ref_t[v]]
-                move = neighbour_motion(trackers[v].reference, uv_r, uv_t, (st_r != LOST) & (st_t != LOST), i)
-                if move is None:
-                    continue
-                gate = trackers[v].cfg.acquire_gate or trackers[v].cfg.recovery_gate
-                c = _candidate(trackers[v], t, i, cur[v] + move, gate)
-                if c is not None:
-                    cand[v] = c
-            ok = len(cand) == 2 and any(v in cand for v in views)
-            if ok:
-                x, gap = triangulate(cameras[1], cand[1][None], cameras[0], cand[0][None])
-                ok = float(gap[0]) <= gap_limit
-                if ok and limits is not None and np.all(np.isfinite(pt)):
-                    ok = np.linalg.norm(x[0] - pt) / np.sqrt(pt_t - t) <= limits[i]
-            if not ok:
-                misses += 1
-                continue
-            misses = 0
-            pt, pt_t = x[0], t
-            for v in views:
-                uv_t, st_t, _ = trackers[v]._out[t]
-                if v in cand:
-                    uv_t[i], st_t[i] = cand[v], RECOVERED
-                    trackers[v]._rejected[t][i] = False
-                    cur[v], ref_t[v] = cand[v].copy(), t
-                    filled[v, i] += 1
+        filled[:, i] = walk_back(trackers, cameras, i, [v for v in range(2) if new[v, i]], k, gap_limit,
+                                 limits, max_misses)
     if filled.any():
         log.info("tracked back from the first sighting: %s", ", ".join(
             f"{'virtual' if v == 0 else 'real'} {i if names is None else names[i]} {filled[v, i]} frame(s)"
@@ -178,10 +137,95 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     return filled
 
 
-def _step_limits(steps: StepLimit) -> np.ndarray:
-    """(P,) each marker's step limit, mm per frame. A marker with too few accepted steps of its own
-    (one never accepted before: the usual case here) gets the limit of all markers' steps pooled
-    (``k`` times their ``quantile``, within ``[floor, max_step]``), once they are enough."""
+def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap_limit: float,
+              limits: np.ndarray | None = None, max_misses: int = 0) -> np.ndarray:
+    """Track marker ``i`` back from frame ``k`` in ``views``, each frame confirmed by the other view.
+
+    Parameters
+    ----------
+    trackers : (virtual, real) MarkerTracker
+    cameras : (virtual, real) PinholeCamera
+    i : int
+        The marker.
+    views : sequence of int
+        The views walked back (0, 1 or both); a view not walked gives its own sightings as they are.
+    k : int
+        The frame the walk starts from: the marker's sightings there are taken as right.
+    gap_limit : float
+        Largest distance between the two rays, mm.
+    limits : (P,) float, optional
+        Step limits, mm per frame (:func:`step_limits`); None: the ray gap alone confirms.
+    max_misses : int
+        Frames in a row without a confirmed dot after which the walk stops.
+
+    Returns
+    -------
+    (2,) int
+        Frames written per view. A written sighting is ``RECOVERED`` and not counted as
+        rejected; whatever the view held there before (nothing, or another dot) is replaced.
+    """
+    filled = np.zeros(2, dtype=np.int64)
+    cur = {v: trackers[v]._out[k][0][i].copy() for v in range(2)}
+    ref_t = {v: k for v in range(2)}
+    pt = _point(cameras, cur[0], cur[1])
+    pt_t, misses = k, 0
+    for t in range(k - 1, -1, -1):
+        if misses > max_misses:
+            break
+        cand = {}
+        for v in range(2):
+            uv_t, st_t, _ = trackers[v]._out[t]
+            if v not in views:
+                if st_t[i] != LOST:
+                    cand[v] = uv_t[i]
+                continue
+            if t >= len(trackers[v].dot_history):
+                continue
+            uv_r, st_r, _ = trackers[v]._out[ref_t[v]]
+            move = neighbour_motion(trackers[v].reference, uv_r, uv_t, (st_r != LOST) & (st_t != LOST), i)
+            if move is None:
+                continue
+            gate = trackers[v].cfg.acquire_gate or trackers[v].cfg.recovery_gate
+            c = _candidate(trackers[v], t, i, cur[v] + move, gate)
+            if c is not None:
+                cand[v] = c
+        ok = len(cand) == 2 and any(v in cand for v in views)
+        if ok:
+            x, gap = triangulate(cameras[1], cand[1][None], cameras[0], cand[0][None])
+            ok = float(gap[0]) <= gap_limit
+            if ok and limits is not None and np.all(np.isfinite(pt)):
+                ok = np.linalg.norm(x[0] - pt) / np.sqrt(pt_t - t) <= limits[i]
+        if not ok:
+            misses += 1
+            continue
+        misses = 0
+        pt, pt_t = x[0], t
+        for v in views:
+            uv_t, st_t, _ = trackers[v]._out[t]
+            uv_t[i], st_t[i] = cand[v], RECOVERED
+            trackers[v]._rejected[t][i] = False
+            cur[v], ref_t[v] = cand[v].copy(), t
+            filled[v] += 1
+    return filled
+
+
+def step_limits(steps: StepLimit) -> np.ndarray:
+    """Each marker's 3-D step limit for a walk back.
+
+    A marker with too few accepted steps of its own (one never accepted before: the usual case
+    here) gets the limit of all markers' steps pooled (``k`` times their ``quantile``, within
+    ``[floor, max_step]``), once they are enough.
+
+    Parameters
+    ----------
+    steps : StepLimit
+        The sequence's step limits so far.
+
+    Returns
+    -------
+    (P,) float
+        Limits, mm per frame.
+    """
     lim = steps.limits()
     own = np.array([len(s) >= steps.min_samples for s in steps._steps])
     pooled = np.concatenate([np.asarray(s, dtype=float) for s in steps._steps] + [np.zeros(0)])

@@ -35,6 +35,7 @@ from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
+from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
 from lipgen.recon.twins import resolve_twins
@@ -130,6 +131,11 @@ class ReconstructSettings:
         With the calibrated cameras, a marker first seen in a view after the first frame is
         tracked back from there to the frames before it, each sighting confirmed by the other view
         (:func:`lipgen.recon.backfill.backfill`).
+    identity_recheck : int or None
+        With the calibrated cameras and the markers at rest, the first frame's 3-D layout check
+        is run on every later frame too; a marker it gives a new dot this many frames in a row is
+        re-tracked from there, forward and backward (:class:`lipgen.recon.recheck.IdentityCheck`).
+        None: off.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -147,6 +153,7 @@ class ReconstructSettings:
     first_frame_layout: bool = True
     first_frame_dark: float | None = 0.4
     backfill: bool = True
+    identity_recheck: int | None = 3
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -203,6 +210,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     since = np.ones(exp.shape[1])                    # frames since then
     steps = None if settings.step_k is None else StepLimit(exp.shape[1], settings.step_k,
                                                            floor=settings.min_step)
+    recheck = (IdentityCheck(rest_points, settings.identity_recheck)
+               if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
@@ -266,6 +275,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
+        if recheck is not None and t > 0:
+            recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
         seen = np.stack([tr._out[-1][1] != LOST for tr in trackers]) & ~np.stack([tr.twins for tr in trackers])
         if t == 0:
             ever = seen
