@@ -60,7 +60,8 @@ class IdentityCheck:
         P = len(self.rest)
         self.run = np.zeros((2, P), dtype=np.int64)
         self.prev = np.full((2, P, 2), np.nan)
-        self.changes: list[tuple[int, int, tuple[int, ...], np.ndarray]] = []   # (frame, marker, views, filled)
+        # Each re-identification: (frame, marker, views, frames rewritten per view).
+        self.changes: list[tuple[int, int, tuple[int, ...], np.ndarray]] = []
 
     def step(self, trackers: list[MarkerTracker], views, cameras, max_gap: float,
              last3d: np.ndarray | None = None, steps: StepLimit | None = None, names=None) -> np.ndarray:

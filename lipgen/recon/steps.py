@@ -277,7 +277,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if recheck is not None and t > 0:
             recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
-        seen = np.stack([tr._out[-1][1] != LOST for tr in trackers]) & ~np.stack([tr.twins for tr in trackers])
+        seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
         if t == 0:
             ever = seen
         elif cameras is not None and settings.backfill and (seen & ~ever).any():
