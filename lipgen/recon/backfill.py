@@ -27,9 +27,10 @@ import numpy as np
 
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
+from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["backfill", "walk_back", "step_limits", "neighbour_motion"]
+__all__ = ["backfill", "rewalk", "walk_back", "step_limits", "neighbour_motion"]
 
 log = logging.getLogger(__name__)
 
@@ -129,7 +130,7 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     limits = None if steps is None else step_limits(steps)
     for i in np.flatnonzero(new.any(0)):
         filled[:, i] = walk_back(trackers, cameras, i, [v for v in range(2) if new[v, i]], k, gap_limit,
-                                 limits, max_misses)
+                                 limits, max_misses)[0]
     if filled.any():
         log.info("tracked back from the first sighting: %s", ", ".join(
             f"{'virtual' if v == 0 else 'real'} {i if names is None else names[i]} {filled[v, i]} frame(s)"
@@ -137,8 +138,57 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     return filled
 
 
+def rewalk(trackers: list[MarkerTracker], cameras, skip: np.ndarray, gap_limit: float,
+           steps: StepLimit | None = None, same: float = 1.0, names=None) -> tuple[np.ndarray, np.ndarray]:
+    """Walk back the markers found again in the current image, in both views, until the history agrees.
+
+    A marker re-acquired after a loss, or found from the motion prediction (``RECOVERED``), and
+    seen in both views, is walked back (:func:`walk_back`) from the current image until the
+    frame where both views already hold its walked dots (within ``same`` px): the frames it was
+    lost in are filled, and sightings on another dot are replaced (a lure the marker followed
+    before it was lost, which the later track contradicts).
+
+    Parameters
+    ----------
+    trackers : (virtual, real) MarkerTracker
+        After the current image's step and view checks.
+    cameras : (virtual, real) PinholeCamera
+    skip : (P,) bool
+        Markers not to walk (e.g. those :func:`backfill` walks).
+    gap_limit : float
+        Largest distance between the two rays, mm.
+    steps : StepLimit, optional
+    same : float
+        Pixels within which a held sighting is the walk's dot.
+    names : sequence of str, optional
+
+    Returns
+    -------
+    filled, replaced : (2, P) int
+        Frames written per view and marker, and of them those that replaced a pair's dot.
+    """
+    k = len(trackers[0]._out) - 1
+    st = [tr._out[k][1] for tr in trackers]
+    found = (st[0] == RECOVERED) | (st[1] == RECOVERED) | trackers[0].reacquired | trackers[1].reacquired
+    walk = found & (st[0] != LOST) & (st[1] != LOST) & ~np.asarray(skip, dtype=bool)
+    P = len(st[0])
+    filled, replaced = np.zeros((2, P), dtype=np.int64), np.zeros((2, P), dtype=np.int64)
+    if k == 0 or not walk.any():
+        return filled, replaced
+    limits = None if steps is None else step_limits(steps)
+    for i in np.flatnonzero(walk):
+        filled[:, i], replaced[:, i] = walk_back(trackers, cameras, i, (0, 1), k, gap_limit, limits,
+                                                 same=same)
+    if replaced.any():
+        log.info("frame %d, walked back: %s", k, ", ".join(
+            f"{VIEWS[v]} {i if names is None else names[i]} {filled[v, i]} frame(s), {replaced[v, i]} "
+            "paired sighting(s) on another dot replaced" for v, i in zip(*np.nonzero(filled), strict=True)))
+    return filled, replaced
+
+
 def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap_limit: float,
-              limits: np.ndarray | None = None, max_misses: int = 0) -> np.ndarray:
+              limits: np.ndarray | None = None, max_misses: int = 0,
+              same: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Track marker ``i`` back from frame ``k`` in ``views``, each frame confirmed by the other view.
 
     Parameters
@@ -157,14 +207,21 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
         Step limits, mm per frame (:func:`step_limits`); None: the ray gap alone confirms.
     max_misses : int
         Frames in a row without a confirmed dot after which the walk stops.
+    same : float, optional
+        The walk stops at the first frame where every walked view already holds a sighting
+        within ``same`` pixels of the walk's dot (the history agrees from there on).
 
     Returns
     -------
-    (2,) int
+    filled : (2,) int
         Frames written per view. A written sighting is ``RECOVERED`` and not counted as
         rejected; whatever the view held there before (nothing, or another dot) is replaced.
+    replaced : (2,) int
+        Of them, sightings that replaced another dot where both views held the marker (a pair
+        the ray gap had let through).
     """
     filled = np.zeros(2, dtype=np.int64)
+    replaced = np.zeros(2, dtype=np.int64)
     cur = {v: trackers[v]._out[k][0][i].copy() for v in range(2)}
     ref_t = {v: k for v in range(2)}
     pt = _point(cameras, cur[0], cur[1])
@@ -200,13 +257,21 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
             continue
         misses = 0
         pt, pt_t = x[0], t
+        held = [trackers[v]._out[t][1][i] != LOST for v in range(2)]
+        agree = [held[v] and np.linalg.norm(trackers[v]._out[t][0][i] - cand[v]) <= (same or 0.0)
+                 for v in range(2)]
+        if same is not None and all(agree[v] for v in views):
+            break
         for v in views:
+            cur[v], ref_t[v] = cand[v].copy(), t
+            if agree[v]:
+                continue
             uv_t, st_t, _ = trackers[v]._out[t]
+            replaced[v] += held[0] and held[1]
             uv_t[i], st_t[i] = cand[v], RECOVERED
             trackers[v]._rejected[t][i] = False
-            cur[v], ref_t[v] = cand[v].copy(), t
             filled[v] += 1
-    return filled
+    return filled, replaced
 
 
 def step_limits(steps: StepLimit) -> np.ndarray:

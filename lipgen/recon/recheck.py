@@ -113,7 +113,7 @@ class IdentityCheck:
             uv = [tr._out[-1][0][i] for tr in trackers]
             if last3d is not None and np.all(np.isfinite(uv[0])) and np.all(np.isfinite(uv[1])):
                 last3d[i] = triangulate(cameras[1], uv[1][None], cameras[0], uv[0][None])[0][0]
-            filled = walk_back(trackers, cameras, i, vs, k, max_gap, limits)
+            filled = walk_back(trackers, cameras, i, vs, k, max_gap, limits)[0]
             dropped = [_take_back_run(trackers[v], i, k - 1 - int(filled[v])) for v in range(2)]
             self.changes.append((k, int(i), vs, filled))
             self.run[:, i] = 0

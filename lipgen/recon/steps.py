@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.backfill import backfill
+from lipgen.recon.backfill import backfill, rewalk
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
@@ -136,6 +136,11 @@ class ReconstructSettings:
         is run on every later frame too; a marker it gives a new dot this many frames in a row is
         re-tracked from there, forward and backward (:class:`lipgen.recon.recheck.IdentityCheck`).
         None: off.
+    rewalk : bool
+        With the calibrated cameras, a marker found again (after a loss, or from the motion
+        prediction) in both views is walked back until the history agrees: frames it was lost in
+        are filled, and earlier sightings on another dot replaced
+        (:func:`lipgen.recon.backfill.rewalk`).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -154,6 +159,7 @@ class ReconstructSettings:
     first_frame_dark: float | None = 0.4
     backfill: bool = True
     identity_recheck: int | None = 3
+    rewalk: bool = True
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -282,6 +288,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             ever = seen
         elif cameras is not None and settings.backfill and (seen & ~ever).any():
             backfill(trackers, cameras, seen & ~ever, gap_limit.limit(), steps, names=names)
+        if t > 0 and cameras is not None and settings.rewalk:
+            rewalk(trackers, cameras, (seen & ~ever).any(0), gap_limit.limit(), steps, names=names)
         ever |= seen
         if progress is not None:
             progress(t)
