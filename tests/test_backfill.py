@@ -89,3 +89,46 @@ def test_neighbour_motion_is_the_weighted_mean_offset_and_none_without_neighbour
     b = a + [[0.0, 0.0], [2.0, 1.0], [2.0, 1.0], [2.0, 1.0]]
     np.testing.assert_allclose(neighbour_motion(ref, a, b, np.ones(4, dtype=bool), 0), [2.0, 1.0])
     assert neighbour_motion(ref, a, b, np.array([True, False, False, False]), 0) is None
+
+
+def test_a_lure_pair_followed_before_a_loss_is_replaced_by_the_later_track():
+    # Both views start on a lure pair: dots 2 mm off mark L's surface point (so the rays meet),
+    # moving with it, until frame 5, when they vanish and the trackers find L's own dots. Walking
+    # back from there (rewalk) replaces the lure's sightings by L's own dots.
+    from lipgen.recon.backfill import rewalk
+    from test_firstframe import _layout
+
+    cams = _two_views()
+    model = _layout()
+    L, n = 4, 10
+    rng = np.random.default_rng(3)
+    t = np.arange(n)[:, None, None]
+    marks = model[None] + [0.0, 0.0, 3.0] + np.array([1.0, 0.8, 1.5]) * np.sin(0.3 * t)
+    lure3d = marks[:, L] + [0.0, 2.0, 0.0]
+    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])
+    lures = np.stack([c.project(lure3d) for c in cams])                        # (2, F, 2)
+    bases = [background((120, 160), rng) for _ in cams]
+    ref = [c.project(model) for c in cams]
+    results = {}
+    for walk in (False, True):
+        trackers = []
+        for v in range(2):
+            init = uv[v, 0].copy()
+            init[L] = lures[v, 0]
+            trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref[v]))
+        steps, last3d, since = StepLimit(len(model), 4.0), np.full((len(model), 3), np.nan), np.ones(len(model))
+        for f in range(n):
+            for v in range(2):
+                pts = uv[v, f] if f >= 5 else np.vstack([uv[v, f], lures[v, f][None]])
+                trackers[v].step(frame(bases[v], pts, rng))
+            if f > 0:
+                check_views(trackers, cams, 1.0, last3d, steps, since)
+                if walk:
+                    rewalk(trackers, cams, np.zeros(len(model), dtype=bool), 1.0, steps)
+        results[walk] = [tr.tracks() for tr in trackers]
+    for v in range(2):
+        before = np.linalg.norm(results[False][v].uv[:5, L] - uv[v, :5, L], axis=1)
+        assert np.all(before > 5.0), "without the walk the lure's sightings stay"
+        tr = results[True][v]
+        err = np.linalg.norm(tr.uv[:, L] - uv[v, :, L], axis=1)
+        assert tr.visible[:, L].all() and err.max() < 0.5
