@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 from synthetic_images import background, frame
+from test_firstframe import _layout
 from test_raygap import _two_views
 
-from lipgen.recon.backfill import backfill, neighbour_motion
+from lipgen.recon.backfill import backfill, neighbour_motion, rewalk
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
@@ -95,9 +96,6 @@ def test_a_lure_pair_followed_before_a_loss_is_replaced_by_the_later_track():
     # Both views start on a lure pair: dots 2 mm off mark L's surface point (so the rays meet),
     # moving with it, until frame 5, when they vanish and the trackers find L's own dots. Walking
     # back from there (rewalk) replaces the lure's sightings by L's own dots.
-    from lipgen.recon.backfill import rewalk
-    from test_firstframe import _layout
-
     cams = _two_views()
     model = _layout()
     L, n = 4, 10
