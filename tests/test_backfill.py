@@ -114,7 +114,8 @@ def test_a_lure_pair_followed_before_a_loss_is_replaced_by_the_later_track():
             init = uv[v, 0].copy()
             init[L] = lures[v, 0]
             trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref[v]))
-        steps, last3d, since = StepLimit(len(model), 4.0), np.full((len(model), 3), np.nan), np.ones(len(model))
+        P = len(model)
+        steps, last3d, since = StepLimit(P, 4.0), np.full((P, 3), np.nan), np.ones(P)
         for f in range(n):
             for v in range(2):
                 pts = uv[v, f] if f >= 5 else np.vstack([uv[v, f], lures[v, f][None]])
