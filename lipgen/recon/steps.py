@@ -7,7 +7,10 @@ The steps, each a small function so that tests and the evaluation can score them
    track them with normalised correlation (:class:`lipgen.recon.track.MarkerTracker`), both views in
    lock-step so each raw frame is read once. With the calibrated cameras, a sighting the other
    view contradicts (rays more than ``max_ray_gap`` apart) is taken back in the tracker, so a
-   wrong dot is not followed.
+   wrong dot is not followed. What later frames show is carried back: a marker first seen late
+   is tracked back to the frames before (:mod:`lipgen.recon.backfill`), one found again is walked
+   back until the history agrees, and a marker the 3-D layout check gives another dot on
+   several frames in a row is re-tracked from there (:mod:`lipgen.recon.recheck`).
 2. :func:`triangulate_tracks`: the closest point between the two rays of each marker (thesis
    Fig 3-5); a marker seen in one view only, or whose rays pass far apart (a mis-track), is
    marked not visible.
