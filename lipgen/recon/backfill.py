@@ -30,7 +30,7 @@ from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["backfill", "rewalk", "walk_back", "step_limits", "neighbour_motion"]
+__all__ = ["WalkQueue", "backfill", "rewalk", "walk_back", "step_limits", "neighbour_motion"]
 
 log = logging.getLogger(__name__)
 
@@ -95,6 +95,83 @@ def _candidate(tracker: MarkerTracker, t: int, i: int, pred: np.ndarray, gate: f
     if len(taken) and r[j] >= cfg.acquire_ratio * np.linalg.norm(taken - dots[j], axis=1).min():
         return None
     return dots[j]
+
+
+class WalkQueue:
+    """Walks back made once the marker has stood in both views for a few frames.
+
+    A marker first seen in a view (:func:`backfill`'s walk) or found again (:func:`rewalk`'s) on
+    a wrong pair of dots that both views confirm would carry the wrong dots back through the
+    frames before. Such a sighting is mostly taken back within a frame or two (a ray gap, a 3-D
+    jump), so the walk from frame ``k`` is made only once the marker has been seen in both views
+    in every frame from ``k`` to ``k + frames - 1``, and dropped if it is not.
+
+    Parameters
+    ----------
+    n_markers : int
+        Number of markers P.
+    frames : int
+        Frames in a row, from the walk's start, the marker must be seen in both views.
+    same : float
+        As in :func:`rewalk`.
+    """
+
+    def __init__(self, n_markers: int, frames: int = 3, same: float = 1.0):
+        if int(frames) < 1:
+            raise ValueError(f"frames must be at least 1, got {frames!r}")
+        self.frames, self.same = int(frames), float(same)
+        self.start = np.full((2, int(n_markers)), -1, dtype=np.int64)   # (first sighting, found again)
+        self.views = np.zeros((2, int(n_markers)), dtype=bool)           # views new at the first sighting
+        self.filled = np.zeros((2, int(n_markers)), dtype=np.int64)
+        self.replaced = np.zeros((2, int(n_markers)), dtype=np.int64)
+
+    def step(self, trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit: float,
+             steps: StepLimit | None = None, again: bool = True, names=None) -> None:
+        """Queue this image's walks and make those now due.
+
+        Parameters
+        ----------
+        trackers : (virtual, real) MarkerTracker
+            After the current image's step and view checks.
+        cameras : (virtual, real) PinholeCamera
+        new : (2, P) bool
+            Markers seen in this image for the first time, per view.
+        gap_limit : float
+            Largest distance between the two rays, mm.
+        steps : StepLimit, optional
+        again : bool
+            Also walk back markers found again (:func:`rewalk`).
+        names : sequence of str, optional
+        """
+        k = len(trackers[0]._out) - 1
+        st = [tr._out[k][1] for tr in trackers]
+        both = (st[0] != LOST) & (st[1] != LOST)
+        self.start[:, ~both] = -1
+        first = np.asarray(new, dtype=bool).any(0)
+        add = first & both & (self.start[0] < 0)
+        self.start[0, add], self.views[:, add] = k, np.asarray(new, dtype=bool)[:, add]
+        if again:
+            found = ((st[0] == RECOVERED) | (st[1] == RECOVERED) | trackers[0].reacquired
+                     | trackers[1].reacquired)
+            add = found & both & ~first & (self.start[1] < 0) & (self.start[0] < 0)
+            self.start[1, add] = k
+        due = (self.start >= 0) & (k - self.start + 1 >= self.frames)
+        if not due.any():
+            return
+        limits = None if steps is None else step_limits(steps)
+        for q, i in zip(*np.nonzero(due), strict=True):
+            views = tuple(np.flatnonzero(self.views[:, i])) if q == 0 else (0, 1)
+            f, r = walk_back(trackers, cameras, i, views, int(self.start[q, i]), gap_limit, limits,
+                             same=None if q == 0 else self.same)
+            self.filled[:, i] += f
+            self.replaced[:, i] += r
+            if f.any():
+                log.info("%s from frame %d: %s", "tracked back from the first sighting" if q == 0 else
+                         "walked back from a sighting found again", self.start[q, i], ", ".join(
+                             f"{VIEWS[v]} {i if names is None else names[i]} {f[v]} frame(s)"
+                             + (f" ({r[v]} paired sighting(s) on another dot replaced)" if r[v] else "")
+                             for v in range(2) if f[v]))
+            self.start[q, i] = -1
 
 
 def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit: float,

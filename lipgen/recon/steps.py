@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.backfill import backfill, rewalk
+from lipgen.recon.backfill import WalkQueue
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
@@ -144,6 +144,11 @@ class ReconstructSettings:
         prediction) in both views is walked back until the history agrees: frames it was lost in
         are filled, and earlier sightings on another dot replaced
         (:func:`lipgen.recon.backfill.rewalk`).
+    walk_frames : int
+        A walk back (``backfill``, ``rewalk``) is made once the marker has been seen in both
+        views this many frames in a row from where the walk starts
+        (:class:`lipgen.recon.backfill.WalkQueue`): a wrong pair taken back within a frame or two
+        is not carried back.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -163,6 +168,7 @@ class ReconstructSettings:
     backfill: bool = True
     identity_recheck: int | None = 3
     rewalk: bool = True
+    walk_frames: int = 3
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -219,6 +225,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     since = np.ones(exp.shape[1])                    # frames since then
     steps = None if settings.step_k is None else StepLimit(exp.shape[1], settings.step_k,
                                                            floor=settings.min_step)
+    walks = WalkQueue(exp.shape[1], settings.walk_frames)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck)
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     for t, raw in enumerate(raw_frames):
@@ -289,10 +296,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
         if t == 0:
             ever = seen
-        elif cameras is not None and settings.backfill and (seen & ~ever).any():
-            backfill(trackers, cameras, seen & ~ever, gap_limit.limit(), steps, names=names)
-        if t > 0 and cameras is not None and settings.rewalk:
-            rewalk(trackers, cameras, (seen & ~ever).any(0), gap_limit.limit(), steps, names=names)
+        elif cameras is not None and (settings.backfill or settings.rewalk):
+            walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
+                       gap_limit.limit(), steps, settings.rewalk, names)
         ever |= seen
         if progress is not None:
             progress(t)
