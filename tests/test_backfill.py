@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from synthetic_images import background, frame
 from test_firstframe import _layout
 from test_raygap import _two_views
 
-from lipgen.recon.backfill import backfill, neighbour_motion, rewalk
+from lipgen.recon.backfill import WalkQueue, backfill, neighbour_motion, rewalk
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
@@ -15,7 +16,7 @@ from lipgen.recon.viewcheck import check_views
 M, F = 5, 14
 
 
-def _clip(fill: bool, lure: bool = False, seed: int = 4):
+def _clip(fill: bool, lure: bool = False, seed: int = 4, queue: bool = False):
     """Two views of 12 marks (3 rows of 4, 7 mm apart) swaying together; mark M also slides
     0.3 mm a frame down, so its layout place (where it ends) is far from its dot early on and
     view 1 (which does not match it in the first frame) acquires it only once the dot comes
@@ -40,6 +41,7 @@ def _clip(fill: bool, lure: bool = False, seed: int = 4):
             init[M] = np.nan
         trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref))
     steps, last3d, since = StepLimit(12, 4.0), np.full((12, 3), np.nan), np.ones(12)
+    walks = WalkQueue(12, 3)
     ever = None
     for f in range(F):
         for v in range(2):
@@ -54,6 +56,8 @@ def _clip(fill: bool, lure: bool = False, seed: int = 4):
         seen = np.stack([tr._out[-1][1] != LOST for tr in trackers])
         if ever is None:
             ever = seen
+        elif fill and queue:
+            walks.step(trackers, cams, seen & ~ever, 1.0, steps, again=False)
         elif fill and (seen & ~ever).any():
             backfill(trackers, cams, seen & ~ever, 1.0, steps)
         ever |= seen
@@ -73,6 +77,15 @@ def test_a_marker_missing_in_the_first_frame_gets_its_early_frames_back():
     assert err.max() < 0.5
     others = np.delete(np.arange(12), M)
     np.testing.assert_array_equal(tr.uv[:, others], tracks[1].uv[:, others])
+
+
+def test_the_queued_walk_waits_for_three_frames_in_both_views_and_fills_the_same():
+    direct, _ = _clip(fill=True)
+    queued, _ = _clip(fill=True, queue=True)
+    for v in range(2):
+        np.testing.assert_array_equal(queued[v].uv, direct[v].uv)
+    with pytest.raises(ValueError, match="frames must be at least 1, got 0"):
+        WalkQueue(12, 0)
 
 
 def test_a_lure_on_the_epipolar_line_before_the_first_sighting_is_not_filled():
