@@ -104,6 +104,10 @@ class MarkerTracker:
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._rejected: list[np.ndarray] = []        # per image: sightings taken back by reject()
         self.acquired = np.zeros(P, dtype=bool)      # in the last image: markers seen for the first time
+        # Per image: its round dots (uv, strength), for tracking a marker back (lipgen.recon.backfill);
+        # None for images more than history_frames back.
+        self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
+        self.history_frames = 300
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -179,6 +183,9 @@ class MarkerTracker:
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
         gray = ink_gray(image)
         dots, strength, e_peaks, e_strength = self._dots(gray)
+        self.dot_history.append((dots, strength))
+        if len(self.dot_history) > self.history_frames:
+            self.dot_history[-self.history_frames - 1] = None
         uv = np.full((P, 2), np.nan)
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
