@@ -33,6 +33,7 @@ from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.linefit import recover_by_line_fit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import MarkerTracker, TrackerSettings, Tracks
@@ -120,6 +121,14 @@ class ReconstructSettings:
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
         out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
         of free dots nearest where the other markers put it, or its wrong view is left unmatched.
+    line_fit : bool
+        Fit a marker lost in one view as a dark spot on the epipolar line of the other view's
+        sighting, beside its seen neighbours' dots (:func:`lipgen.recon.linefit.recover_by_line_fit`:
+        pale, blurred or merged dots of the defocused mirror view); it then passes the same view
+        checks as any re-acquired sighting.
+    line_fit_acquired : bool
+        The line fit also looks on the line of a marker the other view acquired in this image, so
+        an acquisition one view makes can be confirmed by the other.
     first_frame_dark : float or None
         Match each view's first frame on the dots at least this fraction as dark as the median
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
@@ -141,6 +150,8 @@ class ReconstructSettings:
     epipolar_recovery: bool = True
     first_frame_layout: bool = True
     first_frame_dark: float | None = 0.4
+    line_fit: bool = True
+    line_fit_acquired: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -257,6 +268,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
+            if settings.line_fit:
+                recover_by_line_fit(trackers, views, cameras, gap_limit.limit(),
+                                    acquired=settings.line_fit_acquired)
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
