@@ -100,7 +100,8 @@ def _run(fit: bool, hide: bool, seed: int = 3, n_frames: int = 14, want_images: 
             if fit:
                 recover_by_line_fit(trackers, images, cams, limit.limit())
             check_views(trackers, cams, limit)
-    return ([tr.tracks() for tr in trackers], images) if want_images else ([tr.tracks() for tr in trackers], uv)
+    tracks = [tr.tracks() for tr in trackers]
+    return (tracks, images) if want_images else (tracks, uv)
 
 
 def test_a_pale_blurred_dot_is_followed_and_a_hidden_one_is_not_invented():

@@ -16,6 +16,10 @@ epipolar line of the other view's sighting, near where this view's seen neighbou
 the patch as spots of their own (fixed at their sightings, depth free) and a planar background,
 so a neighbour's blob does not pull the fit. The fit is kept only where it is a dot:
 
+* no other marker is placed near the marker's line within twice the reach plus two dot widths
+  of it (along the line a neighbour's dot is as good a fit: in the mirror view the upper lip's
+  markers lie ~5 px apart along their lines, and fitting them there put ``bow_dip`` and
+  ``bow_peak_right`` on their neighbours' dots, 5-6 px off, on hard validation seed 8);
 * it stays within the tracker's reach of the marker's carried position (``gate``, growing to
   twice that over three lost frames; for a marker never seen in this view, ``acquire_gate`` of
   where the layout, aligned to the seen markers, puts it);
@@ -124,8 +128,7 @@ def fit_spot_on_line(gray: np.ndarray, point, direction, init, sigma: float, rea
 
 def recover_by_line_fit(trackers: list[MarkerTracker], views, cameras, max_gap: float,
                         strength_ratio: float = 0.5, max_ratio: float = 2.0, agree: float = 1.0,
-                        gap_share: float = 0.5, acquired: bool = False, own_share: float = 0.35
-                        ) -> np.ndarray:
+                        gap_share: float = 0.5, own_share: float = 0.35) -> np.ndarray:
     """Fit markers lost in one view on the epipolar line of the other view's sighting (in place).
 
     Call after both trackers' :meth:`~lipgen.recon.track.MarkerTracker.step` on one image pair
@@ -150,10 +153,6 @@ def recover_by_line_fit(trackers: list[MarkerTracker], views, cameras, max_gap: 
     own_share : float
         The fitted dot may be at most this share of the distance from the marker's place to the
         nearest other marker's place away from the marker's place.
-    acquired : bool
-        Also look on the line of a marker the other view acquired in this image for the first
-        time (:attr:`lipgen.recon.track.MarkerTracker.acquired`), so that the acquisition can be
-        confirmed; otherwise only the line of a sighting that continues a track is used.
 
     Returns
     -------
@@ -170,7 +169,7 @@ def recover_by_line_fit(trackers: list[MarkerTracker], views, cameras, max_gap: 
         ta, tb = trackers[a], trackers[1 - a]
         uv_a, st_a, _ = ta._out[-1]
         uv_b, st_b, _ = tb._out[-1]
-        continuing = np.isin(st_b, (TRACKED, RECOVERED)) & (~tb.reacquired | (tb.acquired & acquired))
+        continuing = np.isin(st_b, (TRACKED, RECOVERED)) & ~tb.reacquired
         want = np.flatnonzero((st_a == LOST) & continuing & ~ta.twins)
         seen_a = st_a != LOST
         if len(want) == 0 or seen_a.sum() < 3:
@@ -187,6 +186,15 @@ def recover_by_line_fit(trackers: list[MarkerTracker], views, cameras, max_gap: 
             p0, u = epipolar_line(cameras[1 - a], uv_b[k], cameras[a], np.zeros(3))
             if abs(np.cross(u, pred[k] - p0)) > reach[k]:
                 continue                           # the line passes beyond reach of the marker
+            # Another marker near the same line within reach of a dot's width: the line cannot
+            # tell their dots apart (the upper lip's markers in the mirror view, ~5 px apart).
+            place = np.where(seen_a[:, None], uv_a, pred)
+            rel = place - pred[k]
+            along, across = np.abs(rel @ u), np.abs(rel @ np.array([-u[1], u[0]]))
+            crowd = (along <= 2.0 * reach[k] + 4.0 * sigma) & (across <= 4.0 * sigma)
+            crowd[k] = False
+            if np.any(crowd & np.all(np.isfinite(place), axis=1)):
+                continue
             held = uv_a[seen_a]
             got = fit_spot_on_line(gray, p0, u, pred[k], sigma, reach[k], held)
             if got is None or np.linalg.norm(got[0] - pred[k]) > reach[k]:
@@ -199,7 +207,8 @@ def recover_by_line_fit(trackers: list[MarkerTracker], views, cameras, max_gap: 
             dist, spacing = np.linalg.norm(place - got[0], axis=1), np.linalg.norm(place - pred[k], axis=1)
             dist[k] = spacing[k] = np.inf
             step = np.linalg.norm(got[0] - pred[k])
-            if np.nanmin(dist, initial=np.inf) <= step or step > own_share * np.nanmin(spacing, initial=np.inf):
+            if np.nanmin(dist, initial=np.inf) <= step \
+                    or step > own_share * np.nanmin(spacing, initial=np.inf):
                 continue
             near = held[np.linalg.norm(held - got[0], axis=1) < 4.0 * sigma + 3.0]
             free = refine_centroids(gray, np.vstack([got[0], near]), sigma, window=cfg.dots.window)[0]

@@ -126,9 +126,6 @@ class ReconstructSettings:
         sighting, beside its seen neighbours' dots (:func:`lipgen.recon.linefit.recover_by_line_fit`:
         pale, blurred or merged dots of the defocused mirror view); it then passes the same view
         checks as any re-acquired sighting.
-    line_fit_acquired : bool
-        The line fit also looks on the line of a marker the other view acquired in this image, so
-        an acquisition one view makes can be confirmed by the other.
     first_frame_dark : float or None
         Match each view's first frame on the dots at least this fraction as dark as the median
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
@@ -151,7 +148,6 @@ class ReconstructSettings:
     first_frame_layout: bool = True
     first_frame_dark: float | None = 0.4
     line_fit: bool = True
-    line_fit_acquired: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -269,8 +265,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
             if settings.line_fit:
-                recover_by_line_fit(trackers, views, cameras, gap_limit.limit(),
-                                    acquired=settings.line_fit_acquired)
+                recover_by_line_fit(trackers, views, cameras, gap_limit.limit())
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
