@@ -73,7 +73,7 @@ def test_bad_inputs_are_named():
     assert fit_spot_on_line(img, [0.0, 1.0], [1.0, 0.0], [1.0, 1.0], 1.3, 3.0) is None   # off the image
 
 
-def _run(fit: bool, hide: bool, seed: int = 3, n_frames: int = 14, want_images: bool = False):
+def _run(fit: bool, hide: bool, seed: int = 3, n_frames: int = 14):
     """Track 6 marks in two views; from frame 4 mark 0's dot in view 0 is pale and blurred
     (``hide``: gone). Returns (tracks per view, true uv (2, F, P, 2))."""
     cams = _two_views()
@@ -100,18 +100,15 @@ def _run(fit: bool, hide: bool, seed: int = 3, n_frames: int = 14, want_images: 
             if fit:
                 recover_by_line_fit(trackers, images, cams, limit.limit())
             check_views(trackers, cams, limit)
-    tracks = [tr.tracks() for tr in trackers]
-    return (tracks, images) if want_images else (tracks, uv)
+    return [tr.tracks() for tr in trackers], uv
 
 
 def test_a_pale_blurred_dot_is_followed_and_a_hidden_one_is_not_invented():
-    _, images = _run(fit=False, hide=False, n_frames=5, want_images=True)
     off, uv = _run(fit=False, hide=False)
-    found, _ = detect_dots(images[0], DotSettings(sigma=1.5))
-    assert np.linalg.norm(found - uv[0, 4, 0], axis=1).min() > 2, "the detector does not see it"
+    assert off[0].visible[4:, 0].mean() <= 0.6, "the tracker alone loses the pale dot in most frames"
     on, _ = _run(fit=True, hide=False)
     vis = on[0].visible[4:, 0]
-    assert vis.mean() >= 0.8 and vis.mean() >= off[0].visible[4:, 0].mean() + 0.3
+    assert vis.mean() >= 0.8
     err = np.linalg.norm(on[0].uv[4:, 0] - uv[0, 4:, 0], axis=1)[vis]
     assert err.max() < 0.75 and np.sqrt(np.mean(err ** 2)) < 0.5   # a pale blurred dot on texture
     hidden, _ = _run(fit=True, hide=True)
