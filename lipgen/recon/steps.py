@@ -37,6 +37,7 @@ from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.linefit import recover_by_line_fit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.stereo_init import layout_dots
@@ -79,35 +80,18 @@ class ReconstructSettings:
         Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
     first_frame_lures : bool
         Drop first-frame matches on dots that no dot of the other view places near the marker
-        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off by default; measured
-        before ``first_frame_dark`` and ``first_frame_layout`` existed: with the later
-        acquisition (``TrackerSettings.acquire_gate=6``) and ``robust_first_frame`` it cut
-        the accepted sightings over 3 px on the validation sets (hard 7-10, default, easy, noise
-        32 seeds 7-10, the erased-dot clip) from 141 to 99 and the wrong first-frame matches from
-        20 to 4, but it accepts fewer sightings (66.7 -> 63.9 %) and is worse on hard seed 9
-        (16 -> 55 over 3 px).
+        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off: measured before
+        ``first_frame_dark`` and ``first_frame_layout`` existed, it cut the validation sets'
+        accepted sightings over 3 px from 141 to 99 but accepted fewer (66.7 -> 63.9 %) and was
+        worse on hard seed 9 (16 -> 55 over 3 px).
     robust_first_frame : bool
         Match the first frame with the trimmed registration (``robust`` of
-        :func:`lipgen.recon.pointreg.match_to_expected`): matches whose residual is an outlier
-        are left out of the similarity fit and of the deformation; the markers it leaves
-        unmatched are acquired on later frames (``TrackerSettings.acquire_gate``, on by default).
-        Off by default; measured before ``first_frame_dark`` and ``first_frame_layout`` existed:
-        with the acquisition it was better on every validation set in total (below), but
-        the recording tutorial's 20-frame ``easy`` H.264 clip (seed 2) then leaves five lower-lip
-        markers unmatched in the first frame and never acquires ``lower_mid`` (exit status 3).
-        Measured (calibrate, track, triangulate, scored against the
-        truth; accepted share, accepted sightings over 3 px in both views), before the
-        acquisition -> with the acquisition and this switch: hard validation seeds 7-10 61.2 /
-        17.4 / 58.4 / 7.5 % -> 67.1 / 46.8 / 59.1 / 44.2 %, over 3 px 9 / 38 / 10 / 65 -> 19 /
-        27 / 16 / 67; noise 32 seeds 7-9 66.2 / 71.5 / 69.0 % -> 74.5 / 78.0 / 74.9 %, over 3
-        px 12 / 7 / 18 -> 2 / 7 / 1 (seed 10: 38.8 %, 1, unchanged); easy and default seed 7
-        0.17/0.16 px, 100 % and 77.5 % -> unchanged and 78.5 %; the 8-frame erased-dot clip
-        78.7 % -> 91.2 %, over 3 px 2 -> 0. In total 57.9 -> 66.7 % accepted, 163 -> 141 over
-        3 px. The acquisition alone (this switch off) accepts 62.6 %, but 221 over 3 px: on hard
-        seeds 8 and 10 it builds on wrong first-frame matches.
-        Test seeds hard 11-13 (looked at once, at the end): 23.2 -> 30.8 % accepted, 160 -> 160
-        over 3 px; seed 12 collapses (29.7 -> 3.1 %: the mirror view loses almost every marker
-        from frame 2).
+        :func:`lipgen.recon.pointreg.match_to_expected`): outlying matches are left out of the
+        similarity fit and of the deformation, and the markers left unmatched are acquired on
+        later frames. Off: measured before ``first_frame_dark`` and ``first_frame_layout``
+        existed, it was better on the validation sets in total (57.9 -> 66.7 % accepted, 163 ->
+        141 over 3 px) but the recording tutorial's 20-frame H.264 clip then never acquired
+        ``lower_mid`` (exit status 3), and hard test seed 12 collapsed (29.7 -> 3.1 %).
     step_k : float or None
         A sighting whose 3-D point moved farther from the marker's last accepted point than
         ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
@@ -125,6 +109,15 @@ class ReconstructSettings:
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
         out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
         of free dots nearest where the other markers put it, or its wrong view is left unmatched.
+    line_fit : bool
+        Fit a marker lost in one view as a dark spot on the epipolar line of the other view's
+        sighting, beside its seen neighbours' dots (:func:`lipgen.recon.linefit.recover_by_line_fit`:
+        pale, blurred or merged dots of the defocused mirror view), unless another marker lies
+        near that line; it then passes the same view checks as any re-acquired sighting. Off:
+        measured before ``backfill`` (accepted share, over 3 px), ``hard`` validation seeds 7 / 8 /
+        9 33.6 / 80.0 / 75.4 -> 35.8 / 80.3 / 74.4 %, over 3 px 87 / 1 / 30 -> 87 / 1 / 32, seed 10
+        unchanged; ``default`` 7 92.5 -> 94.4 %; hard test seed 11 69.0 -> 69.6 %, 16 -> 18 over
+        3 px. More wrong sightings is the worse failure.
     first_frame_dark : float or None
         Match each view's first frame on the dots at least this fraction as dark as the median
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
@@ -180,6 +173,7 @@ class ReconstructSettings:
     identity_recheck: int | None = 3
     rewalk: bool = True
     walk_frames: int = 3
+    line_fit: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -299,6 +293,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
+            if settings.line_fit:
+                recover_by_line_fit(trackers, views, cameras, gap_limit.limit())
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
