@@ -51,10 +51,12 @@ class BlenderSession:
         self._pool = ProcessPoolExecutor(max_workers=1, mp_context=ctx, initializer=_init_worker,
                                          initargs=(dict(env or {}),))
 
-    def run(self, target: str, *args, timeout: float = 300.0, **kwargs):
+    def run(self, target: str, *args, timeout: float | None = None, **kwargs):
         """Call ``"module:function"`` with ``args`` in the Blender process; return its result.
 
-        The module is imported only in the worker (it imports bpy), never here.
+        The module is imported only in the worker (it imports bpy), never here. No timeout by
+        default: how long a check takes depends on the machine's load, not on lipgen (a worker that
+        dies raises ``BrokenProcessPool`` at once).
         """
         return self._pool.submit(_call, target, args, kwargs).result(timeout=timeout)
 
