@@ -24,7 +24,8 @@ def _board(rng, ghost, rows=6, cols=8, blur=1.2, noise=2.0, ss=8):
     sq, ang, skew = rng.uniform(9, 13), rng.uniform(-0.4, 0.4), rng.uniform(-0.15, 0.15)
     A = sq * np.array([[np.cos(ang), -np.sin(ang + skew)], [np.sin(ang), np.cos(ang + skew)]])
     H, W = int(sq * (rows + 5)) + 30, int(sq * (cols + 5)) + 30
-    origin = np.array([W / 2, H / 2]) - A @ np.array([(cols - 1) / 2, (rows - 1) / 2]) + rng.uniform(-0.5, 0.5, 2)
+    origin = np.array([W / 2, H / 2]) - A @ np.array([(cols - 1) / 2, (rows - 1) / 2])
+    origin = origin + rng.uniform(-0.5, 0.5, 2)
     ys, xs = np.mgrid[0:H * ss, 0:W * ss]
     P = np.stack([(xs + 0.5) / ss - 0.5, (ys + 0.5) / ss - 0.5], -1)  # pixel (0, 0) at its centre
 
@@ -92,12 +93,12 @@ def test_no_ghost_is_not_taken_for_one():
 
 def test_ghost_bad_inputs():
     img = np.zeros((60, 60))
-    with pytest.raises(ValueError, match=r"ghost must be \(dx, dy, r\) with finite values and 0 <= r < 1"):
+    with pytest.raises(ValueError, match=r"ghost must be \(dx, dy, r\) with finite values"):
         fit_corners(img, np.zeros((9, 2)), (3, 3), ghost=(1.0, 2.0))
     with pytest.raises(ValueError, match=r"0 <= r < 1, got array\(\[1. , 2. , 1.5\]\)"):
         fit_corners(img, np.zeros((9, 2)), (3, 3), ghost=(1.0, 2.0, 1.5))
-    with pytest.raises(ValueError, match=r"grays, corners and grid_shapes must be equally long and not empty, "
-                                         r"got 1, 2 and 1"):
+    with pytest.raises(ValueError, match=r"grays, corners and grid_shapes must be equally long and not "
+                                         r"empty, got 1, 2 and 1"):
         estimate_ghost([img], [np.zeros((9, 2))] * 2, [(3, 3)])
     with pytest.raises(ValueError, match=r"corners\[0\] must be \(9, 2\) for a 3x3 grid, got shape \(8, 2\)"):
         estimate_ghost([img], [np.zeros((8, 2))], [(3, 3)])
@@ -117,5 +118,5 @@ def test_find_corners_and_calibrate_name_a_bad_ghost():
 
     with pytest.raises(ValueError, match=r"a ghost is modelled by refine='fit' only, got refine='subpix'"):
         find_corners(np.zeros((50, 50)), Chessboard(), refine="subpix", ghost=(1.0, 1.0, 0.05))
-    with pytest.raises(ValueError, match=r"ghost must be 'auto', None or \(dx, dy, r\) with 0 <= r < 1, got 'on'"):
+    with pytest.raises(ValueError, match=r"ghost must be 'auto', None or \(dx, dy, r\) .* got 'on'"):
         calibrate_rig([], default_rig(), ghost="on")

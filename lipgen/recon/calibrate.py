@@ -222,7 +222,8 @@ def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
         return None
     if not isinstance(ghost, str):
         g = np.asarray(ghost, float)
-        return {"shift_px": g[:2].tolist(), "strength": float(g[2]), "snr": None, "corners": None, "used": True}
+        return {"shift_px": g[:2].tolist(), "strength": float(g[2]), "snr": None, "corners": None,
+                "used": True}
     if len(mirror) < min_images:
         return None
     grays = [linear_gray(virt) for _, _, virt in mirror]

@@ -76,7 +76,8 @@ def find_corners(image, board: Chessboard, refine: str = "fit", ghost=None) -> n
     if refine not in REFINERS:
         raise ValueError(f"refine must be one of {REFINERS}, got {refine!r}")
     if ghost is not None and refine != "fit":
-        raise ValueError(f"a ghost is modelled by refine='fit' only, got refine={refine!r} with ghost={ghost!r}")
+        raise ValueError(f"a ghost is modelled by refine='fit' only, got refine={refine!r} with "
+                         f"ghost={ghost!r}")
     cv2 = require("cv2", "chessboard calibration")
     gray_f = as_gray(image)
     gray = np.clip(np.round(gray_f * 255), 0, 255).astype(np.uint8)

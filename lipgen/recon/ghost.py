@@ -110,7 +110,8 @@ def estimate_ghost(grays, corners, grid_shapes, max_shift: float = 12.0, reach: 
         raise ValueError(f"too few interior corners to estimate a ghost: {len(batch['theta'])} (need 4)")
     image = batch.pop("image")
     theta, _ = _solve(imgs, image, batch, None, 12)  # the plain fit, in these images
-    ok = np.isfinite(theta).all(1) & (np.abs(theta[:, 6]) > 1e-6) & (np.abs(theta[:, 4]) < 0.5 * batch["radius"])
+    ok = np.isfinite(theta).all(1) & (np.abs(theta[:, 6]) > 1e-6)
+    ok &= np.abs(theta[:, 4]) < 0.5 * batch["radius"]
     idx = np.flatnonzero(ok)
     sub = idx[np.linspace(0, len(idx) - 1, min(search_corners, len(idx))).round().astype(int)]
     start = _search(imgs, image[sub], theta[sub], batch["radius"][sub], batch["L"][sub], max_shift)
@@ -144,7 +145,8 @@ def _search(imgs, image, theta, radius, L, max_shift) -> np.ndarray:
     starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])  # each corner's first pixel (k is sorted)
 
     def score(dx, dy):
-        t = aw * (_wave(u1 - (c1 * dx + s1 * dy), s, L[k, 0])[0] * _wave(u2 - (c2 * dx + s2 * dy), s, L[k, 1])[0])
+        t = aw * (_wave(u1 - (c1 * dx + s1 * dy), s, L[k, 0])[0]
+                  * _wave(u2 - (c2 * dx + s2 * dy), s, L[k, 1])[0])
         proj = np.add.reduceat(Q * t[:, None], starts, axis=0)
         t = t - (Q * proj[k[starts].searchsorted(k)]).sum(1)
         num, den = float(res @ t), float(t @ t)
