@@ -58,8 +58,8 @@ class Ghost:
 
 
 def estimate_ghost(grays, corners, grid_shapes, max_shift: float = 12.0, reach: float = 0.7,
-                   max_radius: float = 14.0, smooth: float = 0.5, search_corners: int = 200,
-                   fit_corners: int = 2000, iterations: int = 20) -> Ghost:
+                   max_radius: float = 14.0, smooth: float = 0.5, search_corners: int = 150,
+                   fit_corners: int = 800, iterations: int = 20) -> Ghost:
     """Estimate a view's ghost from its chessboard images, all together.
 
     Parameters
