@@ -195,7 +195,7 @@ def _solve(grays, image, batch, ghost, iterations, estimate: bool = False):
             cost_t = (((val - _value(x, trial, L, trial_g)) * w) ** 2).sum(1)
             if cost_t.sum() < cost.sum():
                 theta, ghost, lam = trial, trial_g, lam * 0.3
-                if np.abs(dg[:2]).max() < 1e-4 and np.abs(step[:, :2]).max() < 1e-3:
+                if np.abs(dg[:2]).max() < 1e-3 and np.abs(step[:, :2]).max() < 2e-3:
                     break
             else:
                 lam = lam * 10.0
@@ -230,14 +230,17 @@ def _accept(theta, c0, radius, shape, max_move):
     return np.where(ok[:, None], theta[:, :2], c0), ok
 
 
-def _wave(t, s, L):
+def _wave(t, s, L, deriv: bool = True):
     """A blurred square wave of edges at ``k L`` (k in -2..2), sign +1 just above 0: values, and
-    derivatives in ``t`` and ``s``."""
-    W, dt, ds = np.zeros_like(t), np.zeros_like(t), np.zeros_like(t)
+    derivatives in ``t`` and ``s`` (None without ``deriv``)."""
+    W = np.zeros_like(t)
+    dt, ds = (np.zeros_like(t), np.zeros_like(t)) if deriv else (None, None)
     for k in _WAVE:
         u = (t - k * L) / s
         sign = -1.0 if k % 2 else 1.0
         W += sign * erf(u / _SQRT2)
+        if not deriv:
+            continue
         G = sign * _G / s * np.exp(-0.5 * u * u)
         dt += G
         ds -= G * u
@@ -259,7 +262,7 @@ def _shape(x, theta, L, ghost):
         return EE
     t1, t2, _ = _ghost_geometry(x, theta, L, ghost)
     s = np.abs(theta[:, 4])[:, None] + 1e-9
-    return EE + ghost[2] * _wave(t1, s, L[:, :1])[0] * _wave(t2, s, L[:, 1:])[0]
+    return EE + ghost[2] * _wave(t1, s, L[:, :1], False)[0] * _wave(t2, s, L[:, 1:], False)[0]
 
 
 def _value(x, theta, L, ghost):

@@ -58,8 +58,8 @@ class Ghost:
 
 
 def estimate_ghost(grays, corners, grid_shapes, max_shift: float = 12.0, reach: float = 0.7,
-                   max_radius: float = 14.0, smooth: float = 0.5, search_corners: int = 150,
-                   fit_corners: int = 800, iterations: int = 20) -> Ghost:
+                   max_radius: float = 14.0, smooth: float = 0.5, search_corners: int = 100,
+                   fit_corners: int = 800, iterations: int = 12) -> Ghost:
     """Estimate a view's ghost from its chessboard images, all together.
 
     Parameters
@@ -109,7 +109,7 @@ def estimate_ghost(grays, corners, grid_shapes, max_shift: float = 12.0, reach: 
     if len(batch["theta"]) < 4:
         raise ValueError(f"too few interior corners to estimate a ghost: {len(batch['theta'])} (need 4)")
     image = batch.pop("image")
-    theta, _ = _solve(imgs, image, batch, None, 12)  # the plain fit, in these images
+    theta, _ = _solve(imgs, image, batch, None, 6)  # the plain fit again, in these images (from its result)
     ok = np.isfinite(theta).all(1) & (np.abs(theta[:, 6]) > 1e-6)
     ok &= np.abs(theta[:, 4]) < 0.5 * batch["radius"]
     idx = np.flatnonzero(ok)
@@ -145,8 +145,8 @@ def _search(imgs, image, theta, radius, L, max_shift) -> np.ndarray:
     starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])  # each corner's first pixel (k is sorted)
 
     def score(dx, dy):
-        t = aw * (_wave(u1 - (c1 * dx + s1 * dy), s, L[k, 0])[0]
-                  * _wave(u2 - (c2 * dx + s2 * dy), s, L[k, 1])[0])
+        t = aw * (_wave(u1 - (c1 * dx + s1 * dy), s, L[k, 0], False)[0]
+                  * _wave(u2 - (c2 * dx + s2 * dy), s, L[k, 1], False)[0])
         proj = np.add.reduceat(Q * t[:, None], starts, axis=0)
         t = t - (Q * proj[k[starts].searchsorted(k)]).sum(1)
         num, den = float(res @ t), float(t @ t)
