@@ -162,9 +162,8 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         without it (once). Per-image errors are in :attr:`RigCalibration.per_image`.
     ghost : "auto", None or (3,) float
         The mirror view's ghost: ``"auto"`` estimates it from the mirror boards (at least
-        ``min_images`` of them) and models it in their corners when the images show one (a
-        strength of at least :data:`GHOST_MIN_STRENGTH`, :data:`GHOST_MIN_SNR` times its standard
-        error, and a shift of at least :data:`GHOST_MIN_SHIFT_PX`); None: not modelled; or a known
+        ``min_images`` of them) and models it in their corners when the images show one
+        (:attr:`lipgen.recon.ghost.Ghost.shown`); None: not modelled; or a known
         ``(dx, dy, r)`` in the mirror view's split image (see
         :func:`lipgen.recon.cornerfit.fit_corners`).
 
@@ -208,14 +207,6 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
     return replace(cal, ghost=found)
 
 
-GHOST_MIN_STRENGTH = 0.01
-"""Weakest ghost :func:`calibrate_rig` models (``r``; uncoated glass gives about 0.05)."""
-GHOST_MIN_SNR = 50.0
-"""Fewest standard errors the ghost's strength must be from zero to be modelled."""
-GHOST_MIN_SHIFT_PX = 2.0
-"""Smallest ghost shift modelled, px (a nearer copy is not told apart from the blur)."""
-
-
 def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
     """The ghost of :func:`calibrate_rig` as a dict (with ``"used"``), or None when not estimated."""
     if ghost is None:
@@ -229,8 +220,7 @@ def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
     grays = [linear_gray(virt) for _, _, virt in mirror]
     est = estimate_ghost(grays, [uv for _, uv, _ in mirror],
                          [(boards[k].inner_rows, boards[k].inner_cols) for k, _, _ in mirror])
-    used = (est.strength >= GHOST_MIN_STRENGTH and est.snr >= GHOST_MIN_SNR
-            and float(np.linalg.norm(est.shift)) >= GHOST_MIN_SHIFT_PX)
+    used = est.shown
     log.info("calibration: mirror ghost %.2f %.2f px, strength %.4f (%.0f standard errors): %s", *est.shift,
              est.strength, est.snr, "modelled" if used else "not modelled")
     return est.to_dict() | {"used": bool(used)}

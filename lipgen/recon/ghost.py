@@ -21,7 +21,14 @@ from scipy.ndimage import gaussian_filter
 
 from lipgen.recon.cornerfit import _model, _prepare, _sample, _solve, _wave
 
-__all__ = ["Ghost", "estimate_ghost"]
+__all__ = ["Ghost", "estimate_ghost", "MIN_STRENGTH", "MIN_SNR", "MIN_SHIFT_PX"]
+
+MIN_STRENGTH = 0.01
+"""Weakest ghost :attr:`Ghost.shown` accepts (``r``; uncoated glass gives about 0.05)."""
+MIN_SNR = 50.0
+"""Fewest standard errors a ghost's strength must be from zero for :attr:`Ghost.shown`."""
+MIN_SHIFT_PX = 2.0
+"""Smallest ghost shift :attr:`Ghost.shown` accepts, px (a nearer copy is not told apart from the blur)."""
 
 
 @dataclass(frozen=True)
@@ -45,6 +52,15 @@ class Ghost:
     strength: float
     snr: float
     corners: int
+
+    @property
+    def shown(self) -> bool:
+        """Whether the images clearly show a ghost: a strength of at least :data:`MIN_STRENGTH` and
+        :data:`MIN_SNR` standard errors, and a shift of at least :data:`MIN_SHIFT_PX`. Without a
+        ghost the estimate is a spurious copy about 1.6 px away at 20-25 standard errors
+        (``easy`` calibration frames and synthetic boards)."""
+        return bool(self.strength >= MIN_STRENGTH and self.snr >= MIN_SNR
+                    and float(np.linalg.norm(self.shift)) >= MIN_SHIFT_PX)
 
     @property
     def params(self) -> np.ndarray:
