@@ -31,7 +31,7 @@ MIN_SHIFT_PX = 2.0
 """Smallest ghost shift :attr:`Ghost.shown` accepts, px (a nearer copy is not told apart from the blur)."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Ghost:
     """A view's ghost as estimated from its chessboard images.
 
