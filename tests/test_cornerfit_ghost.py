@@ -72,7 +72,7 @@ def test_known_ghost_removes_the_plain_fits_bias():
 def test_ghost_is_estimated_from_the_boards(ghost):
     boards = _boards(2, ghost)
     plain = [fit_corners(img, start, SHAPE)[0] for img, _, start in boards]
-    est = estimate_ghost([img for img, _, _ in boards], plain, [SHAPE] * len(boards))
+    est = estimate_ghost([img for img, _, _ in boards], plain, [SHAPE] * len(boards), max_shift=9)
     assert isinstance(est, Ghost)
     assert np.linalg.norm(est.shift - ghost[:2]) < 0.25, est
     assert abs(est.strength - ghost[2]) < 0.15 * ghost[2], est
@@ -85,7 +85,7 @@ def test_no_ghost_is_not_taken_for_one():
     """Without a ghost the estimate is weak and uncertain: below calibrate_rig's bar for modelling it."""
     boards = _boards(3, None)
     plain = [fit_corners(img, start, SHAPE)[0] for img, _, start in boards]
-    est = estimate_ghost([img for img, _, _ in boards], plain, [SHAPE] * len(boards))
+    est = estimate_ghost([img for img, _, _ in boards], plain, [SHAPE] * len(boards), max_shift=9)
     assert not est.shown, est
 
 
