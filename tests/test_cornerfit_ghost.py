@@ -118,3 +118,17 @@ def test_find_corners_and_calibrate_name_a_bad_ghost():
         find_corners(np.zeros((50, 50)), Chessboard(), refine="subpix", ghost=(1.0, 1.0, 0.05))
     with pytest.raises(ValueError, match=r"ghost must be 'auto', None or \(dx, dy, r\) .* got 'on'"):
         calibrate_rig([], default_rig(), ghost="on")
+
+
+def test_calibration_skips_the_ghost_on_boards_too_small_to_show_one():
+    """Small boards (few corners inside) give no estimate rather than an error; a known ghost is
+    taken as is."""
+    from lipgen.recon.calibrate import _mirror_ghost
+    from lipgen.rig.target import Chessboard
+
+    board = Chessboard(4, 3, 5.0)  # 2 corners inside each: 12 in all
+    mirror = [(k, np.zeros((12, 2)), np.zeros((40, 40, 3), np.uint8)) for k in range(6)]
+    assert _mirror_ghost(mirror, [board] * 6, "auto", 4) is None
+    assert _mirror_ghost(mirror, [board] * 6, None, 4) is None
+    known = _mirror_ghost(mirror, [board] * 6, (-7.0, 0.5, 0.05), 4)
+    assert known["used"] and known["shift_px"] == [-7.0, 0.5] and known["strength"] == 0.05

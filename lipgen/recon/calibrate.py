@@ -210,6 +210,9 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
     return replace(cal, ghost=found)
 
 
+_GHOST_MIN_CORNERS = 20  # corners one step inside their boards, fewest to estimate a ghost from
+
+
 def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
     """The ghost of :func:`calibrate_rig` as a dict (with ``"used"``), or None when not estimated."""
     if ghost is None:
@@ -218,11 +221,18 @@ def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
         g = np.asarray(ghost, float)
         return {"shift_px": g[:2].tolist(), "strength": float(g[2]), "snr": None, "corners": None,
                 "used": True}
-    if len(mirror) < min_images:
+    shapes = [(boards[k].inner_rows, boards[k].inner_cols) for k, _, _ in mirror]
+    interior = sum(max(r - 2, 0) * max(c - 2, 0) for r, c in shapes)
+    if len(mirror) < min_images or interior < _GHOST_MIN_CORNERS:
+        log.info("calibration: too few mirror boards (%d) or inner corners (%d) to estimate a ghost",
+                 len(mirror), interior)
         return None
     grays = [linear_gray(virt) for _, _, virt in mirror]
-    est = estimate_ghost(grays, [uv for _, uv, _ in mirror],
-                         [(boards[k].inner_rows, boards[k].inner_cols) for k, _, _ in mirror])
+    try:
+        est = estimate_ghost(grays, [uv for _, uv, _ in mirror], shapes)
+    except np.linalg.LinAlgError as e:  # degenerate boards: no ghost can be told
+        log.info("calibration: the mirror ghost could not be estimated (%s)", e)
+        return None
     used = est.shown
     log.info("calibration: mirror ghost %.2f %.2f px, strength %.4f (%.0f standard errors): %s", *est.shift,
              est.strength, est.snr, "modelled" if used else "not modelled")
