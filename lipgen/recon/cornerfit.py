@@ -21,6 +21,14 @@ the way to the neighbouring corners (``reach`` times their distance): about twic
 length of the usual window, and the noise, the aliasing of the rendered edges and the JPEG
 blocks average over it. Measured on rendered ``hard`` calibration frames in
 :mod:`lipgen.recon.chessboard`.
+
+A mirror's glass adds a faint copy of the whole view, shifted (its front-surface ghost). In linear
+light the image is then ``I(p) + r I(p - delta)``; ``ghost=(dx, dy, r)`` adds to the model the
+copy of the local board, ``r * a * W1 * W2`` at ``p - delta``, where ``W1``, ``W2`` are the
+blurred square waves of the board's two families of lines (five edges each, spaced as the
+neighbouring corners), so that the copy is right however far the shift reaches across the
+squares. The shift and strength are estimated from all boards of a view together
+(:func:`lipgen.recon.ghost.estimate_ghost`).
 """
 
 from __future__ import annotations
@@ -33,17 +41,19 @@ __all__ = ["fit_corners"]
 
 _SQRT2 = np.sqrt(2.0)
 _G = np.sqrt(2.0 / np.pi)
+_WAVE = (-2, -1, 0, 1, 2)  # the edges of a square wave, in line spacings
 
 
 def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float = 14.0,
-                iterations: int = 12, max_move: float = 1.5,
-                smooth: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+                iterations: int = 12, max_move: float = 1.5, smooth: float = 0.5,
+                ghost=None) -> tuple[np.ndarray, np.ndarray]:
     """Refine chessboard corners by fitting the blurred X-junction model.
 
     Parameters
     ----------
     gray : (H, W) float
         The image (any linear or tone-mapped scale; the model's mean and contrast are fitted).
+        With ``ghost``, linear light (the ghost adds in linear light).
     corners : (rows * cols, 2) float
         Starting corners (column, row), px, row by row in a ``grid_shape`` grid, within about a
         pixel of the truth (e.g. ``cornerSubPix``'s).
@@ -64,6 +74,9 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
     max_move : float
         A corner whose fit moves farther than this from its start (px), leaves the image, or does
         not fit (a contrast of the wrong sign, a blur over half the radius) keeps its start.
+    ghost : (3,) float or None
+        A known ghost ``(dx, dy, r)``: the image holds ``r`` times a copy of itself shifted by
+        ``(dx, dy)`` px (see the module's docstring); None: no ghost.
 
     Returns
     -------
@@ -79,8 +92,21 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         raise ValueError(f"gray must be an (H, W) image, got shape {g.shape}")
     if c0.shape != (rows * cols, 2):
         raise ValueError(f"corners must be ({rows * cols}, 2) for a {rows}x{cols} grid, got shape {c0.shape}")
+    if ghost is not None:
+        ghost = np.asarray(ghost, float)
+        if ghost.shape != (3,) or not np.isfinite(ghost).all() or not 0 <= ghost[2] < 1:
+            raise ValueError(f"ghost must be (dx, dy, r) with finite values and 0 <= r < 1, got {ghost!r} "
+                             f"of shape {ghost.shape}")
     if smooth > 0:
         g = gaussian_filter(g, smooth, mode="nearest")
+    batch = _prepare(c0, (rows, cols), reach, max_radius)
+    theta, _ = _solve([g], np.zeros(len(c0), int), batch, ghost, iterations)
+    return _accept(theta, c0, batch["radius"], g.shape, max_move)
+
+
+def _prepare(c0: np.ndarray, grid_shape, reach: float, max_radius: float) -> dict:
+    """Per corner: the starting parameters, the disc radius, the signed line spacings, the grid index."""
+    rows, cols = grid_shape
     grid = c0.reshape(rows, cols, 2)
     # edge directions from the neighbours (central differences, one-sided at the border)
     du = np.gradient(grid, axis=1).reshape(-1, 2)  # along a row of corners
@@ -98,27 +124,55 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
     phi1 = np.arctan2(du[:, 0], -du[:, 1])
     phi2 = np.arctan2(dv[:, 0], -dv[:, 1])
     n = len(c0)
+    # spacing of each family of lines along its normal: the next row (column) of corners
+    L = np.column_stack([np.cos(phi1) * dv[:, 0] + np.sin(phi1) * dv[:, 1],
+                         np.cos(phi2) * du[:, 0] + np.sin(phi2) * du[:, 1]])
+    j, i = np.mgrid[0:rows, 0:cols]
+    theta = np.column_stack([c0, phi1, phi2, np.ones(n), np.zeros(n), np.zeros(n)])  # c, phi1, phi2, s, m, a
+    return {"theta": theta, "radius": radius, "L": L, "ij": np.column_stack([i.ravel(), j.ravel()])}
+
+
+def _sample(grays, image, theta, radius, off):
+    """Pixels round each corner's current centre: offsets ``x`` (n, P, 2), values (n, P), weights (n, P)."""
+    centre = np.round(theta[:, :2])
+    pix = centre[:, None, :] + off[None]  # (n, P, 2)
+    val = np.empty(pix.shape[:2])
+    inside = np.empty(pix.shape[:2], bool)
+    for k, g in enumerate(grays):
+        sel = image == k
+        if not sel.any():
+            continue
+        H, W = g.shape
+        p = pix[sel]
+        inside[sel] = (p[..., 0] >= 0) & (p[..., 0] < W) & (p[..., 1] >= 0) & (p[..., 1] < H)
+        val[sel] = g[np.clip(p[..., 1].astype(int), 0, H - 1), np.clip(p[..., 0].astype(int), 0, W - 1)]
+    x = pix - theta[:, None, :2]
+    # a soft disc edge (1 px), so that the fit moves smoothly as the disc is re-centred
+    w = np.clip(radius[:, None] + 0.5 - np.linalg.norm(x, axis=-1), 0.0, 1.0) * inside
+    return x, val, w
+
+
+def _solve(grays, image, batch, ghost, iterations, estimate: bool = False):
+    """Damped Gauss-Newton on the corners of ``batch`` (in images ``grays[image[i]]``).
+
+    With ``estimate``, the ghost ``(dx, dy, r)`` is fitted too, jointly with every corner (the
+    normal equations reduced to the ghost's three unknowns by the Schur complement, one damping
+    for all); otherwise each corner is damped and accepted on its own. Returns the parameters
+    (n, 7) and the ghost (3,) or None."""
+    theta = batch["theta"].copy()
+    radius, L = batch["radius"], batch["L"]
+    n = len(theta)
     R = int(np.ceil(radius.max())) + 1
     oy, ox = np.mgrid[-R:R + 1, -R:R + 1]
     off = np.column_stack([ox.ravel(), oy.ravel()]).astype(float)  # (P, 2)
-    H, W = g.shape
-    theta = np.column_stack([c0, phi1, phi2, np.ones(n), np.zeros(n), np.zeros(n)])  # c, phi1, phi2, s, m, a
     lam = np.full(n, 1e-3)
     first = True
     for _ in range(iterations):
-        centre = np.round(theta[:, :2])
-        pix = centre[:, None, :] + off[None]  # (n, P, 2)
-        inside = (pix[..., 0] >= 0) & (pix[..., 0] < W) & (pix[..., 1] >= 0) & (pix[..., 1] < H)
-        ix = np.clip(pix[..., 0].astype(int), 0, W - 1)
-        iy = np.clip(pix[..., 1].astype(int), 0, H - 1)
-        val = g[iy, ix]
-        x = pix - theta[:, None, :2]
-        # a soft disc edge (1 px), so that the fit moves smoothly as the disc is re-centred
-        w = np.clip(radius[:, None] + 0.5 - np.linalg.norm(x, axis=-1), 0.0, 1.0) * inside
+        x, val, w = _sample(grays, image, theta, radius, off)
         if first:  # mean and contrast by linear least squares on the starting edges
-            theta[:, 5:7] = _linear_fit(_parts(x, theta)[0], val, w)
+            theta[:, 5:7] = _linear_fit(_shape(x, theta, L, ghost), val, w)
             first = False
-        f, J = _model(x, theta)
+        f, J, Jg = _model(x, theta, L, ghost, estimate)
         r = (val - f) * w
         Jw = J * w[..., None]
         JwT = Jw.transpose(0, 2, 1)
@@ -126,25 +180,94 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
         b = (JwT @ r[..., None])[..., 0]
         cost = (r ** 2).sum(1)
         A = A + lam[:, None, None] * np.einsum("nii->ni", A)[:, :, None] * np.eye(7)
-        try:
-            step = np.linalg.solve(A, b[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            step = np.stack([np.linalg.lstsq(Ai, bi, rcond=None)[0] for Ai, bi in zip(A, b, strict=True)])
+        if estimate:
+            Jgw = Jg * w[..., None]
+            B = JwT @ Jgw  # (n, 7, 3)
+            C = np.einsum("npi,npj->ij", Jgw, Jgw)
+            bg = np.einsum("npi,np->i", Jgw, r)
+            AiB = _solve_stack(A, B)
+            Aib = _solve_stack(A, b[..., None])[..., 0]
+            S = C * (1 + lam[0] * np.eye(3)) - np.einsum("nki,nkj->ij", B, AiB)
+            dg = np.linalg.solve(S, bg - np.einsum("nki,nk->i", B, Aib))
+            step = Aib - AiB @ dg
+            trial_g = ghost + dg
+            trial = theta + step
+            cost_t = (((val - _value(x, trial, L, trial_g)) * w) ** 2).sum(1)
+            if cost_t.sum() < cost.sum():
+                theta, ghost, lam = trial, trial_g, lam * 0.3
+                if np.abs(dg[:2]).max() < 1e-3 and np.abs(step[:, :2]).max() < 2e-3:
+                    break
+            else:
+                lam = lam * 10.0
+            continue
+        step = _solve_stack(A, b[..., None])[..., 0]
         trial = theta + step
-        ft = trial[:, 5:6] + trial[:, 6:7] * _parts(x, trial)[0]  # the model's values, no Jacobian
-        cost_t = (((val - ft) * w) ** 2).sum(1)
+        cost_t = (((val - _value(x, trial, L, ghost)) * w) ** 2).sum(1)  # the model's values, no Jacobian
         better = cost_t < cost
         theta = np.where(better[:, None], trial, theta)
         lam = np.where(better, lam * 0.3, lam * 10.0)
         if (np.abs(step[:, :2]) < 1e-4).all() and better.all():  # converged: a step of 1e-4 px
             break
+    return theta, ghost
+
+
+def _solve_stack(A, B):
+    """``A^-1 B`` for a stack of systems; least squares where one is singular (a corner without edges)."""
+    try:
+        return np.linalg.solve(A, B)
+    except np.linalg.LinAlgError:
+        return np.stack([np.linalg.lstsq(Ai, Bi, rcond=None)[0] for Ai, Bi in zip(A, B, strict=True)])
+
+
+def _accept(theta, c0, radius, shape, max_move):
+    """The fitted corners where the fit is sound, else the starts; and which were fitted."""
+    H, W = shape
     moved = np.linalg.norm(theta[:, :2] - c0, axis=1)
     s = np.abs(theta[:, 4])
     ok = np.isfinite(theta).all(1) & (moved <= max_move) & (s < 0.5 * radius)
     ok &= (theta[:, 0] >= 0) & (theta[:, 0] <= W - 1) & (theta[:, 1] >= 0) & (theta[:, 1] <= H - 1)
     ok &= np.abs(theta[:, 6]) > 1e-6
-    out = np.where(ok[:, None], theta[:, :2], c0)
-    return out, ok
+    return np.where(ok[:, None], theta[:, :2], c0), ok
+
+
+def _wave(t, s, L, deriv: bool = True):
+    """A blurred square wave of edges at ``k L`` (k in -2..2), sign +1 just above 0: values, and
+    derivatives in ``t`` and ``s`` (None without ``deriv``)."""
+    W = np.zeros_like(t)
+    dt, ds = (np.zeros_like(t), np.zeros_like(t)) if deriv else (None, None)
+    for k in _WAVE:
+        u = (t - k * L) / s
+        sign = -1.0 if k % 2 else 1.0
+        W += sign * erf(u / _SQRT2)
+        if not deriv:
+            continue
+        G = sign * _G / s * np.exp(-0.5 * u * u)
+        dt += G
+        ds -= G * u
+    return W, dt, ds
+
+
+def _ghost_geometry(x, theta, L, ghost):
+    """The ghost's line coordinates ``t1``, ``t2`` (n, P), and pieces for its derivatives."""
+    c1, s1 = np.cos(theta[:, 2])[:, None], np.sin(theta[:, 2])[:, None]
+    c2, s2 = np.cos(theta[:, 3])[:, None], np.sin(theta[:, 3])[:, None]
+    xg = x - ghost[:2]
+    return c1 * xg[..., 0] + s1 * xg[..., 1], c2 * xg[..., 0] + s2 * xg[..., 1], (c1, s1, c2, s2, xg)
+
+
+def _shape(x, theta, L, ghost):
+    """The model's shape without mean and contrast: ``E1 E2`` plus the ghost ``r W1 W2``."""
+    EE = _parts(x, theta)[0]
+    if ghost is None:
+        return EE
+    t1, t2, _ = _ghost_geometry(x, theta, L, ghost)
+    s = np.abs(theta[:, 4])[:, None] + 1e-9
+    return EE + ghost[2] * _wave(t1, s, L[:, :1], False)[0] * _wave(t2, s, L[:, 1:], False)[0]
+
+
+def _value(x, theta, L, ghost):
+    """Model values (n, P)."""
+    return theta[:, 5:6] + theta[:, 6:7] * _shape(x, theta, L, ghost)
 
 
 def _parts(x, theta):
@@ -158,8 +281,9 @@ def _parts(x, theta):
     return E1 * E2, (c1, s1, c2, s2, s, d1, d2, E1, E2)
 
 
-def _model(x, theta):
-    """Model values (n, P) and the Jacobian (n, P, 7) in (cx, cy, phi1, phi2, s, m, a)."""
+def _model(x, theta, L=None, ghost=None, estimate=False):
+    """Model values (n, P), the Jacobian (n, P, 7) in (cx, cy, phi1, phi2, s, m, a), and with
+    ``estimate`` the Jacobian (n, P, 3) in the ghost's (dx, dy, r) (else None)."""
     EE, (c1, s1, c2, s2, s, d1, d2, E1, E2) = _parts(x, theta)
     m, a = theta[:, 5:6], theta[:, 6:7]
     G1 = _G / s * np.exp(-0.5 * (d1 / s) ** 2)
@@ -175,7 +299,26 @@ def _model(x, theta):
         np.ones_like(EE),
         EE,
     ], -1)
-    return m + a * EE, J
+    f = m + a * EE
+    if ghost is None:
+        return f, J, None
+    u1, u2, (c1, s1, c2, s2, xg) = _ghost_geometry(x, theta, L, ghost)
+    W1, dW1, sW1 = _wave(u1, s, L[:, :1])
+    W2, dW2, sW2 = _wave(u2, s, L[:, 1:])
+    r = ghost[2]
+    WW = W1 * W2
+    g1, g2 = a * dW1 * W2, a * W1 * dW2  # a times the derivatives along each normal
+    dx, dy = -(g1 * c1 + g2 * c2), -(g1 * s1 + g2 * s2)
+    J = J + r * np.stack([
+        dx, dy,
+        g1 * (-s1 * xg[..., 0] + c1 * xg[..., 1]),
+        g2 * (-s2 * xg[..., 0] + c2 * xg[..., 1]),
+        a * (sW1 * W2 + W1 * sW2),
+        np.zeros_like(WW),
+        WW,
+    ], -1)
+    Jg = np.stack([r * dx, r * dy, a * WW], -1) if estimate else None
+    return f + a * r * WW, J, Jg
 
 
 def _linear_fit(E, val, w):
