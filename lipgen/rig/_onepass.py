@@ -35,6 +35,7 @@ def _one_pass_class(pr):
         views = None  # [(camera node, (x, y, w, h)), ...] while drawing side by side
         want_depth = False
         order = None  # the mesh nodes in draw order, sorted once for all the views
+        samples = 4  # multisampling of the main framebuffer (pyrender's 4)
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             if self.views is None:
@@ -90,6 +91,17 @@ def _one_pass_class(pr):
                 GL.glDisable(GL.GL_SCISSOR_TEST)
             GL.glFlush()
             return self._read_both(W, H)
+
+        def _configure_main_framebuffer(self):
+            """pyrender's framebuffers, the multisampled ones with ``samples`` samples per pixel
+            (pyrender's 4 unless set; 0: no multisampling, each pixel shaded and covered once)."""
+            fresh = self._main_fb is None or self._main_fb_dims != (self.viewport_width, self.viewport_height)
+            super()._configure_main_framebuffer()
+            if fresh and self.samples != 4:
+                for rb, fmt in ((self._main_cb_ms, GL.GL_RGBA), (self._main_db_ms, GL.GL_DEPTH_COMPONENT24)):
+                    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+                    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, self.samples, fmt,
+                                                        self.viewport_width, self.viewport_height)
 
         def _lights_fit(self, scene, flags) -> bool:
             """Every light is bound, whatever the node (pyrender sorts lights by their distance from
