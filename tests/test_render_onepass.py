@@ -71,3 +71,33 @@ def test_one_pass_keeps_the_shadow_maps_of_textured_surfaces_in_the_second_view(
     for (ca, _, _), (cb, _, _) in zip(got[True], got[False], strict=True):
         diff = np.abs(ca.astype(int) - cb.astype(int)).max(axis=-1)
         assert diff.max() <= 4 and np.mean(diff > 0) < 1e-3, (diff.max(), np.mean(diff > 0))
+
+
+def test_multisampling_can_be_turned_off_and_back_to_the_same_bytes():
+    """``samples=0`` draws without multisampling (edges aliased, a pixel shaded and covered once);
+    back at pyrender's 4 the frames are the bytes they were."""
+    from OpenGL import GL
+
+    face = FaceModel(lip_mesh(1))
+    with render.RigRenderer(default_rig(160, 120)) as r:
+        assert r.samples == 4
+        before = r.render(_scene(face, 1)).image
+        r.samples = 0
+        aliased = r.render(_scene(face, 1)).image
+        gl = r._renderer
+        gl._platform.make_current()
+        try:
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, gl._renderer._main_cb_ms)
+            assert GL.glGetRenderbufferParameteriv(GL.GL_RENDERBUFFER, GL.GL_RENDERBUFFER_SAMPLES) == 0
+        finally:
+            gl._platform.make_uncurrent()
+        r.samples = 4
+        after = r.render(_scene(face, 1)).image
+        for bad in (-1, 17, 2.0, True, "4"):
+            with pytest.raises(ValueError, match="samples"):
+                r.samples = bad
+    assert after.tobytes() == before.tobytes()
+    differ = (aliased != before).any(axis=-1)
+    assert 0 < differ.mean() < 0.1  # edges only: the background and the surfaces' insides agree
+    with pytest.raises(ValueError, match="one-pass"):
+        render.RigRenderer(default_rig(160, 120), one_pass=False, samples=0)

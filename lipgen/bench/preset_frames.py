@@ -20,8 +20,11 @@ the ``face`` item (the lips and the head round them, most of the scene's triangl
 triangles turned away from the cameras (culled before rasterization: its vertex work stays), and
 with each of its triangles split in four (the same surface and pixels, four times the triangles).
 On llvmpipe the last two say whether the head costs by its pixels or by its triangles.
-``fidelity``: how far the hard preset's blur instants and head mesh move its frames against
-dense references, beside the sensor's noise (:mod:`lipgen.bench.preset_fidelity`).
+``msaa``: one hard render without multisampling over one with pyrender's 4 samples (CPU,
+interleaved), and how far that moves the render's face pixels (RMS, largest, share over 3 grey
+levels; before the lens and the sensor). ``fidelity``: how far the hard preset's blur instants and
+head mesh move its frames against dense references, beside the sensor's noise
+(:mod:`lipgen.bench.preset_fidelity`).
 
 Measured (2 cores, load 8, main at c7c70a3): hard/easy 0.29 CPU (0.21-0.25 wall); 0.47 s CPU
 per hard frame of which about 0.45 s is 1.75 renders; in one hard render, without the ``face``
@@ -34,6 +37,13 @@ With hard's blur instants at most 2 px apart (``blur_step_px``; before: 1 px) ev
 bench's motion is one render (1.75 before): hard/easy 0.292-0.294 CPU, 0.297-0.298 wall,
 against 0.267-0.274 and 0.251-0.254 for the 1 px spacing in alternating runs (load 23-34); one
 hard render still costs 0.23-0.26 s CPU against about 0.07 s for a whole easy render.
+``msaa`` (speed2, load 33, 4 rounds): without multisampling a hard render takes 0.48 of the CPU
+(the 4 samples, not the shading, are half of llvmpipe's work), but the face's pixels move by 3.5
+grey levels RMS, up to 99 at silhouettes, lips, teeth and dots (3.4 % of them by more than 3):
+more than the sensor's own shot and read noise there (2.24), so ``hard`` keeps 4 samples. A
+4-sample pass confined by the scissor to a box round the mouth still cost 0.84 of the full one
+at 30 % of the area (its triangles are set up and binned all the same), so a 1-sample frame with
+a multisampled mouth would cost more than today's.
 """
 
 from __future__ import annotations
@@ -105,6 +115,38 @@ def _shadow_filter(worker: dict, motion, reps: int) -> dict:
     ratio = np.asarray(cpu["lipgen"]) / np.maximum(cpu["pyrender"], 1e-9)
     return {"lipgen_over_pyrender_cpu": float(np.median(ratio)), "repeats": reps,
             "lipgen_filter_installed": type(caches["lipgen"]) is not ShaderProgramCache}
+
+
+def _msaa(worker: dict, motion, reps: int) -> dict:
+    """One hard render without multisampling (``RigRenderer.samples`` 0) against pyrender's 4
+    samples, on the hard worker's renderer, interleaved: the CPU ratio (median per round) and how
+    far the render's pixels move (both views, grey levels of the 8-bit render before the lens,
+    sensor and codec) over the face's pixels (those more than 10 levels from the background)."""
+    scenes = [worker["face"].scene(motion.vertices[i], motion.poses[i], lights=worker["lights"])
+              for i in range(len(motion.vertices))]
+    r = worker["renderer"]
+    cpu, diffs, face_px = {0: [], 4: []}, [], 0
+    try:
+        for k in range(reps + 1):
+            views = {}
+            for samples in (4, 0):
+                r.samples = samples
+                r.render_views(scenes[k % len(scenes)])  # the framebuffer is made again for the new count
+                c0 = time.process_time()
+                views[samples] = [v[0].astype(np.int16) for v in r.render_views(scenes[k % len(scenes)])]
+                if k:
+                    cpu[samples].append(time.process_time() - c0)
+            for a, b in zip(views[4], views[0], strict=True):
+                face = np.abs(a - a[0, 0]).max(axis=-1) > 10  # the corner pixel is background
+                diffs.append(np.abs(a - b).max(axis=-1)[face])
+                face_px += int(face.sum())
+    finally:
+        r.samples = 4
+    d = np.concatenate(diffs).astype(float)
+    return {"no_msaa_over_msaa4_cpu": float(np.median(np.asarray(cpu[0]) / np.maximum(cpu[4], 1e-9))),
+            "msaa4_cpu_s": float(np.median(cpu[4])), "face_rms": float(np.sqrt(np.mean(d**2))),
+            "face_max": float(d.max()), "face_over_3": float(np.mean(d > 3)), "face_pixels": face_px,
+            "repeats": reps}
 
 
 def _split4(item):
@@ -191,6 +233,7 @@ def run(quick: bool = False) -> dict:
             gen._WORKER.clear()
         shadow = _shadow_filter(workers["hard"], motion, 3 if quick else 8)
         face_cost = _face_cost(workers["hard"], motion, 3 if quick else 8)
+        msaa = _msaa(workers["hard"], motion, 3 if quick else 8)
         fidelity = measure_fidelity(workers["hard"], motion, range(1, 1 + (2 if quick else 6)))
         for w in workers.values():
             with contextlib.suppress(Exception):  # the first close ends the process's EGL display
@@ -206,6 +249,7 @@ def run(quick: bool = False) -> dict:
         "hard_renders_per_frame": renders / n,
         "shadow_filter": shadow,
         "face_cost": face_cost,
+        "msaa": msaa,
         "fidelity": fidelity,
         "target": {"hard_over_easy_fps": 0.5},
         "loadavg_before": load_before,

@@ -34,6 +34,8 @@ def _one_pass_class(pr):
 
         views = None  # [(camera node, (x, y, w, h)), ...] while drawing side by side
         want_depth = False
+        order = None  # the mesh nodes in draw order, sorted once for all the views
+        samples = 4  # multisampling of the main framebuffer (pyrender's 4)
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             if self.views is None:
@@ -60,7 +62,7 @@ def _one_pass_class(pr):
             lit = {}  # program -> texture units its lights (shadow maps) hold, bound in this pass
             same_lights = self._lights_fit(scene, flags)
             try:
-                for node in self._sorted_mesh_nodes(scene):
+                for node in self.order if self.order is not None else self._sorted_mesh_nodes(scene):
                     if not node.mesh.is_visible:
                         continue
                     pose = scene.get_pose(node)
@@ -89,6 +91,17 @@ def _one_pass_class(pr):
                 GL.glDisable(GL.GL_SCISSOR_TEST)
             GL.glFlush()
             return self._read_both(W, H)
+
+        def _configure_main_framebuffer(self):
+            """pyrender's framebuffers, the multisampled ones with ``samples`` samples per pixel
+            (pyrender's 4 unless set; 0: no multisampling, each pixel shaded and covered once)."""
+            fresh = self._main_fb is None or self._main_fb_dims != (self.viewport_width, self.viewport_height)
+            super()._configure_main_framebuffer()
+            if fresh and self.samples != 4:
+                for rb, fmt in ((self._main_cb_ms, GL.GL_RGBA), (self._main_db_ms, GL.GL_DEPTH_COMPONENT24)):
+                    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, rb)
+                    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, self.samples, fmt,
+                                                        self.viewport_width, self.viewport_height)
 
         def _lights_fit(self, scene, flags) -> bool:
             """Every light is bound, whatever the node (pyrender sorts lights by their distance from
@@ -186,12 +199,14 @@ def _linear_depth(d: np.ndarray, znear: float, zfar: float) -> np.ndarray:
     return d
 
 
-def _same_draw_order(renderer, scene, nodes) -> bool:
+def _draw_order(renderer, scene, nodes) -> list | None:
+    """The mesh nodes in the order every camera of ``nodes`` draws them, or None if they differ."""
     orders = []
     for node in nodes:
         scene.main_camera_node = node
-        orders.append([id(n) for n in renderer._sorted_mesh_nodes(scene)])
-    return all(o == orders[0] for o in orders)
+        orders.append(renderer._sorted_mesh_nodes(scene))
+    first = [id(n) for n in orders[0]]
+    return orders[0] if all([id(n) for n in o] == first for o in orders[1:]) else None
 
 
 def render_side_by_side(offscreen, scene, views, flags, depth: bool = False):
@@ -218,7 +233,8 @@ def render_side_by_side(offscreen, scene, views, flags, depth: bool = False):
     from pyrender.constants import RenderFlags
 
     r = offscreen._renderer
-    if not _same_draw_order(r, scene, [node for node, _, _ in views]):
+    order = _draw_order(r, scene, [node for node, _, _ in views])
+    if order is None:
         return None
     H = max(int(h) for _, _, h in views)
     regions, x = [], 0
@@ -227,11 +243,11 @@ def render_side_by_side(offscreen, scene, views, flags, depth: bool = False):
         x += int(w)
     offscreen._platform.make_current()
     r.point_size = offscreen.point_size
-    r.views, r.want_depth = regions, bool(depth)
+    r.views, r.want_depth, r.order = regions, bool(depth), order
     try:
         color, z = r.render(scene, flags | RenderFlags.OFFSCREEN)
     finally:
-        r.views, r.want_depth = None, False
+        r.views, r.want_depth, r.order = None, False, None
         offscreen._platform.make_uncurrent()
     color = color[::-1]
     z = None if z is None else z[::-1]

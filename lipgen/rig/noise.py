@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 
 import numpy as np
 
@@ -26,6 +27,8 @@ __all__ = ["rounded_gaussian_pmf", "rounded_gaussian", "add_rounded_gaussian"]
 
 _TAIL = 9.0  # standard deviations kept: P(|z| > 9) is 2e-19, far below 2^-32
 _STEP = np.int16(-32768)  # table entry: this 16-bit bucket holds a step of the CDF
+_LITTLE = sys.byteorder == "little"
+_RAW_OK = ("PCG64", "PCG64DXSM")  # bit generators whose 32-bit draws halve a 64-bit output as above
 
 
 def _support(sigma: float) -> np.ndarray:
@@ -70,6 +73,20 @@ def _tables(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return edges, values, bucket
 
 
+def _uniform_u32(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``rng.integers(0, 2**32, size=n, dtype=np.uint32)``, the same values and the same state after.
+
+    numpy draws each full-range 32-bit integer as the low, then the high half of the bit
+    generator's next 64-bit output (keeping an unused high half for the next draw). With nothing
+    kept, ``n`` even and a little-endian machine, that is ``random_raw(n // 2)`` seen as 32-bit
+    halves, at about half the CPU (no call per value); otherwise ``integers`` itself.
+    """
+    bits = rng.bit_generator
+    if n % 2 == 0 and _LITTLE and type(bits).__name__ in _RAW_OK and not bits.state.get("has_uint32", 1):
+        return bits.random_raw(n // 2).view(np.uint32)
+    return rng.integers(0, 1 << 32, size=n, dtype=np.uint32)
+
+
 def rounded_gaussian(shape, sigma: float, rng: np.random.Generator) -> np.ndarray:
     """Integers ``round(sigma * z)``, ``z ~ N(0, 1)`` independent, of the given ``shape`` (int16).
 
@@ -84,8 +101,8 @@ def rounded_gaussian(shape, sigma: float, rng: np.random.Generator) -> np.ndarra
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
     edges, values, bucket = _tables(_check_sigma(sigma))
-    u = rng.integers(0, 1 << 32, size=int(np.prod(shape, dtype=np.int64)), dtype=np.uint32)
-    k = bucket[u >> np.uint32(16)]
+    u = _uniform_u32(rng, int(np.prod(shape, dtype=np.int64)))
+    k = bucket.take(u >> np.uint32(16))
     step = np.flatnonzero(k == _STEP)
     if step.size:
         k[step] = values[np.searchsorted(edges, u[step].astype(np.uint64), side="right")]

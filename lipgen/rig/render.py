@@ -125,14 +125,23 @@ class RigRenderer:
     one_pass : bool
         Draw both views in one forward pass and read them back once (:mod:`lipgen.rig._onepass`);
         False renders each view on its own (pyrender's way, kept to measure against).
+    samples : int
+        Multisampling (anti-aliasing) samples per pixel: pyrender's 4, or 0 for none (edges
+        aliased; on llvmpipe about half the CPU of a ``hard`` render, ``lipgen bench --suite
+        presets``, ``msaa``). Other counts are rounded up by the GL driver. Needs ``one_pass``.
     """
 
     def __init__(self, rig: MirrorRig, mirror_reflectance: float = 0.9, znear: float = 20.0,
-                 zfar: float = 5000.0, shadows: bool = False, one_pass: bool = True) -> None:
+                 zfar: float = 5000.0, shadows: bool = False, one_pass: bool = True,
+                 samples: int = 4) -> None:
         if not isinstance(rig, MirrorRig):
             raise TypeError(f"rig must be a MirrorRig, got {type(rig).__name__}")
         if not 0 < mirror_reflectance <= 1:
             raise ValueError(f"mirror_reflectance must be in (0, 1], got {mirror_reflectance}")
+        _check_samples(samples)
+        if samples != 4 and not one_pass:
+            raise ValueError(f"samples={samples} needs the one-pass renderer (one_pass=True); pyrender's own "
+                             "passes multisample 4 times")
         self.pyrender = pr = import_pyrender()
         self.rig, self.reflectance = rig, float(mirror_reflectance)
         self._flags = pr.RenderFlags.SHADOWS_DIRECTIONAL if shadows else pr.RenderFlags.NONE
@@ -145,6 +154,12 @@ class RigRenderer:
                 f"no offscreen OpenGL context (PYOPENGL_PLATFORM={os.environ.get('PYOPENGL_PLATFORM')}): "
                 f"{type(exc).__name__}: {exc}. To fix: {_INSTALL}") from exc
         self._one_pass = bool(one_pass) and _onepass.install(self._renderer, pr)
+        if samples != 4:
+            if not self._one_pass:
+                self.close()
+                raise RenderBackendError(f"samples={samples} needs lipgen's one-pass renderer, which this "
+                                         f"pyrender or GL platform does not take; use samples=4")
+            self.samples = samples
         self._in_place = internals_known(pr)  # else every moved item is rebuilt
         if shadows:  # pyrender's shadow filter in 16 depth reads, not 36: the same pixels
             _shadowmap.install(self._renderer)
@@ -155,6 +170,25 @@ class RigRenderer:
         self._textures: dict[int, tuple] = {}  # id(array) -> (array, pyrender Texture): uploaded once
         self._lights: tuple = ()
         self._light_nodes: list = []
+
+    @property
+    def samples(self) -> int:
+        """Multisampling samples per pixel (see the class parameters); settable between renders."""
+        return self._renderer._renderer.samples if self._one_pass else 4
+
+    @samples.setter
+    def samples(self, value: int) -> None:
+        _check_samples(value)
+        if value != self.samples:
+            if not self._one_pass:
+                raise RenderBackendError(f"samples={value} needs lipgen's one-pass renderer; use samples=4")
+            r = self._renderer
+            r._platform.make_current()
+            try:
+                r._renderer._delete_main_framebuffer()  # made again, with the new count, at the next render
+            finally:
+                r._platform.make_uncurrent()
+            r._renderer.samples = int(value)
 
     # ---- scene sync -----------------------------------------------------------------------
     def _sync(self, scene: Scene, labels: bool) -> None:
@@ -292,6 +326,11 @@ class RigRenderer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _check_samples(samples) -> None:
+    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or not 0 <= samples <= 16:
+        raise ValueError(f"samples must be a whole number of samples per pixel in [0, 16], got {samples!r}")
 
 
 @functools.lru_cache(maxsize=8)
