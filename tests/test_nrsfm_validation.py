@@ -8,7 +8,7 @@ import lipgen.nrsfm.engine as engine
 from lipgen.experiments.nrsfm_benchmarks import flat_e3d
 from lipgen.nrsfm import e3d, reconstruct
 from lipgen.nrsfm.keep import DEPTH_KEEP, ROUGHNESS_KEEP, keep_refinement
-from lipgen.nrsfm.plausibility import depth_ratio, plausible, rotation_roughness, roughness, shape_figures
+from lipgen.nrsfm.plausibility import depth_ratio, plausible, roughness, shape_figures
 from lipgen.nrsfm.validation import MOTIONS, human_sequence, validation_set
 
 
@@ -114,7 +114,8 @@ def test_keep_rule_closed_cases():
     assert not keep_refinement([2.0, 2.0], good, ref, ref)              # no lower cost
     assert not keep_refinement([2.0], good, ref, ref)                   # no step made
     assert not keep_refinement([2.0, 1.0], good | {"depth_ratio": 0.4 * DEPTH_KEEP * 1.001}, ref, ref)
-    assert not keep_refinement([2.0, 1.0], good | {"depth_roughness": 1e-4 * ROUGHNESS_KEEP * 1.001}, ref, ref)
+    rough = good | {"depth_roughness": 1e-4 * ROUGHNESS_KEEP * 1.001}
+    assert not keep_refinement([2.0, 1.0], rough, ref, ref)
     # within the limits of dai's answer, but not plausible against the trace-norm shapes
     assert not keep_refinement([2.0, 1.0], good, ref, {"depth_ratio": 0.1, "depth_roughness": 1e-4})
 

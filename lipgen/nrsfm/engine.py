@@ -12,8 +12,8 @@ from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
 from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
-from lipgen.nrsfm.lowrank import fit_rank_k
 from lipgen.nrsfm.keep import keep_refinement
+from lipgen.nrsfm.lowrank import fit_rank_k
 from lipgen.nrsfm.plausibility import shape_figures
 from lipgen.nrsfm.record import Reconstruction, check_method_k
 from lipgen.nrsfm.refine import bundle_adjust
