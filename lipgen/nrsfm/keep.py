@@ -38,8 +38,9 @@ DEPTH_KEEP = 1.5
 ROUGHNESS_KEEP = 1.5
 """Largest depth roughness of a kept refinement, as a multiple of ``dai``'s answer's.
 
-Both limits were set on the development bodies (seeds 300-307, 400, 405-407, 900-903 at 80 frames,
-K = 4 and 8) with drink K = 12 and jaws K = 2 in view, never on the fresh bodies. Refinements better
+Both limits were set on 15 refinements of development bodies (80 frames: seeds 300-303, 400, 405 and
+406 at K = 4 and 8, 407 at K = 4) with drink K = 12 and jaws K = 2 and 3 in view, never on the fresh
+bodies (1100-1119). Refinements better
 by the truth had (depth roughness, depth ratio) of (1.04, 1.02) (drink K = 12) and (0.67, 1.21)
 (jaws K = 2) times ``dai``'s; plausible ones that were worse, (2.12, 1.19) (walk-400 K = 8) and
 (2.62, 1.97) (dance-302 K = 4); the blow-ups (e3D 1.5-18) had a depth ratio of 1.5-48 times or a
