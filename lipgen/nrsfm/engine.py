@@ -178,8 +178,8 @@ def _dai_parts(tracks, k: int, method: str, *, seed: int, n_starts: int, shape_s
 
 def _refine(tracks, answer, fitted, info, *, refine_iter: int):
     """``dai-ba``: bundle adjustment from the K-shape fit, kept by :func:`lipgen.nrsfm.keep.keep_refinement`
-    (lower reprojection error than its start, no depth inflation against ``dai``'s answer, plausible
-    against Dai's trace-norm shapes), else ``dai``'s answer as it is."""
+    (lower reprojection error than its start, depth ratio and depth roughness within 1.5 times those of
+    ``dai``'s answer, plausible against Dai's trace-norm shapes), else ``dai``'s answer as it is."""
     mask = None if tracks.complete else tracks.mask
     Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *fitted, mask, max_iter=refine_iter)
     refined = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
@@ -189,9 +189,9 @@ def _refine(tracks, answer, fitted, info, *, refine_iter: int):
                 ba_start_shapes=start, ba_kept=keep)
     if keep:
         return Rb, Cb, Bb, tb
-    log.info("bundle adjustment rejected (depth ratio %.3g against dai's %.3g, depth roughness %.3g against "
-             "the trace-norm shapes' %.3g): returning dai's answer", refined["depth_ratio"],
-             start["depth_ratio"], refined["depth_roughness"], info["trace_norm_shapes"]["depth_roughness"])
+    log.info("bundle adjustment rejected (cost %.3g -> %.3g; depth ratio %.3g against dai's %.3g, depth "
+             "roughness %.3g against dai's %.3g): returning dai's answer", history[0], history[-1],
+             refined["depth_ratio"], start["depth_ratio"], refined["depth_roughness"], start["depth_roughness"])
     return answer
 
 
