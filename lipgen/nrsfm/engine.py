@@ -191,7 +191,8 @@ def _refine(tracks, answer, fitted, info, *, refine_iter: int):
         return Rb, Cb, Bb, tb
     log.info("bundle adjustment rejected (cost %.3g -> %.3g; depth ratio %.3g against dai's %.3g, depth "
              "roughness %.3g against dai's %.3g): returning dai's answer", history[0], history[-1],
-             refined["depth_ratio"], start["depth_ratio"], refined["depth_roughness"], start["depth_roughness"])
+             refined["depth_ratio"], start["depth_ratio"], refined["depth_roughness"],
+             start["depth_roughness"])
     return answer
 
 
