@@ -26,8 +26,8 @@ Methods:
   dai      Dai, Li & He 2012 (default): rotations from one corrective triple, shapes of least
            trace norm that reproject exactly, cut to rank K. Fast.
   dai-ba   dai, then low-rank bundle adjustment (Levenberg-Marquardt on the reprojection
-           error), kept only if its rotations get smoother and its depth does not inflate;
-           else dai's answer. Slower; exact on noise-free low-rank data, with missing points.
+           error), kept only if its depth is neither deeper nor rougher than 1.5 times
+           dai's; else dai's answer. Slower; exact on noise-free low-rank data, with missing points.
   em-ppca  Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): a mean shape plus K Gaussian
            deformation modes, fitted by EM from a rigid start; handles missing points. Here
            K counts the modes BEYOND the mean shape, so em-ppca --k 2 has 3 basis shapes (the

@@ -12,8 +12,9 @@ from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
 from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
+from lipgen.nrsfm.keep import keep_refinement
 from lipgen.nrsfm.lowrank import fit_rank_k
-from lipgen.nrsfm.plausibility import plausible, rotation_roughness, shape_figures
+from lipgen.nrsfm.plausibility import shape_figures
 from lipgen.nrsfm.record import Reconstruction, check_method_k
 from lipgen.nrsfm.refine import bundle_adjust
 
@@ -114,6 +115,87 @@ def _normalise_scale(W, visible):
     return W / unit, unit
 
 
+def _centred(tracks, k: int):
+    """Completed tracks centred per frame (2F, P), their translations (F, 2), and the record."""
+    F = tracks.n_frames
+    full, misfit = complete_tracks(tracks, 3 * k, return_residual=True)
+    t = full.mean(axis=1)
+    Wc = full - t[:, None]
+    rank, sv = numerical_rank(Wc)
+    if rank < 3:
+        raise ValueError(f"the centred (completed) tracks have numerical rank {rank} < 3 (singular values "
+                         f"{np.array2string(sv[:4], precision=3)}): not even a rigid structure is defined")
+    if rank < 3 * k:
+        log.info("tracks have numerical rank %d < 3K = %d (degenerate basis shapes); the factor keeps "
+                 "rank %d", rank, 3 * k, rank)
+    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist(), "completion_misfit": misfit}
+    return Wc, t.reshape(F, 2), info
+
+
+def _bregler(tracks, k: int):
+    Wc, t, info = _centred(tracks, k)
+    R, C, B = bregler_factorization(Wc, k)
+    return R, C, B, t, info
+
+
+def _dai_parts(tracks, k: int, method: str, *, seed: int, n_starts: int, shape_starts: int):
+    """``dai``'s answer ``(R, C, B, t)``, the K-shape fit ``(R, C, B, t)`` that starts ``dai-ba``
+    (``dai``'s answer when no fit is made), and the record."""
+    Wc, t, info = _centred(tracks, k)
+    rank = info["rank"]
+    M, _, _ = factor(Wc, min(3 * k, rank))
+    g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
+    R, _ = rotations_from_triple(M, g)
+    mask = None if tracks.complete else tracks.mask
+    shapes = min_trace_norm_shapes(Wc, R, mask)
+    R, shapes, _ = orient_frames(R, shapes)
+    info.update(rotation_cost=cost, trace_norm_shapes=shape_figures(R, shapes))
+    # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
+    # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start.
+    # Complete tracks of numerical rank > 3K cannot be explained exactly: no fit for dai then.
+    C, B = rank_k_shapes(shapes, k)
+    fit = {"shape_exact": False}
+    fitted = (R, C, B, t)
+    # with points missing, an exact K-shape fit needs the rank-3K completion to fit the observed
+    # points (nearly) exactly; else (real tracks) the fit could only be discarded: skipped
+    if method == "dai-ba" or rank <= 3 * k or (not tracks.complete and info["completion_misfit"]
+                                               <= _EXACT_COMPLETION):
+        C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
+                                      seed=seed)
+        info.update(fit)
+        fitted = (R, C, B, t + shift)
+    fitted = _tidy(*fitted)
+    info["rank_k_reprojection_rms"] = _reprojection_rms(tracks, *fitted)
+    if fit["shape_exact"]:
+        info["shapes"] = "rank-K fit"
+        return fitted, fitted, info
+    # Dai's trace-norm shapes (the block matrix method as published): on held-out bodies the
+    # rank-K fit inflated depth (e3D up to 19 where these gave 0.16; see lipgen.nrsfm.plausibility)
+    info["shapes"] = "trace norm"
+    C, B = _as_basis(shapes)
+    return _tidy(R, C, B, t), fitted, info
+
+
+def _refine(tracks, answer, fitted, info, *, refine_iter: int):
+    """``dai-ba``: bundle adjustment from the K-shape fit, kept by :func:`lipgen.nrsfm.keep.keep_refinement`
+    (lower reprojection error than its start, depth ratio and depth roughness within 1.5 times those of
+    ``dai``'s answer, plausible against Dai's trace-norm shapes), else ``dai``'s answer as it is."""
+    mask = None if tracks.complete else tracks.mask
+    Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *fitted, mask, max_iter=refine_iter)
+    refined = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
+    start = shape_figures(answer[0], np.einsum("fk,kip->fip", answer[1], answer[2]))
+    keep = keep_refinement(history, refined, start, info["trace_norm_shapes"])
+    info.update(ba_cost=[history[0], history[-1]], ba_steps=len(history) - 1, ba_shapes=refined,
+                ba_start_shapes=start, ba_kept=keep)
+    if keep:
+        return Rb, Cb, Bb, tb
+    log.info("bundle adjustment rejected (cost %.3g -> %.3g; depth ratio %.3g against dai's %.3g, depth "
+             "roughness %.3g against dai's %.3g): returning dai's answer", history[0], history[-1],
+             refined["depth_ratio"], start["depth_ratio"], refined["depth_roughness"],
+             start["depth_roughness"])
+    return answer
+
+
 def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_starts: int,
                  refine_iter: int, em_iter: int) -> Reconstruction:
     tracks = check_tracks(W, visible)
@@ -129,72 +211,13 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         R, C, B, t, info = em_ppca(tracks, k, max_iter=em_iter, n_starts=n_starts, seed=seed)
         return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                               reprojection_rms=_reprojection_rms(tracks, R, C, B, t), info=info)
-    full, misfit = complete_tracks(tracks, 3 * k, return_residual=True)
-    t = full.mean(axis=1)
-    Wc = full - t[:, None]
-    rank, sv = numerical_rank(Wc)
-    if rank < 3:
-        raise ValueError(f"the centred (completed) tracks have numerical rank {rank} < 3 (singular values "
-                         f"{np.array2string(sv[:4], precision=3)}): not even a rigid structure is defined")
-    r = min(3 * k, rank)
-    if r < 3 * k:
-        log.info("tracks have numerical rank %d < 3K = %d (degenerate basis shapes); the factor keeps "
-                 "rank %d", rank, 3 * k, r)
-    t = t.reshape(F, 2)
-    info: dict = {"rank": rank, "singular_values": sv[: 3 * k + 1].tolist(), "completion_misfit": misfit}
     if method == "bregler":
-        R, C, B = bregler_factorization(Wc, k)
+        R, C, B, t, info = _bregler(tracks, k)
     else:
-        M, _, _ = factor(Wc, r)
-        g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
-        R, _ = rotations_from_triple(M, g)
-        shapes = min_trace_norm_shapes(Wc, R, None if tracks.complete else tracks.mask)
-        R, shapes, _ = orient_frames(R, shapes)
-        mask = None if tracks.complete else tracks.mask
-        ref = shape_figures(R, shapes)
-        info.update(rotation_cost=cost, trace_norm_shapes=ref)
-        # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
-        # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start.
-        # Complete tracks of numerical rank > 3K cannot be explained exactly: no fit for dai then.
-        C, B = rank_k_shapes(shapes, k)
-        fit = {"shape_exact": False}
-        fitted = (R, C, B, t)
-        # with points missing, an exact K-shape fit needs the rank-3K completion to fit the observed
-        # points (nearly) exactly; else (real tracks) the fit could only be discarded: skipped
-        if method == "dai-ba" or rank <= 3 * k or (not tracks.complete and misfit <= _EXACT_COMPLETION):
-            C, B, shift, fit = fit_rank_k(Wc, R, B, mask, exact_model=rank <= 3 * k, n_starts=shape_starts,
-                                          seed=seed)
-            info.update(fit)
-            fitted = (R, C, B, t + shift)
-        info["rank_k_reprojection_rms"] = _reprojection_rms(tracks, *_tidy(*fitted))
-        if fit["shape_exact"]:
-            info["shapes"] = "rank-K fit"
-            R, C, B, t = _tidy(*fitted)
-        else:  # Dai's trace-norm shapes (the block matrix method as published): on held-out bodies the
-            # rank-K fit inflated depth (e3D up to 19 where these gave 0.16; see lipgen.nrsfm.plausibility)
-            info["shapes"] = "trace norm"
-            C, B = _as_basis(shapes)
-            R, C, B, t = _tidy(R, C, B, t)
+        (R, C, B, t), fitted, info = _dai_parts(tracks, k, method, seed=seed, n_starts=n_starts,
+                                                shape_starts=shape_starts)
         if method == "dai-ba":
-            Rb, Cb, Bb, tb, history = bundle_adjust(tracks.W, *_tidy(*fitted), mask, max_iter=refine_iter)
-            ba = shape_figures(Rb, np.einsum("fk,kip->fip", Cb, Bb))
-            # kept only if the smoothness of the rotations (the criterion that chooses K) improves on
-            # the start's (the answer dai gives), its depth does not inflate beyond the start's, and it
-            # stays plausible against Dai's shapes; else the start is returned as it is
-            rough = {"start": rotation_roughness(R), "refined": rotation_roughness(Rb)}
-            start = shape_figures(R, np.einsum("fk,kip->fip", C, B))
-            keep = (rough["refined"] < rough["start"] and ba["depth_ratio"] <= start["depth_ratio"]
-                    and plausible(ba, ref))
-            info.update(ba_cost=[history[0], history[-1]], ba_steps=len(history) - 1, ba_shapes=ba,
-                        ba_start_shapes=start, ba_rotation_roughness=rough, ba_kept=bool(keep))
-            if keep:
-                R, C, B, t = Rb, Cb, Bb, tb
-            else:
-                log.info("bundle adjustment rejected (rotation roughness %.3g against its start's %.3g; "
-                         "depth ratio %.3g against its start's %.3g; depth roughness %.3g against the "
-                         "trace-norm shapes' %.3g): returning its start", rough["refined"],
-                         rough["start"], ba["depth_ratio"], start["depth_ratio"], ba["depth_roughness"],
-                         ref["depth_roughness"])
+            R, C, B, t = _refine(tracks, (R, C, B, t), fitted, info, refine_iter=refine_iter)
     rms = _reprojection_rms(tracks, R, C, B, t)
     return Reconstruction(rotations=R, weights=C, basis=B, translation=t, method=method, k=k,
                           reprojection_rms=rms, info=info)

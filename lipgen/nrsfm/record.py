@@ -19,9 +19,9 @@ METHODS: dict[str, str] = {
            "reproject exactly (block matrix method, as published); when the tracks are exactly of rank "
            "<= 3K (noise-free K shapes) exactly K basis shapes fitted with the rotations fixed instead",
     "dai-ba": "'dai', then K basis shapes fitted with the rotations fixed and low-rank bundle adjustment "
-              "(Levenberg-Marquardt on the reprojection error), kept only if its rotations are smoother "
-              "than dai's, its depth does not inflate beyond dai's and does not roughen against the "
-              "trace-norm shapes (lipgen.nrsfm.plausibility); else exactly 'dai'",
+              "(Levenberg-Marquardt on the reprojection error), kept only if it lowers that error and its "
+              "depth is neither deeper nor rougher than 1.5 times dai's and stays plausible against the "
+              "trace-norm shapes (lipgen.nrsfm.keep); else exactly 'dai'",
     "em-ppca": "Torresani, Hertzmann & Bregler 2008 (EM-Gaussian): mean shape plus K Gaussian "
                "deformation modes, fitted by EM from a rigid start; here K counts the modes, so the "
                "model has K + 1 basis shapes (rank 3(K + 1))",
