@@ -139,7 +139,7 @@ class ModeModel:
         w, S = _spectrum(A, self.method)
         var = w / (F - 1)
         total = float(np.einsum("ij,ij->", A, A)) / (F - 1)
-        if min(self.n_modes, len(var)) < self.n_modes:
+        if len(var) < self.n_modes:
             log.warning("the frames span only %d independent directions; keeping %d of the %d modes asked",
                         len(var), len(var), self.n_modes)
         return self._set_fitted(mean, S, var, total, D // 3, F, "" if mesh is None else str(mesh.topology_id))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.pointreg import _ambiguous, assign, similarity_2d
+from lipgen.recon.pointreg import _ambiguous, assign, layout_spacing, similarity_2d
 
 __all__ = ["place_layout", "acquire", "acquire_layout"]
 
@@ -50,9 +50,7 @@ def place_layout(expected: np.ndarray, uv: np.ndarray, seen: np.ndarray) -> np.n
                          f"got shape {seen.shape} with {int(seen.sum())} set")
     s, R, t = similarity_2d(expected[seen], uv[seen])
     base = s * expected @ R.T + t
-    d = np.linalg.norm(expected[:, None] - expected[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    width = float(np.median(d.min(1)))
+    width = layout_spacing(expected)
     w = np.exp(-0.5 * (np.linalg.norm(expected[:, None] - expected[seen][None], axis=2) / width) ** 2)
     out = base + (w @ (uv[seen] - base[seen])) / np.maximum(w.sum(1, keepdims=True), 1e-300)
     out[seen] = uv[seen]

@@ -26,6 +26,7 @@ import logging
 import numpy as np
 
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
@@ -36,7 +37,7 @@ log = logging.getLogger(__name__)
 
 
 def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarray, ok: np.ndarray,
-                     i: int) -> np.ndarray | None:
+                     i: int, width: float | None = None) -> np.ndarray | None:
     """How marker ``i``'s neighbours moved between two frames: their Gaussian-weighted mean offset.
 
     Parameters
@@ -50,6 +51,8 @@ def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarr
         Markers seen in both frames (``i`` itself is left out).
     i : int
         The marker.
+    width : float, optional
+        :func:`~lipgen.recon.pointreg.layout_spacing` of ``reference``, if the caller has it.
 
     Returns
     -------
@@ -60,9 +63,8 @@ def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarr
     ok[i] = False
     if not ok.any():
         return None
-    d = np.linalg.norm(reference[:, None] - reference[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    width = float(np.median(d.min(1)))
+    if width is None:
+        width = layout_spacing(reference)
     w = np.exp(-0.5 * (np.linalg.norm(reference[ok] - reference[i], axis=1) / width) ** 2)
     if w.sum() <= 1e-12:
         return None
@@ -303,6 +305,7 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
     ref_t = {v: k for v in range(2)}
     pt = _point(cameras, cur[0], cur[1])
     pt_t, misses = k, 0
+    width = {v: layout_spacing(trackers[v].reference) for v in views}
     for t in range(k - 1, -1, -1):
         if misses > max_misses:
             break
@@ -316,7 +319,8 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
             if t >= len(trackers[v].dot_history):
                 continue
             uv_r, st_r, _ = trackers[v]._out[ref_t[v]]
-            move = neighbour_motion(trackers[v].reference, uv_r, uv_t, (st_r != LOST) & (st_t != LOST), i)
+            move = neighbour_motion(trackers[v].reference, uv_r, uv_t, (st_r != LOST) & (st_t != LOST), i,
+                                    width[v])
             if move is None:
                 continue
             gate = trackers[v].cfg.acquire_gate or trackers[v].cfg.recovery_gate

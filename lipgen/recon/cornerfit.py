@@ -162,9 +162,7 @@ def _solve(grays, image, batch, ghost, iterations, estimate: bool = False):
     theta = batch["theta"].copy()
     radius, L = batch["radius"], batch["L"]
     n = len(theta)
-    R = int(np.ceil(radius.max())) + 1
-    oy, ox = np.mgrid[-R:R + 1, -R:R + 1]
-    off = np.column_stack([ox.ravel(), oy.ravel()]).astype(float)  # (P, 2)
+    off = _offsets(radius)  # (P, 2)
     lam = np.full(n, 1e-3)
     first = True
     for _ in range(iterations):
@@ -247,7 +245,14 @@ def _wave(t, s, L, deriv: bool = True):
     return W, dt, ds
 
 
-def _ghost_geometry(x, theta, L, ghost):
+def _offsets(radius) -> np.ndarray:
+    """(P, 2) float: the whole-pixel offsets of a square reaching past the largest ``radius``."""
+    R = int(np.ceil(radius.max())) + 1
+    oy, ox = np.mgrid[-R:R + 1, -R:R + 1]
+    return np.column_stack([ox.ravel(), oy.ravel()]).astype(float)
+
+
+def _ghost_geometry(x, theta, ghost):
     """The ghost's line coordinates ``t1``, ``t2`` (n, P), and pieces for its derivatives."""
     c1, s1 = np.cos(theta[:, 2])[:, None], np.sin(theta[:, 2])[:, None]
     c2, s2 = np.cos(theta[:, 3])[:, None], np.sin(theta[:, 3])[:, None]
@@ -260,7 +265,7 @@ def _shape(x, theta, L, ghost):
     EE = _parts(x, theta)[0]
     if ghost is None:
         return EE
-    t1, t2, _ = _ghost_geometry(x, theta, L, ghost)
+    t1, t2, _ = _ghost_geometry(x, theta, ghost)
     s = np.abs(theta[:, 4])[:, None] + 1e-9
     return EE + ghost[2] * _wave(t1, s, L[:, :1], False)[0] * _wave(t2, s, L[:, 1:], False)[0]
 
@@ -302,7 +307,7 @@ def _model(x, theta, L=None, ghost=None, estimate=False):
     f = m + a * EE
     if ghost is None:
         return f, J, None
-    u1, u2, (c1, s1, c2, s2, xg) = _ghost_geometry(x, theta, L, ghost)
+    u1, u2, (c1, s1, c2, s2, xg) = _ghost_geometry(x, theta, ghost)
     W1, dW1, sW1 = _wave(u1, s, L[:, :1])
     W2, dW2, sW2 = _wave(u2, s, L[:, 1:])
     r = ghost[2]

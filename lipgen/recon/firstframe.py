@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.pointreg import match_to_expected
+from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
@@ -177,9 +177,7 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
         return out, changed
     X = np.full((P, 3), np.nan)
     X[both] = triangulate(cameras[1], out[1][both], cameras[0], out[0][both])[0]
-    d = np.linalg.norm(model[both][:, None] - model[both][None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    width = float(np.median(d.min(1)))
+    width = layout_spacing(model[both])
     pred, r, limit = _residuals(model, X, both, width, k, floor)
     # A marker far from all others (the nose) is not predicted by their offsets: not checked.
     near = np.linalg.norm(model[:, None] - model[both][None], axis=2)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from lipgen.recon.cornerfit import _model, _prepare, _sample, _solve, _wave
+from lipgen.recon.cornerfit import _model, _offsets, _prepare, _sample, _solve, _wave
 
 __all__ = ["Ghost", "estimate_ghost", "MIN_STRENGTH", "MIN_SNR", "MIN_SHIFT_PX"]
 
@@ -135,12 +135,6 @@ def estimate_ghost(grays, corners, grid_shapes, max_shift: float = 12.0, reach: 
     part = {"theta": theta[use], "radius": batch["radius"][use], "L": batch["L"][use]}
     th, g = _solve(imgs, image[use], part, start, iterations, estimate=True)
     return Ghost(g[:2].copy(), float(g[2]), _snr(imgs, image[use], th, part, g), len(use))
-
-
-def _offsets(radius):
-    R = int(np.ceil(radius.max())) + 1
-    oy, ox = np.mgrid[-R:R + 1, -R:R + 1]
-    return np.column_stack([ox.ravel(), oy.ravel()]).astype(float)
 
 
 def _search(imgs, image, theta, radius, L, max_shift) -> np.ndarray:

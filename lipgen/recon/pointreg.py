@@ -11,7 +11,8 @@ from scipy.optimize import linear_sum_assignment
 
 from lipgen._validate import as_float_array
 
-__all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected"]
+__all__ = ["assign", "similarity_2d", "register_points", "register_nonrigid", "match_to_expected",
+           "layout_spacing"]
 
 _BIG = 1e12
 # Trimming (robust=True): a match is an outlier when its residual exceeds _TRIM_K robust standard
@@ -19,6 +20,23 @@ _BIG = 1e12
 _TRIM_K = 2.0
 _TRIM_FLOOR = 0.5
 
+
+
+def layout_spacing(points) -> float:
+    """The median distance from a point to its nearest neighbour (the layout's scale).
+
+    Parameters
+    ----------
+    points : (P, d) float
+        P >= 2 points.
+
+    Returns
+    -------
+    float
+    """
+    d = np.linalg.norm(points[:, None] - points[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    return float(np.median(d.min(1)))
 
 def assign(points: np.ndarray, dots: np.ndarray, gates: np.ndarray) -> np.ndarray:
     """One-to-one nearest assignment within per-point gates; -1 where none. (P,) int."""
@@ -217,9 +235,7 @@ def register_nonrigid(dots: np.ndarray, expected: np.ndarray, gate: float, itera
         match, base = _trimmed_similarity(dots, expected, match, base, gate)
     if len(dots) == 0 or len(expected) < 3:
         return match, base
-    d = np.linalg.norm(expected[:, None] - expected[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    spacing = float(np.median(d.min(1)))
+    spacing = layout_spacing(expected)
     cur = base
     for k in range(iterations):
         frac = k / max(iterations - 1, 1)

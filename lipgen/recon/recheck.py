@@ -26,13 +26,12 @@ import logging
 
 import numpy as np
 
-from lipgen.recon.backfill import step_limits, walk_back
+from lipgen.recon.backfill import _point, step_limits, walk_back
 from lipgen.recon.dots import ink_gray
 from lipgen.recon.firstframe import check_layout
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.track import LOST, MarkerTracker
 from lipgen.rig.camera import VIEWS
-from lipgen.rig.pinhole import triangulate
 
 __all__ = ["IdentityCheck"]
 
@@ -110,9 +109,9 @@ class IdentityCheck:
                 trackers[v].take(i, new[v, i], ink_gray(views[v]),
                                  float(s[np.argmin(np.linalg.norm(d - new[v, i], axis=1))]))
                 took[v, i] = True
-            uv = [tr._out[-1][0][i] for tr in trackers]
-            if last3d is not None and np.all(np.isfinite(uv[0])) and np.all(np.isfinite(uv[1])):
-                last3d[i] = triangulate(cameras[1], uv[1][None], cameras[0], uv[0][None])[0][0]
+            pt = _point(cameras, trackers[0]._out[-1][0][i], trackers[1]._out[-1][0][i])
+            if last3d is not None and np.all(np.isfinite(pt)):
+                last3d[i] = pt
             filled = walk_back(trackers, cameras, i, vs, k, max_gap, limits)[0]
             dropped = [_take_back_run(trackers[v], i, k - 1 - int(filled[v])) for v in range(2)]
             self.changes.append((k, int(i), vs, filled))

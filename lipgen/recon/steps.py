@@ -37,7 +37,6 @@ from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import check_layout, match_first_frame
 from lipgen.recon.jumps import StepLimit
-from lipgen.recon.linefit import recover_by_line_fit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.stereo_init import layout_dots
@@ -109,15 +108,6 @@ class ReconstructSettings:
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
         out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
         of free dots nearest where the other markers put it, or its wrong view is left unmatched.
-    line_fit : bool
-        Fit a marker lost in one view as a dark spot on the epipolar line of the other view's
-        sighting, beside its seen neighbours' dots (:func:`lipgen.recon.linefit.recover_by_line_fit`:
-        pale, blurred or merged dots of the defocused mirror view), unless another marker lies
-        near that line; it then passes the same view checks as any re-acquired sighting. Off:
-        measured before ``backfill`` (accepted share, over 3 px), ``hard`` validation seeds 7 / 8 /
-        9 33.6 / 80.0 / 75.4 -> 35.8 / 80.3 / 74.4 %, over 3 px 87 / 1 / 30 -> 87 / 1 / 32, seed 10
-        unchanged; ``default`` 7 92.5 -> 94.4 %; hard test seed 11 69.0 -> 69.6 %, 16 -> 18 over
-        3 px. More wrong sightings is the worse failure.
     first_frame_dark : float or None
         Match each view's first frame on the dots at least this fraction as dark as the median
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
@@ -173,7 +163,6 @@ class ReconstructSettings:
     identity_recheck: int | None = 3
     rewalk: bool = True
     walk_frames: int = 3
-    line_fit: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -293,8 +282,6 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
-            if settings.line_fit:
-                recover_by_line_fit(trackers, views, cameras, gap_limit.limit())
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
