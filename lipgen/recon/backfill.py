@@ -31,7 +31,7 @@ from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["WalkQueue", "backfill", "rewalk", "walk_back", "step_limits", "neighbour_motion"]
+__all__ = ["WalkQueue", "backfill", "rewalk", "walk_back", "neighbour_motion"]
 
 log = logging.getLogger(__name__)
 
@@ -160,7 +160,7 @@ class WalkQueue:
         due = (self.start >= 0) & (k - self.start + 1 >= self.frames)
         if not due.any():
             return
-        limits = None if steps is None else step_limits(steps)
+        limits = None if steps is None else steps.limits(pooled=True)
         for q, i in zip(*np.nonzero(due), strict=True):
             views = tuple(np.flatnonzero(self.views[:, i])) if q == 0 else (0, 1)
             f, r = walk_back(trackers, cameras, i, views, int(self.start[q, i]), gap_limit, limits,
@@ -206,7 +206,7 @@ def backfill(trackers: list[MarkerTracker], cameras, new: np.ndarray, gap_limit:
     new = np.asarray(new, dtype=bool)
     filled = np.zeros(new.shape, dtype=np.int64)
     k = len(trackers[0]._out) - 1
-    limits = None if steps is None else step_limits(steps)
+    limits = None if steps is None else steps.limits(pooled=True)
     for i in np.flatnonzero(new.any(0)):
         filled[:, i] = walk_back(trackers, cameras, i, [v for v in range(2) if new[v, i]], k, gap_limit,
                                  limits, max_misses)[0]
@@ -254,7 +254,7 @@ def rewalk(trackers: list[MarkerTracker], cameras, skip: np.ndarray, gap_limit: 
     filled, replaced = np.zeros((2, P), dtype=np.int64), np.zeros((2, P), dtype=np.int64)
     if k == 0 or not walk.any():
         return filled, replaced
-    limits = None if steps is None else step_limits(steps)
+    limits = None if steps is None else steps.limits(pooled=True)
     for i in np.flatnonzero(walk):
         filled[:, i], replaced[:, i] = walk_back(trackers, cameras, i, (0, 1), k, gap_limit, limits,
                                                  same=same)
@@ -283,7 +283,7 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
     gap_limit : float
         Largest distance between the two rays, mm.
     limits : (P,) float, optional
-        Step limits, mm per frame (:func:`step_limits`); None: the ray gap alone confirms.
+        Step limits, mm per frame (``StepLimit.limits(pooled=True)``); None: the ray gap alone confirms.
     max_misses : int
         Frames in a row without a confirmed dot after which the walk stops.
     same : float, optional
@@ -353,32 +353,6 @@ def walk_back(trackers: list[MarkerTracker], cameras, i: int, views, k: int, gap
             trackers[v]._rejected[t][i] = False
             filled[v] += 1
     return filled, replaced
-
-
-def step_limits(steps: StepLimit) -> np.ndarray:
-    """Each marker's 3-D step limit for a walk back.
-
-    A marker with too few accepted steps of its own (one never accepted before: the usual case
-    here) gets the limit of all markers' steps pooled (``k`` times their ``quantile``, within
-    ``[floor, max_step]``), once they are enough.
-
-    Parameters
-    ----------
-    steps : StepLimit
-        The sequence's step limits so far.
-
-    Returns
-    -------
-    (P,) float
-        Limits, mm per frame.
-    """
-    lim = steps.limits()
-    own = np.array([len(s) >= steps.min_samples for s in steps._steps])
-    pooled = np.concatenate([np.asarray(s, dtype=float) for s in steps._steps] + [np.zeros(0)])
-    if len(pooled) >= steps.min_samples:
-        common = float(np.clip(steps.k * np.quantile(pooled, steps.quantile), steps.floor, steps.max_step))
-        lim = np.where(own, lim, common)
-    return lim
 
 
 def _point(cameras, uv0: np.ndarray, uv1: np.ndarray) -> np.ndarray:

@@ -52,7 +52,7 @@ from lipgen._validate import as_float_array
 from lipgen.errors import DatasetError
 from lipgen.recon.bundle import _bundle_adjust
 from lipgen.recon.chessboard import find_corners, linear_gray
-from lipgen.recon.cornerfit import fit_corners
+from lipgen.recon.cornerfit import fit_corners, ghost_params
 from lipgen.recon.ghost import estimate_ghost
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera
@@ -181,10 +181,8 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
         Too few usable frames, or no board in the reference frame's direct view.
     """
     require("cv2", "chessboard calibration")
-    if not (ghost is None or (isinstance(ghost, str) and ghost == "auto")):
-        g = np.asarray(ghost, float) if not isinstance(ghost, str) else np.array([])
-        if g.shape != (3,) or not np.isfinite(g).all() or not 0 <= g[2] < 1:
-            raise ValueError(f"ghost must be 'auto', None or (dx, dy, r) with 0 <= r < 1, got {ghost!r}")
+    if not (ghost is None or (isinstance(ghost, str) and ghost == "auto")):  # checked before the work
+        ghost_params(ghost, "ghost must be 'auto', None or (dx, dy, r) with 0 <= r < 1")
     raw_frames = list(raw_frames)
     boards = _boards(board, len(raw_frames))
     obs: list[dict[str, np.ndarray]] = []
@@ -199,12 +197,12 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
                 if view == "virtual":
                     mirror.append((k, uv, virt))
         obs.append(per)
-    found = _mirror_ghost(mirror, boards, ghost, min_images)
+    found = _mirror_ghost(mirror, boards, ghost, min_images, grays := [])
     if found is not None and found["used"]:
         params = np.r_[found["shift_px"], found["strength"]]
-        for k, uv, virt in mirror:
-            b = boards[k]
-            uv = fit_corners(linear_gray(virt), uv, (b.inner_rows, b.inner_cols), ghost=params)[0]
+        for i, (k, uv, virt) in enumerate(mirror):
+            shape = (boards[k].inner_rows, boards[k].inner_cols)
+            uv = fit_corners(grays[i] if grays else linear_gray(virt), uv, shape, ghost=params)[0]
             obs[k]["virtual"] = layout.to_raw("virtual", uv)
     cal = calibrate_from_corners(obs, layout, board, reference, distortion, min_images, outlier_factor,
                                  outlier_floor_px)
@@ -214,8 +212,9 @@ def calibrate_rig(raw_frames: Sequence, layout: MirrorRig, board: Chessboard = C
 _GHOST_MIN_CORNERS = 20  # corners one step inside their boards, fewest to estimate a ghost from
 
 
-def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
-    """The ghost of :func:`calibrate_rig` as a dict (with ``"used"``), or None when not estimated."""
+def _mirror_ghost(mirror, boards, ghost, min_images, grays=None) -> dict | None:
+    """The ghost of :func:`calibrate_rig` as a dict (with ``"used"``), or None when not estimated.
+    The mirror boards' linear grey images, when made for the estimate, are appended to ``grays``."""
     if ghost is None:
         return None
     if not isinstance(ghost, str):
@@ -228,9 +227,11 @@ def _mirror_ghost(mirror, boards, ghost, min_images) -> dict | None:
         log.info("calibration: too few mirror boards (%d) or inner corners (%d) to estimate a ghost",
                  len(mirror), interior)
         return None
-    grays = [linear_gray(virt) for _, _, virt in mirror]
+    images = [linear_gray(virt) for _, _, virt in mirror]
+    if grays is not None:
+        grays.extend(images)
     try:
-        est = estimate_ghost(grays, [uv for _, uv, _ in mirror], shapes)
+        est = estimate_ghost(images, [uv for _, uv, _ in mirror], shapes)
     except np.linalg.LinAlgError as e:  # degenerate boards: no ghost can be told
         log.info("calibration: the mirror ghost could not be estimated (%s)", e)
         return None

@@ -10,6 +10,7 @@ import numpy as np
 from lipgen._optional import require
 from lipgen.recon.cornerfit import fit_corners
 from lipgen.recon.dots import as_gray
+from lipgen.rig.scene import srgb_to_linear
 from lipgen.rig.target import Chessboard
 
 __all__ = ["find_corners", "REFINERS", "linear_gray"]
@@ -32,8 +33,7 @@ def linear_gray(image) -> np.ndarray:
     -------
     (H, W) float
     """
-    g = as_gray(image)
-    return np.where(g <= 0.04045, g / 12.92, ((np.maximum(g, 0.04045) + 0.055) / 1.055) ** 2.4)
+    return srgb_to_linear(as_gray(image))
 
 
 def find_corners(image, board: Chessboard, refine: str = "fit", ghost=None) -> np.ndarray | None:

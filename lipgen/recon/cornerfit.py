@@ -37,11 +37,27 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 from scipy.special import erf
 
-__all__ = ["fit_corners"]
+__all__ = ["fit_corners", "ghost_params"]
 
 _SQRT2 = np.sqrt(2.0)
 _G = np.sqrt(2.0 / np.pi)
 _WAVE = (-2, -1, 0, 1, 2)  # the edges of a square wave, in line spacings
+
+
+def ghost_params(ghost, message: str) -> np.ndarray:
+    """(3,) float: ``ghost`` as (dx, dy, r) with finite values and 0 <= r < 1, else ValueError(message).
+
+    Parameters
+    ----------
+    ghost : array-like
+        The ghost's shift (px) and strength.
+    message : str
+        The error's opening words (the caller's allowed values).
+    """
+    g = np.asarray(ghost, float) if not isinstance(ghost, str) else np.array([])
+    if g.shape != (3,) or not np.isfinite(g).all() or not 0 <= g[2] < 1:
+        raise ValueError(f"{message}, got {ghost if isinstance(ghost, str) else g!r} of shape {g.shape}")
+    return g
 
 
 def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float = 14.0,
@@ -93,10 +109,7 @@ def fit_corners(gray, corners, grid_shape, reach: float = 0.7, max_radius: float
     if c0.shape != (rows * cols, 2):
         raise ValueError(f"corners must be ({rows * cols}, 2) for a {rows}x{cols} grid, got shape {c0.shape}")
     if ghost is not None:
-        ghost = np.asarray(ghost, float)
-        if ghost.shape != (3,) or not np.isfinite(ghost).all() or not 0 <= ghost[2] < 1:
-            raise ValueError(f"ghost must be (dx, dy, r) with finite values and 0 <= r < 1, got {ghost!r} "
-                             f"of shape {ghost.shape}")
+        ghost = ghost_params(ghost, "ghost must be (dx, dy, r) with finite values and 0 <= r < 1")
     if smooth > 0:
         g = gaussian_filter(g, smooth, mode="nearest")
     batch = _prepare(c0, (rows, cols), reach, max_radius)

@@ -72,13 +72,26 @@ class StepLimit:
             if np.isfinite(s):
                 self._steps[j].append(float(s))
 
-    def limits(self) -> np.ndarray:
-        """(P,) float: each marker's limit now, mm per frame."""
-        out = np.full(len(self._steps), self.max_step)
+    def limits(self, pooled: bool = False) -> np.ndarray:
+        """(P,) float: each marker's limit now, mm per frame.
+
+        A marker with fewer than ``min_samples`` accepted steps of its own gets ``max_step``; with
+        ``pooled``, the limit of all markers' steps pooled, once they are enough (a walk back,
+        :mod:`lipgen.recon.backfill`, is usually for a marker never accepted before).
+        """
+        fallback = self.max_step
+        if pooled:
+            every = [x for s in self._steps for x in s]
+            if len(every) >= self.min_samples:
+                fallback = self._limit(every)
+        out = np.full(len(self._steps), fallback)
         for j, s in enumerate(self._steps):
             if len(s) >= self.min_samples:
-                out[j] = np.clip(self.k * np.quantile(s, self.quantile), self.floor, self.max_step)
+                out[j] = self._limit(s)
         return out
+
+    def _limit(self, steps) -> float:
+        return float(np.clip(self.k * np.quantile(steps, self.quantile), self.floor, self.max_step))
 
     def check(self, points, last3d, elapsed) -> np.ndarray:
         """Which sightings jump, and learn from the others.

@@ -26,7 +26,7 @@ import logging
 
 import numpy as np
 
-from lipgen.recon.backfill import _point, step_limits, walk_back
+from lipgen.recon.backfill import _point, walk_back
 from lipgen.recon.dots import ink_gray
 from lipgen.recon.firstframe import check_layout
 from lipgen.recon.jumps import StepLimit
@@ -101,7 +101,7 @@ class IdentityCheck:
         fire &= (fire | ~prop).all(0)[None]           # every view the check changes, together
         took = np.zeros((2, P), dtype=bool)
         k = len(trackers[0]._out) - 1
-        limits = None if steps is None else step_limits(steps)
+        limits = None if steps is None else steps.limits(pooled=True)
         for i in np.flatnonzero(fire.any(0)):
             vs = tuple(int(v) for v in np.flatnonzero(fire[:, i]))
             for v in vs:

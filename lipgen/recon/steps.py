@@ -219,7 +219,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     since = np.ones(exp.shape[1])                    # frames since then
     steps = None if settings.step_k is None else StepLimit(exp.shape[1], settings.step_k,
                                                            floor=settings.min_step)
-    walks = WalkQueue(exp.shape[1], settings.walk_frames)
+    walks = (WalkQueue(exp.shape[1], settings.walk_frames)
+             if cameras is not None and (settings.backfill or settings.rewalk) else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck)
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     for t, raw in enumerate(raw_frames):
@@ -287,13 +288,14 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         if recheck is not None and t > 0:
             recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
-        seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
-        if t == 0:
-            ever = seen
-        elif cameras is not None and (settings.backfill or settings.rewalk):
-            walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
-                       gap_limit.limit(), steps, settings.rewalk, names)
-        ever |= seen
+        if walks is not None:
+            seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
+            if t == 0:
+                ever = seen
+            else:
+                walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
+                           gap_limit.limit(), steps, settings.rewalk, names)
+            ever |= seen
         if progress is not None:
             progress(t)
     if not trackers:
