@@ -76,14 +76,15 @@ def test_a_marker_missing_in_the_first_frame_gets_its_early_frames_back():
     err = np.linalg.norm(tr.uv[:, M] - uv[1, :, M], axis=1)
     assert err.max() < 0.5
     others = np.delete(np.arange(12), M)
-    np.testing.assert_array_equal(tr.uv[:, others], tracks[1].uv[:, others])
+    # Equal up to rounding (two identical runs may round differently; see test_recheck).
+    np.testing.assert_allclose(tr.uv[:, others], tracks[1].uv[:, others], rtol=0, atol=1e-7)
 
 
 def test_the_queued_walk_waits_for_three_frames_in_both_views_and_fills_the_same():
     direct, _ = _clip(fill=True)
     queued, _ = _clip(fill=True, queue=True)
     for v in range(2):
-        np.testing.assert_array_equal(queued[v].uv, direct[v].uv)
+        np.testing.assert_allclose(queued[v].uv, direct[v].uv, rtol=0, atol=1e-7)
     with pytest.raises(ValueError, match="frames must be at least 1, got 0"):
         WalkQueue(12, 0)
 

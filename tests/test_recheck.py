@@ -74,7 +74,9 @@ def test_a_right_clip_is_left_alone():
     tracks, _, check = _clip(lure=False, recheck=True)
     assert check.changes == []
     for v in range(2):
-        np.testing.assert_array_equal(tracks[v].uv, plain[v].uv)
+        # Equal up to rounding: numpy's SIMD sums may group differently between two identical runs
+        # (3e-10 px seen on the CI machine); a real change moves a sighting by far more.
+        np.testing.assert_allclose(tracks[v].uv, plain[v].uv, rtol=0, atol=1e-7)
 
 
 def test_bad_arguments_are_refused():
