@@ -35,7 +35,8 @@ from lipgen._validate import as_float_array
 from lipgen.recon.backfill import WalkQueue
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
-from lipgen.recon.firstframe import check_layout, match_first_frame
+from lipgen.recon.firstframe import match_first_frame
+from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
@@ -108,6 +109,10 @@ class ReconstructSettings:
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
         out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
         of free dots nearest where the other markers put it, or its wrong view is left unmatched.
+    first_frame_grow : bool
+        With ``first_frame_layout``: grow the first frame's matches from the markers matched in
+        both views, in 3-D along the epipolar lines (:func:`lipgen.recon.grow.grow_first_frame`),
+        then check the layout again.
     first_frame_dark : float or None
         Match each view's first frame on the dots at least this fraction as dark as the median
         of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
@@ -158,6 +163,7 @@ class ReconstructSettings:
     min_step: float = 1.0
     epipolar_recovery: bool = True
     first_frame_layout: bool = True
+    first_frame_grow: bool = True
     first_frame_dark: float | None = 0.4
     backfill: bool = True
     identity_recheck: int | None = 3
@@ -250,22 +256,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 n_dots.append(len(dots))
             bad = np.zeros(len(exp[0]), dtype=bool)
             if cameras is not None:
-                both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
-                gap = np.full(len(both), np.nan)
-                if both.any():
-                    gap[both] = triangulate(cameras[1], inits[1][both], cameras[0], inits[0][both])[1]
-                bad = both & (gap > settings.max_ray_gap)
-                if bad.any():
-                    log.info("first frame: %d marker match(es) inconsistent between the views dropped",
-                             int(bad.sum()))
-                    inits[0][bad] = inits[1][bad] = np.nan
-                if rest_points is not None and settings.first_frame_layout:
-                    inits, moved = check_layout(inits, found, cameras, rest_points, settings.max_ray_gap)
-                    if moved.any():
-                        log.info("first frame: %d match(es) out of place in the 3-D layout changed or "
-                                 "dropped (%s)", int(moved.sum()), ", ".join(
-                                     f"{VIEWS[v]} {i if names is None else names[i]}"
-                                     for v, i in zip(*np.nonzero(moved), strict=True)))
+                inits, bad = check_first_frame(inits, found, cameras, settings.max_ray_gap,
+                                               rest_points if settings.first_frame_layout else None,
+                                               settings.first_frame_grow, names)
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
