@@ -64,9 +64,12 @@ def test_a_lure_on_the_epipolar_line_is_not_taken(own_dot_found):
     model, truth = _subject(1)
     uv = _views(truth, cams)
     bad = 11
-    lure = _lure_on_epipolar_line([cams[1], cams[0]], truth[bad], 4.0)   # on view 1's dot's line, in view 0
+    # On view 1's dot's line, in view 0: beside its own dot 3 mm along the ray; alone, 6 mm along
+    # (beyond ``near``, 0.8 of the 5 mm spacing).
+    along = 3.0 if own_dot_found else 6.0
+    lure = _lure_on_epipolar_line([cams[1], cams[0]], truth[bad], along)
     gap = triangulate(cams[1], uv[1][bad][None], cams[0], lure[None])[1]
-    assert gap[0] < 1e-6 and np.linalg.norm(lure - uv[0][bad]) > 3.0
+    assert gap[0] < 1e-6 and np.linalg.norm(lure - uv[0][bad]) > 2.0
     dots = [np.vstack([uv[0], lure[None]]), uv[1].copy()]
     if not own_dot_found:
         dots[0] = np.delete(dots[0], bad, axis=0)
@@ -76,7 +79,7 @@ def test_a_lure_on_the_epipolar_line_is_not_taken(own_dot_found):
     if own_dot_found:
         np.testing.assert_allclose(out[0][bad], uv[0][bad], atol=1e-9)
     else:
-        assert np.all(np.isnan(out[0][bad])), "the lure is 4 mm along the ray from the prediction"
+        assert np.all(np.isnan(out[0][bad])), "the lure is 6 mm along the ray from the prediction"
     keep = np.arange(len(model)) != bad
     np.testing.assert_allclose(out[0][keep], uv[0][keep], atol=1e-9)
 

@@ -94,10 +94,46 @@ def _ray_distance(camera: PinholeCamera, uv: np.ndarray, X: np.ndarray) -> float
     return float(np.linalg.norm(w - (w @ d) * d))
 
 
+def _consensus(model: np.ndarray, X: np.ndarray, seeds: np.ndarray, tol: float, share: float = 0.1
+               ) -> np.ndarray:
+    """The largest set of seeds whose mutual distances are the layout's (a compatibility clique).
+
+    Seeds ``i`` and ``j`` are compatible when their points' distance differs from their layout
+    distance by at most ``tol + share * layout distance`` mm (the subject's own lip shape, its
+    scale). A wrong pair both views matched sits along a ray, away from where its neighbours put
+    it; the largest clique of compatible seeds (ties: the smallest summed misfit) is kept.
+    Returns (P,) bool.
+    """
+    idx = np.flatnonzero(seeds)
+    n = len(idx)
+    dm = np.linalg.norm(model[idx][:, None] - model[idx][None], axis=2)
+    dx = np.linalg.norm(X[idx][:, None] - X[idx][None], axis=2)
+    misfit = np.abs(dx - dm)
+    ok = misfit <= tol + share * dm
+    best, best_key = np.ones(1, dtype=np.int64) * 0, (1, 0.0)
+
+    def extend(clique: list[int], cand: list[int]) -> None:
+        nonlocal best, best_key
+        if len(clique) + len(cand) < best_key[0]:
+            return
+        if not cand:
+            key = (len(clique), -float(misfit[np.ix_(clique, clique)].sum()))
+            if key > best_key:
+                best, best_key = np.array(clique), key
+            return
+        for k, c in enumerate(cand):
+            extend(clique + [c], [d for d in cand[k + 1:] if ok[c, d]])
+
+    extend([], list(range(n)))
+    out = np.zeros_like(seeds)
+    out[idx[best]] = True
+    return out
+
+
 def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
                      cameras: tuple[PinholeCamera, PinholeCamera], model_points, max_gap: float,
-                     near: float | None = None, ratio: float = 0.6, min_seeds: int = 3
-                     ) -> tuple[list[np.ndarray], np.ndarray]:
+                     near: float | None = None, ratio: float = 0.6, min_seeds: int = 3,
+                     seed_tol: float = 0.5) -> tuple[list[np.ndarray], np.ndarray]:
     """Match the markers not matched in both views where the layout placed on the seeds puts them.
 
     Parameters
@@ -113,12 +149,16 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     max_gap : float
         Largest distance between the two rays of a pair, mm.
     near : float or None
-        Largest distance (mm) from a marker's prediction to its pair's point; None: half the
+        Largest distance (mm) from a marker's prediction to its pair's point; None: 0.8 of the
         layout's marker spacing.
     ratio : float
         Ambiguity ratio (see the module's description).
     min_seeds : int
         Fewest seeds to grow from (at least 3).
+    seed_tol : float
+        Seeds stand when their mutual distances are the layout's within ``seed_tol`` layout
+        spacings and 10 % (the largest such set, :func:`_consensus`); the others are grown as
+        the unmatched are, their own pair among the candidates, and kept where none is chosen.
 
     Returns
     -------
@@ -142,13 +182,19 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     X = np.full((P, 3), np.nan)
     X[seeds] = triangulate(cameras[1], out[1][seeds], cameras[0], out[0][seeds])[0]
     width = layout_spacing(model[has])
-    near = 0.5 * width if near is None else float(near)
+    near = 0.8 * width if near is None else float(near)
     # Every pair of dots whose rays meet, once.
     iv, ir = np.meshgrid(np.arange(len(dv[0])), np.arange(len(dv[1])), indexing="ij")
     iv, ir = iv.ravel(), ir.ravel()
     PX, gap = triangulate(cameras[1], dv[1][ir], cameras[0], dv[0][iv])
     ok = gap <= max_gap
     PX, pairs = PX[ok], np.column_stack([iv[ok], ir[ok]])
+    # Seeds that agree on the subject's layout. The others are grown like unmatched markers, from
+    # their own pair among the rest: a wrong pair both views matched is replaced where a pair is
+    # clearly nearer its prediction, and kept otherwise (for the layout check that follows).
+    seeds = _consensus(model, X, seeds, seed_tol * width)
+    if seeds.sum() < min_seeds:
+        return out, grown
 
     def owner(v: int) -> np.ndarray:
         """Per dot of view v: the marker holding it (-1: free)."""

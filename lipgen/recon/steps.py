@@ -38,6 +38,7 @@ from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstframe import match_first_frame
 from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.stereo_init import layout_dots
@@ -148,6 +149,10 @@ class ReconstructSettings:
         views this many frames in a row from where the walk starts
         (:class:`lipgen.recon.backfill.WalkQueue`): a wrong pair taken back within a frame or two
         is not carried back.
+    acquire_pending : int or None
+        With the calibrated cameras, an acquisition the other view does not see yet is kept in
+        its view for up to this many frames until the other view confirms it (rays that meet) or
+        contradicts it (:class:`lipgen.recon.pending.PendingAcquisitions`); None: withdrawn at once.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -169,6 +174,7 @@ class ReconstructSettings:
     identity_recheck: int | None = 3
     rewalk: bool = True
     walk_frames: int = 3
+    acquire_pending: int | None = 10
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -227,6 +233,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                                                            floor=settings.min_step)
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
+    pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
+               if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck)
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     for t, raw in enumerate(raw_frames):
@@ -276,6 +284,10 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
+            if pending is not None:
+                forgot = pending.step(trackers, cameras, gap_limit.limit())
+                if walks is not None:
+                    ever &= ~forgot
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
