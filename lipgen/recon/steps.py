@@ -233,6 +233,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                                                            floor=settings.min_step)
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
+    ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck)
@@ -286,8 +287,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
             if pending is not None:
                 forgot = pending.step(trackers, cameras, gap_limit.limit())
-                if walks is not None:
-                    ever &= ~forgot
+                ever &= ~forgot
             check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
