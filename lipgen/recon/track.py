@@ -325,11 +325,8 @@ class MarkerTracker:
         self._rejected[-1][idx] = before
 
     def forget(self, k: int, since: int) -> None:
-        """Erase marker ``k``'s sightings from image ``since`` on and return it to never seen.
-
-        For an acquisition kept pending (:class:`lipgen.recon.pending.PendingAcquisitions`) that
-        the other view contradicts: the marker is then acquired afresh. Not counted as rejected.
-        """
+        """Erase marker ``k``'s sightings from image ``since`` on, as never seen (not as rejected):
+        a pending acquisition the other view contradicts (:mod:`lipgen.recon.pending`)."""
         if not 0 <= since < len(self._out):
             raise ValueError(f"since must index an image seen (0..{len(self._out) - 1}), got {since!r}")
         for uv, status, score in self._out[since:]:
