@@ -11,7 +11,7 @@ improves the placement of the rest. So :func:`grow_first_frame`:
 * seeds with the markers matched in both views (their rays meet: the caller checked the ray gap
   and the 3-D layout, :func:`lipgen.recon.firstframe.check_layout`);
 * places the layout on the seeds: a 3-D similarity (its scale near 1; a translation only while
-  the seeds lie on a line) and, from 4 seeds on, the seeds' smooth local offsets (the subject's
+  the seeds lie on a line or would turn it more than 15 degrees) and, from 4 seeds on, the seeds' smooth local offsets (the subject's
   own lip shape, the mouth's opening), shrunk towards none far from every seed;
 * for each marker not seeded, takes the 3-D points of the pairs of dots whose rays meet (within
   ``max_gap``): a dot of the view that matched it with every free dot of the other view (the dot
@@ -45,7 +45,7 @@ log = logging.getLogger(__name__)
 
 
 def place_layout_3d(model: np.ndarray, points: np.ndarray, seeds: np.ndarray, width: float,
-                    prior: float = 0.5) -> np.ndarray:
+                    prior: float = 0.5, max_turn: float = 15.0) -> np.ndarray:
     """Every marker's 3-D position from the seeded markers' points: similarity and local offsets.
 
     Parameters
@@ -61,6 +61,10 @@ def place_layout_3d(model: np.ndarray, points: np.ndarray, seeds: np.ndarray, wi
     prior : float
         Weight of "no offset" in each marker's weighted mean of the seeds' offsets (one seed at
         the marker itself weighs 1), so a marker far from every seed keeps the similarity.
+    max_turn : float
+        Largest rotation (degrees) from the layout's frame; a similarity that turns more (the
+        markers are given at rest in the cameras' frame, and the head is placed about so) is
+        replaced by the seeds' mean translation.
 
     Returns
     -------
@@ -75,11 +79,13 @@ def place_layout_3d(model: np.ndarray, points: np.ndarray, seeds: np.ndarray, wi
                          f"got shape {seeds.shape} with {int(seeds.sum())} set")
     src, dst = model[seeds], points[seeds]
     sv = np.linalg.svd(src - src.mean(0), compute_uv=False)
-    if sv[1] < 0.2 * sv[0]:       # on a line: the rotation about it is unknown
-        base = model + (dst.mean(0) - src.mean(0))
-    else:
+    base = model + (dst.mean(0) - src.mean(0))
+    if sv[1] >= 0.2 * sv[0]:      # not on a line (the rotation about it would be unknown)
         T = _similarity_3d(src, dst)
-        base = model @ T[:3, :3].T + T[:3, 3]
+        A = T[:3, :3] / np.cbrt(np.linalg.det(T[:3, :3]))
+        turn = np.degrees(np.arccos(np.clip((np.trace(A) - 1) / 2, -1.0, 1.0)))
+        if turn <= max_turn:      # a larger turn: a wrong seed more likely than the head
+            base = model @ T[:3, :3].T + T[:3, 3]
     if seeds.sum() < 4:
         return base
     w = np.exp(-0.5 * (np.linalg.norm(model[:, None] - src[None], axis=2) / width) ** 2)
