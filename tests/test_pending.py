@@ -18,10 +18,10 @@ M, F, HIDDEN = 5, 12, 6
 def _clip(pending: bool, wrong: bool = False, seed: int = 2):
     """Two views of 12 marks (3 rows of 4, 7 mm apart) swaying together. Mark M is matched in
     neither view's first frame. Its dot is hidden in view 1 until frame ``HIDDEN``, so view 0
-    alone can acquire it before then. With ``wrong``, M's own dot is hidden in view 0 before
-    frame ``HIDDEN`` and an ink blob 6 px below it (in every frame) (off the epipolar line, which runs along the
-    rows; its ray passes 2 mm from view 1's) is all view 0 shows near it. Returns the (virtual,
-    real) tracks and the true uv (2, F, P, 2)."""
+    alone can acquire it before then. With ``wrong``, an ink blob sits 6 px below M's dot in
+    view 0 in every frame (off the epipolar line, which runs along the rows; its ray passes 2 mm
+    from view 1's), and M's own dot is hidden there before frame ``HIDDEN``. Returns the
+    (virtual, real) tracks and the true uv (2, F, P, 2)."""
     cams = _two_views()
     rng = np.random.default_rng(seed)
     grid = np.array([(x, y, 0.0) for y in (-7.0, 0.0, 7.0) for x in (-10.5, -3.5, 3.5, 10.5)])

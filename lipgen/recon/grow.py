@@ -11,8 +11,9 @@ improves the placement of the rest. So :func:`grow_first_frame`:
 * seeds with the markers matched in both views (their rays meet: the caller checked the ray gap
   and the 3-D layout, :func:`lipgen.recon.firstframe.check_layout`);
 * places the layout on the seeds: a 3-D similarity (its scale near 1; a translation only while
-  the seeds lie on a line or would turn it more than 15 degrees) and, from 4 seeds on, the seeds' smooth local offsets (the subject's
-  own lip shape, the mouth's opening), shrunk towards none far from every seed;
+  the seeds lie on a line or would turn it more than 15 degrees) and, from 4 seeds on, the
+  seeds' smooth local offsets (the subject's own lip shape, the mouth's opening), shrunk towards
+  none far from every seed;
 * for each marker not seeded, takes the 3-D points of the pairs of dots whose rays meet (within
   ``max_gap``): a dot of the view that matched it with every free dot of the other view (the dot
   along its epipolar line), or two free dots where neither view matched it;
