@@ -25,6 +25,15 @@ improves the placement of the rest. So :func:`grow_first_frame`:
 A view's own match is replaced by a pair without it only when that pair is nearer the
 prediction than ``ratio`` times the match's ray is from it (a wrong 2-D match, whose ray misses
 the prediction).
+
+The layout is a weak prior on ``hard`` subjects: placed on right seeds, it puts the other
+markers 2-5 mm from their points (the marker spacing is 5 mm), hence ``near`` = 0.8 spacing and
+the one-at-a-time growth, which lets each new marker's offset correct its neighbours'.
+Measured with ``first_frame_grow`` and ``acquire_pending`` together (main b0a1c18 before, the
+same cached calibrations, calibrate -> track -> triangulate scored against the truth; load
+24-39): see ``ReconstructSettings.acquire_pending``. The first-frame stage alone, run on frames
+0, 10, 20 and 30 of hard validation seeds 7-10 as if each were the first (16 frames): markers
+matched right in both views 86 -> 126 of 272, wrong matches (mirror / direct) 32 / 39 -> 34 / 38.
 """
 
 from __future__ import annotations
