@@ -160,7 +160,10 @@ class ReconstructSettings:
         1.83 / 3.65 -> 2.14 / 1.93 px, 19 / 18 -> 18 / 17; default 7 / 8 / 9 92.1 / 97.4 / 92.8 ->
         97.9 / 98.1 / 98.4 %, none over 3 px before or after; easy 7 99.9 % and the demo's clip
         99.6 % unchanged. Grow alone: hard 7 74.7 % but 29 / 26 over 3 px, hard 10 64.2 %;
-        pending alone: hard 7 / 9 / 10 31.5 / 78.1 / 58.3 %.
+        pending alone: hard 7 / 9 / 10 31.5 / 78.1 / 58.3 %. Held out (once, after the freeze):
+        default 11 / 12 / 13 97.3 / 93.4 / 99.4 -> 97.5 / 99.2 / 99.4 %, none over 3 px; hard 11
+        / 12 / 13 (12 and 13 new) 71.2 / 69.3 / 79.1 -> 72.4 / 63.1 / 77.9 %, over 3 px 16 / 5 /
+        8 -> 22 / 21 / 8: on ``hard`` no gain held out.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
