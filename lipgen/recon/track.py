@@ -324,6 +324,19 @@ class MarkerTracker:
         self.reject(idx)
         self._rejected[-1][idx] = before
 
+    def forget(self, k: int, since: int) -> None:
+        """Erase marker ``k``'s sightings from image ``since`` on, as never seen (not as rejected):
+        a pending acquisition the other view contradicts (:mod:`lipgen.recon.pending`)."""
+        if not 0 <= since < len(self._out):
+            raise ValueError(f"since must index an image seen (0..{len(self._out) - 1}), got {since!r}")
+        for uv, status, score in self._out[since:]:
+            uv[k], status[k], score[k] = np.nan, LOST, np.nan
+        self.last[k], self.vel[k], self.gap[k], self.strength[k] = np.nan, 0.0, 0, np.nan
+        self.templates[k] = None
+        self.acquired[k] = False
+        last, gap, templates, strength = self._before
+        last[k], gap[k], templates[k], strength[k] = np.nan, 0, None, np.nan
+
     def tracks(self) -> Tracks:
         """Everything tracked so far."""
         if not self._out:
