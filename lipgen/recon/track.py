@@ -33,6 +33,7 @@ GUI (§3). Here the GUI is replaced by two things:
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import replace
 
 import numpy as np
 
@@ -50,6 +51,7 @@ from lipgen.recon.association import (
     predict,
     shift_group,
 )
+from lipgen.recon.blend import faint_candidates, needy_dots
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
@@ -109,6 +111,7 @@ class MarkerTracker:
         self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
         self.history_frames = 300
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
+        self._faint = (np.zeros((0, 2)), np.zeros(0))   # this image's round peaks under the floor
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """This frame's round dots (uv, strength) and elongated peaks (whole pixels, strength).
@@ -122,9 +125,14 @@ class MarkerTracker:
         if box is not None:
             a, b = box
             lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
-        peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
-        round_ = roundness >= self.cfg.dots.min_roundness
-        uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
+        dcfg, floor = self.cfg.dots, self.cfg.faint_floor
+        low = floor is not None and floor < dcfg.min_contrast and bool(self._out)
+        peaks, strength, roundness = dot_peaks(sub, replace(dcfg, min_contrast=floor) if low else dcfg)
+        self._faint = faint_candidates(peaks + lo, strength, roundness, dcfg.min_contrast, dcfg.min_roundness)
+        strong = strength >= dcfg.min_contrast       # the faint peaks are offered only to needy markers
+        peaks, strength, roundness = peaks[strong], strength[strong], roundness[strong]
+        round_ = roundness >= dcfg.min_roundness
+        uv, keep = refine_peaks(sub, peaks[round_], dcfg)
         return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
 
     def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
@@ -221,6 +229,20 @@ class MarkerTracker:
             back = (gap > 0) | shifted
             d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
                   else np.full(P, np.inf))
+            # Markers with no dot of their own: a blob shared with neighbours is split by a joint
+            # fit, and faint dots as dark as the marker's own have been are offered (recon.blend).
+            allowed = np.ones((P, len(dots)), dtype=bool)
+            lack = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate) & ~self.twins
+            if cfg.blend or (lack.any() and len(self._faint[0])):
+                plain = dots, strength
+                dots, strength, allowed, e_kept = needy_dots(
+                    gray, dots, strength, e_peaks, e_strength, *self._faint, pred, lack, self.strength,
+                    cfg.dots.sigma, cfg.gate, cfg.min_strength_ratio, cfg.blend)
+                e_peaks, e_strength = e_peaks[e_kept], e_strength[e_kept]
+                d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
+                      else np.full(P, np.inf))
+            else:
+                plain = dots, strength
             guess = np.where((back & corr_ok & (d0 <= cfg.gate))[:, None], cand, pred)
             reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
             # A dot seen obliquely (the lip corner turning away) is elongated and fails the
@@ -238,6 +260,7 @@ class MarkerTracker:
             # than ink, and the correlation may follow the skin around a hidden dot.
             dark_enough = (np.isnan(self.strength)[:, None]
                            | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
+            dark_enough[:, :allowed.shape[1]] &= allowed
             snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
                                                 dark_enough, round_dots=round_)
             got = snap >= 0
@@ -249,7 +272,7 @@ class MarkerTracker:
             status[trust] = CORRELATION_ONLY
             drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
-            self._acquire(uv, status, dots[round_], strength[round_])
+            self._acquire(uv, status, *plain)
         status[self.twins] = LOST
         uv[self.twins] = np.nan
         if self.reference is not None:
@@ -270,7 +293,8 @@ class MarkerTracker:
         if got.any():
             near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
             mine = strength[near.argmin(1)]
-            self.strength[got] = _darkness(self.strength[got], mine)
+            ink = mine >= cfg.dots.min_contrast   # a faint sighting does not lower the marker's floor
+            self.strength[np.flatnonzero(got)[ink]] = _darkness(self.strength[got][ink], mine[ink])
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score

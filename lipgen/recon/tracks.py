@@ -68,6 +68,13 @@ class TrackerSettings:
         builds on wrong first-frame matches); with the robust first frame 66.7 % and 141.
     acquire_ratio : float
         Ambiguity ratio of an acquisition.
+    blend : bool
+        A marker with no dot of its own whose prediction shares a blob with one or two neighbours'
+        has the blob split by a joint fit of their dots (:func:`lipgen.recon.blend.needy_dots`).
+    faint_floor : float or None
+        Response peaks from this darkness up to ``dots.min_contrast`` (and above the image's
+        noise) are offered to a marker with no dot of its own, near its prediction, when at least
+        ``min_strength_ratio`` as dark as its dot has been. None: no faint dots.
     """
 
     dots: DotSettings = DotSettings()
@@ -83,6 +90,8 @@ class TrackerSettings:
     min_strength_ratio: float = 0.5
     acquire_gate: float | None = 6.0
     acquire_ratio: float = 0.6
+    blend: bool = True
+    faint_floor: float | None = 0.03
 
     @property
     def twins(self) -> float:

@@ -1,0 +1,274 @@
+"""Dots the detector cannot find on their own: a blurred cluster fitted jointly, and faint dots.
+
+In the defocused, blurred mirror view of the ``hard`` preset, the upper lip's dots lie about 5 px
+apart with a blur of about 1.3 px: neighbours merge into one blob whose response has a single
+peak (between them, or on the darker one), and the tracker finds one dot for two markers. Others
+are simply faint: their darkness (0.05-0.08 of full scale) stays under the detector's absolute
+floor (:attr:`~lipgen.recon.dots.DotSettings.min_contrast`, 0.08) though it is far above the
+image noise there.
+
+Both are measured where the tracker already knows a marker should be:
+
+* :func:`fit_blend` fits ``k`` dots together: ``k`` Gaussian spots of one shared width on a
+  quadratic background, each spot starting at its marker's prediction (or at a detected dot) and
+  free to move a few pixels. The spots' depths and the background are linear and are solved
+  exactly inside each step (variable projection, as photometry packages fit crowded stars at
+  known positions), so only the positions and the width are searched. A fit counts only when it
+  is clean: every spot dark against the residual, the width plausible, and no two spots closer
+  than a dot's width.
+* :func:`faint_candidates` keeps the round response peaks under the absolute floor; the tracker
+  offers such a peak to a marker with no dot of its own only when it is at least
+  ``TrackerSettings.min_strength_ratio`` as dark as that marker's dot has been (a floor relative
+  to the marker's own history) and stands out from the noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from lipgen._validate import as_float_array
+
+__all__ = ["BlendFit", "fit_blend", "faint_candidates"]
+
+
+@dataclass(frozen=True, eq=False)
+class BlendFit:
+    """The result of :func:`fit_blend`.
+
+    Attributes
+    ----------
+    uv : (k, 2) float
+        Fitted centres (column, row), pixels.
+    depth : (k,) float
+        Fitted darkness of each spot (grey levels of the image, 0..1 of full scale).
+    sigma : float
+        The spots' shared Gaussian radius, pixels.
+    rms : float
+        RMS residual of the (weighted) fit over the patch.
+    ok : bool
+        Whether the fit is clean (see :func:`fit_blend`).
+    """
+
+    uv: np.ndarray
+    depth: np.ndarray
+    sigma: float
+    rms: float
+    ok: bool
+
+
+def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: float = 0.25,
+              min_snr: float = 3.0) -> BlendFit | None:
+    """Fit ``k`` overlapping dark dots of one shared width, each started at ``starts[i]``.
+
+    The model on the patch holding all starts (margin ``ceil(3 sigma) + 1``) is
+
+        I(x) = b(x) - sum_i a_i exp(-|x - p_i|^2 / 2 s^2)
+
+    with ``b`` quadratic. The positions ``p_i`` (each within ``reach[i]`` of its start) and the
+    width ``s`` (0.6-2 ``sigma``) are fitted by bounded least squares; ``a`` and ``b`` are linear
+    and solved exactly for each trial (variable projection). Pixels are weighted by a window of
+    2 ``sigma`` round the nearest start, so what lies past the dots (the lip border, the mouth)
+    has little say.
+
+    Parameters
+    ----------
+    gray : (H, W) float
+        Ink image (dots dark), e.g. :func:`lipgen.recon.dots.ink_gray`.
+    starts : (k, 2) float
+        First guesses of the centres (column, row), pixels; k >= 1.
+    sigma : float
+        Expected Gaussian radius of a dot, pixels.
+    reach : float or (k,) float
+        How far (pixels) each centre may move from its start.
+    min_depth_ratio : float
+        A clean fit has every spot at least this fraction as dark as the darkest one.
+    min_snr : float
+        A clean fit has every spot's depth at least this many times the residual RMS.
+
+    Returns
+    -------
+    BlendFit, or None where the patch leaves the image.
+    The fit is clean (``ok``) when it converged, every depth is positive and passes
+    ``min_depth_ratio`` and ``min_snr``, no centre sits at its bound, the width is not at its
+    bound, and no two centres are closer than ``1.5 s``.
+    """
+    from scipy.optimize import least_squares
+
+    p0 = as_float_array(starts, "starts", (None, 2))
+    k = len(p0)
+    if k == 0:
+        raise ValueError("fit_blend needs at least one start, got starts of shape (0, 2)")
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise ValueError(f"sigma must be a positive number of pixels, got {sigma!r}")
+    lim = np.broadcast_to(np.asarray(reach, dtype=float), (k,)).copy()
+    if not np.all(np.isfinite(lim) & (lim > 0)):
+        raise ValueError(f"reach must be positive pixels, scalar or shape ({k},), got {np.shape(reach)}")
+    margin = int(np.ceil(3.0 * sigma)) + 1
+    lo = np.floor(p0.min(0) - margin).astype(int)
+    hi = np.ceil(p0.max(0) + margin).astype(int) + 1
+    h, w = gray.shape
+    if lo.min() < 0 or hi[0] > w or hi[1] > h:
+        return None
+    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+    X = np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
+    img = gray[lo[1]:hi[1], lo[0]:hi[0]].ravel().astype(float)
+    d = X - p0.mean(0)
+    bg = np.column_stack([np.ones(len(d)), d, d * d, d[:, 0] * d[:, 1]])
+    r2 = ((X[:, None] - p0[None]) ** 2).sum(-1).min(1)
+    wt = np.sqrt(np.exp(-r2 / (2 * (2.0 * sigma) ** 2)))
+
+    def solve(q):
+        p, s = q[:2 * k].reshape(k, 2), q[-1]
+        g = np.exp(-((X[:, None] - p[None]) ** 2).sum(-1) / (2 * s * s))
+        design = np.column_stack([bg, -g]) * wt[:, None]
+        coef = np.linalg.lstsq(design, img * wt, rcond=None)[0]
+        return design @ coef - img * wt, coef[-k:]
+
+    q0 = np.r_[p0.ravel(), sigma]
+    lo_b = np.r_[(p0 - lim[:, None]).ravel(), 0.6 * sigma]
+    hi_b = np.r_[(p0 + lim[:, None]).ravel(), 2.0 * sigma]
+    fit = least_squares(lambda q: solve(q)[0], q0, bounds=(lo_b, hi_b), x_scale="jac")
+    res, depth = solve(fit.x)
+    uv, s = fit.x[:2 * k].reshape(k, 2), float(fit.x[-1])
+    rms = float(np.sqrt(np.sum(res ** 2) / max(np.sum(wt ** 2), 1e-12)))
+    at_bound = np.isclose(fit.x, lo_b, atol=1e-3) | np.isclose(fit.x, hi_b, atol=1e-3)
+    sep = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    np.fill_diagonal(sep, np.inf)
+    ok = bool(fit.success and depth.min() > 0 and depth.min() >= min_depth_ratio * depth.max()
+              and depth.min() >= min_snr * rms and not at_bound.any() and sep.min() >= 1.5 * s)
+    return BlendFit(uv, depth, s, rms, ok)
+
+
+def faint_candidates(peaks: np.ndarray, strength: np.ndarray, roundness: np.ndarray, floor: float,
+                     min_roundness: float) -> tuple[np.ndarray, np.ndarray]:
+    """The round peaks under the detector's absolute floor: ``(uv (m, 2), strength (m,))``.
+
+    Parameters
+    ----------
+    peaks : (n, 2) float
+        Whole-pixel response peaks, as :func:`lipgen.recon.dots.dot_peaks` gives them with a lower
+        ``min_contrast``.
+    strength, roundness : (n,) float
+        Their smoothed darkness and roundness.
+    floor : float
+        The detector's absolute floor (``DotSettings.min_contrast``): peaks at or above it are
+        ordinary dots, not returned here.
+    min_roundness : float
+        Least roundness of a faint dot.
+    """
+    pk = as_float_array(peaks, "peaks", (None, 2))
+    keep = (np.asarray(strength) < floor) & (np.asarray(roundness) >= min_roundness)
+    return pk[keep], np.asarray(strength, dtype=float)[keep]
+
+
+def needy_dots(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongated: np.ndarray,
+               elongated_strength: np.ndarray, faint_uv: np.ndarray, faint_strength: np.ndarray,
+               pred: np.ndarray, need: np.ndarray, own_strength: np.ndarray, sigma: float, reach: float,
+               ratio: float, blend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """This frame's dots with the ones found for markers that have none: split blobs, faint dots.
+
+    Parameters
+    ----------
+    gray : (H, W) float
+        Ink image.
+    dots : (n, 2) float
+        Detected round dots (sub-pixel); ``strength (n,)`` their darkness.
+    elongated : (e, 2) float
+        Elongated response peaks (whole pixels; two merged dots often make one);
+        ``elongated_strength (e,)`` their darkness.
+    faint_uv : (m, 2) float
+        Round peaks under the detector's floor (:func:`faint_candidates`); ``faint_strength (m,)``.
+    pred : (P, 2) float
+        Each marker's predicted position (NaN: not predicted).
+    need : (P,) bool
+        Markers with no dot of their own near their prediction or correlation peak (faint dots are
+        offered to these). Any two or three markers whose predictions have the same nearest dot (or
+        elongated peak), within ``2 reach``, have that blob split.
+    own_strength : (P,) float
+        Each marker's running darkness (NaN: never measured).
+    sigma : float
+        Dot radius, pixels.
+    reach : float
+        How far (pixels) a needy marker's dot may be from its prediction.
+    ratio : float
+        A faint dot must be at least this fraction as dark as the marker's own dot has been.
+    blend : bool
+        Also split merged blobs (:func:`fit_blend`).
+
+    Returns
+    -------
+    dots : (n', 2) float
+        The dots: a merged blob is replaced by its fitted spots, and faint dots are appended.
+    strength : (n',) float
+    allowed : (P, n') bool
+        Which marker may take which dot: every marker the detected dots and split spots; a faint
+        dot only the needy markers whose own darkness is known and at most ``1 / ratio`` times it.
+    elongated_kept : (e,) bool
+        The elongated peaks not split here.
+    """
+    P = len(pred)
+    dots, strength = np.asarray(dots, float).reshape(-1, 2), np.asarray(strength, float)
+    ok_pred = np.all(np.isfinite(pred), axis=1)
+    needy = np.flatnonzero(need & ok_pred)
+    n = len(dots)
+    blobs = np.vstack([dots, np.asarray(elongated, float).reshape(-1, 2)])
+    blob_str = np.concatenate([strength, np.asarray(elongated_strength, float)])
+    gone = np.zeros(len(blobs), dtype=bool)
+    new_uv, new_str = [], []
+    if blend and len(blobs) and ok_pred.sum() > 1:
+        d = np.linalg.norm(pred[:, None] - blobs[None], axis=2)
+        d[~ok_pred] = np.inf
+        owner = np.where(np.isfinite(d.min(1)), d.argmin(1), -1)       # each marker's nearest dot
+        owner[d.min(1, initial=np.inf) > 2 * reach] = -1
+        shared, count = np.unique(owner[owner >= 0], return_counts=True)
+        for j in shared[count > 1]:
+            # The markers whose nearest dot is this blob: two or three of them, one blob.
+            group = np.flatnonzero(owner == j)
+            if len(group) > 3:
+                continue
+            fit = fit_blend(gray, pred[group], sigma, reach)
+            if fit is None or not fit.ok:
+                continue
+            a, b = np.triu_indices(len(group), 1)
+            want, got = pred[group][a] - pred[group][b], fit.uv[a] - fit.uv[b]
+            nw, ng = np.linalg.norm(want, axis=1), np.linalg.norm(got, axis=1)
+            if np.any((got * want).sum(1) < 0.5 * nw * ng) or np.any((ng < 0.5 * nw) | (ng > 2.0 * nw)):
+                continue                      # the spots must keep the markers' order and spacing
+            gone[j] = True
+            new_uv.append(fit.uv)
+            new_str.append(blob_str[j] * fit.depth / fit.depth.max())
+    keep = ~gone[:n]
+    parts = [dots[keep], *new_uv]
+    strs = [strength[keep], *new_str]
+    n_real = sum(len(p) for p in parts)
+    faint_uv = np.asarray(faint_uv, float).reshape(-1, 2)
+    take = np.zeros(len(faint_uv), dtype=bool)
+    if len(needy) and len(faint_uv):
+        near = np.linalg.norm(pred[needy][:, None] - faint_uv[None], axis=2) <= reach
+        take = near.any(0)
+    if take.any():
+        fu = faint_uv[take]
+        if n_real:
+            from lipgen.recon.dots import refine_centroids
+            allu = np.vstack(parts)
+            nb = np.linalg.norm(allu[:, None] - fu[None], axis=2).min(1) < 2 * (np.ceil(3 * sigma) + 1)
+            fu = refine_centroids(gray, np.vstack([fu, allu[nb]]), sigma, window=1.25)[:len(fu)]
+            free = np.linalg.norm(fu[:, None] - allu[None], axis=2).min(1) >= sigma
+        else:
+            from lipgen.recon.dots import refine_centroids
+            fu = refine_centroids(gray, fu, sigma, window=1.25)
+            free = np.ones(len(fu), dtype=bool)
+        parts.append(fu[free])
+        strs.append(np.asarray(faint_strength, float)[take][free])
+    out = np.vstack(parts) if parts else np.zeros((0, 2))
+    out_str = np.concatenate(strs) if strs else np.zeros(0)
+    allowed = np.ones((P, len(out)), dtype=bool)
+    if len(out) > n_real:
+        fs = out_str[n_real:]
+        mine = np.zeros(P, dtype=bool)
+        mine[needy] = True
+        own = np.where(np.isfinite(own_strength), own_strength, np.inf)
+        allowed[:, n_real:] = mine[:, None] & (fs[None, :] >= ratio * own[:, None])
+    return out, out_str, allowed, ~gone[n:]
