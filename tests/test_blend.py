@@ -17,7 +17,8 @@ SHAPE = (60, 80)
 
 
 def _image(base, uv, rng, sigma, depth, noise=0.005):
-    return draw_dots(base, np.asarray(uv, float), sigma=sigma, depth=depth) + noise * rng.standard_normal(SHAPE)
+    img = draw_dots(base, np.asarray(uv, float), sigma=sigma, depth=depth)
+    return img + noise * rng.standard_normal(SHAPE)
 
 
 @pytest.mark.parametrize("seed", range(3))

@@ -29,8 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.association import RECOVERED, TRACKED, assign_two_routes
 
-__all__ = ["BlendFit", "fit_blend", "faint_candidates"]
+__all__ = ["BlendFit", "fit_blend", "faint_candidates", "split_blobs", "faint_dots", "take_faint"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,11 +164,16 @@ def faint_candidates(peaks: np.ndarray, strength: np.ndarray, roundness: np.ndar
     return pk[keep], np.asarray(strength, dtype=float)[keep]
 
 
-def needy_dots(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongated: np.ndarray,
-               elongated_strength: np.ndarray, faint_uv: np.ndarray, faint_strength: np.ndarray,
-               pred: np.ndarray, need: np.ndarray, own_strength: np.ndarray, sigma: float, reach: float,
-               ratio: float, blend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """This frame's dots with the ones found for markers that have none: split blobs, faint dots.
+def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongated: np.ndarray,
+                elongated_strength: np.ndarray, pred: np.ndarray, sigma: float, reach: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """This frame's dots with every blob shared by two or three markers split by :func:`fit_blend`.
+
+    Markers whose predictions have the same nearest blob (a round dot or an elongated peak: two
+    merged dots often make one), within ``2 reach``, are fitted together, each spot started at its
+    marker's prediction and free to move ``reach``. The split stands when the fit is clean and the
+    spots keep the predictions' order and spacing (each pair turned less than 60 degrees, its
+    length 0.5-2 times the predicted one).
 
     Parameters
     ----------
@@ -176,58 +182,38 @@ def needy_dots(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongat
     dots : (n, 2) float
         Detected round dots (sub-pixel); ``strength (n,)`` their darkness.
     elongated : (e, 2) float
-        Elongated response peaks (whole pixels; two merged dots often make one);
-        ``elongated_strength (e,)`` their darkness.
-    faint_uv : (m, 2) float
-        Round peaks under the detector's floor (:func:`faint_candidates`); ``faint_strength (m,)``.
+        Elongated response peaks (whole pixels); ``elongated_strength (e,)`` their darkness.
     pred : (P, 2) float
         Each marker's predicted position (NaN: not predicted).
-    need : (P,) bool
-        Markers with no dot of their own near their prediction or correlation peak (faint dots are
-        offered to these). Any two or three markers whose predictions have the same nearest dot (or
-        elongated peak), within ``2 reach``, have that blob split.
-    own_strength : (P,) float
-        Each marker's running darkness (NaN: never measured).
     sigma : float
         Dot radius, pixels.
     reach : float
-        How far (pixels) a needy marker's dot may be from its prediction.
-    ratio : float
-        A faint dot must be at least this fraction as dark as the marker's own dot has been.
-    blend : bool
-        Also split merged blobs (:func:`fit_blend`).
+        How far (pixels) a spot may move from its marker's prediction.
 
     Returns
     -------
     dots : (n', 2) float
-        The dots: a merged blob is replaced by its fitted spots, and faint dots are appended.
+        The round dots, a split blob replaced by its spots (appended, in no particular order).
     strength : (n',) float
-    allowed : (P, n') bool
-        Which marker may take which dot: every marker the detected dots and split spots; a faint
-        dot only the needy markers whose own darkness is known and at most ``1 / ratio`` times it.
+        Their darkness (a spot's: its blob's, times its depth over the deepest spot's).
     elongated_kept : (e,) bool
         The elongated peaks not split here.
     """
-    P = len(pred)
     dots, strength = np.asarray(dots, float).reshape(-1, 2), np.asarray(strength, float)
-    ok_pred = np.all(np.isfinite(pred), axis=1)
-    needy = np.flatnonzero(need & ok_pred)
     n = len(dots)
     blobs = np.vstack([dots, np.asarray(elongated, float).reshape(-1, 2)])
     blob_str = np.concatenate([strength, np.asarray(elongated_strength, float)])
     gone = np.zeros(len(blobs), dtype=bool)
     new_uv, new_str = [], []
-    if blend and len(blobs) and ok_pred.sum() > 1:
+    ok_pred = np.all(np.isfinite(pred), axis=1)
+    if len(blobs) and ok_pred.sum() > 1:
         d = np.linalg.norm(pred[:, None] - blobs[None], axis=2)
         d[~ok_pred] = np.inf
-        owner = np.where(np.isfinite(d.min(1)), d.argmin(1), -1)       # each marker's nearest dot
+        owner = np.where(np.isfinite(d.min(1)), d.argmin(1), -1)       # each marker's nearest blob
         owner[d.min(1, initial=np.inf) > 2 * reach] = -1
         shared, count = np.unique(owner[owner >= 0], return_counts=True)
-        for j in shared[count > 1]:
-            # The markers whose nearest dot is this blob: two or three of them, one blob.
+        for j in shared[(count > 1) & (count <= 3)]:
             group = np.flatnonzero(owner == j)
-            if len(group) > 3:
-                continue
             fit = fit_blend(gray, pred[group], sigma, reach)
             if fit is None or not fit.ok:
                 continue
@@ -240,35 +226,85 @@ def needy_dots(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongat
             new_uv.append(fit.uv)
             new_str.append(blob_str[j] * fit.depth / fit.depth.max())
     keep = ~gone[:n]
-    parts = [dots[keep], *new_uv]
-    strs = [strength[keep], *new_str]
-    n_real = sum(len(p) for p in parts)
-    faint_uv = np.asarray(faint_uv, float).reshape(-1, 2)
-    take = np.zeros(len(faint_uv), dtype=bool)
-    if len(needy) and len(faint_uv):
-        near = np.linalg.norm(pred[needy][:, None] - faint_uv[None], axis=2) <= reach
-        take = near.any(0)
-    if take.any():
-        fu = faint_uv[take]
-        if n_real:
-            from lipgen.recon.dots import refine_centroids
-            allu = np.vstack(parts)
-            nb = np.linalg.norm(allu[:, None] - fu[None], axis=2).min(1) < 2 * (np.ceil(3 * sigma) + 1)
-            fu = refine_centroids(gray, np.vstack([fu, allu[nb]]), sigma, window=1.25)[:len(fu)]
-            free = np.linalg.norm(fu[:, None] - allu[None], axis=2).min(1) >= sigma
-        else:
-            from lipgen.recon.dots import refine_centroids
-            fu = refine_centroids(gray, fu, sigma, window=1.25)
-            free = np.ones(len(fu), dtype=bool)
-        parts.append(fu[free])
-        strs.append(np.asarray(faint_strength, float)[take][free])
-    out = np.vstack(parts) if parts else np.zeros((0, 2))
-    out_str = np.concatenate(strs) if strs else np.zeros(0)
-    allowed = np.ones((P, len(out)), dtype=bool)
-    if len(out) > n_real:
-        fs = out_str[n_real:]
-        mine = np.zeros(P, dtype=bool)
-        mine[needy] = True
-        own = np.where(np.isfinite(own_strength), own_strength, np.inf)
-        allowed[:, n_real:] = mine[:, None] & (fs[None, :] >= ratio * own[:, None])
-    return out, out_str, allowed, ~gone[n:]
+    return (np.vstack([dots[keep], *new_uv]), np.concatenate([strength[keep], *new_str]), ~gone[n:])
+
+
+def faint_dots(gray: np.ndarray, faint_uv: np.ndarray, faint_strength: np.ndarray, near: np.ndarray,
+               reach: float, dots: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The faint peaks within ``reach`` of any of the points ``near (q, 2)``, refined to sub-pixel.
+
+    Each is refined with the round ``dots (n, 2)`` next to it (deblending) and dropped where it
+    ends within ``sigma`` of one of them. Returns ``(uv (m, 2), strength (m,))``.
+    """
+    from lipgen.recon.dots import refine_centroids
+
+    fu = np.asarray(faint_uv, float).reshape(-1, 2)
+    fs = np.asarray(faint_strength, float)
+    near = np.asarray(near, float).reshape(-1, 2)
+    if not len(fu) or not len(near):
+        return np.zeros((0, 2)), np.zeros(0)
+    take = (np.linalg.norm(near[:, None] - fu[None], axis=2) <= reach).any(0)
+    fu, fs = fu[take], fs[take]
+    if not len(fu):
+        return fu, fs
+    dots = np.asarray(dots, float).reshape(-1, 2)
+    nb = (np.linalg.norm(dots[:, None] - fu[None], axis=2) < 2 * (np.ceil(3 * sigma) + 1)).any(1)
+    uv = refine_centroids(gray, np.vstack([fu, dots[nb]]), sigma, window=1.25)[:len(fu)]
+    free = (np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sigma if len(dots)
+            else np.ones(len(uv), dtype=bool))
+    return uv[free], fs[free]
+
+
+def take_faint(tracker, gray: np.ndarray, uv: np.ndarray, status: np.ndarray, got: np.ndarray,
+               cand: np.ndarray, guess: np.ndarray, dots: np.ndarray, gates: np.ndarray,
+               reach: np.ndarray, corr_ok: np.ndarray) -> np.ndarray:
+    """Faint dots for the markers a tracker's frame left without one (in place on ``uv, status``).
+
+    A faint dot (:func:`faint_candidates`, kept by ``tracker._faint``) within ``reach`` of a
+    marker's ``guess`` is taken by the tracker's two-route, unambiguous assignment
+    (:func:`lipgen.recon.association.assign_two_routes`, with all this frame's ``dots`` as rivals),
+    and only when it is at least ``min_strength_ratio`` as dark as that marker's dot has been
+    (``tracker.strength``): a floor relative to the marker's own history. Markers never measured
+    get none.
+
+    Parameters
+    ----------
+    tracker : lipgen.recon.track.MarkerTracker
+        The tracker in the middle of its step.
+    gray : (H, W) float
+        Ink image.
+    uv : (P, 2) float
+        This frame's positions so far; ``status (P,)`` int8 their status; ``got (P,)`` bool the
+        markers that took a dot.
+    cand, guess : (P, 2) float
+        Correlation peaks and best guesses (prediction or peak).
+    dots : (n, 2) float
+        This frame's dots.
+    gates, reach : (P,) float
+        Gates of the correlation and prediction routes.
+    corr_ok : (P,) bool
+        Markers whose correlation peak may be used.
+
+    Returns
+    -------
+    (P,) bool
+        The markers that took a faint dot (status TRACKED or RECOVERED).
+    """
+    cfg = tracker.cfg
+    left = ~got & np.all(np.isfinite(guess), axis=1) & np.isfinite(tracker.strength) & ~tracker.twins
+    out = np.zeros(len(uv), dtype=bool)
+    if not left.any() or not len(tracker._faint[0]):
+        return out
+    f_uv, f_str = faint_dots(gray, *tracker._faint, guess[left], float(reach[left].max()), dots,
+                             cfg.dots.sigma)
+    if not len(f_uv):
+        return out
+    every = np.vstack([f_uv, dots])
+    allowed = np.zeros((len(uv), len(every)), dtype=bool)
+    dark = f_str[None, :] >= cfg.min_strength_ratio * tracker.strength[:, None]
+    allowed[:, :len(f_uv)] = left[:, None] & dark
+    snap, via = assign_two_routes(cand, guess, every, gates, reach, corr_ok, allowed)
+    out = snap >= 0
+    uv[out] = every[snap[out]]
+    status[out] = np.where(via[out], TRACKED, RECOVERED)
+    return out

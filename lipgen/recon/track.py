@@ -51,7 +51,7 @@ from lipgen.recon.association import (
     predict,
     shift_group,
 )
-from lipgen.recon.blend import faint_candidates, needy_dots
+from lipgen.recon.blend import faint_candidates, split_blobs, take_faint
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
@@ -199,6 +199,7 @@ class MarkerTracker:
         score = np.full(P, np.nan)
         first = not self._out
         shifted = np.zeros(P, dtype=bool)
+        faint_got = np.zeros(P, dtype=bool)
         if first:
             seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
@@ -229,20 +230,14 @@ class MarkerTracker:
             back = (gap > 0) | shifted
             d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
                   else np.full(P, np.inf))
-            # Markers with no dot of their own: a blob shared with neighbours is split by a joint
-            # fit, and faint dots as dark as the marker's own have been are offered (recon.blend).
-            allowed = np.ones((P, len(dots)), dtype=bool)
-            lack = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate) & ~self.twins
-            if cfg.blend or (lack.any() and len(self._faint[0])):
-                plain = dots, strength
-                dots, strength, allowed, e_kept = needy_dots(
-                    gray, dots, strength, e_peaks, e_strength, *self._faint, pred, lack, self.strength,
-                    cfg.dots.sigma, cfg.gate, cfg.min_strength_ratio, cfg.blend)
+            # A blob shared by neighbours' predictions (merged in the blur) is split by a joint
+            # fit of their dots (lipgen.recon.blend).
+            if cfg.blend:
+                dots, strength, e_kept = split_blobs(gray, dots, strength, e_peaks, e_strength, pred,
+                                                     cfg.dots.sigma, cfg.gate)
                 e_peaks, e_strength = e_peaks[e_kept], e_strength[e_kept]
                 d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
                       else np.full(P, np.inf))
-            else:
-                plain = dots, strength
             guess = np.where((back & corr_ok & (d0 <= cfg.gate))[:, None], cand, pred)
             reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
             # A dot seen obliquely (the lip corner turning away) is elongated and fails the
@@ -260,19 +255,21 @@ class MarkerTracker:
             # than ink, and the correlation may follow the skin around a hidden dot.
             dark_enough = (np.isnan(self.strength)[:, None]
                            | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
-            dark_enough[:, :allowed.shape[1]] &= allowed
             snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
                                                 dark_enough, round_dots=round_)
             got = snap >= 0
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
             status[got & ~via_corr] = RECOVERED
+            faint_got = take_faint(self, gray, uv, status, got, cand, guess, dots, gates, reach,
+                                   corr_ok & ~back)
+            got |= faint_got
             trust = ~got & corr_ok & (score >= cfg.confident_correlation)
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
             drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
-            self._acquire(uv, status, *plain)
+            self._acquire(uv, status, dots[round_], strength[round_])
         status[self.twins] = LOST
         uv[self.twins] = np.nan
         if self.reference is not None:
@@ -293,7 +290,7 @@ class MarkerTracker:
         if got.any():
             near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
             mine = strength[near.argmin(1)]
-            ink = mine >= cfg.dots.min_contrast   # a faint sighting does not lower the marker's floor
+            ink = ~faint_got[got]                  # a faint sighting does not lower the marker's floor
             self.strength[np.flatnonzero(got)[ink]] = _darkness(self.strength[got][ink], mine[ink])
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
