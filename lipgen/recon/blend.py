@@ -93,7 +93,7 @@ def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: fl
     BlendFit, or None where the patch leaves the image.
     The fit is clean (``ok``) when it converged, every depth is positive and passes
     ``min_depth_ratio`` and ``min_snr``, no centre sits at its bound, the width is not at its
-    bound, and no two centres are closer than ``1.5 s``.
+    bound, and no two centres are closer than ``2 s``.
     """
     from scipy.optimize import least_squares
 
@@ -138,7 +138,7 @@ def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: fl
     sep = np.linalg.norm(uv[:, None] - uv[None], axis=2)
     np.fill_diagonal(sep, np.inf)
     ok = bool(fit.success and depth.min() > 0 and depth.min() >= min_depth_ratio * depth.max()
-              and depth.min() >= min_snr * rms and not at_bound.any() and sep.min() >= 1.5 * s)
+              and depth.min() >= min_snr * rms and not at_bound.any() and sep.min() >= 2.0 * s)
     return BlendFit(uv, depth, s, rms, ok)
 
 
@@ -165,15 +165,17 @@ def faint_candidates(peaks: np.ndarray, strength: np.ndarray, roundness: np.ndar
 
 
 def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongated: np.ndarray,
-                elongated_strength: np.ndarray, pred: np.ndarray, sigma: float, reach: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                elongated_strength: np.ndarray, pred: np.ndarray, sigma: float, reach: float,
+                single_gain: float = 0.7) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """This frame's dots with every blob shared by two or three markers split by :func:`fit_blend`.
 
     Markers whose predictions have the same nearest blob (a round dot or an elongated peak: two
     merged dots often make one), within ``2 reach``, are fitted together, each spot started at its
-    marker's prediction and free to move ``reach``. The split stands when the fit is clean and the
-    spots keep the predictions' order and spacing (each pair turned less than 60 degrees, its
-    length 0.5-2 times the predicted one).
+    marker's prediction and free to move ``reach``. Predictions closer than 2.5 ``sigma`` are not
+    split (twins). The split stands when the fit is clean, explains the blob clearly better than
+    one dot (residual RMS at most ``single_gain`` times a one-dot fit's), and the spots keep the
+    predictions' order and spacing (each pair turned less than 60 degrees, its length 0.5-2 times
+    the predicted one).
 
     Parameters
     ----------
@@ -189,6 +191,8 @@ def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elonga
         Dot radius, pixels.
     reach : float
         How far (pixels) a spot may move from its marker's prediction.
+    single_gain : float
+        Largest ratio of the split's residual RMS to a one-dot fit's.
 
     Returns
     -------
@@ -214,9 +218,15 @@ def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elonga
         shared, count = np.unique(owner[owner >= 0], return_counts=True)
         for j in shared[(count > 1) & (count <= 3)]:
             group = np.flatnonzero(owner == j)
+            apart = np.linalg.norm(pred[group][:, None] - pred[group][None], axis=2)
+            if apart[np.triu_indices(len(group), 1)].min() < 2.5 * sigma:
+                continue                      # predicted too close to be told apart (twins)
             fit = fit_blend(gray, pred[group], sigma, reach)
             if fit is None or not fit.ok:
                 continue
+            one = fit_blend(gray, pred[group].mean(0, keepdims=True), sigma, 2 * reach)
+            if one is not None and fit.rms > single_gain * one.rms:
+                continue                      # one dot explains the blob about as well
             a, b = np.triu_indices(len(group), 1)
             want, got = pred[group][a] - pred[group][b], fit.uv[a] - fit.uv[b]
             nw, ng = np.linalg.norm(want, axis=1), np.linalg.norm(got, axis=1)
@@ -260,8 +270,8 @@ def take_faint(tracker, gray: np.ndarray, uv: np.ndarray, status: np.ndarray, go
                reach: np.ndarray, corr_ok: np.ndarray) -> np.ndarray:
     """Faint dots for the markers a tracker's frame left without one (in place on ``uv, status``).
 
-    A faint dot (:func:`faint_candidates`, kept by ``tracker._faint``) within ``reach`` of a
-    marker's ``guess`` is taken by the tracker's two-route, unambiguous assignment
+    A faint dot (:func:`faint_candidates`, kept by ``tracker._faint``) within ``settings.gate``
+    of a marker's correlation peak or guess (never farther, whatever ``reach``) is taken by the tracker's two-route, unambiguous assignment
     (:func:`lipgen.recon.association.assign_two_routes`, with all this frame's ``dots`` as rivals),
     and only when it is at least ``min_strength_ratio`` as dark as that marker's dot has been
     (``tracker.strength``): a floor relative to the marker's own history. Markers never measured
@@ -295,15 +305,15 @@ def take_faint(tracker, gray: np.ndarray, uv: np.ndarray, status: np.ndarray, go
     out = np.zeros(len(uv), dtype=bool)
     if not left.any() or not len(tracker._faint[0]):
         return out
-    f_uv, f_str = faint_dots(gray, *tracker._faint, guess[left], float(reach[left].max()), dots,
-                             cfg.dots.sigma)
+    f_uv, f_str = faint_dots(gray, *tracker._faint, guess[left], cfg.gate, dots, cfg.dots.sigma)
     if not len(f_uv):
         return out
     every = np.vstack([f_uv, dots])
     allowed = np.zeros((len(uv), len(every)), dtype=bool)
     dark = f_str[None, :] >= cfg.min_strength_ratio * tracker.strength[:, None]
     allowed[:, :len(f_uv)] = left[:, None] & dark
-    snap, via = assign_two_routes(cand, guess, every, gates, reach, corr_ok, allowed)
+    near = np.minimum(reach, cfg.gate)       # a faint dot only right where the marker should be
+    snap, via = assign_two_routes(cand, guess, every, gates, near, corr_ok, allowed)
     out = snap >= 0
     uv[out] = every[snap[out]]
     status[out] = np.where(via[out], TRACKED, RECOVERED)

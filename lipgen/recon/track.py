@@ -232,6 +232,7 @@ class MarkerTracker:
                   else np.full(P, np.inf))
             # A blob shared by neighbours' predictions (merged in the blur) is split by a joint
             # fit of their dots (lipgen.recon.blend).
+            plain = dots, strength               # acquisition takes only detected dots
             if cfg.blend:
                 dots, strength, e_kept = split_blobs(gray, dots, strength, e_peaks, e_strength, pred,
                                                      cfg.dots.sigma, cfg.gate)
@@ -269,7 +270,7 @@ class MarkerTracker:
             status[trust] = CORRELATION_ONLY
             drop_merged(uv, status, cand, np.all(np.isfinite(pred), axis=1),
                          max(cfg.gate, cfg.dots.separation))
-            self._acquire(uv, status, dots[round_], strength[round_])
+            self._acquire(uv, status, *plain)
         status[self.twins] = LOST
         uv[self.twins] = np.nan
         if self.reference is not None:
