@@ -271,7 +271,8 @@ def take_faint(tracker, gray: np.ndarray, uv: np.ndarray, status: np.ndarray, go
     """Faint dots for the markers a tracker's frame left without one (in place on ``uv, status``).
 
     A faint dot (:func:`faint_candidates`, kept by ``tracker._faint``) within ``settings.gate``
-    of a marker's correlation peak or guess (never farther, whatever ``reach``) is taken by the tracker's two-route, unambiguous assignment
+    of a marker's correlation peak or guess (never farther, whatever ``reach``) is taken by the
+    tracker's two-route, unambiguous assignment
     (:func:`lipgen.recon.association.assign_two_routes`, with all this frame's ``dots`` as rivals),
     and only when it is at least ``min_strength_ratio`` as dark as that marker's dot has been
     (``tracker.strength``): a floor relative to the marker's own history. Markers never measured
