@@ -228,8 +228,6 @@ class MarkerTracker:
             # A peak with no dot at it is the skin where the dot was; the prediction, carried
             # with the neighbours, is the better guess then.
             back = (gap > 0) | shifted
-            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
-                  else np.full(P, np.inf))
             # A blob shared by neighbours' predictions (merged in the blur) is split by a joint
             # fit of their dots (lipgen.recon.blend).
             plain = dots, strength               # acquisition takes only detected dots
@@ -237,8 +235,8 @@ class MarkerTracker:
                 dots, strength, e_kept = split_blobs(gray, dots, strength, e_peaks, e_strength, pred,
                                                      cfg.dots.sigma, cfg.gate)
                 e_peaks, e_strength = e_peaks[e_kept], e_strength[e_kept]
-                d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
-                      else np.full(P, np.inf))
+            d0 = (np.linalg.norm(cand[:, None] - dots[None], axis=2).min(1) if len(dots)
+                  else np.full(P, np.inf))
             guess = np.where((back & corr_ok & (d0 <= cfg.gate))[:, None], cand, pred)
             reach = cfg.recovery_gate + cfg.gate * np.minimum(gap, 3)
             # A dot seen obliquely (the lip corner turning away) is elongated and fails the
