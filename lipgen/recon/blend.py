@@ -100,10 +100,10 @@ def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: fl
 
     Returns
     -------
-    BlendFit, or None where the patch leaves the image.
-    The fit is clean (``ok``) when it converged, every depth is positive and passes
-    ``min_depth_ratio`` and ``min_snr``, no centre sits at its bound, the width is not at its
-    bound, and no two centres are closer than ``2 s``.
+    BlendFit or None
+        None where the patch leaves the image. The fit is clean (``ok``) when it converged,
+        every depth is positive and passes ``min_depth_ratio`` and ``min_snr``, no centre sits at
+        its bound, the width is not at its bound, and no two centres are closer than ``2 s``.
     """
     from scipy.optimize import least_squares
 
