@@ -1,4 +1,4 @@
-"""Dots the detector cannot find alone (lipgen.recon.blend): merged neighbours and faint dots.
+"""Dots the detector cannot find alone (lipgen.recon.blend): merged neighbours.
 
 Synthetic frames with known centres (tests/synthetic_images.py): blurred dots drawn as Gaussians
 on a textured, shaded background with pixel noise.
@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 from synthetic_images import background, draw_dots
 
-from lipgen.recon.association import LOST
 from lipgen.recon.blend import fit_blend
 from lipgen.recon.dots import DotSettings, detect_dots
 from lipgen.recon.track import MarkerTracker, TrackerSettings
@@ -78,56 +77,3 @@ def test_the_tracker_keeps_both_of_two_blurred_dots_4px_apart(seed):
     assert np.linalg.norm(got.uv - paths, axis=2).max() < 0.3
     without = run(TrackerSettings(dots=cfg.dots, blend=False))
     assert not without.visible[-1].all(), "without the joint fit the merged pair is lost"
-
-
-def _fading(depths, seed, noise=0.004, blob=0.0):
-    """One marker among three whose dot's depth follows ``depths``; the others stay dark. Where the
-    dot is gone (depth 0), a blob of depth ``blob`` (a texture or noise blob) lies 1.5 px away."""
-    rng = np.random.default_rng(seed)
-    base = background(SHAPE, rng, texture=0.004)
-    uv = np.array([[25.0, 30.0], [40.3, 29.6], [55.0, 31.0]])
-    frames = []
-    for d in depths:
-        img = draw_dots(base, uv[[0, 2]], sigma=1.3, depth=0.15)
-        if d > 0:
-            img = draw_dots(img, uv[1:2], sigma=1.3, depth=d)
-        elif blob > 0:
-            img = draw_dots(img, uv[1:2] + [1.2, 0.9], sigma=1.3, depth=blob)
-        frames.append(img + noise * rng.standard_normal(SHAPE))
-    return uv, frames
-
-
-@pytest.mark.parametrize("seed", range(2))
-def test_a_faint_dot_at_low_noise_is_found(seed):
-    uv, frames = _fading([0.15] * 4 + [0.085] * 3, seed)
-    cfg = TrackerSettings(dots=DotSettings(sigma=1.3), faint_floor=0.03)
-    assert len(detect_dots(frames[-1], cfg.dots)[0]) == 2            # under the absolute floor
-    tr = MarkerTracker(uv, cfg)
-    for f in frames:
-        tr.step(f)
-    got = tr.tracks()
-    assert got.visible[:, 1].all()
-    assert np.linalg.norm(got.uv[:, 1] - uv[1], axis=1).max() < 0.3
-    off = MarkerTracker(uv, TrackerSettings(dots=cfg.dots, faint_floor=None))
-    for f in frames:
-        off.step(f)
-    assert not off.tracks().visible[-1, 1]
-
-
-@pytest.mark.parametrize("seed", range(2))
-def test_a_noise_blob_where_the_dot_was_is_not_taken(seed):
-    # The dot is gone; a blob above the faint floor but under half the dot's own darkness lies
-    # 1.5 px from where it was. Without the floor relative to the marker's history it is taken.
-    uv, frames = _fading([0.15] * 4 + [0.0] * 3, seed, blob=0.06)
-
-    def lost(ratio):
-        tr = MarkerTracker(uv, TrackerSettings(dots=DotSettings(sigma=1.3), faint_floor=0.03,
-                                               min_strength_ratio=ratio))
-        for f in frames:
-            tr.step(f)
-        status = tr.tracks().status
-        assert (status[:, [0, 2]] != LOST).all()
-        return status[4:, 1] == LOST
-
-    assert lost(0.5).all()
-    assert not lost(0.0).any()

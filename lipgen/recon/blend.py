@@ -1,26 +1,15 @@
-"""Dots the detector cannot find on their own: a blurred cluster fitted jointly, and faint dots.
+"""Dots the detector cannot find on their own: a blurred cluster fitted jointly.
 
 In the defocused, blurred mirror view of the ``hard`` preset, the upper lip's dots lie about 5 px
 apart with a blur of about 1.3 px: neighbours merge into one blob whose response has a single
-peak (between them, or on the darker one), and the tracker finds one dot for two markers. Others
-are simply faint: their darkness (0.05-0.08 of full scale) stays under the detector's absolute
-floor (:attr:`~lipgen.recon.dots.DotSettings.min_contrast`, 0.08) though it is far above the
-image noise there.
-
-Both are measured where the tracker already knows a marker should be:
-
-* :func:`fit_blend` fits ``k`` dots together: ``k`` Gaussian spots of one shared width on a
-  quadratic background, each spot starting at its marker's prediction (or at a detected dot) and
-  free to move a few pixels. The spots' depths and the background are linear and are solved
-  exactly inside each step (variable projection, as photometry packages fit crowded stars at
-  known positions), so only the positions and the width are searched. A fit counts only when it
-  is clean: every spot dark against the residual, the width plausible, and no two spots closer
-  than a dot's width.
-* :func:`faint_candidates` keeps the round response peaks under the absolute floor; the tracker
-  (:func:`take_faint`, with ``TrackerSettings.faint_floor``; off by default) offers such a peak
-  to a marker left without a dot, within the gate of its guess, only when it is at least
-  ``TrackerSettings.min_strength_ratio`` as dark as that marker's dot has been (a floor relative
-  to the marker's own history) and stands out from the noise.
+peak (between them, or on the darker one), and the tracker finds one dot for two markers.
+Where the tracker already knows the markers should be, :func:`fit_blend` fits ``k`` dots
+together: ``k`` Gaussian spots of one shared width on a quadratic background, each spot starting
+at its marker's prediction (or at a detected dot) and free to move a few pixels. The spots'
+depths and the background are linear and are solved exactly inside each step (variable
+projection, as photometry packages fit crowded stars at known positions), so only the positions
+and the width are searched. A fit counts only when it is clean: every spot dark against the
+residual, the width plausible, and no two spots closer than a dot's width.
 
 Diagnosis (``hard`` validation seeds 7-10, 40 frames, truth used only to diagnose): of the
 visible mirror-view sightings, 5.6-10.4 % had no dot found; of those, 12-25 per seed were merged
@@ -29,7 +18,10 @@ with a neighbour 4-7 px away (no response peak of their own), 9-33 faint (darkne
 more sightings per seed (not found: 64 / 59 / 38 / 70 -> 64 / 58 / 37 / 70): most fits in its
 blur (fitted widths 1.6-2.6 px against 1.3) are refused (width at its bound, a spot of no depth,
 or one dot explaining the blob as well), and those kept are 0.4-1 px from the truth.
-Faint dots near a marker's prediction were mostly a neighbour's (5 px off), so they are off.
+Faint dots (darkness 0.05-0.08, under the detector's 0.08 floor) were tried too, offered to a
+marker left without a dot when as dark as its own history: on ``hard`` 8 they lowered the share
+accepted (83.1 -> 81.4 %) and added a sighting over 3 px, most being a neighbour's dot 5 px off;
+they were left out.
 """
 
 from __future__ import annotations
@@ -39,9 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.association import RECOVERED, TRACKED, assign_two_routes
 
-__all__ = ["BlendFit", "fit_blend", "faint_candidates", "split_blobs", "faint_dots", "take_faint"]
+__all__ = ["BlendFit", "fit_blend", "split_blobs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,28 +143,6 @@ def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: fl
     return BlendFit(uv, depth, s, rms, ok)
 
 
-def faint_candidates(peaks: np.ndarray, strength: np.ndarray, roundness: np.ndarray, floor: float,
-                     min_roundness: float) -> tuple[np.ndarray, np.ndarray]:
-    """The round peaks under the detector's absolute floor: ``(uv (m, 2), strength (m,))``.
-
-    Parameters
-    ----------
-    peaks : (n, 2) float
-        Whole-pixel response peaks, as :func:`lipgen.recon.dots.dot_peaks` gives them with a lower
-        ``min_contrast``.
-    strength, roundness : (n,) float
-        Their smoothed darkness and roundness.
-    floor : float
-        The detector's absolute floor (``DotSettings.min_contrast``): peaks at or above it are
-        ordinary dots, not returned here.
-    min_roundness : float
-        Least roundness of a faint dot.
-    """
-    pk = as_float_array(peaks, "peaks", (None, 2))
-    keep = (np.asarray(strength) < floor) & (np.asarray(roundness) >= min_roundness)
-    return pk[keep], np.asarray(strength, dtype=float)[keep]
-
-
 def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elongated: np.ndarray,
                 elongated_strength: np.ndarray, pred: np.ndarray, sigma: float, reach: float,
                 single_gain: float = 0.7) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -247,85 +216,3 @@ def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elonga
             new_str.append(blob_str[j] * fit.depth / fit.depth.max())
     keep = ~gone[:n]
     return (np.vstack([dots[keep], *new_uv]), np.concatenate([strength[keep], *new_str]), ~gone[n:])
-
-
-def faint_dots(gray: np.ndarray, faint_uv: np.ndarray, faint_strength: np.ndarray, near: np.ndarray,
-               reach: float, dots: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """The faint peaks within ``reach`` of any of the points ``near (q, 2)``, refined to sub-pixel.
-
-    Each is refined with the round ``dots (n, 2)`` next to it (deblending) and dropped where it
-    ends within ``sigma`` of one of them. Returns ``(uv (m, 2), strength (m,))``.
-    """
-    from lipgen.recon.dots import refine_centroids
-
-    fu = np.asarray(faint_uv, float).reshape(-1, 2)
-    fs = np.asarray(faint_strength, float)
-    near = np.asarray(near, float).reshape(-1, 2)
-    if not len(fu) or not len(near):
-        return np.zeros((0, 2)), np.zeros(0)
-    take = (np.linalg.norm(near[:, None] - fu[None], axis=2) <= reach).any(0)
-    fu, fs = fu[take], fs[take]
-    if not len(fu):
-        return fu, fs
-    dots = np.asarray(dots, float).reshape(-1, 2)
-    nb = (np.linalg.norm(dots[:, None] - fu[None], axis=2) < 2 * (np.ceil(3 * sigma) + 1)).any(1)
-    uv = refine_centroids(gray, np.vstack([fu, dots[nb]]), sigma, window=1.25)[:len(fu)]
-    free = (np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sigma if len(dots)
-            else np.ones(len(uv), dtype=bool))
-    return uv[free], fs[free]
-
-
-def take_faint(tracker, gray: np.ndarray, uv: np.ndarray, status: np.ndarray, got: np.ndarray,
-               cand: np.ndarray, guess: np.ndarray, dots: np.ndarray, gates: np.ndarray,
-               reach: np.ndarray, corr_ok: np.ndarray) -> np.ndarray:
-    """Faint dots for the markers a tracker's frame left without one (in place on ``uv, status``).
-
-    A faint dot (:func:`faint_candidates`, kept by ``tracker._faint``) within ``settings.gate``
-    of a marker's correlation peak or guess (never farther, whatever ``reach``) is taken by the
-    tracker's two-route, unambiguous assignment
-    (:func:`lipgen.recon.association.assign_two_routes`, with all this frame's ``dots`` as rivals),
-    and only when it is at least ``min_strength_ratio`` as dark as that marker's dot has been
-    (``tracker.strength``): a floor relative to the marker's own history. Markers never measured
-    get none.
-
-    Parameters
-    ----------
-    tracker : lipgen.recon.track.MarkerTracker
-        The tracker in the middle of its step.
-    gray : (H, W) float
-        Ink image.
-    uv : (P, 2) float
-        This frame's positions so far; ``status (P,)`` int8 their status; ``got (P,)`` bool the
-        markers that took a dot.
-    cand, guess : (P, 2) float
-        Correlation peaks and best guesses (prediction or peak).
-    dots : (n, 2) float
-        This frame's dots.
-    gates, reach : (P,) float
-        Gates of the correlation and prediction routes.
-    corr_ok : (P,) bool
-        Markers whose correlation peak may be used.
-
-    Returns
-    -------
-    (P,) bool
-        The markers that took a faint dot (status TRACKED or RECOVERED).
-    """
-    cfg = tracker.cfg
-    left = ~got & np.all(np.isfinite(guess), axis=1) & np.isfinite(tracker.strength) & ~tracker.twins
-    out = np.zeros(len(uv), dtype=bool)
-    if not left.any() or not len(tracker._faint[0]):
-        return out
-    f_uv, f_str = faint_dots(gray, *tracker._faint, guess[left], cfg.gate, dots, cfg.dots.sigma)
-    if not len(f_uv):
-        return out
-    every = np.vstack([f_uv, dots])
-    allowed = np.zeros((len(uv), len(every)), dtype=bool)
-    dark = f_str[None, :] >= cfg.min_strength_ratio * tracker.strength[:, None]
-    allowed[:, :len(f_uv)] = left[:, None] & dark
-    near = np.minimum(reach, cfg.gate)       # a faint dot only right where the marker should be
-    snap, via = assign_two_routes(cand, guess, every, gates, near, corr_ok, allowed)
-    out = snap >= 0
-    uv[out] = every[snap[out]]
-    status[out] = np.where(via[out], TRACKED, RECOVERED)
-    return out

@@ -33,7 +33,6 @@ GUI (§3). Here the GUI is replaced by two things:
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import replace
 
 import numpy as np
 
@@ -51,7 +50,7 @@ from lipgen.recon.association import (
     predict,
     shift_group,
 )
-from lipgen.recon.blend import faint_candidates, split_blobs, take_faint
+from lipgen.recon.blend import split_blobs
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
@@ -111,7 +110,6 @@ class MarkerTracker:
         self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
         self.history_frames = 300
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
-        self._faint = (np.zeros((0, 2)), np.zeros(0))   # this image's round peaks under the floor
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """This frame's round dots (uv, strength) and elongated peaks (whole pixels, strength).
@@ -125,14 +123,9 @@ class MarkerTracker:
         if box is not None:
             a, b = box
             lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
-        dcfg, floor = self.cfg.dots, self.cfg.faint_floor
-        low = floor is not None and floor < dcfg.min_contrast and bool(self._out)
-        peaks, strength, roundness = dot_peaks(sub, replace(dcfg, min_contrast=floor) if low else dcfg)
-        self._faint = faint_candidates(peaks + lo, strength, roundness, dcfg.min_contrast, dcfg.min_roundness)
-        strong = strength >= dcfg.min_contrast       # the faint peaks are offered only to needy markers
-        peaks, strength, roundness = peaks[strong], strength[strong], roundness[strong]
-        round_ = roundness >= dcfg.min_roundness
-        uv, keep = refine_peaks(sub, peaks[round_], dcfg)
+        peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
+        round_ = roundness >= self.cfg.dots.min_roundness
+        uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
         return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
 
     def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
@@ -199,7 +192,6 @@ class MarkerTracker:
         score = np.full(P, np.nan)
         first = not self._out
         shifted = np.zeros(P, dtype=bool)
-        faint_got = np.zeros(P, dtype=bool)
         if first:
             seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
@@ -260,9 +252,6 @@ class MarkerTracker:
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
             status[got & ~via_corr] = RECOVERED
-            faint_got = take_faint(self, gray, uv, status, got, cand, guess, dots, gates, reach,
-                                   corr_ok & ~back)
-            got |= faint_got
             trust = ~got & corr_ok & (score >= cfg.confident_correlation)
             uv[trust] = cand[trust]
             status[trust] = CORRELATION_ONLY
@@ -289,8 +278,7 @@ class MarkerTracker:
         if got.any():
             near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
             mine = strength[near.argmin(1)]
-            ink = ~faint_got[got]                  # a faint sighting does not lower the marker's floor
-            self.strength[np.flatnonzero(got)[ink]] = _darkness(self.strength[got][ink], mine[ink])
+            self.strength[got] = _darkness(self.strength[got], mine)
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score

@@ -77,14 +77,6 @@ class TrackerSettings:
         7-9 and ``easy`` 7 within 0.3 points, px RMS unchanged. Held out (run once): ``hard``
         11 / 14 / 15 71.5 / 82.7 / 78.4 -> 72.4 / 82.7 / 81.1 %, over 3 px 16 / 66 / 13 -> 6 /
         66 / 11.
-    faint_floor : float or None
-        Response peaks from this darkness up to ``dots.min_contrast`` (and above the image's
-        noise) are offered to a marker left without a dot, within ``gate`` of its guess, when at
-        least ``min_strength_ratio`` as dark as its dot has been (:func:`lipgen.recon.blend.take_faint`).
-        None (default): no faint dots. Measured at 0.03 on ``hard`` validation seeds 8 / 9 (40
-        frames, with ``blend``): 83.1 / 79.0 % accepted -> 81.4 / 79.1 %, sightings over 3 px
-        0+1 / 13+14 -> 0+2 / 13+14; most faint dots in the mirror view's 5-px cluster are a
-        neighbour's, so a marker took them 5 px off.
     """
 
     dots: DotSettings = DotSettings()
@@ -101,7 +93,6 @@ class TrackerSettings:
     acquire_gate: float | None = 6.0
     acquire_ratio: float = 0.6
     blend: bool = True
-    faint_floor: float | None = None
 
     @property
     def twins(self) -> float:
