@@ -55,23 +55,3 @@ def test_the_16_read_shadow_filter_draws_pyrenders_pixels():
         assert np.array_equal(f, b), np.abs(f.astype(int) - b).max()
         shadowed = (a.astype(int).sum(axis=2) < c.astype(int).sum(axis=2) - 30).mean()
         assert shadowed > 0.002, shadowed  # the nose and the folds cast shadows in these frames
-
-
-def test_the_tight_shadow_map_draws_the_wide_maps_pixels():
-    """The key light's map over the scene's bounding sphere (1024 texels) against pyrender's own
-    (2048 texels over twice the width): the same texels, so the same frames to float rounding."""
-    mesh = lip_mesh(1)
-    face = FaceModel(mesh, FaceLook(head=True, mouth=True, dot_irregularity=1.0, dot_smudge=0.5,
-                                    texture=1.0, texture_seed=4))
-    lights = realize(PRESETS["hard"].image.conditions, seed=7)["lights"]
-    scenes = [face.scene(mesh.vertices, _pose(d), lights=lights, age=0.5) for d in (-6.0, 9.0)]
-    out, sizes = {}, {}
-    with render.RigRenderer(default_rig(320, 240), shadows=True) as r:
-        for tight in (True, False):
-            r.clear()
-            r._tight_shadows = tight
-            out[tight] = [r.render(s).image.astype(int) for s in scenes]
-            sizes[tight] = {n.light.shadow_texture.width for n in r._scene.directional_light_nodes}
-    assert sizes == {True: {1024}, False: {2048}}
-    d = np.abs(np.stack(out[True]) - np.stack(out[False]))
-    assert d.max() <= 1 and (d > 0).mean() < 1e-4, (d.max(), (d > 0).mean())

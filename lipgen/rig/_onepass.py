@@ -103,12 +103,6 @@ def _one_pass_class(pr):
                     GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, self.samples, fmt,
                                                         self.viewport_width, self.viewport_height)
 
-        def _configure_shadow_mapping_viewport(self, light, flags):
-            """pyrender's, with the viewport at the shadow map's own size (pyrender assumes its
-            constant size; a tight light's map is smaller, :mod:`lipgen.rig._pyscene`)."""
-            super()._configure_shadow_mapping_viewport(light, flags)
-            GL.glViewport(0, 0, light.shadow_texture.width, light.shadow_texture.height)
-
         def _lights_fit(self, scene, flags) -> bool:
             """Every light is bound, whatever the node (pyrender sorts lights by their distance from
             the node only when there are more than its shaders hold): a program's light uniforms

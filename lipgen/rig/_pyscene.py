@@ -148,12 +148,10 @@ def _pyrender_mesh(pr, item: MeshItem, faces: np.ndarray, mat, textures: dict | 
 _FAR = 1e5  # mm: a point light this far stands in for a directional light that casts no shadow
 
 
-def _pyrender_light(pr, light, shadows: bool = False, tight: bool = False) -> tuple:
+def _pyrender_light(pr, light, shadows: bool = False) -> tuple:
     """A pyrender light and its pose. When shadows are drawn, a directional light that casts none
     becomes a point light ``_FAR`` mm away along its direction, as bright at the scene (pyrender
-    draws shadows for every directional light or none). ``tight``: a shadow-casting light's map
-    covers only the scene's bounding sphere (see :func:`_shadow_light_class`); the renderer must
-    then draw shadow maps at their own size (the one-pass renderer does)."""
+    draws shadows for every directional light or none)."""
     color = srgb_to_linear(light.color)
     pose = np.eye(4)
     if light.kind == "directional" and shadows and not light.shadows:
@@ -166,9 +164,7 @@ def _pyrender_light(pr, light, shadows: bool = False, tight: bool = False) -> tu
         x = np.cross([0.0, 1.0, 0.0], z)
         x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-9 else np.array([1.0, 0, 0])
         pose[:3, :3] = np.stack([x, np.cross(z, x), z], 1)
-        out = _shadow_light_class(pr)(color=color, intensity=light.intensity)
-        out.tight = bool(tight)
-        return out, pose
+        return _shadow_light_class(pr)(color=color, intensity=light.intensity), pose
     pose[:3, 3] = light.position
     return pr.PointLight(color=color, intensity=light.intensity), pose
 
@@ -185,33 +181,13 @@ def _shadow_light_class(pr):
     shadows itself in stripes (acne). A range of 40 scene sizes makes the offset 0.4-4 % of the
     scene (about 1-10 mm on a face, less than the nose's or the lips' relief), with depth
     precision to spare (24 bits over 40 scene sizes).
-
-    With ``tight`` set on the light, its map is half as wide (1024 texels instead of pyrender's
-    2048) and covers half the width (``scene_scale / 2`` either side of the scene's centre instead
-    of ``scene_scale``): the middle of pyrender's map, texel for texel. pyrender centres the map on
-    the centre of the scene's bounding box and ``scene_scale`` is that box's diagonal, so every
-    point of the scene lies within ``scene_scale / 2`` of the centre and in the middle half: the
-    outer three quarters of pyrender's map are cleared and never drawn. The same texels hold the
-    same depths (to float rounding: on the hard preset's frames 7e-7 of the pixels move by one
-    grey level), and the shadow pass clears and holds a quarter of the memory (``lipgen bench
-    --suite presets``).
     """
     cls = getattr(pr, "_lipgen_shadow_light", None)
     if cls is None:
-        from pyrender.constants import SHADOW_TEX_SZ
-
         class ShadowDirectionalLight(pr.DirectionalLight):
-            tight = False
-
             def _get_shadow_camera(self, scene_scale):
-                half = 0.5 * scene_scale if self.tight else scene_scale
                 return pr.OrthographicCamera(znear=0.01 * scene_scale, zfar=_SHADOW_DEPTH_RANGE * scene_scale,
-                                             xmag=half, ymag=half)
-
-            def _generate_shadow_texture(self, size=None):
-                if size is None and self.tight:
-                    size = SHADOW_TEX_SZ // 2
-                super()._generate_shadow_texture(size)
+                                             xmag=scene_scale, ymag=scene_scale)
 
         cls = pr._lipgen_shadow_light = ShadowDirectionalLight
     return cls

@@ -170,7 +170,6 @@ class RigRenderer:
         self._textures: dict[int, tuple] = {}  # id(array) -> (array, pyrender Texture): uploaded once
         self._lights: tuple = ()
         self._light_nodes: list = []
-        self._tight_shadows = True  # shadow maps over the scene's bounding sphere (lipgen.rig._pyscene)
 
     @property
     def samples(self) -> int:
@@ -240,8 +239,7 @@ class RigRenderer:
             for node in self._light_nodes:
                 self._scene.remove_node(node)
             shadows = self._flags != pr.RenderFlags.NONE
-            lights = [_pyrender_light(pr, lt, shadows, tight=self._one_pass and self._tight_shadows)
-                      for lt in scene.lights]
+            lights = [_pyrender_light(pr, lt, shadows) for lt in scene.lights]
             self._light_nodes = [self._scene.add(light, name=f"light:{i:03d}", pose=pose)
                                  for i, (light, pose) in enumerate(lights)]
             self._lights = scene.lights
