@@ -34,6 +34,14 @@ frame is drawn, not the frame pipeline this measures. ``hard_over_new`` divides 
 issue 22's median (today's default frames, which ``easy`` reproduces).
 
 Without git or the base commit (an installed copy, a shallow clone) the suite says so and skips.
+
+Measured (speed15d, 2 cores, nice 5, load 17-45; per-round ratios in brackets). Issue 22, new over
+base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
+(:mod:`lipgen._memory`), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
+frames) with it; the former method (the three trees at once, no warm-up, llvmpipe's own thread
+count) read 1.07-1.57. Issue 15, hard over base: 0.56 (0.41-0.60) and 0.41 (0.39-0.43) in two runs
+of 3 rounds, before the memory policy: still too spread to claim either way. At load 40 the whole
+suite takes about 65 minutes of wall time, most of it the hard rounds.
 """
 
 from __future__ import annotations
