@@ -37,7 +37,7 @@ Without git or the base commit (an installed copy, a shallow clone) the suite sa
 
 Measured (speed15d, 2 cores, nice 5, load 17-45; per-round ratios in brackets). Issue 22, new over
 base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
-(:mod:`lipgen._memory`), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
+(``lipgen._memory``), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
 frames) with it; the former method (the three trees at once, no warm-up, llvmpipe's own thread
 count) read 1.07-1.57. The memory policy alone, this method on the two commits at load 12-17, is
 1.03 (0.86-1.23; 1.06 for whole calls), and 1.09 (1.08-1.18) by environment variables at load
