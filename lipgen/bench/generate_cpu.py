@@ -38,14 +38,14 @@ Without git or the base commit (an installed copy, a shallow clone) the suite sa
 Measured (speed15d, 2 cores, nice 5, load 17-45; per-round ratios in brackets). Issue 22, new over
 base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
 (``lipgen._memory``), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
-frames) with it; the former method (the three trees at once, no warm-up, llvmpipe's own thread
-count) read 1.07-1.57. The memory policy alone, this method on the two commits at load 12-17, is
-1.03 (0.86-1.23; 1.06 for whole calls), and 1.09 (1.08-1.18) by environment variables at load
-32-44: so the runs above differ mostly by the machine's state, not the code, and the figure still
-moves by more than the target's margin between runs hours apart. Issue 15, hard over base: 0.56
-(0.41-0.60) and 0.41 (0.39-0.43) in two runs
-of 3 rounds, before the memory policy: still too spread to claim either way. At load 40 the whole
-suite takes about 65 minutes of wall time, most of it the hard rounds.
+frames) with it, at load 25-42, and 1.73 (1.60-1.74) in 3 rounds at load 13-18; the former method
+(the three trees at once, no warm-up, llvmpipe's own thread count) read 1.07-1.57. The memory policy
+alone, this method on the two commits at load 12-17, is 1.03 (0.86-1.23; 1.06 for whole calls), and
+1.09 (1.08-1.18) by environment variables at load 32-44: so the runs above differ mostly by the
+machine's state, not the code, and the figure still moves by more than the target's margin between
+runs hours apart. Issue 15, hard over base: 0.56 (0.41-0.60) and 0.41 (0.39-0.43) in two runs of 3
+rounds, before the memory policy: still too spread to claim either way. At load 40 the whole suite
+takes about 65 minutes of wall time, most of it the hard rounds.
 """
 
 from __future__ import annotations
