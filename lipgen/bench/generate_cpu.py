@@ -35,7 +35,7 @@ issue 22's median (today's default frames, which ``easy`` reproduces).
 
 Without git or the base commit (an installed copy, a shallow clone) the suite says so and skips.
 
-Measured (speed15d, 2 cores, nice 5, load 17-45; per-round ratios in brackets). Issue 22, new over
+Measured (speed15d, 2 cores, nice 5, load 12-45; per-round ratios in brackets). Issue 22, new over
 base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
 (``lipgen._memory``), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
 frames) with it, at load 25-42, and 1.73 (1.60-1.74) in 3 rounds at load 13-18; the former method
