@@ -27,43 +27,61 @@ def test_base_tree_is_the_commits_package(tmp_path):
     assert g.base_tree(tmp_path / "none", "no-such-commit-xyz") is None
 
 
+def _fake_runs(cost):
+    """``_runs`` whose calls cost ``start + frames * per_frame`` CPU s (``cost[name][round]``), and
+    a one-off ``first`` s in each process's first call (the warm-up's)."""
+    seen = []
+
+    def runs(trees, envs, tmp, tag, counts, workers, together):
+        r = int(tag)
+        seen.append((list(trees), envs, counts))
+        out = {}
+        for n in trees:
+            start, per_frame, first = cost[n][r]
+            out[n] = [{"frames": f, "cpu_s": start + f * per_frame + (first if k == 0 else 0.0),
+                       "wall_s": 2.0 * f} for k, f in enumerate(counts)]
+        return out
+
+    return runs, seen
+
+
 def test_marginal_frames_per_cpu_second_and_ratios(monkeypatch, tmp_path):
-    """CPU = start + frames * per_frame: the marginal rate is 1 / per_frame whatever the start-up."""
-    cost = {"base": (3.0, 0.2), "new": (5.0, 0.1)}  # (start-up s, s per frame)
-
-    def runs(trees, envs, tmp, tag, frames, workers, together):
-        return {n: {"cpu_s": cost[n][0] + frames * cost[n][1], "wall_s": 2.0 * frames} for n in trees}
-
+    """CPU = start + frames * per_frame: the marginal rate is 1 / per_frame whatever the start-up,
+    and the warm-up call's one-off costs do not enter it."""
+    cost = {"base": [(3.0, 0.2, 4.0)] * 2, "new": [(5.0, 0.1, 9.0)] * 2}  # (start s, s per frame, one-off s)
+    runs, seen = _fake_runs(cost)
     monkeypatch.setattr(g, "_runs", runs)
     out = g.generate_cpu({"base": tmp_path, "new": tmp_path}, "base", 1, 8, 48, 2)
+    assert [s[2] for s in seen] == [[8, 8, 48]] * 2  # warm-up, short, long
+    assert [s[0] for s in seen] == [["base", "new"], ["new", "base"]]  # the order alternates
     assert out["base"]["frames_per_cpu_s"] == pytest.approx(5.0)
     assert out["new"]["frames_per_cpu_s"] == pytest.approx(10.0)
     assert out["new"]["ratio"] == pytest.approx(2.0)
-    assert out["new"]["ratio_rounds"] == pytest.approx([2.0, 2.0])
-    assert out["new"]["whole_run_ratio"] == pytest.approx((3.0 + 48 * 0.2) / (5.0 + 48 * 0.1))
+    assert out["new"]["ratio_spread"]["rounds"] == pytest.approx([2.0, 2.0])
+    assert out["new"]["whole_call_ratio"] == pytest.approx((3.0 + 48 * 0.2) / (5.0 + 48 * 0.1))
     assert out["new"]["frames_per_wall_s"] == pytest.approx(0.5)
     with pytest.raises(ValueError, match="frames_long > frames_short"):
         g.generate_cpu({"base": tmp_path}, "base", 1, 8, 8, 1)
+    with pytest.raises(ValueError, match="baseline 'old'"):
+        g.generate_cpu({"base": tmp_path}, "old", 1, 8, 48, 1)
+    with pytest.raises(ValueError, match="rounds"):
+        g.generate_cpu({"base": tmp_path}, "base", 1, 8, 48, 0)
 
 
-def test_hard_over_new_is_the_per_round_ratio_with_base_cancelled(monkeypatch, tmp_path):
-    """Issue 15's figures from one run: hard over the base's default frames, and over today's."""
-    per_frame = {"base": [0.2, 0.25], "new": [0.1, 0.125], "hard": [0.4, 0.25]}  # s per frame, per round
-    seen_envs = []
-    rnd = iter(range(4))
-
-    def runs(trees, envs, tmp, tag, frames, workers, together):
-        seen_envs.append(envs)
-        r = int(tag.split("-")[0])
-        next(rnd)
-        return {n: {"cpu_s": 1.0 + frames * per_frame[n][r], "wall_s": 1.0} for n in trees}
-
+def test_ratios_are_per_round_then_the_median(monkeypatch, tmp_path):
+    """A round where both trees are slowed by the same factor gives the same ratio: the median is
+    of per-round ratios, not a ratio of medians."""
+    slow = [1.0, 3.0, 1.5]
+    cost = {"base": [(1.0, 0.2 * f, 0.0) for f in slow],
+            "new": [(1.0, 0.1 * f * (1.2 if r == 2 else 1.0), 0.0) for r, f in enumerate(slow)]}
+    runs, _ = _fake_runs(cost)
     monkeypatch.setattr(g, "_runs", runs)
-    envs = {"hard": {"LIPGEN_BENCH_PRESET": "hard"}}
-    trees = {"base": tmp_path, "new": tmp_path, "hard": tmp_path}
-    out = g.generate_cpu(trees, "base", 1, 8, 48, 2, envs=envs)
-    assert all(e == envs for e in seen_envs)
-    assert out["hard"]["ratio_rounds"] == pytest.approx([0.5, 1.0])
-    h = g.hard_over_new(out)
-    assert h["ratio_rounds"] == pytest.approx([0.25, 0.5])
-    assert h["ratio"] == pytest.approx(0.375)
+    out = g.generate_cpu({"base": tmp_path, "new": tmp_path}, "base", 1, 8, 48, 3, warmup=False)
+    assert out["new"]["ratio_spread"]["rounds"] == pytest.approx([2.0, 2.0, 2.0 / 1.2])
+    assert out["new"]["ratio"] == pytest.approx(2.0)
+    assert out["new"]["ratio_spread"]["range"] == pytest.approx([2.0 / 1.2, 2.0])
+
+
+def test_spread():
+    s = g.spread([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert s["median"] == 3.0 and s["quartiles"] == [2.0, 4.0] and s["range"] == [1.0, 5.0]

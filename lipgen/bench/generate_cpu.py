@@ -2,31 +2,50 @@
 
 Issue 22's target is ``generate`` at 1.5x the frames per second per core of the code when the
 issue was filed (:data:`BASE_COMMIT`). That code is taken from this checkout's git history
-(``git archive``, only its ``lipgen`` package, into a temporary folder), and both trees run the
-same ``generate`` call in fresh subprocesses started at the same time, so both see the same load
-(the load of a shared machine drifts by more than the differences measured), round after round,
-on the default settings (``GenerateSettings(frames=F, calib_frames=0)``: 640x480, ideal camera,
-noise 1, PNG level 1), with 1 and with 2 worker processes.
+(``git archive``, only its ``lipgen`` package, into a temporary folder). Both trees run the same
+``generate`` call (``GenerateSettings(frames=F, calib_frames=0)``: 640x480, ideal camera, noise 1,
+PNG level 1) on one worker, the frames per second of one core.
 
-Issue 15's target is the ``hard`` preset's ``generate`` at 0.5 of the frames per second of the
+How it is measured, so that the figure is stable on a shared, loaded machine:
+
+- **Interleaved rounds.** Each round runs every tree once, one after the other (never at the same
+  time: processes that share the 2 cores slow each other by different amounts), in an order that
+  alternates round by round (A B, B A, ...), so drift in the load falls on both.
+- **One process per tree and round, three calls in it:** a warm-up of ``frames_short`` frames
+  (imports, lazy imports inside ``generate``, shader compilation: one-off costs), then
+  ``frames_short`` and ``frames_long`` frames, each timed on its own. The marginal frames per CPU
+  second ``(frames_long - frames_short) / (cpu_long - cpu_short)`` cancels everything ``generate``
+  pays once per call (the GL context, the set-up), leaving what each further frame costs: the
+  subject's motion, the render, the sensor, the truth and the writing.
+- **CPU, not wall time:** the process's own and its reaped children's (``getrusage``: user + system,
+  every thread). ``LP_NUM_THREADS=1`` in every tree's environment: Mesa's llvmpipe then draws in
+  one thread of its own in both (by default it starts one per core and their waiting shows as CPU;
+  a tree that sets its own count, as this one does in pool workers, still may).
+- **Ratios per round, then the median;** the spread of the per-round ratios (all of them, and
+  their quartiles) and the load average are recorded.
+
+Issue 15's target, the ``hard`` preset's ``generate`` at 0.5 of the frames per second of the
 default frames when that issue was filed (:data:`ISSUE15_BASE_COMMIT`, whose frame pipeline is
-:data:`BASE_COMMIT`'s). So each round also runs this tree with ``--preset hard`` (``hard``), at the
-same moment as the other two, and the suite reports ``hard`` over ``base`` (issue 15's figure) and
-over ``new`` (``hard_over_new``: against today's default frames, which ``easy`` reproduces). The
-hard run's truth is moved by the linear truth physics: the nonlinear tissue layer is a one-off
-simulation of seconds per frame before any frame is drawn, not the frame pipeline this measures.
+:data:`BASE_COMMIT`'s), is measured after the timed rounds of issue 22, in rounds of its own
+(``hard`` against ``base``, the same way): a hard frame is 2-3 times a default one, and in the same
+rounds it would weigh on the others' load. The hard run's truth is moved by the linear truth
+physics: the nonlinear tissue layer is a one-off simulation of seconds per frame before any
+frame is drawn, not the frame pipeline this measures. ``hard_over_new`` divides that figure by
+issue 22's median (today's default frames, which ``easy`` reproduces).
 
-CPU is the subprocess's own and its reaped children's (``getrusage``: user + system, every
-thread and pool worker), so a writer thread or a second worker shows as CPU, not as speed.
-Per round and tree, two runs of ``frames_short`` and ``frames_long`` frames give
-
-- ``frames_per_cpu_s``: the marginal frames per CPU second,
-  ``(frames_long - frames_short) / (cpu_long - cpu_short)`` (start-up, simulation and the GL
-  context cancel out): what each further frame costs;
-- ``whole_run_frames_per_cpu_s``: ``frames_long / cpu_long`` (start-up included, as a user pays it).
-
-The ratios are new over base per round, and their medians; the load average is recorded.
 Without git or the base commit (an installed copy, a shallow clone) the suite says so and skips.
+
+Measured (speed15d, 2 cores, nice 5, load 12-45; per-round ratios in brackets). Issue 22, new over
+base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
+(``lipgen._memory``), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
+frames) with it, at load 25-42, and 1.73 (1.60-1.74) in 3 rounds at load 13-18; the former method
+(the three trees at once, no warm-up, llvmpipe's own thread count) read 1.07-1.57. The memory policy
+alone, this method on the two commits at load 12-17, is 1.03 (0.86-1.23; 1.06 for whole calls), and
+1.09 (1.08-1.18) by environment variables at load 32-44: so the runs above differ mostly by the
+machine's state, not the code, and the figure still moves by more than the target's margin between
+runs hours apart. Issue 15, hard over base: 0.56 (0.41-0.60) and 0.41 (0.39-0.43) in two runs of 3
+rounds, before the memory policy: still too spread to claim either way. At load 40 the whole suite
+takes about 65 minutes of wall time, most of it the hard rounds.
 """
 
 from __future__ import annotations
@@ -44,7 +63,7 @@ from lipgen.bench.compare import load_average
 
 NAME = "generate"
 
-__all__ = ["BASE_COMMIT", "base_tree", "generate_cpu", "run"]
+__all__ = ["BASE_COMMIT", "ISSUE15_BASE_COMMIT", "RENDER_ENV", "base_tree", "generate_cpu", "spread", "run"]
 
 BASE_COMMIT = "16ccdfc^"
 """The code when issue 22 was filed (its first commit's parent)."""
@@ -54,22 +73,34 @@ ISSUE15_BASE_COMMIT = "7546620^"
 frame pipeline (``lipgen/rig``, ``lipgen/dataset``) differs from :data:`BASE_COMMIT`'s in docstrings
 only, so ``base``'s default frames are issue 15's "today's default" too."""
 
+RENDER_ENV = {"LP_NUM_THREADS": "1"}
+"""Environment of every tree's runs: llvmpipe draws in one thread of its own."""
+
 _DRIVER = """
-import json, os, resource, sys, time
+import json, os, resource, shutil, sys, time
 from lipgen.dataset.generate import generate
 from lipgen.dataset.layout import GenerateSettings
-out, frames, workers = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+out, workers, counts = sys.argv[1], int(sys.argv[2]), [int(x) for x in sys.argv[3].split(",")]
 preset = os.environ.get("LIPGEN_BENCH_PRESET")
-if preset:  # a preset's frames, its truth moved by the linear physics (see the module docstring)
-    s = GenerateSettings.from_preset(preset, frames=frames, calib_frames=0, truth_physics="linear")
-else:
-    s = GenerateSettings(frames=frames, calib_frames=0)
-t0 = time.perf_counter()
-generate(out, s, workers=workers, progress=False)
-wall = time.perf_counter() - t0
-cpu = sum(r.ru_utime + r.ru_stime for r in (resource.getrusage(resource.RUSAGE_SELF),
-                                             resource.getrusage(resource.RUSAGE_CHILDREN)))
-print(json.dumps({"cpu_s": cpu, "wall_s": wall}))
+
+
+def cpu():
+    return sum(r.ru_utime + r.ru_stime for r in (resource.getrusage(resource.RUSAGE_SELF),
+                                                 resource.getrusage(resource.RUSAGE_CHILDREN)))
+
+
+calls = []
+for k, frames in enumerate(counts):
+    if preset:  # a preset's frames, its truth moved by the linear physics (see the module docstring)
+        s = GenerateSettings.from_preset(preset, frames=frames, calib_frames=0, truth_physics="linear")
+    else:
+        s = GenerateSettings(frames=frames, calib_frames=0)
+    folder = f"{out}-{k}"
+    c0, t0 = cpu(), time.perf_counter()
+    generate(folder, s, workers=workers, progress=False)
+    calls.append({"frames": frames, "cpu_s": cpu() - c0, "wall_s": time.perf_counter() - t0})
+    shutil.rmtree(folder, ignore_errors=True)
+print(json.dumps(calls))
 """
 
 
@@ -92,40 +123,50 @@ def base_tree(dest: str | os.PathLike, commit: str = BASE_COMMIT) -> Path | None
     return dest
 
 
-def _start(tree: Path, out: Path, frames: int, workers: int, env: dict | None) -> subprocess.Popen:
+def _start(tree: Path, out: Path, counts: list[int], workers: int, env: dict | None) -> subprocess.Popen:
     env = dict(os.environ, **(env or {}), PYTHONPATH=str(tree))
-    return subprocess.Popen([sys.executable, "-c", _DRIVER, str(out), str(frames), str(workers)], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    args = [sys.executable, "-c", _DRIVER, str(out), str(workers), ",".join(map(str, counts))]
+    return subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _finish(proc: subprocess.Popen, tree: Path) -> dict:
+def _finish(proc: subprocess.Popen, tree: Path) -> list[dict]:
     stdout, stderr = proc.communicate(timeout=3600)
     if proc.returncode != 0:
         raise RuntimeError(f"generate in {tree} failed: {stderr.strip()[-2000:]}")
     return json.loads(stdout.strip().splitlines()[-1])
 
 
-def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, frames: int, workers: int,
-          together: bool) -> dict[str, dict]:
-    """One run of every tree: all at once (``together``: the same load for each), or one by one."""
-    names = list(trees)
-    if together:
-        procs = {}
-        try:
-            for n in names:
-                procs[n] = _start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n))
-            return {n: _finish(p, trees[n]) for n, p in procs.items()}
-        finally:  # an error or Ctrl-C in one run: the others do not run on
-            for p in procs.values():
-                if p.poll() is None:
-                    p.kill()
-                    p.wait()
-    return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", frames, workers, envs.get(n)), trees[n])
-            for n in names}
+def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, counts: list[int], workers: int,
+          together: bool) -> dict[str, list[dict]]:
+    """One process per tree, each making ``generate`` calls of ``counts`` frames in turn: the trees
+    one after the other in the order given, or all at once (``together``). Returns per tree the
+    calls' ``{"frames", "cpu_s", "wall_s"}``."""
+    if not together:
+        return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", counts, workers, envs.get(n)), trees[n])
+                for n in trees}
+    procs = {}
+    try:
+        for n in trees:
+            procs[n] = _start(trees[n], tmp / f"{n}-{tag}", counts, workers, envs.get(n))
+        return {n: _finish(p, trees[n]) for n, p in procs.items()}
+    finally:  # an error or Ctrl-C in one run: the others do not run on
+        for p in procs.values():
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+
+
+def spread(values) -> dict:
+    """Median, quartiles and range of ``values`` (1-D): how far a suite's per-round ratios scatter."""
+    v = np.asarray(values, float)
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return {"median": float(med), "quartiles": [float(q1), float(q3)],
+            "range": [float(v.min()), float(v.max())], "rounds": [float(x) for x in v]}
 
 
 def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_short: int, frames_long: int,
-                 rounds: int, envs: dict[str, dict] | None = None, together: bool = True) -> dict:
+                 rounds: int, envs: dict[str, dict] | None = None, together: bool = False,
+                 warmup: bool = True) -> dict:
     """Frames per CPU second of ``generate`` in each of ``trees``, interleaved, and ratios to ``baseline``.
 
     Parameters
@@ -137,73 +178,75 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     workers : int
         ``generate``'s worker processes.
     frames_short, frames_long : int
-        Frames of the two runs per round (``frames_long > frames_short``).
+        Frames of the two timed calls per round and tree (``frames_long > frames_short``).
     rounds : int
-        Rounds; each runs every tree twice.
+        Rounds; each starts one process per tree.
     envs : dict of str to dict, optional
         Extra environment variables of a name's runs.
     together : bool
-        Start the trees' runs of a round at the same time, so that each sees the same load (the
-        machine's load drifts by more than the differences measured); else one after the other,
-        in an order that alternates round by round.
+        Start the trees' processes of a round at the same time; by default one after the other,
+        in an order that reverses round by round.
+    warmup : bool
+        Begin each process with an untimed call of ``frames_short`` frames (one-off costs).
 
     Returns
     -------
     dict
-        Per name: median ``frames_per_cpu_s`` (marginal), ``whole_run_frames_per_cpu_s`` and
-        ``frames_per_wall_s`` (long run); and for the others ``ratio`` (marginal, per-round median),
-        ``ratio_rounds`` and ``whole_run_ratio``; ``load_average`` before and after.
+        Per name: median ``frames_per_cpu_s`` (marginal), ``whole_call_frames_per_cpu_s`` and
+        ``frames_per_wall_s`` (the long call); and for the others ``ratio`` (marginal, median of the
+        per-round ratios), ``ratio_spread`` (:func:`spread`) and ``whole_call_ratio``; plus
+        ``load_average`` before and after.
     """
+    if baseline not in trees:
+        raise ValueError(f"baseline {baseline!r} is not one of the trees {sorted(trees)}")
     if not frames_long > frames_short >= 1:
         raise ValueError(f"need frames_long > frames_short >= 1, got {frames_long}, {frames_short}")
+    if isinstance(rounds, bool) or int(rounds) != rounds or rounds < 1:
+        raise ValueError(f"rounds must be a whole number >= 1, got {rounds!r}")
+    counts = ([frames_short] if warmup else []) + [frames_short, frames_long]
     per = {name: {"marginal": [], "whole": [], "wall": []} for name in trees}
     load_before = load_average()
     with tempfile.TemporaryDirectory() as tmp:
-        for r in range(rounds):
+        for r in range(int(rounds)):
             order = dict(list(trees.items())[:: 1 if r % 2 == 0 else -1])
-            short = _runs(order, envs or {}, Path(tmp), f"{r}-s", frames_short, workers, together)
-            long = _runs(order, envs or {}, Path(tmp), f"{r}-l", frames_long, workers, together)
+            calls = _runs(order, envs or {}, Path(tmp), str(r), counts, workers, together)
             for name in trees:
-                extra = max(long[name]["cpu_s"] - short[name]["cpu_s"], 1e-9)
+                short, long = calls[name][-2:]
+                extra = max(long["cpu_s"] - short["cpu_s"], 1e-9)
                 per[name]["marginal"].append((frames_long - frames_short) / extra)
-                per[name]["whole"].append(frames_long / long[name]["cpu_s"])
-                per[name]["wall"].append(frames_long / long[name]["wall_s"])
-    out: dict = {"workers": workers, "frames": [frames_short, frames_long], "rounds": rounds,
-                 "together": together, "load_average": [load_before, load_average()]}
+                per[name]["whole"].append(frames_long / long["cpu_s"])
+                per[name]["wall"].append(frames_long / long["wall_s"])
+    out: dict = {"workers": workers, "frames": [frames_short, frames_long], "rounds": int(rounds),
+                 "together": together, "warmup": warmup, "load_average": [load_before, load_average()]}
     base = {k: np.asarray(v) for k, v in per[baseline].items()}
     for name, v in per.items():
         row = {"frames_per_cpu_s": float(np.median(v["marginal"])),
-               "whole_run_frames_per_cpu_s": float(np.median(v["whole"])),
+               "whole_call_frames_per_cpu_s": float(np.median(v["whole"])),
                "frames_per_wall_s": float(np.median(v["wall"]))}
         if name != baseline:
             ratios = np.asarray(v["marginal"]) / base["marginal"]
-            row |= {"ratio": float(np.median(ratios)), "ratio_rounds": [float(x) for x in ratios],
-                    "whole_run_ratio": float(np.median(np.asarray(v["whole"]) / base["whole"]))}
+            row |= {"ratio": float(np.median(ratios)), "ratio_spread": spread(ratios),
+                    "whole_call_ratio": float(np.median(np.asarray(v["whole"]) / base["whole"]))}
         out[name] = row
     return out
 
 
-def hard_over_new(result: dict) -> dict:
-    """Issue 15's figure beside issue 22's from one :func:`generate_cpu` result holding ``base``,
-    ``new`` and ``hard``: hard over the current default frames, per round (``base`` cancels) and
-    median; hard over the base's default frames is ``result["hard"]["ratio"]``."""
-    per = np.asarray(result["hard"]["ratio_rounds"]) / np.asarray(result["new"]["ratio_rounds"])
-    return {"ratio": float(np.median(per)), "ratio_rounds": [float(x) for x in per]}
-
-
 def run(quick: bool = False) -> dict:
-    """The suite: this tree (default and ``hard`` frames) against :data:`BASE_COMMIT`'s default
-    frames, 1 and 2 workers (see the module docstring)."""
+    """The suite: this tree's default frames against :data:`BASE_COMMIT`'s (issue 22), then its
+    ``hard`` frames against the same (issue 15), one worker (see the module docstring)."""
     here = Path(__file__).resolve().parents[2]
-    frames_short, frames_long, rounds = (4, 12, 1) if quick else (8, 48, 3)
+    frames_short, frames_long = (2, 8) if quick else (6, 36)
+    rounds, hard_rounds = (1, 1) if quick else (7, 3)
     with tempfile.TemporaryDirectory() as tmp:
         base = base_tree(Path(tmp) / "base")
         if base is None:
             return {"skipped": f"no git history holding {BASE_COMMIT} beside {here}"}
-        trees = {"base": base, "new": here, "hard": here}
-        envs = {"hard": {"LIPGEN_BENCH_PRESET": "hard"}}
-        out: dict = {"base_commit": BASE_COMMIT, "issue15_base_commit": ISSUE15_BASE_COMMIT}
-        for w in (1, 2):
-            res = generate_cpu(trees, "base", w, frames_short, frames_long, rounds, envs=envs)
-            out[f"workers_{w}"] = res | {"hard_over_new": hard_over_new(res)}
-        return out
+        envs = {"base": RENDER_ENV, "new": RENDER_ENV, "hard": RENDER_ENV | {"LIPGEN_BENCH_PRESET": "hard"}}
+        new = generate_cpu({"base": base, "new": here}, "base", 1, frames_short, frames_long, rounds,
+                           envs=envs)
+        hard = generate_cpu({"base": base, "hard": here}, "base", 1, frames_short, frames_long, hard_rounds,
+                            envs=envs)
+    return {"base_commit": BASE_COMMIT, "issue15_base_commit": ISSUE15_BASE_COMMIT, "render_env": RENDER_ENV,
+            "new_over_base": new, "hard_over_base": hard,
+            "hard_over_new": hard["hard"]["ratio"] / new["new"]["ratio"],
+            "targets": {"new_over_base": 1.5, "hard_over_base": 0.5}}

@@ -44,6 +44,14 @@ more than the sensor's own shot and read noise there (2.24), so ``hard`` keeps 4
 4-sample pass confined by the scissor to a box round the mouth still cost 0.84 of the full one
 at 30 % of the area (its triangles are set up and binned all the same), so a 1-sample frame with
 a multisampled mouth would cost more than today's.
+``fragment_cost`` (speed15d, load 24-42): a hard render without shadows takes 0.61-0.70 of the CPU,
+without textures 0.80-0.95; the shadow pass itself is about 0.04 (a 1024-texel map over the same
+texels measured 0.97 and 1.02: not kept). So the key light's shadow look-ups (four gathers per
+fragment) are a third of a hard render, and they are paid per fragment *invocation*: llvmpipe
+shades whole blocks, and small triangles leave blocks partly covered, which is why the face's
+triangle count costs as much as its pixels (a head with half the triangles, ``head_mesh`` 20, 2,
+18, 32, took 0.74 of the CPU but moved both views' pixels by 1.06 grey levels RMS, the 99th percentile
+by 4, before noise). A hard frame was 0.34-0.37 s of CPU, 0.25 s of it the render.
 """
 
 from __future__ import annotations
@@ -195,6 +203,41 @@ def _face_cost(worker: dict, motion, reps: int) -> dict:
                   "scene_triangles": int(sum(len(it.faces) for it in scene.items)), "repeats": reps}
 
 
+def _fragment_cost(worker: dict, motion, reps: int) -> dict:
+    """CPU of one hard render without its shadows (no shadow map drawn or read) and without its
+    textures (the materials' plain colours), over the whole render, interleaved: what the
+    per-fragment look-ups cost on llvmpipe."""
+    r = worker["renderer"]
+    scene = worker["face"].scene(motion.vertices[1], motion.poses[1], lights=worker["lights"])
+    plain = dataclasses.replace(scene, items=tuple(
+        dataclasses.replace(it, materials=type(it.materials)(dataclasses.replace(m, texture=None)
+                                                              for m in it.materials))
+        for it in scene.items))
+    flags = r._flags
+
+    def no_shadows():
+        r._flags = r.pyrender.RenderFlags.NONE
+        try:
+            r.render_views(scene)
+        finally:
+            r._flags = flags
+
+    variants = {"whole": lambda: r.render_views(scene), "no_shadows": no_shadows,
+                "no_textures": lambda: r.render_views(plain)}
+    cpu = {name: [] for name in variants}
+    for k in range(reps + 1):
+        for name, fn in variants.items():
+            fn()  # uploads the variant's meshes
+            c0 = time.process_time()
+            fn()
+            if k:
+                cpu[name].append(time.process_time() - c0)
+    r.clear()
+    whole = np.asarray(cpu["whole"])
+    return {f"{name}_over_whole_cpu": float(np.median(np.asarray(c) / whole)) for name, c in cpu.items()
+            if name != "whole"} | {"whole_cpu_s": float(np.median(whole)), "repeats": reps}
+
+
 def run(quick: bool = False) -> dict:
     from lipgen._threads import limit_worker_threads
     from lipgen.dataset import generate as gen
@@ -234,6 +277,7 @@ def run(quick: bool = False) -> dict:
         shadow = _shadow_filter(workers["hard"], motion, 3 if quick else 8)
         face_cost = _face_cost(workers["hard"], motion, 3 if quick else 8)
         msaa = _msaa(workers["hard"], motion, 3 if quick else 8)
+        fragment_cost = _fragment_cost(workers["hard"], motion, 3 if quick else 8)
         fidelity = measure_fidelity(workers["hard"], motion, range(1, 1 + (2 if quick else 6)))
         for w in workers.values():
             with contextlib.suppress(Exception):  # the first close ends the process's EGL display
@@ -250,6 +294,7 @@ def run(quick: bool = False) -> dict:
         "shadow_filter": shadow,
         "face_cost": face_cost,
         "msaa": msaa,
+        "fragment_cost": fragment_cost,
         "fidelity": fidelity,
         "target": {"hard_over_easy_fps": 0.5},
         "loadavg_before": load_before,

@@ -23,6 +23,7 @@ import numpy as np
 
 from lipgen import __version__
 from lipgen._io import atomic_write_json
+from lipgen._memory import reuse_freed_memory
 from lipgen.dataset.film import lighting_record, realize, rig_for
 from lipgen.dataset.folder import prepare_folder
 from lipgen.dataset.layout import (
@@ -195,12 +196,16 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     ValueError
         Bad settings (unknown viseme in the script, a rig that does not see the face, ...).
     """
-    from tqdm import tqdm
-
     if isinstance(workers, bool) or int(workers) != workers or not 1 <= workers <= 64:
         raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
     s = GenerateSettings() if settings is None else settings
-    out = Path(out)
+    with reuse_freed_memory():  # each frame's large arrays reuse the last frame's memory: no page faults
+        return _generate(Path(out), s, workers, resume, progress)
+
+
+def _generate(out: Path, s: GenerateSettings, workers: int, resume: bool, progress: bool) -> Path:
+    from tqdm import tqdm
+
     ctx, jobs = prepare_dataset(out, s, resume)
     done = s.calib_frames + s.frames - len(jobs)
     bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",

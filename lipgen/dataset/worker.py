@@ -62,12 +62,14 @@ _WORKER: dict = {}
 
 def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
     """A pool process: it ends when the generating process is killed; one BLAS thread (its
-    siblings use the other cores); then it prepares to render."""
+    siblings use the other cores); freed memory kept for reuse; then it prepares to render."""
     from lipgen._lifeline import die_with_parent
+    from lipgen._memory import keep_freed_memory
     from lipgen._threads import limit_worker_threads
 
     die_with_parent(parent_pid)
     limit_worker_threads(1)
+    keep_freed_memory()  # each frame's large arrays reuse the last frame's memory (lipgen._memory)
     _init_worker(ctx)
     _WORKER["clean"] = False  # generate's own pool: the folder was cleaned when prepared
 

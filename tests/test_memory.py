@@ -1,0 +1,59 @@
+"""Freed memory kept for reuse while frames are made (lipgen._memory): fewer page faults, the same bytes."""
+
+import resource
+
+import numpy as np
+import pytest
+
+from lipgen import _memory
+from lipgen._memory import MEMORY_POLICY_ENV, keep_freed_memory, reuse_freed_memory
+
+glibc = pytest.mark.skipif(_memory._libc() is None, reason="needs glibc's mallopt")
+
+
+def _faults_allocating(rounds: int = 4, n: int = 10, size: int = 8 << 20) -> int:
+    """Minor page faults of ``rounds`` rounds of making and filling ``n`` arrays of ``size`` bytes
+    together, then freeing them (80 MB at a time: more than glibc keeps by default)."""
+    f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    for _ in range(rounds):
+        held = [np.ones(size, np.uint8) for _ in range(n)]
+        del held
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0
+
+
+_ROUND = 10 * (8 << 20) // resource.getpagesize()  # pages of one round's arrays
+
+
+@glibc
+def test_large_arrays_reuse_freed_pages_inside_the_block_only():
+    before = _faults_allocating()
+    with reuse_freed_memory():
+        _faults_allocating(1)  # the first round grows the heap once
+        inside = _faults_allocating()
+    after = _faults_allocating()
+    assert before > 0.8 * _ROUND  # glibc's own settings: the pages are given back and faulted in again
+    assert inside < 0.1 * _ROUND  # kept: the same pages again
+    assert after > 0.8 * _ROUND  # the defaults are back
+
+
+@glibc
+def test_the_policy_can_be_turned_off(monkeypatch):
+    monkeypatch.setenv(MEMORY_POLICY_ENV, "off")
+    assert keep_freed_memory() is False
+    with reuse_freed_memory():
+        assert _faults_allocating() > 0.8 * _ROUND
+
+
+@pytest.mark.render
+def test_generate_writes_the_same_bytes_with_the_policy_off(tmp_path, monkeypatch):
+    pytest.importorskip("lipgen.rig.render")
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
+
+    s = GenerateSettings(frames=3, seed=4, size=(160, 120), calib_frames=1, script="AA:0.2 M")
+    on = generate(tmp_path / "on", s, progress=False)
+    monkeypatch.setenv(MEMORY_POLICY_ENV, "off")
+    off = generate(tmp_path / "off", s, progress=False)
+    files = sorted(p.relative_to(on) for p in on.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(off) for p in off.rglob("*") if p.is_file())
+    assert [(on / f).read_bytes() for f in files] == [(off / f).read_bytes() for f in files]
