@@ -65,7 +65,8 @@ ROW_NAMES = {"xyz (8 points)": "xyz (8 points)", "yz (all points)": "yz (16 poin
 """``lipgen evaluate``'s rows (:data:`lipgen.evaluate.scoring.ROWS`) by their table51-splits names."""
 COLUMN_NAMES = {"full covariance": "full", "combined": "combined", "physics (reach)": "physics_force"}
 """``lipgen evaluate``'s columns by the estimator names of table51-splits (plus ``"{k} modes"``: modes)."""
-REF_NAMES = {"vs_truth": "truth", "vs_reach": "reach", "vs_truth_relative": "truth_relative"}
+REF_NAMES = {"vs_truth": "truth", "vs_reach": "reach", "vs_truth_relative": "truth_relative",
+             "vs_markers": "markers"}
 """``lipgen evaluate``'s references by the table51-splits names."""
 
 
