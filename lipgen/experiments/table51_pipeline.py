@@ -326,7 +326,7 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
     import json
 
     from lipgen.evaluate.metric import ERROR_DEFINITION
-    from lipgen.experiments.table51_pipeline_data import model_line
+    from lipgen.experiments.table51_pipeline_data import beside_lines, model_line, order_lines, reference_line
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -340,7 +340,7 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
              f"another utterance of the same subject ({s['n_test']} frames rendered) and of another subject "
              "(subject seed + 1000), each reconstructed the same way. Each test frame is estimated from "
              "the markers it saw (rows of `lipgen evaluate`: '16 points' is the markers seen of the 16).",
-             "", _reference_line(s.get("utterance_reference", "own")), "", model_line(s), "",
+             "", reference_line(s.get("utterance_reference", "own")), "", model_line(s), "",
              f"Error: {ERROR_DEFINITION}. 'vs the least-strain field' is the frame's reconstructed field. "
              "Mean over the seeds and 95 % Student-t interval.", "",
              f"10 modes hold {100 * v[0]:.2f} % [{100 * v[1]:.2f}, {100 * v[2]:.2f}] of the variance of the "
@@ -356,35 +356,10 @@ def write_pipeline_report(result: dict, out, splits: dict | None = None) -> str:
                   + ", ".join(f"{p} {a:.2f} / {b:.2f} mm" for p, (a, b) in me.items()) + ".", ""]
     for split in SPLITS:
         lines += split_section_lines(result, split)
+    lines += order_lines(result)
     if splits is not None:
-        lines += _beside(result, splits)
+        lines += beside_lines(result, splits)
     md = out / "pipeline.md"
     md.write_text("\n".join(lines) + "\n")
     (out / "pipeline.json").write_text(json.dumps(result, indent=1))
     return str(md)
-
-
-def _reference_line(which: str) -> str:
-    """The report's sentence on the normalisation references of the test recordings."""
-    utt = ("the training recording's (re-normalised with it: one subject, one frame of reference)"
-           if which == "train" else "its own most neutral frame's")
-    return ("Normalisation reference: the training recording's own most neutral frame; the utterance "
-            f"split's test recording: {utt}; the subject split's: its own (another subject has another "
-            "rest shape and size).")
-
-
-def _beside(result: dict, splits: dict) -> list[str]:
-    """Rendered-frame figures beside the simulated-marker ones (vs the true surface, mm², means)."""
-    lines = ["## Beside simulated markers (table51-splits), vs the true surface, mm² (mean over seeds)", "",
-             "| split | observed | 10 modes: frames / markers | combined: frames / markers | "
-             "physics: frames / markers |", "|---|---|---|---|---|"]
-    for split in SPLITS:
-        for row, cells in result["summary"][split].items():
-            sim = splits["summary"][split].get(row)
-            if sim is None:
-                continue
-            lines.append(f"| {split} | {row} | " + " | ".join(
-                f"{cells[c]['truth'][0]:.3g} / {sim[c]['truth'][0]:.3g}"
-                for c in ("modes", "combined", "physics_force")) + " |")
-    lines.append("")
-    return lines
