@@ -38,33 +38,42 @@ def reconstruct(path: Path, progress: bool):
 
 def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
-    the model's): ``rest="quiet"`` re-normalises at scale 1 from the training recording's quiet
-    rest (the other subject from its own), ``"metric"`` at scale 1 from the model's rest, else as
-    reconstructed (the utterance re-normalised with
-    the training reference if ``utterance_reference="train"``)."""
+    the model's).
+
+    ``rest="training"`` (the default) re-normalises at scale 1 and measures the training and the
+    utterance recordings from the training recording's quiet rest (:func:`lipgen.recon.rest.quiet_rest`),
+    the other subject from the model's rest; ``"quiet"`` likewise, but the other subject (and the
+    utterance with ``utterance_reference="own"``) from its own recording's quiet rest; ``"metric"``
+    at scale 1 from the model's rest; ``"model"`` as reconstructed. The utterance is re-normalised
+    with the training reference if ``utterance_reference="train"``.
+    """
     from lipgen.recon.rereference import renormalize
     from lipgen.recon.rest import metric_renormalize
 
     out = dict(recons)
+    M = physics.mesh.vertices[physics.mesh.markers]
+    ref = recons["train"] if s.utterance_reference == "train" else None
     if s.rest == "model":
         if s.utterance_reference == "train":
             out["utterance"] = renormalize(recons["utterance"], recons["train"], physics)
         return out, dict.fromkeys(recons)
     if s.rest == "metric":
-        M = physics.mesh.vertices[physics.mesh.markers]
-        ref = recons["train"] if s.utterance_reference == "train" else None
         out["train"], _ = metric_renormalize(recons["train"], physics, rest=M)
         out["utterance"], _ = metric_renormalize(recons["utterance"], physics, rest=M, reference=ref)
         out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
         return out, dict.fromkeys(recons)
     out["train"], rest = metric_renormalize(recons["train"], physics)
     rests = {"train": rest}
-    if s.utterance_reference == "train":
-        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
-                                                                  reference=recons["train"])
-    else:
+    if s.rest == "quiet" and ref is None:
         out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics)
-    out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
+    else:
+        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
+                                                                  reference=ref)
+    if s.rest == "quiet":
+        out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
+    else:  # another subject has no training recording: the model's rest
+        out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
+        rests["subject"] = None
     return out, rests
 
 
@@ -90,7 +99,13 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
 
 def model_line(s: dict) -> str:
     """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
-    rest = {"quiet": "Displacements are measured from the subject's rest estimated on the training "
+    rest = {"training": "Displacements are measured from the subject's rest estimated on the training "
+                        "recording's quiet frames (each marker's median over its accepted sightings "
+                        "there), at the rig's metric scale, for the training and the utterance "
+                        "recordings; the other subject (no training recording) from the model's rest "
+                        "markers at metric scale "
+                        "(`lipgen.recon.rest`)",
+            "quiet": "Displacements are measured from the subject's rest estimated on the training "
                      "recording's quiet frames, at the rig's metric scale (the other subject: from its own "
                      "recording; `lipgen.recon.rest`)",
             "metric": "Displacements are measured from the model's rest markers at the rig's metric scale "
