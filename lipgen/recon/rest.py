@@ -144,7 +144,7 @@ def quiet_rest(markers, measured, share: float = 0.15, min_frames: int = MIN_RES
     -------
     (P, 3) float
         The rest frames are the half of the quiet frames that lie closest together
-        (:func:`_densest_half`: the lips pass through a held vowel too, but return to the same rest
+        (the lips pass through a held vowel too, but return to the same rest
         in every pause); each marker's rest is its median over its accepted sightings there. A
         marker seen in too few of them is NaN: its median over all frames would be pulled by the
         motion (validation seeds 20 / 23, training recordings: 1.99 / 2.67 mm RMS per-marker
