@@ -101,8 +101,13 @@ class PipelineSettings:
     markers), from the model's rest -> from the training rest, was 3.35 -> 0.93 (training) and
     3.82 -> 1.42 mm (utterance) on seed 20, 2.42 -> 1.53 and 2.37 -> 1.61 mm on seed 23; the other
     subject's own quiet rest, from its 40 frames, 3.27 -> 2.85 and 2.06 -> 5.92 mm, so it keeps the
-    model's (:mod:`lipgen.recon.rest`). Earlier, on the tracker before backfill, ``"quiet"`` hurt
-    badly tracked recordings (seed 13 training, 58 % accepted: 2.73 -> 4.69 mm RMS)."""
+    model's (:mod:`lipgen.recon.rest`). The learned estimators' relative errors (utterance split, vs
+    the true surface, 10 modes, rows xyz / yz / xy), ``"metric"`` -> ``"training"``: seed 20
+    1.22 / 1.28 / 1.30 -> 0.31 / 0.33 / 0.34, seed 23 0.64 / 0.68 / 0.68 -> 0.44 / 0.47 / 0.48
+    (other subject: 5.7 / 8.5 / 6.2 -> 3.0 / 2.1 / 2.0 and 1.9 / 1.9 / 2.3 -> 1.4 / 1.5 / 0.72,
+    the training subject's shape no longer in the learned mean). Earlier, on the tracker before
+    backfill, ``"quiet"`` hurt badly tracked recordings (seed 13 training, 58 % accepted:
+    2.73 -> 4.69 mm RMS)."""
     learning: str = "measured"
     """``"measured"``: the learned estimators learn from the measured markers only
     (:meth:`ModeModel.fit_measured`) and ignore markers never measured in training; ``"all"``: from
