@@ -132,6 +132,7 @@ def _check_defaults(work, physics):
     R = np.where(np.isfinite(R), R, np.nanmedian(R, axis=0))
     priors = {"modes": model.covariance(4).matrix(), "full": model.covariance("full").matrix()}
     learned = model.marker_coverage_ > 0
+    meas_test = {split: measured_markers(recons[split]) for split in SPLITS}
     for split in SPLITS:
         recon, ds = recons[split], Dataset(work / f"s0_{split}")
         n = mesh.n_nodes
@@ -139,11 +140,15 @@ def _check_defaults(work, physics):
         for axes in ("xy", "yz"):
             ax = np.array(["xyz".index(a) for a in axes])
             out = {k: [] for k in priors}
+            at_markers = {k: [] for k in priors}
             for f in record["test_frames"][split]:
                 seen = np.flatnonzero(recon.visible[f, :P])
                 if len(seen) == 0 or not np.all(np.isfinite(recon.fields[f])):
                     continue
                 hid = np.setdiff1d(physics.free_dofs, (3 * mesh.markers[seen][:, None] + ax).ravel())
+                mk = np.flatnonzero(meas_test[split][f])  # the hidden coordinates of the measured markers
+                md = (3 * mesh.markers[mk][:, None] + np.arange(3)).ravel()
+                keep = np.isin(md, hid)
                 use = seen[learned[seen]]
                 d = (3 * mesh.markers[use][:, None] + ax).ravel()
                 rest = mesh.vertices[mesh.markers] if rests[split] is None else rests[split]
@@ -153,9 +158,13 @@ def _check_defaults(work, physics):
                     gain = np.linalg.solve(Soo, y - model.mean_[d])
                     est = model.mean_ + C[:, d] @ gain
                     out[k].append(np.mean((est[hid] - true[f].ravel()[hid]) ** 2))
+                    measured = (recon.markers[f, mk] - rest[mk]).ravel()[keep]
+                    at_markers[k].append(np.mean((est[md[keep]] - measured) ** 2))
             for k in priors:
                 got = record[split][f"{axes} (16 points)"][k]["truth"]
                 assert got == pytest.approx(float(np.mean(out[k])), rel=1e-6), (split, axes, k)
+                got = record[split][f"{axes} (16 points)"][k]["markers"]
+                assert got == pytest.approx(float(np.mean(at_markers[k])), rel=1e-6), (split, axes, k)
 
 
 @pytest.mark.slow
@@ -206,7 +215,7 @@ def test_report_from_seed_records(tmp_path):
     from lipgen.experiments.table51_splits import aggregate
 
     rng = np.random.default_rng(0)
-    refs = ("truth", "reach", "truth_relative")
+    refs = ("truth", "reach", "truth_relative", "markers")
     per_seed = [{"seed": k, "variance_captured": 0.99, "accepted_share": {p: 0.9 for p in ("train", *SPLITS)},
                  **{split: {row: {c: {r: float(rng.uniform(1, 2)) for r in refs} for c in ESTIMATORS}
                             for row in ROW_NAMES.values()} for split in SPLITS}}
@@ -218,3 +227,9 @@ def test_report_from_seed_records(tmp_path):
     assert f"{mean:.3g} [" in md
     assert f"{mean:.3g} / {mean:.3g}" in md  # beside itself
     assert json.loads((tmp_path / "pipeline.json").read_text())["per_seed"][2]["seed"] == 2
+    # the x-y / y-z order against each reference, the measured markers included
+    for ref in ("truth", "reach", "markers"):
+        u = [r["utterance"] for r in per_seed]
+        o = np.mean([t["xy (16 points)"]["modes"][ref] / t["yz (16 points)"]["modes"][ref] for t in u])
+        assert f"{o:.3g} [" in md
+    assert "vs the measured markers" in md and "refer to that kind of reference" in md

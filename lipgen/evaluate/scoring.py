@@ -97,7 +97,10 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     error per hidden DOF (:mod:`lipgen.evaluate.metric`, the definition ``lipgen experiment
     table51`` uses; each frame's hidden DOFs, averaged over the frames) against the frame's reach
     field (the thesis's reference) and against the true surface, and relative to the true test
-    motion's own mean square on those DOFs (``vs_truth_relative``). Columns: the first
+    motion's own mean square on those DOFs (``vs_truth_relative``); ``vs_markers``: only at the
+    hidden coordinates of the markers the frame measured (e.g. their z in the x-y row), against
+    those measurements (``recon.markers − rest``), i.e. where a tracked recording has data (NaN
+    where a row leaves no measured coordinate hidden). Columns: the first
     ``n_modes`` modes, the full sample covariance, the combined
     learned + physical model (§6.1), and the physics alone (``Physics.reach``, the baseline).
 
@@ -149,12 +152,13 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     rest = physics.mesh.vertices[markers] if rest is None else np.asarray(rest, dtype=np.float64)
     if rest.shape != (P, 3):
         raise ValueError(f"rest must be the ({P}, 3) rest markers, got shape {rest.shape}")
+    measured = measured_markers(recon)
     out = {}
     for row in ROWS:
         count, axes = AXES[row]
         use = np.arange(len(markers) if count is None else count)
         ax = np.array(["xyz".index(a) for a in axes])
-        cells = {name: {"vs_reach": [], "vs_truth": [], "vs_truth_relative": []}
+        cells = {name: {"vs_reach": [], "vs_truth": [], "vs_truth_relative": [], "vs_markers": []}
                  for name in (*columns, "physics (reach)")}
         for f in test:
             seen = use[recon.visible[f, use]]
@@ -170,7 +174,14 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
             ests = {name: (build(ld, lr).estimate(ly) if name in learned_cols else build(d, None).estimate(y))
                     for name, build in columns.items() if name not in learned_cols or len(lseen)}
             ests["physics (reach)"] = physics.reach(d, y)[0]
+            # the hidden coordinates of the markers measured in this frame, against their measurement
+            mk = np.flatnonzero(measured[f])
+            md = node_dofs(markers[mk], "xyz")
+            keep = np.isin(md, hid)
+            mval = (recon.markers[f, mk] - rest[mk]).ravel()[keep]
             for name, est in ests.items():
+                if keep.any():
+                    cells[name]["vs_markers"].append(float(np.mean((est.ravel()[md[keep]] - mval) ** 2)))
                 cells[name]["vs_reach"].append(per_dof_error(est[None], recon.fields[f][None], hid))
                 cells[name]["vs_truth"].append(per_dof_error(est[None], true_fields[f][None], hid))
                 cells[name]["vs_truth_relative"].append(relative_error(est[None], true_fields[f][None], hid))

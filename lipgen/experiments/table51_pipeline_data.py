@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["make_dataset", "reconstruct", "normalised", "marker_error", "model_line"]
+__all__ = ["make_dataset", "reconstruct", "normalised", "marker_error", "model_line", "order_lines",
+           "reference_line", "beside_lines"]
 
 
 def make_dataset(path: Path, gs, workers: int, progress: bool):
@@ -37,33 +38,42 @@ def reconstruct(path: Path, progress: bool):
 
 def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
-    the model's): ``rest="quiet"`` re-normalises at scale 1 from the training recording's quiet
-    rest (the other subject from its own), ``"metric"`` at scale 1 from the model's rest, else as
-    reconstructed (the utterance re-normalised with
-    the training reference if ``utterance_reference="train"``)."""
+    the model's).
+
+    ``rest="training"`` (the default) re-normalises at scale 1 and measures the training and the
+    utterance recordings from the training recording's quiet rest (:func:`lipgen.recon.rest.quiet_rest`),
+    the other subject from the model's rest; ``"quiet"`` likewise, but the other subject (and the
+    utterance with ``utterance_reference="own"``) from its own recording's quiet rest; ``"metric"``
+    at scale 1 from the model's rest; ``"model"`` as reconstructed. The utterance is re-normalised
+    with the training reference if ``utterance_reference="train"``.
+    """
     from lipgen.recon.rereference import renormalize
     from lipgen.recon.rest import metric_renormalize
 
     out = dict(recons)
+    M = physics.mesh.vertices[physics.mesh.markers]
+    ref = recons["train"] if s.utterance_reference == "train" else None
     if s.rest == "model":
         if s.utterance_reference == "train":
             out["utterance"] = renormalize(recons["utterance"], recons["train"], physics)
         return out, dict.fromkeys(recons)
     if s.rest == "metric":
-        M = physics.mesh.vertices[physics.mesh.markers]
-        ref = recons["train"] if s.utterance_reference == "train" else None
         out["train"], _ = metric_renormalize(recons["train"], physics, rest=M)
         out["utterance"], _ = metric_renormalize(recons["utterance"], physics, rest=M, reference=ref)
         out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
         return out, dict.fromkeys(recons)
     out["train"], rest = metric_renormalize(recons["train"], physics)
     rests = {"train": rest}
-    if s.utterance_reference == "train":
-        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
-                                                                  reference=recons["train"])
-    else:
+    if s.rest == "quiet" and ref is None:
         out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics)
-    out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
+    else:
+        out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
+                                                                  reference=ref)
+    if s.rest == "quiet":
+        out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
+    else:  # another subject has no training recording: the model's rest
+        out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
+        rests["subject"] = None
     return out, rests
 
 
@@ -89,7 +99,13 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
 
 def model_line(s: dict) -> str:
     """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
-    rest = {"quiet": "Displacements are measured from the subject's rest estimated on the training "
+    rest = {"training": "Displacements are measured from the subject's rest estimated on the training "
+                        "recording's quiet frames (each marker's median over its accepted sightings "
+                        "there), at the rig's metric scale, for the training and the utterance "
+                        "recordings; the other subject (no training recording) from the model's rest "
+                        "markers at metric scale "
+                        "(`lipgen.recon.rest`)",
+            "quiet": "Displacements are measured from the subject's rest estimated on the training "
                      "recording's quiet frames, at the rig's metric scale (the other subject: from its own "
                      "recording; `lipgen.recon.rest`)",
             "metric": "Displacements are measured from the model's rest markers at the rig's metric scale "
@@ -105,3 +121,59 @@ def model_line(s: dict) -> str:
                        "noise of unknown size weighed by each frame's own observations (a scale mixture)",
              }.get(s.get("noise", "none"), "their LLSE has no noise term")
     return f"{rest}; {learn}; {noise}."
+
+
+def order_lines(result: dict) -> list[str]:
+    """The x-y / y-z order (10 modes) against each reference, and which one the thesis's is."""
+    from lipgen.experiments.table51_report import THESIS_TABLE
+    from lipgen.experiments.table51_stats import SPLITS
+
+    thesis = THESIS_TABLE["xy (16 points)"][0] / THESIS_TABLE["yz (16 points)"][0]
+    refs = [("truth", "true surface"), ("reach", "least-strain field (measured)"),
+            ("markers", "measured markers")]
+    refs = [(k, name) for k, name in refs if all(k in result["order_xy_over_yz"][sp] for sp in SPLITS)]
+    lines = ["## The thesis's x-y / y-z order (10 modes, 16 points)", "",
+             "The error of the x-y row over that of the y-z row (> 1: x-y is worse, the thesis's order; "
+             f"thesis {thesis:.1f}), mean over the seeds of each seed's ratio and its 95 % interval.", "",
+             "| split | " + " | ".join(f"vs the {name}" for _, name in refs) + " |",
+             "|---|" + "---|" * len(refs)]
+    for split in SPLITS:
+        o = result["order_xy_over_yz"][split]
+        lines.append(f"| {split} | " + " | ".join(
+            f"{o[k][0]:.3g} [{o[k][1]:.3g}, {o[k][2]:.3g}]" for k, _ in refs) + " |")
+    lines += ["", "The thesis had no true surface: its reference was its own measured data (the least-strain "
+              "fields of its tracked, reconstructed markers). Its finding, and the issue's \"x-y is worse "
+              "than y-z\", refer to that kind of reference: the columns 'least-strain field (measured)' "
+              "(all hidden DOFs of the frame's reconstructed field) and 'measured markers' (only the "
+              "hidden coordinates of the markers the frame measured: z in the x-y row, x in the y-z "
+              "row). The true-surface column says what the subject actually did; it is reported beside, "
+              "not instead.", ""]
+    return lines
+
+
+def reference_line(which: str) -> str:
+    """The report's sentence on the normalisation references of the test recordings."""
+    utt = ("the training recording's (re-normalised with it: one subject, one frame of reference)"
+           if which == "train" else "its own most neutral frame's")
+    return ("Normalisation reference: the training recording's own most neutral frame; the utterance "
+            f"split's test recording: {utt}; the subject split's: its own (another subject has another "
+            "rest shape and size).")
+
+
+def beside_lines(result: dict, splits: dict) -> list[str]:
+    """Rendered-frame figures beside the simulated-marker ones (vs the true surface, mm², means)."""
+    from lipgen.experiments.table51_stats import SPLITS
+
+    lines = ["## Beside simulated markers (table51-splits), vs the true surface, mm² (mean over seeds)", "",
+             "| split | observed | 10 modes: frames / markers | combined: frames / markers | "
+             "physics: frames / markers |", "|---|---|---|---|---|"]
+    for split in SPLITS:
+        for row, cells in result["summary"][split].items():
+            sim = splits["summary"][split].get(row)
+            if sim is None:
+                continue
+            lines.append(f"| {split} | {row} | " + " | ".join(
+                f"{cells[c]['truth'][0]:.3g} / {sim[c]['truth'][0]:.3g}"
+                for c in ("modes", "combined", "physics_force")) + " |")
+    lines.append("")
+    return lines

@@ -80,7 +80,8 @@ def aggregate(per_seed: list, rows) -> dict:
     per_seed : list of dict
         One record per seed: ``{split: {row: {estimator: {ref: mm²}}}, "variance_captured": float}``
         for every split of :data:`SPLITS`, estimator of :data:`ESTIMATORS` and ref ``"truth"``,
-        ``"reach"``, ``"truth_relative"``; rows include ``"xy (16 points)"`` and ``"yz (16 points)"``.
+        ``"reach"``, ``"truth_relative"`` (and ``"markers"``: then the x-y / y-z order is also
+        given against the measured markers); rows include ``"xy (16 points)"`` and ``"yz (16 points)"``.
     rows : sequence of str
         The rows to summarise.
 
@@ -95,8 +96,11 @@ def aggregate(per_seed: list, rows) -> dict:
         summary[split] = {row: {col: {ref: mean_interval([r[split][row][col][ref] for r in per_seed])
                                       for ref in ("truth", "reach", "truth_relative")}
                                 for col in ESTIMATORS} for row in rows}
-    orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed])
-                      for ref in ("truth", "reach")} for split in SPLITS}
+    refs = ("truth", "reach", "markers") if all(
+        "markers" in r[split][row]["modes"] for r in per_seed for split in SPLITS
+        for row in ("xy (16 points)", "yz (16 points)")) else ("truth", "reach")
+    orders = {split: {ref: mean_interval([order(r[split], ref) for r in per_seed]) for ref in refs}
+              for split in SPLITS}
     paired = {split: {row: _paired(per_seed, split, row) for row in rows} for split in SPLITS}
     return {"summary": summary, "order_xy_over_yz": orders, "paired": paired,
             "distinguished": {split: {row: any(not lo <= 1 <= hi for _, lo, hi in paired[split][row].values())
