@@ -102,7 +102,7 @@ def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0,
     for g0 in starts:
         x, cost, _ = levenberg_marquardt(lambda x: _metric_residual(x, M1, M2),
                                          lambda x: _metric_jacobian(x, M1, M2), g0.ravel(),
-                                         max_iter=max_iter)
+                                         max_iter=max_iter, beat=None if best is None else best[1])
         if best is not None and abs(cost - best[1]) <= 1e-6 * max(best[1], 1e-300):
             confirmed = True
         elif best is None or cost < best[1]:
