@@ -85,6 +85,6 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
         if gain < ftol or step <= xtol * float(np.linalg.norm(x)):
             break
         if (beat is not None and cost > beat and gain < _SETTLING
-                and np.log(cost / beat) > -(max_iter - it) * np.log1p(-gain)):
+                and (beat <= 0.0 or np.log(cost / beat) > -(max_iter - it) * np.log1p(-gain))):
             break
     return x, cost, it
