@@ -100,10 +100,10 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
-    (kept in ``info["k_choice"]``; only the rotations at the Ks that cannot enter the choice,
-    :func:`lipgen.nrsfm.kscan.scan_smooth`, which gives the exhaustive search's answer). ``dai``
-    then replaces the chosen K's depth by the consensus of the
-    ``consensus`` smoothest Ks, shrunk by the James-Stein factor of their disagreement
+    (kept in ``info["k_choice"]``): the rotations at every K, the shapes only at the Ks the choice
+    can need (:func:`lipgen.nrsfm.kscan.scan_smooth`; the exhaustive search's answer, bit for bit).
+    ``dai`` then replaces the chosen K's depth by the consensus of the ``consensus`` smoothest Ks,
+    shrunk by the James-Stein factor of their disagreement
     (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, kept in ``info["depth_consensus"]``;
     an exact K-shape fit is kept as it is). ``dai-ba``'s refinement runs at the chosen K, without the
     consensus. The split-half shrinkage (:func:`shrink_unreliable_depth`) stays opt-in: on fresh
