@@ -107,27 +107,43 @@ def scan_smooth(scan: DaiScan, ks: list[int], tol: float, m: int) -> tuple[list[
             rough[k] = rotation_roughness(scan.finish(k).rotations)
         return rough[k] >= bounds[k]
 
-    # 1: in order of the bound, until the least roughness and the m smoothest Ks are known
     order = sorted(ks, key=lambda k: (bounds[k], k))
-    ok = True
-    for i, k in enumerate(order):
-        ok = finish(k)
-        top = sorted(rough.values())[: max(m, 1)]
-        if not ok or i + 1 == len(order) or (len(top) >= m and top[-1] < bounds[order[i + 1]]):
-            break
-    # 2: the smooth Ks that may be chosen: every one that may be an exact K-shape fit, and the
-    # smallest K within tol of the least (with every smaller K that might be)
+
+    def known(m_: int, strict: bool) -> bool:     # the m_ smoothest Ks are all finished
+        top = sorted(rough.values())[:m_]
+        nxt = next((bounds[k] for k in order if k not in rough), None)
+        return len(top) >= m_ and (nxt is None or (top[-1] < nxt if strict else top[-1] <= nxt))
+
+    def advance(m_: int, strict: bool) -> bool:   # finish in order of the bound until known
+        for k in order:
+            if known(m_, strict):
+                break
+            if k not in rough and not finish(k):
+                return False
+        return True
+
+    # 1: the least roughness
+    ok = advance(1, False)
+    # 2: the K smooth_k chooses: the smallest exact K-shape fit within tol of the least roughness
+    # (with every smaller K that might be one), else the smallest K within tol (likewise)
     limit = (1 + tol) * min(rough.values())
     near = [k for k in sorted(ks) if bounds[k] <= limit]
+    chosen_exact = False
     for k in near:
         if ok and scan.may_be_exact(k):
             ok = finish(k)
+            if ok and rough[k] <= limit and scan.finish(k).info.get("shapes") == "rank-K fit":
+                chosen_exact = True
+                break
     for k in near:
-        if not ok:
+        if not ok or chosen_exact:
             break
         ok = finish(k)
         if rough[k] <= limit:
             break
+    # 3: the m smoothest, whose depths the consensus averages (an exact fit is kept as it is)
+    if ok and not chosen_exact:
+        ok = advance(max(m, 1), True)
     if not ok:
         log.info("a finished K's rotation roughness fell below its bound; finishing every K")
         for k in ks:
