@@ -7,10 +7,13 @@ roughness, but of the rotations after their per-frame signs are resolved against
 (:func:`lipgen.nrsfm._rotation.orient_frames`). Flipping every frame leaves the roughness bit for bit
 the same; flipping some frames of a smooth sequence adds jumps. So the roughness of the rotations
 before orientation is a lower bound of the finished one (equal when the frames turn alike, as on
-drink, jaws and every body checked), and :func:`scan_smooth` finishes the Ks in order of that bound
-until no unfinished K can enter the choice: the smoothest K, the Ks within ``tol`` of it, and the
-``m`` smoothest (the consensus depth). If a finished K's roughness ever falls below its bound, every
-K is finished (the exhaustive search).
+drink, jaws and every body checked), and :func:`scan_smooth` finishes only the Ks whose answer can
+matter: in order of the bound until the least roughness is known; then, in order of K, those within
+``tol`` of it up to the chosen one (the smallest exact K-shape fit, else the smallest K); then, unless
+the chosen K is an exact fit (kept as it is), in order of the bound until the ``m`` smoothest (the
+consensus depth) are known. If a finished K's roughness ever falls below its bound, every K is
+finished (the exhaustive search). On drink 5 of 13 Ks are finished, on jaws 3 of 15, on 80-frame
+bodies 4 of 15.
 """
 
 from __future__ import annotations
