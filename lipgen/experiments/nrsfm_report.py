@@ -14,11 +14,12 @@ PUBLISHED = {
 """Published e3D figures per sequence: (source, K, e3D)."""
 
 SEEN_SEEDS = frozenset({*range(100, 108), *range(300, 311), *range(400, 411), *range(700, 730),
-                        *range(800, 820), *range(900, 906), *range(1000, 1020)})
+                        *range(800, 820), *range(900, 906), *range(1000, 1020), *range(1100, 1120)})
 """Validation-body seeds looked at while the rules were chosen (the automatic K: 100-107, 300-310;
 the split-half shrinkage: 300-310, 400-410, 700-729, then checked once on 800-819; the consensus
 depth: 300-307, 400, 405-407 and 900-903, 900-905 generated, then checked once on 1000-1019, which
-were development bodies of issue 19's next pass): the check marks them not fresh."""
+were development bodies of issue 19's next pass, as 1100-1119 were of the pass after): the check
+marks them not fresh."""
 
 
 def _ranges(seeds: list[int]) -> str:
@@ -54,7 +55,9 @@ def markdown(result: dict, settings) -> str:
              f"(load average {result['load_before'][0]:.1f} before, {result['load_after'][0]:.1f} after); "
              "compare them as ratios. *auto* marks the K the method chooses itself: for `dai` and `dai-ba` "
              "the K with the smoothest rotations (among them the smallest fitted exactly by K shapes) "
-             "(`lipgen.nrsfm.kchoice`; its time is that of `dai` at every K it tries, plus `dai-ba`'s "
+             "(`lipgen.nrsfm.kchoice`; its time is that of `reconstruct(W, \"auto\")`: the rotations at "
+             "every K it tries, the shapes only at the Ks the choice needs (`lipgen.nrsfm.kscan`), plus "
+             "`dai-ba`'s "
              "refinement at the chosen K); `dai`'s depth is then the mean of the 4 smoothest Ks' depths, "
              "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`); for `bregler` "
              "the reprojection-curve rule. `em-ppca` counts K as deformation modes beyond the mean "

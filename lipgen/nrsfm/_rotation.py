@@ -75,7 +75,9 @@ def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0,
     ``2 (m1 g).(m2 g)`` of every frame (rows m1, m2 of M_f), divided by the mean of
     ``|m1 g|^2 + |m2 g|^2``. The first start is the leading triple (the rigid, Tomasi-Kanade
     guess); the others are seeded random triples. The lowest cost wins; the search stops early
-    once two starts have reached the same lowest cost (to 1e-6), or a cost of zero.
+    once two starts have reached the same lowest cost (to 1e-6), or a cost of zero. A later start
+    stops once it reaches the best cost (to 1e-6), or once it settles where it cannot beat it
+    (:func:`._lm.levenberg_marquardt`'s ``match`` and ``beat``).
 
     Parameters
     ----------
@@ -100,10 +102,13 @@ def corrective_triple(M: np.ndarray, n_starts: int = 4, seed: int = 0,
     starts = [np.eye(r, 3)] + [rng.standard_normal((r, 3)) for _ in range(max(n_starts, 1) - 1)]
     best, confirmed = None, False
     for g0 in starts:
+        # a later start that reaches the best cost to within `same` confirms it
+        same = None if best is None else 1e-6 * max(best[1], 1e-300)
         x, cost, _ = levenberg_marquardt(lambda x: _metric_residual(x, M1, M2),
                                          lambda x: _metric_jacobian(x, M1, M2), g0.ravel(),
-                                         max_iter=max_iter)
-        if best is not None and abs(cost - best[1]) <= 1e-6 * max(best[1], 1e-300):
+                                         max_iter=max_iter, beat=None if best is None else best[1],
+                                         match=None if best is None else (best[1] - same, best[1] + same))
+        if best is not None and abs(cost - best[1]) <= same:
             confirmed = True
         elif best is None or cost < best[1]:
             best, confirmed = (x, cost), False

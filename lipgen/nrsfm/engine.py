@@ -43,7 +43,11 @@ def reconstruct_k(W, k: int, method: str, visible=None, *, seed: int = 0, n_star
     options = {"seed": seed, "n_starts": n_starts, "shape_starts": shape_starts, "refine_iter": refine_iter,
                "em_iter": em_iter}
     W, unit = _normalise_scale(W, visible)
-    rec = _reconstruct(W, k, method, visible, **options)
+    return _scale_back(_reconstruct(W, k, method, visible, **options), unit)
+
+
+def _scale_back(rec: Reconstruction, unit: float) -> Reconstruction:
+    """``rec`` of tracks divided by ``unit`` (:func:`_normalise_scale`) in the tracks' own units."""
     if unit == 1.0:
         return rec
     info = rec.info | {"scale": unit}
@@ -138,18 +142,32 @@ def _bregler(tracks, k: int):
     return R, C, B, t, info
 
 
-def _dai_parts(tracks, k: int, method: str, *, seed: int, n_starts: int, shape_starts: int):
-    """``dai``'s answer ``(R, C, B, t)``, the K-shape fit ``(R, C, B, t)`` that starts ``dai-ba``
-    (``dai``'s answer when no fit is made), and the record."""
+def _dai_rotations(tracks, k: int, *, seed: int, n_starts: int):
+    """``dai``'s first stage at K: the centred tracks (2F, P), translations (F, 2), the record and the
+    rotations (F, 3, 3) of the corrective triple, before their per-frame signs are resolved
+    (:func:`orient_frames` needs the shapes)."""
     Wc, t, info = _centred(tracks, k)
-    rank = info["rank"]
-    M, _, _ = factor(Wc, min(3 * k, rank))
+    M, _, _ = factor(Wc, min(3 * k, info["rank"]))
     g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
     R, _ = rotations_from_triple(M, g)
+    info["rotation_cost"] = cost
+    return Wc, t, info, R
+
+
+def _dai_parts(tracks, k: int, method: str, *, seed: int, n_starts: int, shape_starts: int,
+               rotations=None):
+    """``dai``'s answer ``(R, C, B, t)``, the K-shape fit ``(R, C, B, t)`` that starts ``dai-ba``
+    (``dai``'s answer when no fit is made), and the record; ``rotations``: the first stage's output
+    (:func:`_dai_rotations`) when it was already run."""
+    if rotations is None:
+        rotations = _dai_rotations(tracks, k, seed=seed, n_starts=n_starts)
+    Wc, t, info, R = rotations
+    info = dict(info)
+    rank = info["rank"]
     mask = None if tracks.complete else tracks.mask
     shapes = min_trace_norm_shapes(Wc, R, mask)
     R, shapes, _ = orient_frames(R, shapes)
-    info.update(rotation_cost=cost, trace_norm_shapes=shape_figures(R, shapes))
+    info.update(trace_norm_shapes=shape_figures(R, shapes))
     # with R fixed, exactly K basis shapes fitted to the tracks from the trace-norm cut: the
     # answer when it explains the tracks exactly (noise-free K shapes), else only dai-ba's start.
     # Complete tracks of numerical rank > 3K cannot be explained exactly: no fit for dai then.
@@ -197,8 +215,9 @@ def _refine(tracks, answer, fitted, info, *, refine_iter: int):
 
 
 def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_starts: int,
-                 refine_iter: int, em_iter: int) -> Reconstruction:
-    tracks = check_tracks(W, visible)
+                 refine_iter: int, em_iter: int, tracks=None, rotations=None) -> Reconstruction:
+    if tracks is None:
+        tracks = check_tracks(W, visible)
     F, P = tracks.mask.shape
     k = check_method_k(k, method, F, P, tracks.n_observed)
     if method == "em-pnd":  # started from dai at K + 1 basis shapes (lipgen.nrsfm.empnd)
@@ -215,7 +234,7 @@ def _reconstruct(W, k, method: str, visible, *, seed: int, n_starts: int, shape_
         R, C, B, t, info = _bregler(tracks, k)
     else:
         (R, C, B, t), fitted, info = _dai_parts(tracks, k, method, seed=seed, n_starts=n_starts,
-                                                shape_starts=shape_starts)
+                                                shape_starts=shape_starts, rotations=rotations)
         if method == "dai-ba":
             R, C, B, t = _refine(tracks, (R, C, B, t), fitted, info, refine_iter=refine_iter)
     rms = _reprojection_rms(tracks, R, C, B, t)

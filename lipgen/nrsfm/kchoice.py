@@ -27,6 +27,7 @@ from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
 from lipgen.nrsfm.consensus import CONSENSUS_KS, consensus_reconstruction
 from lipgen.nrsfm.engine import reconstruct_k
+from lipgen.nrsfm.kscan import DaiScan, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
 from lipgen.nrsfm.reliability import shrink_depth, split_half_reliability
@@ -99,8 +100,10 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
-    (kept in ``info["k_choice"]``). ``dai`` then replaces the chosen K's depth by the consensus of the
-    ``consensus`` smoothest Ks, shrunk by the James-Stein factor of their disagreement
+    (kept in ``info["k_choice"]``): the rotations at every K, the shapes only at the Ks the choice
+    can need (:func:`lipgen.nrsfm.kscan.scan_smooth`; the exhaustive search's answer, bit for bit).
+    ``dai`` then replaces the chosen K's depth by the consensus of the ``consensus`` smoothest Ks,
+    shrunk by the James-Stein factor of their disagreement
     (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, kept in ``info["depth_consensus"]``;
     an exact K-shape fit is kept as it is). ``dai-ba``'s refinement runs at the chosen K, without the
     consensus. The split-half shrinkage (:func:`shrink_unreliable_depth`) stays opt-in: on fresh
@@ -136,15 +139,28 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     ks = candidate_ks(F, P, tracks.n_observed, method, kmax)
     if not ks:  # no K fits: let the engine give its message for K = 1
         return reconstruct_k(W, 1, method, visible, **options)
-    runs = [reconstruct_k(W, k, "dai", visible, **options) for k in ks]
+    runs, bounds = scan_smooth(DaiScan(W, visible, **options), ks, SMOOTH_TOL,
+                               consensus if method == "dai" else 1)
     chosen, record = smooth_k(runs)
+    record = _whole_record(record, ks, bounds)
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
     if method == "dai":
-        rec = consensus_reconstruction(runs, ks.index(chosen), consensus)
+        rec = consensus_reconstruction(runs, [int(r.k) for r in runs].index(chosen), consensus)
     else:
         rec = reconstruct_k(W, chosen, method, visible, **options)
     rec.info["k_choice"] = record
     return rec
+
+
+def _whole_record(record: dict, ks: list[int], bounds: dict) -> dict:
+    """:func:`smooth_k`'s record over the finished Ks, widened to every candidate K: an unfinished K
+    gets its roughness bound and ``exact`` False (``finished`` says which is which)."""
+    done = dict(zip(record["ks"], zip(record["rotation_roughness"], record["exact"], strict=True),
+                    strict=True))
+    rough = [done[k][0] if k in done else bounds[k] for k in ks]
+    return record | {"ks": list(ks), "rotation_roughness": rough,
+                     "exact": [bool(done[k][1]) if k in done else False for k in ks],
+                     "finished": [k in done for k in ks]}
 
 
 def shrink_unreliable_depth(W, rec: Reconstruction, visible=None, **options) -> Reconstruction:

@@ -1,0 +1,154 @@
+"""``dai`` at many K for ``k="auto"``, finished only at the Ks the choice needs.
+
+``dai`` at one K is two stages: the rotations of the corrective triple (Levenberg-Marquardt on the
+rank-3K factor, cost growing with K) and the shapes of least trace norm (an ADMM whose cost does not
+depend on K, about 0.5 s on drink). :func:`lipgen.nrsfm.kchoice.smooth_k` needs only the rotations'
+roughness, but of the rotations after their per-frame signs are resolved against the shapes
+(:func:`lipgen.nrsfm._rotation.orient_frames`). Flipping every frame leaves the roughness bit for bit
+the same; flipping some frames of a smooth sequence adds jumps. So the roughness of the rotations
+before orientation is a lower bound of the finished one (equal when the frames turn alike, as on
+drink, jaws and every body checked), and :func:`scan_smooth` finishes only the Ks whose answer can
+matter: in order of the bound until the least roughness is known; then, in order of K, those within
+``tol`` of it up to the chosen one (the smallest exact K-shape fit, else the smallest K); then, unless
+the chosen K is an exact fit (kept as it is), in order of the bound until the ``m`` smoothest (the
+consensus depth) are known. If a finished K's roughness ever falls below its bound, every K is
+finished (the exhaustive search). On drink 5 of 13 Ks are finished, on jaws 3 of 15, on 80-frame
+bodies 4 of 15.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from lipgen.nrsfm._tracks import check_tracks
+from lipgen.nrsfm.engine import _EXACT_COMPLETION, _dai_rotations, _normalise_scale, _reconstruct, _scale_back
+from lipgen.nrsfm.plausibility import rotation_roughness
+from lipgen.nrsfm.record import Reconstruction, check_method_k
+
+__all__ = ["DaiScan", "scan_smooth"]
+
+log = logging.getLogger(__name__)
+
+
+class DaiScan:
+    """``dai`` on one sequence, each K's two stages run once and kept.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+    visible : (F, P) array_like of bool, optional
+    **options
+        As :func:`lipgen.nrsfm.reconstruct` (``seed``, ``n_starts``, ``shape_starts``, ...).
+    """
+
+    def __init__(self, W, visible=None, **options):
+        self.W, self.unit = _normalise_scale(W, visible)
+        self.visible = visible
+        self.tracks = check_tracks(self.W, visible)
+        self.options = options
+        self._rotations: dict[int, tuple] = {}
+        self._finished: dict[int, Reconstruction] = {}
+
+    def bound(self, k: int) -> float:
+        """Rotation roughness at K before the per-frame signs are resolved (the first stage only)."""
+        if k not in self._rotations:
+            F, P = self.tracks.mask.shape
+            check_method_k(k, "dai", F, P, self.tracks.n_observed)
+            self._rotations[k] = _dai_rotations(self.tracks, k, seed=self.options.get("seed", 0),
+                                                n_starts=self.options.get("n_starts", 4))
+        return rotation_roughness(self._rotations[k][3])
+
+    def may_be_exact(self, k: int) -> bool:
+        """Whether ``dai`` at K may fit exactly K shapes (:func:`lipgen.nrsfm.engine._dai_parts`
+        tries only then: tracks of numerical rank <= 3K, or incomplete ones whose rank-3K completion
+        fits the observed points to within ``_EXACT_COMPLETION``)."""
+        self.bound(k)
+        info = self._rotations[k][2]
+        return bool(info["rank"] <= 3 * k or (not self.tracks.complete
+                                              and info["completion_misfit"] <= _EXACT_COMPLETION))
+
+    def finish(self, k: int) -> Reconstruction:
+        """``dai``'s reconstruction at K, bit for bit ``reconstruct(W, k, "dai", visible, **options)``."""
+        if k not in self._finished:
+            self.bound(k)
+            rec = _reconstruct(self.W, k, "dai", self.visible, **_engine_options(self.options),
+                               tracks=self.tracks, rotations=self._rotations[k])
+            self._finished[k] = _scale_back(rec, self.unit)
+        return self._finished[k]
+
+
+def _engine_options(options: dict) -> dict:
+    defaults = {"seed": 0, "n_starts": 4, "shape_starts": 8, "refine_iter": 100, "em_iter": 500}
+    return defaults | options
+
+
+def scan_smooth(scan: DaiScan, ks: list[int], tol: float, m: int) -> tuple[list[Reconstruction], dict]:
+    """Finish the Ks of ``ks`` that the smoothest-rotation choice and an ``m``-K consensus can need.
+
+    Parameters
+    ----------
+    scan : DaiScan
+    ks : list of int
+        Candidate Ks.
+    tol : float
+        :func:`lipgen.nrsfm.kchoice.smooth_k`'s tolerance.
+    m : int
+        Number of the smoothest Ks the consensus averages.
+
+    Returns
+    -------
+    runs : list of Reconstruction
+        The finished Ks, in the order of ``ks``.
+    bounds : dict
+        K -> the lower bound of its roughness (every K of ``ks``).
+    """
+    bounds = {k: scan.bound(k) for k in ks}
+    rough: dict[int, float] = {}
+
+    def finish(k: int) -> bool:          # False: the bound failed
+        if k not in rough:
+            rough[k] = rotation_roughness(scan.finish(k).rotations)
+        return rough[k] >= bounds[k]
+
+    order = sorted(ks, key=lambda k: (bounds[k], k))
+
+    def known(m_: int, strict: bool) -> bool:     # the m_ smoothest Ks are all finished
+        top = sorted(rough.values())[:m_]
+        nxt = next((bounds[k] for k in order if k not in rough), None)
+        return len(top) >= m_ and (nxt is None or (top[-1] < nxt if strict else top[-1] <= nxt))
+
+    def advance(m_: int, strict: bool) -> bool:   # finish in order of the bound until known
+        for k in order:
+            if known(m_, strict):
+                break
+            if k not in rough and not finish(k):
+                return False
+        return True
+
+    # 1: the least roughness
+    ok = advance(1, False)
+    # 2: the K smooth_k chooses: the smallest exact K-shape fit within tol of the least roughness
+    # (with every smaller K that might be one), else the smallest K within tol (likewise)
+    limit = (1 + tol) * min(rough.values())
+    near = [k for k in sorted(ks) if bounds[k] <= limit]
+    chosen_exact = False
+    for k in near:
+        if ok and scan.may_be_exact(k):
+            ok = finish(k)
+            if ok and rough[k] <= limit and scan.finish(k).info.get("shapes") == "rank-K fit":
+                chosen_exact = True
+                break
+    for k in near:
+        if not ok or chosen_exact:
+            break
+        ok = finish(k)
+        if rough[k] <= limit:
+            break
+    # 3: the m smoothest, whose depths the consensus averages (an exact fit is kept as it is)
+    if ok and not chosen_exact:
+        ok = advance(max(m, 1), True)
+    if not ok:
+        log.info("a finished K's rotation roughness fell below its bound; finishing every K")
+        for k in ks:
+            finish(k)
+    return [scan.finish(k) for k in ks if k in rough], bounds

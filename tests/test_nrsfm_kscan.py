@@ -1,0 +1,82 @@
+"""k="auto" finishes ``dai`` only at the Ks its choice needs (lipgen.nrsfm.kscan), with the exhaustive
+search's answer bit for bit; and the corrective triple's Levenberg-Marquardt gives up a start that
+cannot beat the best one."""
+
+import numpy as np
+import pytest
+from threadpoolctl import threadpool_limits
+
+from lipgen.nrsfm import reconstruct
+from lipgen.nrsfm._lm import levenberg_marquardt
+from lipgen.nrsfm.consensus import consensus_reconstruction
+from lipgen.nrsfm.kchoice import candidate_ks, reconstruct_auto, smooth_k
+from lipgen.nrsfm.kscan import DaiScan
+from lipgen.nrsfm.synthetic import low_rank_sequence
+from lipgen.nrsfm.validation import human_sequence
+
+
+def _exhaustive(W, kmax, visible=None):
+    """``k="auto"`` as it was before the scan: ``dai`` at every K, then smooth_k and the consensus."""
+    F, P = W.shape[0] // 2, W.shape[1]
+    n_obs = F * P if visible is None else int(visible.sum())
+    ks = candidate_ks(F, P, n_obs, "dai", kmax)
+    runs = [reconstruct(W, k, method="dai", visible=visible) for k in ks]
+    with threadpool_limits(1):
+        chosen, _ = smooth_k(runs)
+        return consensus_reconstruction(runs, ks.index(chosen), 4), len(ks)
+
+
+def _same(a, b):
+    return all(np.array_equal(getattr(a, n), getattr(b, n)) for n in ("rotations", "weights", "basis",
+                                                                       "translation"))
+
+
+def test_auto_equals_the_exhaustive_search_and_skips_work():
+    s = human_sequence(1101, 30)       # a development body, short: Ks 1-8 tried
+    rec = reconstruct_auto(s.W, "dai", kmax=8)
+    ref, n = _exhaustive(s.W, 8)
+    assert _same(rec, ref) and rec.k == ref.k
+    finished = rec.info["k_choice"]["finished"]
+    assert len(finished) == n and 4 <= sum(finished) < n      # the consensus needs 4; some were skipped
+
+
+def test_auto_equals_the_exhaustive_search_on_exact_and_incomplete_tracks():
+    W, _, _ = low_rank_sequence(40, 15, 2, np.random.default_rng(4))
+    rec = reconstruct_auto(W, "dai", kmax=4)
+    ref, _ = _exhaustive(W, 4)
+    assert _same(rec, ref) and rec.k == 2 and rec.info["shapes"] == "rank-K fit"
+    s = human_sequence(1100, 24)
+    visible = np.random.default_rng(1).random((24, s.W.shape[1])) > 0.1
+    W = np.where(np.repeat(visible, 2, axis=0), s.W, np.nan)
+    rec = reconstruct_auto(W, "dai", visible, kmax=5)
+    ref, _ = _exhaustive(W, 5, visible)
+    assert _same(rec, ref)
+
+
+def test_a_failed_bound_finishes_every_k(monkeypatch):
+    s = human_sequence(1101, 30)
+    bound = DaiScan.bound                 # the rotations as usual, but a bound no roughness reaches
+    monkeypatch.setattr(DaiScan, "bound", lambda self, k: (bound(self, k), 1e9)[1])
+    rec = reconstruct_auto(s.W, "dai", kmax=6)
+    assert all(rec.info["k_choice"]["finished"])
+    assert _same(rec, _exhaustive(s.W, 6)[0])
+
+
+def _two_minima(x):   # zero cost at x = 1; a worse local minimum near x = -1
+    return np.array([x[0] ** 2 - 1.0, 0.3 * (x[0] - 1.0)])
+
+
+def _two_minima_jac(x):
+    return np.array([[2.0 * x[0]], [0.3]])
+
+
+def test_levenberg_marquardt_gives_up_only_a_start_that_cannot_win():
+    x, cost, n = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([-3.0]), max_iter=300)
+    assert x[0] < 0 and cost > 0.1
+    xb, costb, nb = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([-3.0]), max_iter=300,
+                                        beat=0.0)
+    assert nb < n and costb == pytest.approx(cost, rel=1e-3)
+    # a start that reaches a cost below the one to beat runs as it would alone, bit for bit
+    free = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([3.0]), max_iter=300)
+    held = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([3.0]), max_iter=300, beat=0.1)
+    assert free[0].tobytes() == held[0].tobytes() and free[2] == held[2] and free[1] < 1e-20
