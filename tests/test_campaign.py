@@ -132,12 +132,17 @@ def test_a_second_campaign_into_a_folder_is_refused_by_the_lock(tmp_path):
         pass
 
 
-def test_an_unreachable_address_fails_fast_and_writes_nothing(tmp_path):
+def test_an_unreachable_address_fails_fast_and_writes_nothing(tmp_path, monkeypatch):
+    import lipgen.campaign.run as run_module
+
+    def _no_executor(*args, **kwargs):  # "fast": refused by the address check, before Ray is started
+        raise AssertionError("an executor was made for an unreachable address")
+
+    monkeypatch.setattr(run_module, "make_executor", _no_executor)
     plan = parse_plan({"base": BASE, "campaign": {"stages": ["generate"]}})
-    t0 = time.monotonic()
     with pytest.raises(ClusterError, match="cannot reach the Ray cluster at 127.0.0.1:1"):
         run_campaign(plan, tmp_path / "c", address="127.0.0.1:1", progress=False)
-    assert time.monotonic() - t0 < 30 and not (tmp_path / "c").exists()
+    assert not (tmp_path / "c").exists()
     with pytest.raises(ClusterError, match="HOST:PORT"):
         check_address("nohostport")
     assert main(["campaign", "x.toml", "--out", str(tmp_path / "d"), "--address", "127.0.0.1:1"]) == 1
@@ -155,30 +160,30 @@ def test_the_local_executor_reruns_a_task_whose_worker_died(tmp_path):
     ex = LocalExecutor(workers=1, retries=1)
     try:
         h = ex.submit(_crash_once, str(tmp_path / "marker"))
-        deadline = time.monotonic() + 120
-        done = []
-        while not done and time.monotonic() < deadline:
-            done = ex.wait([h])
-        assert done and isinstance(ex.result(h), int) and h.attempts == 2
+        assert isinstance(ex.result(h), int) and h.attempts == 2  # result() waits, however long
+        assert ex.wait([h]) == [h]
         assert ex.result(ex.submit(os.getenv, "OPENBLAS_NUM_THREADS")) == "1"
     finally:
         ex.shutdown()
 
 
 def _crash_when(started: str, marker: str) -> int:
-    """Once ``started`` exists (a sibling task is running), die as under SIGKILL (first call)."""
+    """Once ``started`` exists (a sibling task is running), die as under SIGKILL (first call);
+    the rerun says so in ``marker + ".rerun"``."""
+    if os.path.exists(marker):
+        Path(marker + ".rerun").write_text("rerun")
     while not os.path.exists(started):
         time.sleep(0.01)
     return _crash_once(marker)
 
 
 def _sibling(started: str, marker: str) -> int:
-    """Count its runs in ``started``; stay running until the crash happened and a while after."""
+    """Count its runs in ``started``; stay running until the crashed task was run again, i.e. until
+    the driver has learnt of its sibling's death (an event, however loaded the machine)."""
     with open(started, "a") as fh:
         fh.write("run\n")
-    while not os.path.exists(marker):
+    while not os.path.exists(marker + ".rerun"):
         time.sleep(0.01)
-    time.sleep(1.0)  # still running when the driver learns of its sibling's death
     return os.getpid()
 
 

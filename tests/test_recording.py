@@ -51,14 +51,24 @@ def _without_truth(dataset, tmp_path):
     return dst
 
 
-def test_a_dataset_without_truth_reconstructs_the_same(tmp_path, dataset, recon):
-    from lipgen.dataset.layout import Dataset
+@pytest.fixture(scope="module")
+def bare(dataset, tmp_path_factory):
+    """The dataset without its truth, and its reconstruction by ``lipgen reconstruct`` (one run,
+    shared by the two tests below)."""
+    tmp = tmp_path_factory.mktemp("bare")
+    path, rec = _without_truth(dataset, tmp), tmp / "r.npz"
+    assert main(["reconstruct", str(path), "--out", str(rec), "--no-progress", "--allow-missing"]) == 0
+    return path, rec
 
-    bare = _without_truth(dataset, tmp_path)
-    ds = Dataset(bare)
+
+def test_a_dataset_without_truth_reconstructs_the_same(dataset, recon, bare):
+    from lipgen.dataset.layout import Dataset
+    from lipgen.recon.pipeline import Reconstruction
+
+    ds = Dataset(bare[0])
     assert not ds.has_truth and Dataset(dataset).has_truth
     assert ds[0].truth == {} and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
-    again = reconstruct_dataset(bare)
+    again = Reconstruction.load(bare[1])
     # the normalisation's reference frame is a training frame (the default held-out tail is 2)
     assert again.info["normalisation"]["reference_frame"] < FRAMES - 2
     for name in ("uv", "lab_points", "markers", "fields"):
@@ -67,10 +77,9 @@ def test_a_dataset_without_truth_reconstructs_the_same(tmp_path, dataset, recon)
         np.testing.assert_allclose(b, a, atol=1e-6, rtol=0, equal_nan=True, err_msg=name)
 
 
-def test_train_nrsfm_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_path, dataset):
-    bare = _without_truth(dataset, tmp_path)
-    rec, model, rep = tmp_path / "r.npz", tmp_path / "m.npz", tmp_path / "rep"
-    assert main(["reconstruct", str(bare), "--out", str(rec), "--no-progress", "--allow-missing"]) == 0
+def test_train_nrsfm_and_show_work_without_truth_and_evaluate_says_it_needs_it(tmp_path, bare):
+    bare, rec = bare
+    model, rep = tmp_path / "m.npz", tmp_path / "rep"
     assert main(["train", str(rec), "--out", str(model), "--modes", "2", "--test-frames", "2"]) == 0
     assert main(["nrsfm", str(rec), "--k", "1", "--out", str(tmp_path / "shapes.npz")]) == 0
     pic = tmp_path / "f.png"
