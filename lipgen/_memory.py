@@ -57,10 +57,14 @@ def _set(mmap_threshold: int, trim_threshold: int) -> bool:
     libc = _libc()
     if libc is None or os.environ.get(MEMORY_POLICY_ENV) == "off":
         return False
-    ok = libc.mallopt(_M_MMAP_THRESHOLD, mmap_threshold) and libc.mallopt(_M_TRIM_THRESHOLD, trim_threshold)
-    if not ok:
-        log.info("mallopt refused the thresholds (%d, %d)", mmap_threshold, trim_threshold)
-    return bool(ok)
+    if not libc.mallopt(_M_MMAP_THRESHOLD, mmap_threshold):
+        log.info("mallopt refused the mmap threshold %d", mmap_threshold)
+        return False
+    if not libc.mallopt(_M_TRIM_THRESHOLD, trim_threshold):
+        libc.mallopt(_M_MMAP_THRESHOLD, _DEFAULT)     # all or nothing: put the first back
+        log.info("mallopt refused the trim threshold %d", trim_threshold)
+        return False
+    return True
 
 
 def keep_freed_memory() -> bool:

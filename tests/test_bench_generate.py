@@ -32,7 +32,7 @@ def _fake_runs(cost):
     a one-off ``first`` s in each process's first call (the warm-up's)."""
     seen = []
 
-    def runs(trees, envs, tmp, tag, counts, workers, together):
+    def runs(trees, envs, tmp, tag, counts, workers):
         r = int(tag)
         seen.append((list(trees), envs, counts))
         out = {}

@@ -136,24 +136,13 @@ def _finish(proc: subprocess.Popen, tree: Path) -> list[dict]:
     return json.loads(stdout.strip().splitlines()[-1])
 
 
-def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, counts: list[int], workers: int,
-          together: bool) -> dict[str, list[dict]]:
-    """One process per tree, each making ``generate`` calls of ``counts`` frames in turn: the trees
-    one after the other in the order given, or all at once (``together``). Returns per tree the
-    calls' ``{"frames", "cpu_s", "wall_s"}``."""
-    if not together:
-        return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", counts, workers, envs.get(n)), trees[n])
-                for n in trees}
-    procs = {}
-    try:
-        for n in trees:
-            procs[n] = _start(trees[n], tmp / f"{n}-{tag}", counts, workers, envs.get(n))
-        return {n: _finish(p, trees[n]) for n, p in procs.items()}
-    finally:  # an error or Ctrl-C in one run: the others do not run on
-        for p in procs.values():
-            if p.poll() is None:
-                p.kill()
-                p.wait()
+def _runs(trees: dict[str, Path], envs: dict, tmp: Path, tag: str, counts: list[int],
+          workers: int) -> dict[str, list[dict]]:
+    """One process per tree, each making ``generate`` calls of ``counts`` frames in turn, the trees
+    one after the other in the order given (never at once: they would share the cores). Returns per
+    tree the calls' ``{"frames", "cpu_s", "wall_s"}``."""
+    return {n: _finish(_start(trees[n], tmp / f"{n}-{tag}", counts, workers, envs.get(n)), trees[n])
+            for n in trees}
 
 
 def spread(values) -> dict:
@@ -165,8 +154,7 @@ def spread(values) -> dict:
 
 
 def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_short: int, frames_long: int,
-                 rounds: int, envs: dict[str, dict] | None = None, together: bool = False,
-                 warmup: bool = True) -> dict:
+                 rounds: int, envs: dict[str, dict] | None = None, warmup: bool = True) -> dict:
     """Frames per CPU second of ``generate`` in each of ``trees``, interleaved, and ratios to ``baseline``.
 
     Parameters
@@ -180,12 +168,10 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     frames_short, frames_long : int
         Frames of the two timed calls per round and tree (``frames_long > frames_short``).
     rounds : int
-        Rounds; each starts one process per tree.
+        Rounds; each starts one process per tree, one after the other, in an order that reverses
+        round by round.
     envs : dict of str to dict, optional
         Extra environment variables of a name's runs.
-    together : bool
-        Start the trees' processes of a round at the same time; by default one after the other,
-        in an order that reverses round by round.
     warmup : bool
         Begin each process with an untimed call of ``frames_short`` frames (one-off costs).
 
@@ -209,7 +195,7 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(int(rounds)):
             order = dict(list(trees.items())[:: 1 if r % 2 == 0 else -1])
-            calls = _runs(order, envs or {}, Path(tmp), str(r), counts, workers, together)
+            calls = _runs(order, envs or {}, Path(tmp), str(r), counts, workers)
             for name in trees:
                 short, long = calls[name][-2:]
                 extra = max(long["cpu_s"] - short["cpu_s"], 1e-9)
@@ -217,7 +203,7 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
                 per[name]["whole"].append(frames_long / long["cpu_s"])
                 per[name]["wall"].append(frames_long / long["wall_s"])
     out: dict = {"workers": workers, "frames": [frames_short, frames_long], "rounds": int(rounds),
-                 "together": together, "warmup": warmup, "load_average": [load_before, load_average()]}
+                 "warmup": warmup, "load_average": [load_before, load_average()]}
     base = {k: np.asarray(v) for k, v in per[baseline].items()}
     for name, v in per.items():
         row = {"frames_per_cpu_s": float(np.median(v["marginal"])),
