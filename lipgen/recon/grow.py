@@ -45,7 +45,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.firstframe import check_layout
 from lipgen.recon.pointreg import layout_spacing
-from lipgen.recon.stereo_init import _similarity_3d
+from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
@@ -126,7 +126,7 @@ def _consensus(model: np.ndarray, X: np.ndarray, seeds: np.ndarray, tol: float, 
     dx = np.linalg.norm(X[idx][:, None] - X[idx][None], axis=2)
     misfit = np.abs(dx - dm)
     ok = misfit <= tol + share * dm
-    best, best_key = np.ones(1, dtype=np.int64) * 0, (1, 0.0)
+    best, best_key = np.zeros(1, dtype=np.int64), (1, 0.0)
 
     def extend(clique: list[int], cand: list[int]) -> None:
         nonlocal best, best_key
@@ -199,12 +199,7 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     X[seeds] = triangulate(cameras[1], out[1][seeds], cameras[0], out[0][seeds])[0]
     width = layout_spacing(model[has])
     near = 0.8 * width if near is None else float(near)
-    # Every pair of dots whose rays meet, once.
-    iv, ir = np.meshgrid(np.arange(len(dv[0])), np.arange(len(dv[1])), indexing="ij")
-    iv, ir = iv.ravel(), ir.ravel()
-    PX, gap = triangulate(cameras[1], dv[1][ir], cameras[0], dv[0][iv])
-    ok = gap <= max_gap
-    PX, pairs = PX[ok], np.column_stack([iv[ok], ir[ok]])
+    PX, pairs = stereo_candidates(dv[0], dv[1], cameras, max_gap)    # every pair whose rays meet
     # Seeds that agree on the subject's layout. The others are grown like unmatched markers, from
     # their own pair among the rest: a wrong pair both views matched is replaced where a pair is
     # clearly nearer its prediction, and kept otherwise (for the layout check that follows).

@@ -306,9 +306,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
         if walks is not None:
             seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
-            if t == 0:
-                ever = seen
-            else:
+            if t > 0:
                 walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
                            gap_limit.limit(), steps, settings.rewalk, names)
             ever |= seen
