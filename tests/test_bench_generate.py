@@ -85,3 +85,27 @@ def test_ratios_are_per_round_then_the_median(monkeypatch, tmp_path):
 def test_spread():
     s = g.spread([1.0, 2.0, 3.0, 4.0, 5.0])
     assert s["median"] == 3.0 and s["quartiles"] == [2.0, 4.0] and s["range"] == [1.0, 5.0]
+
+
+def test_a_run_refuses_a_lipgen_other_than_its_trees(tmp_path, monkeypatch):
+    """Started from a checkout's root, ``python -c`` would import that checkout's lipgen whatever
+    PYTHONPATH says; each run checks that it imported its own tree's package."""
+    monkeypatch.chdir(ROOT)
+    empty = tmp_path / "no-lipgen-here"
+    empty.mkdir()
+    proc = g._start(empty, tmp_path / "out", [1, 2], 1, None)
+    with pytest.raises(RuntimeError, match="not the lipgen of"):
+        g._finish(proc, empty)
+
+
+def test_ratios_against_a_second_baseline_are_per_round(monkeypatch, tmp_path):
+    """``_over`` divides per-round rates of the same run: 10 / 4 frames per CPU second and 10 / 5
+    per wall second in every round."""
+    cost = {"base": [(1.0, 0.2, 0.0)] * 3, "one": [(1.0, 0.25, 0.0)] * 3, "new": [(1.0, 0.1, 0.0)] * 3}
+    runs, _ = _fake_runs(cost)
+    monkeypatch.setattr(g, "_runs", runs)
+    out = g.generate_cpu({"base": tmp_path, "one": tmp_path, "new": tmp_path}, "base", 1, 8, 48, 3)
+    over = g._over(out, "new", "one")
+    assert over["ratio"] == pytest.approx(2.5)
+    assert over["ratio_spread"]["rounds"] == pytest.approx([2.5] * 3)
+    assert over["wall_ratio"] == pytest.approx(1.0)  # the fake's wall is 2 s per frame in every tree

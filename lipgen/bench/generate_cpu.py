@@ -35,17 +35,19 @@ issue 22's median (today's default frames, which ``easy`` reproduces).
 
 Without git or the base commit (an installed copy, a shallow clone) the suite says so and skips.
 
-Measured (speed15d, 2 cores, nice 5, load 12-45; per-round ratios in brackets). Issue 22, new over
-base: 1.45 (1.12-1.55) and 1.36 (1.21-1.59) in two runs of 7 rounds before the memory policy
-(``lipgen._memory``), 1.78 (1.71-1.82) and 1.67 (1.42-1.78) in two runs of 4 rounds (6 and 30
-frames) with it, at load 25-42, and 1.73 (1.60-1.74) in 3 rounds at load 13-18; the former method
-(the three trees at once, no warm-up, llvmpipe's own thread count) read 1.07-1.57. The memory policy
-alone, this method on the two commits at load 12-17, is 1.03 (0.86-1.23; 1.06 for whole calls), and
-1.09 (1.08-1.18) by environment variables at load 32-44: so the runs above differ mostly by the
-machine's state, not the code, and the figure still moves by more than the target's margin between
-runs hours apart. Issue 15, hard over base: 0.56 (0.41-0.60) and 0.41 (0.39-0.43) in two runs of 3
-rounds, before the memory policy: still too spread to claim either way. At load 40 the whole suite
-takes about 65 minutes of wall time, most of it the hard rounds.
+Two baselines: ``base`` is the base code as filed, whose OpenBLAS starts a second thread; its
+waiting for work shows as CPU when the other core is free. ``base_one_thread`` is the same code with
+one BLAS thread (:data:`ONE_THREAD_ENV`), the stricter baseline. ``wall_ratio`` compares frames per
+wall second of the long calls (one worker each: ``base`` then keeps up to two cores busy).
+
+Each run checks that it imported its own tree's ``lipgen``: ``python -c`` puts the working folder
+first on ``sys.path``, so before the runs were started in their tree's folder, a bench started
+from a checkout's root ran that checkout against itself. Every figure measured before that fix
+(1.36-1.78 for issue 22, 0.41-0.56 for issue 15, in earlier notes) is withdrawn.
+
+Measured on a quiet machine (lead, load 1.3-1.8, 7 rounds, 3 for ``hard``): issue 22, new over
+base 2.60 (per-round 2.26-2.75); over ``base_one_thread`` 1.60 (one 2-round run); issue 15, hard
+over base 0.73 (0.68-0.81). The whole suite takes about 4 minutes there.
 """
 
 from __future__ import annotations
@@ -63,7 +65,8 @@ from lipgen.bench.compare import load_average
 
 NAME = "generate"
 
-__all__ = ["BASE_COMMIT", "ISSUE15_BASE_COMMIT", "RENDER_ENV", "base_tree", "generate_cpu", "spread", "run"]
+__all__ = ["BASE_COMMIT", "ISSUE15_BASE_COMMIT", "ONE_THREAD_ENV", "RENDER_ENV", "base_tree", "generate_cpu",
+           "spread", "run"]
 
 BASE_COMMIT = "16ccdfc^"
 """The code when issue 22 was filed (its first commit's parent)."""
@@ -76,10 +79,18 @@ only, so ``base``'s default frames are issue 15's "today's default" too."""
 RENDER_ENV = {"LP_NUM_THREADS": "1"}
 """Environment of every tree's runs: llvmpipe draws in one thread of its own."""
 
+ONE_THREAD_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""Extra environment of ``base_one_thread``: the base code with one BLAS thread, the fairest baseline
+(the base code as filed lets OpenBLAS start a second thread, whose waiting shows as CPU)."""
+
 _DRIVER = """
 import json, os, resource, shutil, sys, time
 from lipgen.dataset.generate import generate
 from lipgen.dataset.layout import GenerateSettings
+import lipgen
+tree = os.path.realpath(os.environ["PYTHONPATH"])
+if not os.path.realpath(lipgen.__file__).startswith(tree + os.sep):
+    sys.exit(f"this run imported {lipgen.__file__}, not the lipgen of {tree}")
 out, workers, counts = sys.argv[1], int(sys.argv[2]), [int(x) for x in sys.argv[3].split(",")]
 preset = os.environ.get("LIPGEN_BENCH_PRESET")
 
@@ -126,7 +137,10 @@ def base_tree(dest: str | os.PathLike, commit: str = BASE_COMMIT) -> Path | None
 def _start(tree: Path, out: Path, counts: list[int], workers: int, env: dict | None) -> subprocess.Popen:
     env = dict(os.environ, **(env or {}), PYTHONPATH=str(tree))
     args = [sys.executable, "-c", _DRIVER, str(out), str(workers), ",".join(map(str, counts))]
-    return subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # cwd: ``python -c`` puts the working folder first on sys.path, before PYTHONPATH, so run from a
+    # checkout's root every tree would import that checkout's lipgen
+    return subprocess.Popen(args, env=env, cwd=str(tree), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
 
 
 def _finish(proc: subprocess.Popen, tree: Path) -> list[dict]:
@@ -179,9 +193,10 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     -------
     dict
         Per name: median ``frames_per_cpu_s`` (marginal), ``whole_call_frames_per_cpu_s`` and
-        ``frames_per_wall_s`` (the long call); and for the others ``ratio`` (marginal, median of the
-        per-round ratios), ``ratio_spread`` (:func:`spread`) and ``whole_call_ratio``; plus
-        ``load_average`` before and after.
+        ``frames_per_wall_s`` (the long call), and ``per_round`` (the marginal and wall rates of each
+        round); and for the others ``ratio`` (marginal, median of the per-round ratios),
+        ``ratio_spread`` (:func:`spread`), ``whole_call_ratio`` and ``wall_ratio`` (frames per wall
+        second of the long calls); plus ``load_average`` before and after.
     """
     if baseline not in trees:
         raise ValueError(f"baseline {baseline!r} is not one of the trees {sorted(trees)}")
@@ -208,11 +223,14 @@ def generate_cpu(trees: dict[str, Path], baseline: str, workers: int, frames_sho
     for name, v in per.items():
         row = {"frames_per_cpu_s": float(np.median(v["marginal"])),
                "whole_call_frames_per_cpu_s": float(np.median(v["whole"])),
-               "frames_per_wall_s": float(np.median(v["wall"]))}
+               "frames_per_wall_s": float(np.median(v["wall"])),
+               "per_round": {"marginal": [float(x) for x in v["marginal"]],
+                             "wall": [float(x) for x in v["wall"]]}}
         if name != baseline:
             ratios = np.asarray(v["marginal"]) / base["marginal"]
             row |= {"ratio": float(np.median(ratios)), "ratio_spread": spread(ratios),
-                    "whole_call_ratio": float(np.median(np.asarray(v["whole"]) / base["whole"]))}
+                    "whole_call_ratio": float(np.median(np.asarray(v["whole"]) / base["whole"])),
+                    "wall_ratio": float(np.median(np.asarray(v["wall"]) / base["wall"]))}
         out[name] = row
     return out
 
@@ -227,12 +245,24 @@ def run(quick: bool = False) -> dict:
         base = base_tree(Path(tmp) / "base")
         if base is None:
             return {"skipped": f"no git history holding {BASE_COMMIT} beside {here}"}
-        envs = {"base": RENDER_ENV, "new": RENDER_ENV, "hard": RENDER_ENV | {"LIPGEN_BENCH_PRESET": "hard"}}
-        new = generate_cpu({"base": base, "new": here}, "base", 1, frames_short, frames_long, rounds,
-                           envs=envs)
-        hard = generate_cpu({"base": base, "hard": here}, "base", 1, frames_short, frames_long, hard_rounds,
+        envs = {"base": RENDER_ENV, "base_one_thread": RENDER_ENV | ONE_THREAD_ENV, "new": RENDER_ENV,
+                "hard": RENDER_ENV | {"LIPGEN_BENCH_PRESET": "hard"}}
+        trees = {"base": base, "base_one_thread": base}
+        new = generate_cpu(trees | {"new": here}, "base", 1, frames_short, frames_long, rounds, envs=envs)
+        hard = generate_cpu(trees | {"hard": here}, "base", 1, frames_short, frames_long, hard_rounds,
                             envs=envs)
     return {"base_commit": BASE_COMMIT, "issue15_base_commit": ISSUE15_BASE_COMMIT, "render_env": RENDER_ENV,
             "new_over_base": new, "hard_over_base": hard,
+            "new_over_base_one_thread": _over(new, "new", "base_one_thread"),
+            "hard_over_base_one_thread": _over(hard, "hard", "base_one_thread"),
             "hard_over_new": hard["hard"]["ratio"] / new["new"]["ratio"],
             "targets": {"new_over_base": 1.5, "hard_over_base": 0.5}}
+
+
+def _over(result: dict, name: str, baseline: str) -> dict:
+    """Median and spread of ``name``'s per-round marginal (CPU) and wall rates over ``baseline``'s,
+    from one :func:`generate_cpu` result that ran both."""
+    cpu = (np.asarray(result[name]["per_round"]["marginal"])
+           / np.asarray(result[baseline]["per_round"]["marginal"]))
+    wall = np.asarray(result[name]["per_round"]["wall"]) / np.asarray(result[baseline]["per_round"]["wall"])
+    return {"ratio": float(np.median(cpu)), "ratio_spread": spread(cpu), "wall_ratio": float(np.median(wall))}
