@@ -45,9 +45,11 @@ first on ``sys.path``, so before the runs were started in their tree's folder, a
 from a checkout's root ran that checkout against itself. Every figure measured before that fix
 (1.36-1.78 for issue 22, 0.41-0.56 for issue 15, in earlier notes) is withdrawn.
 
-Measured on a quiet machine (lead, load 1.3-1.8, 7 rounds, 3 for ``hard``): issue 22, new over
-base 2.60 (per-round 2.26-2.75); over ``base_one_thread`` 1.60 (one 2-round run); issue 15, hard
-over base 0.73 (0.68-0.81). The whole suite takes about 4 minutes there.
+Measured on a quiet machine (lead, load 0.6-1.6, 7 rounds, 3 for ``hard``; per-round range in
+brackets). Issue 22, new over base: 2.60 (2.18-2.84) per CPU second, 1.40 per wall second; over
+``base_one_thread``: 1.58 (1.35-1.88) per CPU second, 1.31 per wall second. Issue 15, hard over
+base: 0.68 (0.62-0.69) per CPU second, 0.33 per wall second; over ``base_one_thread`` 0.46
+(0.44-0.52) and 0.36. The whole suite takes about 4.5 minutes there.
 """
 
 from __future__ import annotations
