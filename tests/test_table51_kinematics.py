@@ -89,3 +89,21 @@ def test_view_statistics_bad_input():
     message = r"D must be \(F, P, 3\) displacements with F >= 3, got shape \(10, 16\)"
     with pytest.raises(ValueError, match=message):
         view_statistics(np.zeros((10, 16)))
+
+
+def test_default_subject_moves_like_published_lip_kinematics():
+    """The default subject's speech against published lip kinematics (see
+    renders/examples/table51_kinematics): rounding narrows the mouth as it protrudes the lips
+    (protrusion and width anti-correlated across frames); protrusion also comes with a wide
+    opening (/ʃ/: Toda et al. 2003; lip separation and protrusion rise together over consonants:
+    Westbury, Severson & Hashi 1999), so it is not a function of the width alone."""
+    from lipgen.experiments.table51_protocol import Table51Settings, make_subject
+    from lipgen.subject.inkdots import dot_positions
+
+    subject = make_subject(Table51Settings(seed=301, preset="default"))
+    D = dot_motion(301, 600, subject=subject)
+    rest = dot_positions(subject.dots, subject.mesh.faces, subject.mesh.vertices)
+    m = lip_measures(D, rest, subject.mesh.marker_names)
+    assert -0.9 < m["corr"]["protrusion_width"] < -0.3
+    assert m["corr"]["protrusion_opening"] > 0.0
+    assert 5.0 < m["ranges"]["protrusion_upper"] < 12.0 and 8.0 < m["ranges"]["width"] < 20.0
