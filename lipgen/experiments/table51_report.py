@@ -97,8 +97,10 @@ def _markdown(result: dict, suffix: str = "") -> str:
     ours = {row: (v["modes"]["reach"] / u2, v["full"]["reach"] / u2) for row, v in result["table"].items()}
     thesis_rows = [f"| {row} | {a:.2e} | {b:.2e} | {ours[row][0]:.2e} | {ours[row][1]:.2e} |"
                    for row, (a, b) in THESIS_TABLE.items()]
+    px = s.get("marker_noise_px", 0)
+    noise = f"{s['marker_noise_mm']} mm" + (f", {px:g} px in both views (triangulated)" if px else "")
     out = [
-        f"# Table 5.1 on synthetic ground truth: marker noise {result['settings']['marker_noise_mm']} mm",
+        f"# Table 5.1 on synthetic ground truth: marker noise {noise}",
         "",
         f"Truth: `default_subject(seed={s['seed']}, resolution={s['truth_resolution']})` "
         f"({result['n_nodes_truth']} nodes: finer mesh, own stiffness, jaw hinge, lip contact, arch wrap); "
@@ -109,7 +111,7 @@ def _markdown(result: dict, suffix: str = "") -> str:
         f"Model: `lip_mesh(0)` ({result['n_nodes_model']} nodes), default stiffness. "
         f"{s['n_frames']} frames of random gestures at 30 fps"
         + (" with head motion (known pose)" if s["head"] else "")
-        + f"; marker noise {s['marker_noise_mm']} mm. Train on frames 1-{s['n_train']} from the 16 markers "
+        + f"; marker noise {noise}. Train on frames 1-{s['n_train']} from the 16 markers "
         f"only (`Physics.reach` per frame, §4.1), test on the last {s['n_frames'] - s['n_train']}.",
         "",
         f"**Variance captured by {s['n_modes']} modes: {100 * result['variance_captured']:.4f} %** "
@@ -141,7 +143,9 @@ def _markdown(result: dict, suffix: str = "") -> str:
         "\"combined (one σ²)\": the linear LLSE at the σ² of the cross-validation; \"combined (K⁻¹, "
         "one σ²)\": the same with the K⁻¹ prior imposed. The combined columns use their own τ² on the "
         "marker rows; the other estimators "
-        f"are given the true marker-noise variance ({s['marker_noise_mm'] ** 2:.3g} mm²). The "
+        f"are given the marker-noise variance ({result.get('noise_variance', s['marker_noise_mm'] ** 2):.3g} "
+        "mm² "
+        "per coordinate; through the rig, its mean over the training frames). The "
         "\"(all nodes)\" rows observe noise-free fields and use no noise variance.",
         "",
         *_rows(result, result["table"], "truth", COLUMNS),

@@ -63,7 +63,7 @@ def _realisation(s: Table51Settings, subject, physics, noise_var, rng, seed: int
 
     def session(acts, residual, sd):
         head = head_motion(len(acts), sd) if s.head else None
-        return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual)
+        return observe(subject, physics, acts, head, s.marker_noise_mm, rng, residual, s.marker_noise_px)
 
     sides = _independent(s)
     acts, residual = _motion(s, subject, s.n_train, seed)

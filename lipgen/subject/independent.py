@@ -30,6 +30,15 @@ measured on a real speaker (Basu 1997, §5). This module drives the subject by
   them (98.95-99.45 %), and 99.30 % (98.93-99.51 %) on the seeds 0-7 not used to set it; without
   the residual the sources alone hold 99.89 %. ``lipgen experiment table51 --preset default``
   reports the figure of its own run ("10 modes hold").
+
+Checked against published lip kinematics (:mod:`lipgen.experiments.table51_kinematics`,
+``renders/examples/table51_kinematics``; nothing changed by it): rounding narrows the mouth as it
+protrudes the lips (protrusion and mouth width anti-correlated, r about -0.7 across frames);
+protrusion also comes with a wide opening, as in /ʃ/ (Toda, Maeda, Carlen & Meftahi, ICPhS 2003:
+protrusion with rounding and protrusion with opening are autonomous gestures), and lip separation
+and protrusion rise together over the consonants (Westbury, Severson & Hashi, ICPhS 1999); the
+jaw's sideways shift is small and independent of the other motions (Vatikiotis-Bateson & Ostry,
+J. Phonetics 23, 1995).
 """
 
 from __future__ import annotations
