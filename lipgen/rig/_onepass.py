@@ -20,11 +20,7 @@ rendered one after the other as before, so the pixels never depend on this modul
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
-
-from lipgen.rig import _deferred
 
 __all__ = ["install", "render_side_by_side"]
 
@@ -40,8 +36,6 @@ def _one_pass_class(pr):
         want_depth = False
         order = None  # the mesh nodes in draw order, sorted once for all the views
         samples = 4  # multisampling of the main framebuffer (pyrender's 4)
-        deferred = True  # shade once per covered pixel (lipgen.rig._deferred) where the scene allows
-        _lipgen_deferred = None
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             if self.views is None:
@@ -63,20 +57,12 @@ def _one_pass_class(pr):
                 pose = scene.get_pose(node)
                 cams.append((np.linalg.inv(pose), node.camera.get_projection_matrix(width=w, height=h),
                              pose[:3, 3], (x, y, w, h)))
-            order = self.order if self.order is not None else self._sorted_mesh_nodes(scene)
-            if self.deferred and not self.want_depth and self.samples > 0 and _deferred.supported(
-                    self, scene, order, flags):
-                d = self._deferred_pass()
-                d.framebuffers(W, H, self.samples)
-                d.draw(self, scene, flags, order, cams, W, H)
-                GL.glFlush()
-                return self._read_both(W, H, d.ids["fb_c"])
             GL.glEnable(GL.GL_SCISSOR_TEST)
             program = None
             lit = {}  # program -> texture units its lights (shadow maps) hold, bound in this pass
             same_lights = self._lights_fit(scene, flags)
             try:
-                for node in order:
+                for node in self.order if self.order is not None else self._sorted_mesh_nodes(scene):
                     if not node.mesh.is_visible:
                         continue
                     pose = scene.get_pose(node)
@@ -128,18 +114,8 @@ def _one_pass_class(pr):
         def _get_primitive_program(self, primitive, flags, program_flags=ProgramFlags.NONE):
             return _fast_uniforms(super()._get_primitive_program(primitive, flags, program_flags))
 
-        def _deferred_pass(self):
-            if self._lipgen_deferred is None:
-                self._lipgen_deferred = _deferred.Deferred(_mesh_frag_path(self))
-            return self._lipgen_deferred
-
-        def _delete_main_framebuffer(self):
-            super()._delete_main_framebuffer()
-            if self._lipgen_deferred is not None:
-                self._lipgen_deferred.delete()
-
-        def _read_both(self, W: int, H: int, source=None):
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms if source is None else source)
+        def _read_both(self, W: int, H: int):
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
             GL.glBlitFramebuffer(0, 0, W, H, 0, 0, W, H, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
             if self.want_depth:
@@ -155,14 +131,6 @@ def _one_pass_class(pr):
             return color, depth
 
     return OnePassRenderer
-
-
-def _mesh_frag_path(renderer) -> str:
-    """The ``mesh.frag`` the renderer's program cache compiles (lipgen's shadow filter, or pyrender's)."""
-    import pyrender
-
-    path = getattr(renderer._program_cache, "lipgen_mesh_frag", None)
-    return path or os.path.join(os.path.dirname(pyrender.__file__), "shaders", "mesh.frag")
 
 
 def _set_uniform(self, name, value, unsigned=False):

@@ -165,8 +165,6 @@ def install(offscreen, gather: bool | None = None) -> bool:
         return False
 
     class Cache(ShaderProgramCache):
-        lipgen_mesh_frag = shader  # read by the deferred shading pass (lipgen.rig._deferred)
-
         def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
             if fragment_shader == "mesh.frag":  # an absolute path: os.path.join keeps it as it is
                 fragment_shader = shader
