@@ -101,3 +101,25 @@ def test_multisampling_can_be_turned_off_and_back_to_the_same_bytes():
     assert 0 < differ.mean() < 0.1  # edges only: the background and the surfaces' insides agree
     with pytest.raises(ValueError, match="one-pass"):
         render.RigRenderer(default_rig(160, 120), one_pass=False, samples=0)
+
+
+def test_overdraw_counts_bound_the_drawn_samples():
+    """The bench's overdraw figure: every covered pixel holds at least one sample that passed the
+    depth test, at most 4 (pyrender's multisampling), and no sample passes that was not rasterized;
+    the frame is the same before and after counting, and the renderer's class is restored."""
+    from lipgen.bench.frame_parts import overdraw
+
+    rig = default_rig(160, 120)
+    face = FaceModel(lip_mesh(1))
+    with render.RigRenderer(rig) as r:
+        before = r.render(_scene(face, 1)).image
+        cls = type(r._renderer._renderer)
+        got = overdraw(r)
+        assert type(r._renderer._renderer) is cls
+        views = [(v.node, *v.size) for v in r._views]
+        drawn = render._onepass.render_side_by_side(r._renderer, r._scene, views, r._flags)
+        covered = sum(int((~(c == c[0, 0]).all(axis=-1)).sum()) for c, _ in drawn)
+        np.testing.assert_array_equal(r.render(_scene(face, 1)).image, before)
+    assert covered <= got["passing"] <= got["rasterized"]
+    assert got["passing"] <= 4 * sum(w * h for _, w, h in views)
+    assert 0.0 <= got["hidden_fraction"] < 1.0

@@ -28,6 +28,30 @@ triangle lies outside either viewport, and the back faces (about 17 % per view) 
 before rasterization already. Sensor noise and the visibility truth are not part of the raw
 frame. The bound is so about 0.69 at today's fixed cost (0.87 even if clearing and resolving were
 free), short of 0.85 for any renderer that draws the same pixels on llvmpipe.
+
+Issue 22, measured again (frame22f, the bench's frame, CPU medians of 10-12 interleaved rounds,
+``LP_NUM_THREADS=1``, load 6-9; ratios to one full-frame pyrender pass):
+
+- **Overdraw** (:func:`overdraw`, occlusion queries): the raw frame rasterizes 550,743 samples
+  and 549,277 pass the depth test in pyrender's draw order, so a depth pre-pass or another draw
+  order could skip at most 0.3 % of the shading (pyrender's ``mesh.frag`` neither discards nor
+  writes depth, so llvmpipe's early depth test is already on).
+- **Where a both-views pass goes:** 1.46 in all; with a one-line fragment shader 0.36 (the
+  rasterizer, multisampling, clear, resolve and read-back), so pyrender's lighting is about 1.1 of
+  the 1.46; without multisampling 1.11; the empty pass 0.15. The render bench's scene has no
+  shadows, so a cheaper shadow filter does not move ``ratio_to_limit``.
+- **Why the lighting costs so much:** llvmpipe shades blocks of 8 pixels, the whole block when
+  any pixel is covered. A full-screen quad of 2 triangles shades 307,200 pixels in about 37-42 ms
+  of CPU; the same quad cut into 37.5-pixel triangles costs 2x, into 9.4-pixel ones 4x. The face's
+  122,000 covered pixels cost 51 ms of shading, about 3x the full-block rate.
+- **A deferred pass, tried and not kept** (branch ``frame22f-deferred``, commit b12b2de): a
+  geometry pass writing each sample's position, normal, material slot and base colour to
+  multisampled float textures, then pyrender's own ``mesh.frag`` text in full-screen passes,
+  once per pixel where the covered samples agree and once per sample (``glSampleMaski``) where
+  they differ. The pixels were bit-identical on both views, but the pass cost 6.3x the forward
+  one: llvmpipe's ``texelFetch`` from multisampled float textures is slow (marking the pixels
+  whose samples differ, 12 fetches per pixel, 51 ms; the per-pixel shading 49 ms; the per-sample
+  shading, 36 % of covered samples, 172 ms).
 """
 
 from __future__ import annotations
@@ -36,7 +60,7 @@ import time
 
 import numpy as np
 
-__all__ = ["frame_parts", "coverage"]
+__all__ = ["frame_parts", "coverage", "overdraw"]
 
 
 def _cpu(fn) -> float:
@@ -106,6 +130,60 @@ def frame_parts(rig, face, vertices: np.ndarray, render, reps: int) -> dict:
     return {"noise_over_float": noise["integer"]["ratio"], "noise_cpu_s": noise["integer"]["cpu_s"],
             "visibility_over_all_pairs": vis["culled"]["ratio"], "visibility_cpu_s": vis["culled"]["cpu_s"],
             "truth_over_raw": truth["truth"]["ratio"], "queries": len(queries), "triangles": len(tris)}
+
+
+def overdraw(renderer) -> dict:
+    """Samples the raw frame's one pass rasterizes and the samples that pass the depth test.
+
+    Counted with ``GL_SAMPLES_PASSED`` occlusion queries around every draw of the one-pass
+    renderer, once with the depth test passing every sample and once as drawn.
+
+    Parameters
+    ----------
+    renderer : RigRenderer
+        With a frame's scene already drawn, one-pass.
+
+    Returns
+    -------
+    dict
+        ``rasterized``, ``passing`` (samples, ints) and ``hidden_fraction`` (the share of the
+        rasterized samples that a perfect depth pre-pass would not shade); empty when the views
+        draw the meshes in different orders.
+    """
+    from OpenGL import GL
+
+    from lipgen.rig import _onepass
+
+    r = renderer._renderer._renderer
+    base = type(r)
+    state = {"always": False, "n": 0}
+
+    class Counting(base):
+        def _bind_and_draw_primitive(self, primitive, pose, program, flags):
+            if state["always"]:
+                GL.glDepthFunc(GL.GL_ALWAYS)
+            q = int(np.ravel(GL.glGenQueries(1))[0])
+            GL.glBeginQuery(GL.GL_SAMPLES_PASSED, q)
+            super()._bind_and_draw_primitive(primitive=primitive, pose=pose, program=program, flags=flags)
+            GL.glEndQuery(GL.GL_SAMPLES_PASSED)
+            state["n"] += int(np.ravel(GL.glGetQueryObjectuiv(q, GL.GL_QUERY_RESULT))[0])
+            GL.glDeleteQueries(1, [q])
+            GL.glDepthFunc(GL.GL_LESS)
+
+    views = [(v.node, *v.size) for v in renderer._views]
+    counts = {}
+    r.__class__ = Counting
+    try:
+        for always in (True, False):
+            state["always"], state["n"] = always, 0
+            if _onepass.render_side_by_side(renderer._renderer, renderer._scene, views,
+                                            renderer._flags) is None:
+                return {}
+            counts[always] = state["n"]
+    finally:
+        r.__class__ = base
+    return {"rasterized": counts[True], "passing": counts[False],
+            "hidden_fraction": 1.0 - counts[False] / max(counts[True], 1)}
 
 
 def coverage(renderer, single, reps: int) -> dict:
