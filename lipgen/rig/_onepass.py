@@ -140,6 +140,11 @@ def _one_pass_class(pr):
         def _get_primitive_program(self, primitive, flags, program_flags=ProgramFlags.NONE):
             return _fast_uniforms(super()._get_primitive_program(primitive, flags, program_flags))
 
+        def delete(self):
+            if self._lipgen_fixed_cache is not None:  # its programs, as pyrender frees its own
+                self._lipgen_fixed_cache.clear()
+            super().delete()
+
         def _lit_program(self, primitive, flags, counts):
             """pyrender's program for ``primitive``, or (``counts`` given) its fragment shader with
             the light loops' bounds fixed at compile time (:func:`fixed_light_shader`)."""
