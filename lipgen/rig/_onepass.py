@@ -29,6 +29,10 @@ hard presets, seed 7, PNGs identical to main's). Measured on the render bench's 
 medians of 10 interleaved rounds, ``LP_NUM_THREADS=1``, load 7.4): both views in one pass 1.50 of
 one full-frame pyrender pass with pyrender's shader, 0.73 with the fixed loops. The full-frame
 pass stays pyrender's own (a plain ``render`` uses pyrender's program cache and shader).
+``lipgen bench --suite render`` (30 interleaved rounds, ``LP_NUM_THREADS=1``): ``ratio_to_limit``
+1.25 and 1.35 in two runs (load 9-12), the raw frame 0.76 and 0.73 of the single pass's CPU;
+main in the same hour read 0.656 and 1.51 (load 12.5-14.7). A hard render costs 0.52 of its CPU
+before (0.225 -> 0.114 s), an easy one 0.46 (``lipgen.bench.preset_frames``).
 """
 
 from __future__ import annotations
