@@ -5,6 +5,7 @@ import pytest
 
 from lipgen.mesh.procedural import lip_mesh
 from lipgen.rig.camera import MirrorRig, PinholeCamera, default_rig
+from lipgen.rig.scene import Light
 from lipgen.subject.face import FaceModel
 
 pytestmark = pytest.mark.render
@@ -101,3 +102,65 @@ def test_multisampling_can_be_turned_off_and_back_to_the_same_bytes():
     assert 0 < differ.mean() < 0.1  # edges only: the background and the surfaces' insides agree
     with pytest.raises(ValueError, match="one-pass"):
         render.RigRenderer(default_rig(160, 120), one_pass=False, samples=0)
+
+
+def test_overdraw_counts_bound_the_drawn_samples():
+    """The bench's overdraw figure: every covered pixel holds at least one sample that passed the
+    depth test, at most 4 (pyrender's multisampling), and no sample passes that was not rasterized;
+    the frame is the same before and after counting, and the renderer's class is restored."""
+    from lipgen.bench.frame_parts import overdraw
+
+    rig = default_rig(160, 120)
+    face = FaceModel(lip_mesh(1))
+    with render.RigRenderer(rig) as r:
+        before = r.render(_scene(face, 1)).image
+        cls = type(r._renderer._renderer)
+        got = overdraw(r)
+        assert type(r._renderer._renderer) is cls
+        views = [(v.node, *v.size) for v in r._views]
+        drawn = render._onepass.render_side_by_side(r._renderer, r._scene, views, r._flags)
+        covered = sum(int((~(c == c[0, 0]).all(axis=-1)).sum()) for c, _ in drawn)
+        np.testing.assert_array_equal(r.render(_scene(face, 1)).image, before)
+    assert covered <= got["passing"] <= got["rasterized"]
+    assert got["passing"] <= 4 * sum(w * h for _, w, h in views)
+    assert 0.0 <= got["hidden_fraction"] < 1.0
+
+
+_LIGHTS = {
+    "default": None,  # three directional lights (with shadows: one directional, two far point lights)
+    "one_point": (Light("point", (1.0, 0.9, 0.8), 4e5, position=(40.0, 60.0, 300.0)),),
+    "two_and_a_point": (Light("directional", direction=(0.2, -0.3, -1.0)),
+                        Light("directional", (0.8, 0.9, 1.0), 1.0, (-0.6, 0.1, -0.8), shadows=False),
+                        Light("point", intensity=2e5, position=(-50.0, 20.0, 250.0))),
+}
+
+
+@pytest.mark.parametrize("lights", sorted(_LIGHTS))
+@pytest.mark.parametrize("shadows", [False, True])
+def test_fixed_light_loops_draw_the_same_pixels(shadows, lights):
+    """The one-pass renderer's shader with its light loops bounded at compile time draws the same
+    bytes as pyrender's (loops bounded by the n_*_lights uniforms), with and without shadow maps,
+    for several mixes of light kinds (so several compiled bounds, one program per mix)."""
+    rig = default_rig(160, 120)
+    face = FaceModel(lip_mesh(1))
+    V = face.mesh.vertices.copy()
+    V[:, 1] -= 0.3 * np.clip(-V[:, 1], 0, 25)
+    scene = face.scene(V, lights=_LIGHTS[lights])
+    with render.RigRenderer(rig, shadows=shadows) as r:
+        one_pass = r._renderer._renderer
+        got = {}
+        for fixed in (True, False):
+            one_pass.fixed_lights = fixed
+            got[fixed] = r.render(scene).image
+        programs = one_pass._lipgen_fixed_cache._program_cache.values()
+        assert programs and all("lipgen_mesh_fixed" in p.fragment_shader for p in programs)  # drawn with
+    np.testing.assert_array_equal(got[True], got[False])
+    assert got[True].std() > 5  # a lit face, not an empty frame
+
+
+def test_fixed_light_shader_needs_pyrenders_loops(tmp_path):
+    """A shader without pyrender's three light loops is left to pyrender (None)."""
+    path = tmp_path / "mesh.frag"
+    path.write_text("void main() { for (int i = 0; i < n_directional_lights; i++) {} }\n")
+    assert render._onepass.fixed_light_shader(str(path)) is None
+    assert render._onepass.fixed_light_shader(str(tmp_path / "other.frag")) is None

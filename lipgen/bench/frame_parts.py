@@ -15,7 +15,10 @@ pass is a fixed part (clear, resolve, read-back, Python) plus a part proportiona
 the surfaces cover (fragment shading). The raw frame shows the face twice (the direct and the
 mirror view), so it covers more pixels than one full-frame pass through the real camera, which
 sees the face once. ``bound_ratio_to_limit`` is the best ratio a raw frame can reach at the
-single pass's fixed and per-pixel cost.
+single pass's fixed and per-pixel cost: the one-pass renderer now beats it, because its shader
+costs less per pixel than pyrender's (the light loops bounded at compile time,
+:func:`lipgen.rig._onepass.fixed_light_shader`; ``both_views_pyrender_shader_over_single`` is
+the both-views pass with pyrender's own shader, in the same rounds).
 
 Profiled again (speed2, 640x480 ``easy`` face, CPU per pass, medians of 15 interleaved rounds,
 load 25): one full-frame pass 37.7 ms; both views in one pass 54.7 ms; one view alone 25.9 ms;
@@ -28,6 +31,36 @@ triangle lies outside either viewport, and the back faces (about 17 % per view) 
 before rasterization already. Sensor noise and the visibility truth are not part of the raw
 frame. The bound is so about 0.69 at today's fixed cost (0.87 even if clearing and resolving were
 free), short of 0.85 for any renderer that draws the same pixels on llvmpipe.
+
+Issue 22, measured again (frame22f, the bench's frame, CPU medians of 10-12 interleaved rounds,
+``LP_NUM_THREADS=1``, load 6-9; ratios to one full-frame pyrender pass):
+
+- **Overdraw** (:func:`overdraw`, occlusion queries): the raw frame rasterizes 550,743 samples
+  and 549,277 pass the depth test in pyrender's draw order, so a depth pre-pass or another draw
+  order could skip at most 0.3 % of the shading (pyrender's ``mesh.frag`` neither discards nor
+  writes depth, so llvmpipe's early depth test is already on).
+- **Where a both-views pass goes:** 1.46 in all; with a one-line fragment shader 0.36 (the
+  rasterizer, multisampling, clear, resolve and read-back), so pyrender's lighting is about 1.1 of
+  the 1.46; without multisampling 1.11; the empty pass 0.15. The render bench's scene has no
+  shadows, so a cheaper shadow filter does not move ``ratio_to_limit``.
+- **Why the lighting costs so much:** llvmpipe shades blocks of 8 pixels, the whole block when
+  any pixel is covered. A full-screen quad of 2 triangles shades 307,200 pixels in about 37-42 ms
+  of CPU; the same quad cut into 37.5-pixel triangles costs 2x, into 9.4-pixel ones 4x. The face's
+  122,000 covered pixels cost 51 ms of shading, about 3x the full-block rate.
+- **The cure: the light loops.** pyrender's shader loops over its lights up to uniform counts;
+  llvmpipe runs those loops lane by lane, with dynamic indexing into the light arrays. Bounded at
+  compile time (:func:`lipgen.rig._onepass.fixed_light_shader`), the same pixels cost 0.73 of
+  one pass for both views, against 1.50 with pyrender's shader (same rounds, load 7.4). Turning
+  the Fresnel ``pow(x, 5.0)`` into products saved 12 % with pyrender's loops but nothing once the
+  loops are bounded (0.728 against 0.729), so it is not kept: pyrender's arithmetic stays as is.
+- **A deferred pass, tried and not kept** (branch ``frame22f-deferred``, commit b12b2de): a
+  geometry pass writing each sample's position, normal, material slot and base colour to
+  multisampled float textures, then pyrender's own ``mesh.frag`` text in full-screen passes,
+  once per pixel where the covered samples agree and once per sample (``glSampleMaski``) where
+  they differ. The pixels were bit-identical on both views, but the pass cost 6.3x the forward
+  one: llvmpipe's ``texelFetch`` from multisampled float textures is slow (marking the pixels
+  whose samples differ, 12 fetches per pixel, 51 ms; the per-pixel shading 49 ms; the per-sample
+  shading, 36 % of covered samples, 172 ms).
 """
 
 from __future__ import annotations
@@ -36,7 +69,7 @@ import time
 
 import numpy as np
 
-__all__ = ["frame_parts", "coverage"]
+__all__ = ["frame_parts", "coverage", "overdraw"]
 
 
 def _cpu(fn) -> float:
@@ -108,6 +141,60 @@ def frame_parts(rig, face, vertices: np.ndarray, render, reps: int) -> dict:
             "truth_over_raw": truth["truth"]["ratio"], "queries": len(queries), "triangles": len(tris)}
 
 
+def overdraw(renderer) -> dict:
+    """Samples the raw frame's one pass rasterizes and the samples that pass the depth test.
+
+    Counted with ``GL_SAMPLES_PASSED`` occlusion queries around every draw of the one-pass
+    renderer, once with the depth test passing every sample and once as drawn.
+
+    Parameters
+    ----------
+    renderer : RigRenderer
+        With a frame's scene already drawn, one-pass.
+
+    Returns
+    -------
+    dict
+        ``rasterized``, ``passing`` (samples, ints) and ``hidden_fraction`` (the share of the
+        rasterized samples that a perfect depth pre-pass would not shade); empty when the views
+        draw the meshes in different orders.
+    """
+    from OpenGL import GL
+
+    from lipgen.rig import _onepass
+
+    r = renderer._renderer._renderer
+    base = type(r)
+    state = {"always": False, "n": 0}
+
+    class Counting(base):
+        def _bind_and_draw_primitive(self, primitive, pose, program, flags):
+            if state["always"]:
+                GL.glDepthFunc(GL.GL_ALWAYS)
+            q = int(np.ravel(GL.glGenQueries(1))[0])
+            GL.glBeginQuery(GL.GL_SAMPLES_PASSED, q)
+            super()._bind_and_draw_primitive(primitive=primitive, pose=pose, program=program, flags=flags)
+            GL.glEndQuery(GL.GL_SAMPLES_PASSED)
+            state["n"] += int(np.ravel(GL.glGetQueryObjectuiv(q, GL.GL_QUERY_RESULT))[0])
+            GL.glDeleteQueries(1, [q])
+            GL.glDepthFunc(GL.GL_LESS)
+
+    views = [(v.node, *v.size) for v in renderer._views]
+    counts = {}
+    r.__class__ = Counting
+    try:
+        for always in (True, False):
+            state["always"], state["n"] = always, 0
+            if _onepass.render_side_by_side(renderer._renderer, renderer._scene, views,
+                                            renderer._flags) is None:
+                return {}
+            counts[always] = state["n"]
+    finally:
+        r.__class__ = base
+    return {"rasterized": counts[True], "passing": counts[False],
+            "hidden_fraction": 1.0 - counts[False] / max(counts[True], 1)}
+
+
 def coverage(renderer, single, reps: int) -> dict:
     """Covered pixels and the fixed cost of a pass; the best raw/single ratio they allow.
 
@@ -141,13 +228,24 @@ def coverage(renderer, single, reps: int) -> dict:
     def covered(img):
         return float(1.0 - (img == img[0, 0]).all(axis=-1).mean())  # the corner pixel is background
 
+    def both_pyrender_shader():  # the light loops bounded by uniforms, as pyrender's shader has them
+        one_pass = renderer._renderer._renderer
+        one_pass.fixed_lights = False
+        try:
+            return both()
+        finally:
+            one_pass.fixed_lights = True
+
     drawn = both()
     if drawn is None:  # the views sort the meshes differently: no one-pass figure
         return {}
     raw_cov = float(np.mean([covered(c) for c, _ in drawn]))
     single_cov = covered(single()[0])
-    t = _rounds({"single": single, "both": both, "empty": empty}, "single", reps)
+    fns = {"single": single, "both": both, "both_pyrender_shader": both_pyrender_shader, "empty": empty}
+    t = _rounds(fns, "single", reps)
     fixed, per = t["empty"]["cpu_s"], max(t["single"]["cpu_s"] - t["empty"]["cpu_s"], 0.0)
     bound = t["single"]["cpu_s"] / (fixed + per * raw_cov / max(single_cov, 1e-9))
     return {"covered_raw": raw_cov, "covered_single": single_cov, "empty_over_single": t["empty"]["ratio"],
-            "both_views_over_single": t["both"]["ratio"], "bound_ratio_to_limit": float(bound)}
+            "both_views_over_single": t["both"]["ratio"],
+            "both_views_pyrender_shader_over_single": t["both_pyrender_shader"]["ratio"],
+            "bound_ratio_to_limit": float(bound)}

@@ -52,6 +52,12 @@ shades whole blocks, and small triangles leave blocks partly covered, which is w
 triangle count costs as much as its pixels (a head with half the triangles, ``head_mesh`` 20, 2,
 18, 32, took 0.74 of the CPU but moved both views' pixels by 1.06 grey levels RMS, the 99th percentile
 by 4, before noise). A hard frame was 0.34-0.37 s of CPU, 0.25 s of it the render.
+The light loops (frame22f, issue 22): pyrender's shader loops over its lights up to uniform counts,
+which llvmpipe runs lane by lane with dynamically indexed light arrays; the one-pass renderer's
+copy bounds them at compile time (:func:`lipgen.rig._onepass.fixed_light_shader`). The same bytes
+(easy, default and hard frames of ``generate``), and one render costs 0.46 of the CPU on easy
+and 0.52 on hard (0.225 -> 0.114 s; 6 interleaved rounds, load 9.8). So the lighting was much
+of the fragment cost after all: with one light the loop still ran its dynamic form.
 """
 
 from __future__ import annotations

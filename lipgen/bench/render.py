@@ -13,7 +13,8 @@ visibility truth, PNG and npz writing) with 1 and 2 worker processes, start-up i
 The hard preset's frames against easy's are suite ``presets``
 (:mod:`lipgen.bench.preset_frames`).
 ``coverage`` and ``frame_parts`` (:mod:`lipgen.bench.frame_parts`):
-the pixels a raw frame covers against one pass (the bound they set on ``ratio_to_limit``), and the
+the pixels a raw frame covers against one pass (the bound they set on ``ratio_to_limit``), its
+overdraw (``coverage.overdraw``: samples rasterized and passing the depth test), and the
 per-frame sensor noise and visibility truth against their baselines.
 """
 
@@ -68,7 +69,7 @@ def run(quick: bool = False) -> dict:
     from PIL import Image
 
     from lipgen._io import atomic_write_bytes, save_npz
-    from lipgen.bench.frame_parts import coverage, frame_parts
+    from lipgen.bench.frame_parts import coverage, frame_parts, overdraw
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
     from lipgen.mesh.procedural import lip_mesh
@@ -122,6 +123,7 @@ def run(quick: bool = False) -> dict:
             t_e2e.append(time.perf_counter() - t0)
         parts = frame_parts(rig, face, shapes[3], r.render, max(3, reps // 3))
         cov = coverage(r, single, max(3, reps // 3))
+        cov["overdraw"] = overdraw(r)
     two_pass = _two_pass_ratio(rig, face, shapes, reps)  # after the first context is closed
     gen = {}
     n_gen = 8 if quick else 40

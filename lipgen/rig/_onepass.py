@@ -16,13 +16,40 @@ object gets a subclass of :class:`pyrender.Renderer` that overrides the forward 
 pyrender sorts meshes by the distance of their node origin from the camera, and the draw order
 decides ties in depth. When the two cameras would sort them differently, the two views are
 rendered one after the other as before, so the pixels never depend on this module.
+
+The lighting loops (issue 22). pyrender's ``mesh.frag`` loops over ``n_directional_lights``,
+``n_point_lights`` and ``n_spot_lights``, uniforms. llvmpipe (Mesa's software GL) runs such a loop
+as a divergent one, with per-lane masks, and reads ``directional_lights[i]`` with a dynamic index,
+per lane. The one-pass renderer compiles a copy of the shader whose loops run to compile-time
+bounds, the light counts pyrender binds (``fixed_light_shader``; one program per mix of light
+kinds), so the loops unroll and the light uniforms are read at constant indices. The arithmetic
+and its order are the same: the frames are byte-identical (``tests/test_render_onepass.py``, with
+and without shadows and for three light mixes; ``lipgen generate`` frames of the easy, default and
+hard presets, seed 7, PNGs identical to main's). Measured on the render bench's frame (CPU,
+medians of 10 interleaved rounds, ``LP_NUM_THREADS=1``, load 7.4): both views in one pass 1.50 of
+one full-frame pyrender pass with pyrender's shader, 0.73 with the fixed loops. The full-frame
+pass stays pyrender's own (a plain ``render`` uses pyrender's program cache and shader).
+``lipgen bench --suite render`` (30 interleaved rounds, ``LP_NUM_THREADS=1``): ``ratio_to_limit``
+1.25 and 1.35 in two runs (load 9-12), the raw frame 0.76 and 0.73 of the single pass's CPU;
+main in the same hour read 0.656 and 1.51 (load 12.5-14.7). A hard render costs 0.52 of its CPU
+before (0.225 -> 0.114 s), an easy one 0.46 (``lipgen.bench.preset_frames``).
 """
 
 from __future__ import annotations
 
+import atexit
+import functools
+import hashlib
+import logging
+import os
+import shutil
+import tempfile
+
 import numpy as np
 
-__all__ = ["install", "render_side_by_side"]
+__all__ = ["install", "render_side_by_side", "fixed_light_shader"]
+
+log = logging.getLogger(__name__)
 
 
 def _one_pass_class(pr):
@@ -36,6 +63,8 @@ def _one_pass_class(pr):
         want_depth = False
         order = None  # the mesh nodes in draw order, sorted once for all the views
         samples = 4  # multisampling of the main framebuffer (pyrender's 4)
+        fixed_lights = True  # light loops with bounds fixed at compile time (same pixels, less CPU)
+        _lipgen_fixed_cache = None
 
         def _forward_pass(self, scene, flags, seg_node_map=None):
             if self.views is None:
@@ -61,13 +90,14 @@ def _one_pass_class(pr):
             program = None
             lit = {}  # program -> texture units its lights (shadow maps) hold, bound in this pass
             same_lights = self._lights_fit(scene, flags)
+            counts = _light_counts(self, scene, flags) if self.fixed_lights else None
             try:
                 for node in self.order if self.order is not None else self._sorted_mesh_nodes(scene):
                     if not node.mesh.is_visible:
                         continue
                     pose = scene.get_pose(node)
                     for primitive in node.mesh.primitives:
-                        program = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+                        program = self._lit_program(primitive, flags, counts)
                         program._bind()
                         if id(program) not in lit or not same_lights:
                             self._reset_active_textures()
@@ -114,6 +144,29 @@ def _one_pass_class(pr):
         def _get_primitive_program(self, primitive, flags, program_flags=ProgramFlags.NONE):
             return _fast_uniforms(super()._get_primitive_program(primitive, flags, program_flags))
 
+        def delete(self):
+            if self._lipgen_fixed_cache is not None:  # its programs, as pyrender frees its own
+                self._lipgen_fixed_cache.clear()
+            super().delete()
+
+        def _lit_program(self, primitive, flags, counts):
+            """pyrender's program for ``primitive``, or (``counts`` given) its fragment shader with
+            the light loops' bounds fixed at compile time (:func:`fixed_light_shader`)."""
+            program = self._get_primitive_program(primitive, flags, ProgramFlags.USE_MATERIAL)
+            path = fixed_light_shader(program.fragment_shader) if counts is not None else None
+            if path is None:
+                return program
+            if self._lipgen_fixed_cache is None:
+                from pyrender.shader_program import ShaderProgramCache
+
+                self._lipgen_fixed_cache = ShaderProgramCache()
+            defines = dict(program.defines, **counts)
+            fixed = self._lipgen_fixed_cache.get_program(vertex_shader=program.vertex_shader,
+                                                         fragment_shader=path, defines=defines)
+            if not fixed._in_context():
+                fixed._add_to_context()
+            return _fast_uniforms(fixed)
+
         def _read_both(self, W: int, H: int):
             GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
@@ -131,6 +184,46 @@ def _one_pass_class(pr):
             return color, depth
 
     return OnePassRenderer
+
+
+_LOOPS = {"LIPGEN_N_DIRECTIONAL": "for (int i = 0; i < n_directional_lights; i++)",
+          "LIPGEN_N_POINT": "for (int i = 0; i < n_point_lights; i++)",
+          "LIPGEN_N_SPOT": "for (int i = 0; i < n_spot_lights; i++)"}
+
+
+@functools.lru_cache(maxsize=8)
+def fixed_light_shader(path: str) -> str | None:
+    """Path of a copy of the fragment shader at ``path`` whose light loops run to compile-time
+    bounds (``LIPGEN_N_DIRECTIONAL``, ``LIPGEN_N_POINT``, ``LIPGEN_N_SPOT``, given as defines with
+    the counts pyrender binds) instead of to the ``n_*_lights`` uniforms; None unless the shader
+    is pyrender's ``mesh.frag`` (or lipgen's shadow-filtered copy) with each loop exactly once.
+
+    Written once per process to a temporary folder, removed at exit.
+    """
+    if os.path.basename(path) != "mesh.frag" or not os.path.exists(path):
+        return None
+    with open(path) as fh:
+        text = fh.read()
+    for name, loop in _LOOPS.items():
+        if text.count(loop) != 1:
+            log.info("%s: the light loop %r is not there once; pyrender's own shader is kept", path, loop)
+            return None
+        text = text.replace(loop, loop.replace(loop.split("< ")[1].split(";")[0], name))
+    folder = tempfile.mkdtemp(prefix="lipgen-lights-")
+    atexit.register(shutil.rmtree, folder, True)
+    tag = hashlib.sha1(path.encode()).hexdigest()[:10]  # pyrender's program cache keys by file name
+    out = os.path.join(folder, f"lipgen_mesh_fixed_{tag}.frag")
+    with open(out, "w") as fh:
+        fh.write(text)
+    return out
+
+
+def _light_counts(renderer, scene, flags) -> dict:
+    """The light counts pyrender's ``_bind_lighting`` binds (its ``n_*_lights`` uniforms), as defines."""
+    n_d, n_s, n_p = renderer._compute_max_n_lights(flags)
+    return {"LIPGEN_N_DIRECTIONAL": min(len(scene.directional_light_nodes), n_d),
+            "LIPGEN_N_SPOT": min(len(scene.spot_light_nodes), n_s),
+            "LIPGEN_N_POINT": min(len(scene.point_light_nodes), n_p)}
 
 
 def _set_uniform(self, name, value, unsigned=False):
