@@ -128,6 +128,7 @@ class MotionCheck:
         self._since: np.ndarray | None = None
         self._samples: list[float] = []
         self.judged = np.zeros(len(self.rest), dtype=bool)   # the current run passed the layout test
+        self._swapped: list[tuple[int, int]] = []
         self.resid: list[np.ndarray] = []          # per frame: layout residual of the checked (mm), NaN else
         # Each change: (frame, marker, kind, views, the sightings (2, 2) before); kind is "first"
         # (a run's first frame), "run" (a run from its start), "behind", "jump" or "swap".
@@ -209,6 +210,9 @@ class MotionCheck:
                     last3d[idx[jump]] = self._last[idx[jump]]
                 if since is not None and self._since is not None:
                     since[idx] = self._since[idx] + 1
+            for a, b in self._swapped:
+                if last3d is not None:
+                    last3d[[a, b]] = X[[b, a]]
         self._last = None if last3d is None else last3d.copy()
         self._since = None if since is None else since.copy()
         self.resid.append(resid)
@@ -232,6 +236,7 @@ class MotionCheck:
         pred = predict_layout(np.where(self.valid[:, None], self.rest, 0.0), X, use, self.spacing)
         resid[both & self.checked] = np.linalg.norm(X - pred, axis=1)[both & self.checked]
         self.judged[~both & (last < 0)] = False
+        self._swapped = []
         bad: dict[int, tuple[int, ...]] = {}
 
         def drop(i: int, kind: str, p: np.ndarray) -> None:
@@ -261,6 +266,7 @@ class MotionCheck:
                     self.changes += [(k, a, "swap", (0, 1), np.stack([uv[0][a], uv[1][a]])),
                                      (k, b, "swap", (0, 1), np.stack([uv[0][b], uv[1][b]]))]
                     self._swap(trackers, views, a, b)
+                    self._swapped.append((a, b))
                     took[:, [a, b]] = True
                     swapped |= {a, b}
                     log.warning("frame %d: %s and %s swapped in both views (each had jumped onto the "
