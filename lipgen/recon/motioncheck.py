@@ -233,8 +233,20 @@ class MotionCheck:
         prev = np.isfinite(pts[k - 1][:, 0])
         est = both & prev & self.valid              # established: seen in both views now and before
         use = est if est.sum() >= 5 else both & self.valid
-        pred = predict_layout(np.where(self.valid[:, None], self.rest, 0.0), X, use, self.spacing)
+        model = np.where(self.valid[:, None], self.rest, 0.0)
+        pred = predict_layout(model, X, use, self.spacing)
+        # Again without the established markers out of place or behind (a wrong one among them
+        # drags its neighbours' predictions).
+        r = np.linalg.norm(X - pred, axis=1)
+        fit = float(np.median(r[use & self.checked])) if (use & self.checked).any() else np.inf
+        first_limit = max(self.birth * self.spacing, self.spread * fit)
+        off = use & self.checked & ((r > first_limit)
+                                    | (_behind(X, pred, cameras) > self.depth * self.spacing))
+        if off.any() and (use & ~off).sum() >= 5:
+            use = use & ~off
+            pred = predict_layout(model, X, use, self.spacing)
         resid[both & self.checked] = np.linalg.norm(X - pred, axis=1)[both & self.checked]
+        behind = _behind(X, pred, cameras)
         self.judged[~both & (last < 0)] = False
         self._swapped = []
         bad: dict[int, tuple[int, ...]] = {}
@@ -280,9 +292,7 @@ class MotionCheck:
             for i in np.flatnonzero(both & self.checked & ~skipped):
                 if i in bad or i in swapped:
                     continue
-                toward = sum((c.center - pred[i]) / np.linalg.norm(c.center - pred[i]) for c in cameras)
-                behind = -float((X[i] - pred[i]) @ toward) / float(np.linalg.norm(toward))
-                if behind > self.depth * self.spacing:
+                if behind[i] > self.depth * self.spacing:
                     drop(int(i), "first" if last[i] < 0 else "behind" if self.judged[i] else "run", pred[i])
         # A run is judged against the layout at its first frame where the layout can judge it
         # (enough established markers near it): at its first frame, or later for a run from the
@@ -344,6 +354,15 @@ def _points(trackers: list[MarkerTracker], cameras, t: int) -> np.ndarray:
     if both.any():
         X[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[0]
     return X
+
+
+def _behind(X: np.ndarray, pred: np.ndarray, cameras) -> np.ndarray:
+    """(P,) how far each point ``X (P, 3)`` lies behind ``pred (P, 3)``, along the mean direction
+    from ``pred`` to the cameras, mm (NaN where either is)."""
+    toward = sum((c.center[None] - pred) / np.linalg.norm(c.center[None] - pred, axis=1, keepdims=True)
+                 for c in cameras)
+    toward = toward / np.linalg.norm(toward, axis=1, keepdims=True)
+    return -np.einsum("ij,ij->i", X - pred, toward)
 
 
 def _name(names, i) -> str:
