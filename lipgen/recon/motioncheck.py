@@ -253,6 +253,8 @@ class MotionCheck:
 
         def drop(i: int, kind: str, p: np.ndarray) -> None:
             bad[i] = self._views_off(cameras, p, (uv[0][i], uv[1][i]))
+            log.debug("frame %d: %s %s: residual %.2f mm, behind %.2f, step residual %.2f, %d established",
+                      k, _name(names, i), kind, resid[i], behind[i], tres[i], int(use.sum()))
             self.changes.append((k, i, kind, bad[i], np.stack([uv[0][i], uv[1][i]])))
 
         # A run's later frames (seen in both views within max_back frames): its step against its
