@@ -96,7 +96,7 @@ class MotionCheck:
         run to be judged against the layout.
     """
 
-    def __init__(self, rest_points, birth: float = 1.5, depth: float = 1.0, jump_k: float = 6.0,
+    def __init__(self, rest_points, birth: float = 1.5, depth: float = 0.9, jump_k: float = 6.0,
                  jump_floor: float = 0.4, jump_cap: float = 0.8, min_samples: int = 50,
                  max_back: int = 3, spread: float = 2.0, min_established: int = 8):
         self.rest = np.asarray(rest_points, dtype=float)
@@ -290,7 +290,7 @@ class MotionCheck:
                 drop(i, "jump", tpred[i])
         # Behind the layout: ink lies on the lips; dark blobs behind them (the mouth's inside, or
         # a lure along one view's ray) do not. Depth is along the mean direction to the cameras.
-        if use.sum() >= self.min_established:
+        if use.sum() >= 5:
             for i in np.flatnonzero(both & self.checked & ~skipped):
                 if i in bad or i in swapped:
                     continue
