@@ -62,6 +62,14 @@ ones count as accepted), accepted sightings over 3 px in both views; load 8-13):
 * ``default`` 7 / 8 / 9 and ``easy`` 7: unchanged, 97.9 / 98.1 / 98.5 and 99.9 %, none over 3 px
   (no change made; the same sightings within 1.2e-8 px).
 * CPU: 0.52 of 6 s on ``hard`` 7, 0.93 of 10 s on ``default`` 8 (13-15 ms a frame).
+* Held out, run once after the freeze (load 12-13): ``hard`` 11 / 12 / 13 / 14 / 15 and 16 / 17
+  (new): 73.2 / 63.1 / 77.9 / 85.0 / 82.2 / 42.9 / 72.8 -> 72.8 / 61.8 / 81.2 / 88.5 / 82.1 /
+  49.3 / 77.2 %, over 3 px 22 / 21 / 8 / 28 / 14 / 53 / 10 -> 2 / 44 / 4 / 21 / 14 / 52 / 2; in all
+  71.0 -> 73.3 % accepted, 69.4 -> 71.8 % accepted within 3 px, 156 -> 139 over 3 px (seed 12
+  worse). ``default`` 11 / 12 / 13: 97.5 / 99.2 / 99.5 -> 93.3 / 99.2 / 99.5 %, none over 3 px:
+  on seed 11 a wrong sighting (9 px, behind) is taken back at frame 3 and the mirror view never
+  finds the marker again (a judged run resumes from its state before; the walk back had
+  replaced the wrong sighting on main).
 """
 
 from __future__ import annotations
