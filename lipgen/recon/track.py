@@ -339,6 +339,11 @@ class MarkerTracker:
             raise ValueError(f"since must index an image seen (0..{len(self._out) - 1}), got {since!r}")
         for uv, status, score in self._out[since:]:
             uv[k], status[k], score[k] = np.nan, LOST, np.nan
+        self.unlearn(k)
+
+    def unlearn(self, k: int) -> None:
+        """Drop marker ``k``'s state (position, template, darkness) but not its sightings: it is
+        acquired afresh, as one never seen (an identity found wrong, :mod:`lipgen.recon.motioncheck`)."""
         self.last[k], self.vel[k], self.gap[k], self.strength[k] = np.nan, 0.0, 0, np.nan
         self.templates[k] = None
         self.acquired[k] = False
