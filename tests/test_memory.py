@@ -52,10 +52,16 @@ def test_large_arrays_reuse_freed_pages_inside_the_block_only():
     with reuse_freed_memory():
         _faults_allocating(1)  # the first round grows the heap once
         inside = _faults_allocating()
-    after = _faults_allocating()
+    # after it, the limits glibc's adaptive rule reaches: 32 MB at a time is kept (below its trim
+    # threshold), a block above its mmap threshold is mapped and given back each time
+    _faults_allocating(1, n=4)
+    kept = _faults_allocating(n=4)
+    big = _memory.AFTER_MMAP_THRESHOLD + (8 << 20)
+    mapped = _faults_allocating(n=1, size=big)
     assert before > 0.8 * _ROUND  # glibc's own settings: the pages are given back and faulted in again
     assert inside < 0.1 * _ROUND  # kept: the same pages again
-    assert after > 0.8 * _ROUND  # the defaults are back
+    assert kept < 0.1 * _ROUND * 4 / 10
+    assert mapped > 0.8 * 4 * big // resource.getpagesize()
 
 
 @glibc

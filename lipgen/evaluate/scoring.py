@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 import warnings
+from collections import OrderedDict
 
 import numpy as np
 
@@ -32,6 +33,7 @@ ROWS = ("xyz (8 points)", "yz (all points)", "xy (all points)")
 """The rows of the Table 5.1 analogue: which DOFs are observed (thesis Table 5.1)."""
 AXES = {"xyz (8 points)": (8, "xyz"), "yz (all points)": (None, "yz"), "xy (all points)": (None, "xy")}
 """Per row: (number of marker points observed or None for all, the observed axes)."""
+_ESTIMATOR_CACHE = 24  # estimators kept by table51 for frames that observe the same DOFs
 
 
 def split_frames(fields: np.ndarray, test_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -153,6 +155,21 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
     if rest.shape != (P, 3):
         raise ValueError(f"rest must be the ({P}, 3) rest markers, got shape {rest.shape}")
     measured = measured_markers(recon)
+    # Frames that see the same markers share their estimators: each is a pure function of the
+    # observed DOFs and their noise (the combined column's scale mixture is one LLSE per grid
+    # variance, so a build per frame dominated the scoring). The most recent few are kept.
+    cache: OrderedDict = OrderedDict()
+
+    def built(name, d, r):
+        key = (name, d.tobytes(), None if r is None else r.tobytes())
+        if key in cache:
+            cache.move_to_end(key)
+        else:
+            cache[key] = columns[name](d, r)
+            if len(cache) > _ESTIMATOR_CACHE:
+                cache.popitem(last=False)
+        return cache[key]
+
     out = {}
     for row in ROWS:
         count, axes = AXES[row]
@@ -171,8 +188,9 @@ def table51(model, physics, recon, test: np.ndarray, true_fields: np.ndarray, n_
             ld = node_dofs(markers[lseen], axes)
             ly = (recon.markers[f, lseen] - rest[lseen])[:, ax].ravel()
             lr = R[lseen][:, ax].ravel()
-            ests = {name: (build(ld, lr).estimate(ly) if name in learned_cols else build(d, None).estimate(y))
-                    for name, build in columns.items() if name not in learned_cols or len(lseen)}
+            ests = {name: (built(name, ld, lr).estimate(ly) if name in learned_cols else
+                           built(name, d, None).estimate(y))
+                    for name in columns if name not in learned_cols or len(lseen)}
             ests["physics (reach)"] = physics.reach(d, y)[0]
             # the hidden coordinates of the markers measured in this frame, against their measurement
             mk = np.flatnonzero(measured[f])

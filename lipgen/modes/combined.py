@@ -252,8 +252,9 @@ class CombinedModel:
         shares = MIXTURE_SHARES if shares is None else np.asarray(shares, dtype=np.float64)
         unit = default_residual_variance(self.modes, self.physics, 1.0, kind=self.kind)
         learned = self.modes.covariance(self.n_modes)
+        physical = PhysicsCovariance(self.physics, 1.0, self.kind)  # its columns are solved once for the grid
 
         def make(s2):
-            return SumCovariance(learned, PhysicsCovariance(self.physics, s2, self.kind))
+            return SumCovariance(learned, physical.scaled(s2))
 
         return ScaleMixtureLLSE.build(make, unit * shares, dofs, mean=self.modes.mean_, noise=noise)

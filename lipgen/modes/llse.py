@@ -122,6 +122,16 @@ class PhysicsCovariance:
         free = np.zeros(self.n_dofs, bool)
         free[physics.free_dofs] = True
         self._free = free
+        self._solved = None  # unit-scale columns by DOF set, shared with the copies of scaled()
+
+    def scaled(self, scale: float) -> PhysicsCovariance:
+        """The same prior with variance ``scale`` instead; it shares its solved columns with this one
+        and with its other copies, so a grid of scales (a scale mixture) solves each DOF set once."""
+        out = PhysicsCovariance(self.physics, scale, self.kind)
+        if self._solved is None:
+            self._solved = {}
+        out._solved = self._solved
+        return out
 
     def _compliance(self, dofs: np.ndarray) -> np.ndarray:
         """K_s⁻¹[:, dofs] with zero columns for anchored DOFs."""
@@ -134,9 +144,14 @@ class PhysicsCovariance:
     def columns(self, dofs) -> np.ndarray:
         """(3n, d): Λ[:, dofs] (mm²)."""
         dofs = as_index_array(dofs, "dofs", self.n_dofs)
-        C = self._compliance(dofs)
-        if self.kind == "force":
-            C = np.asarray(self.physics.solve(C))
+        key = None if self._solved is None else dofs.tobytes()
+        C = None if key is None else self._solved.get(key)
+        if C is None:
+            C = self._compliance(dofs)
+            if self.kind == "force":
+                C = np.asarray(self.physics.solve(C))
+            if key is not None:
+                self._solved[key] = C
         return self.scale * C
 
     def diag_blocks(self, nodes=None, chunk: int = 256) -> np.ndarray:
