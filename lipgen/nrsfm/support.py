@@ -1,0 +1,242 @@
+"""Whether the data determine the rotations (and so the depth), without the truth; flat when they do not.
+
+Under orthography the image gives x and y; depth comes only from the rotations. ``dai``'s rotations
+are one corrective triple of the rank-3K factor (:mod:`lipgen.nrsfm._rotation`), and when the tracks
+do not pin it down (a body turning slowly while its limbs move much, so that deformation and
+rotation explain the same image motion) the triple that wins is one of several that fit about as
+well: its rotations are wrong, and so is every frame's depth, whatever K or consensus follows. On
+development bodies where ``dai`` was worse than flat (1102, 1106, 1116) the relative rotations were
+19-25 degrees from the truth's, against 0.5 on good bodies, and per-frame depth was unrelated to the
+truth.
+
+What the data determine, each half of the data determines too. :func:`rotation_stability` splits the
+sequence into its even and its odd frames and finds each half's rotations on its own (``dai``'s first
+stage at the same K, from the same starts). Each half's rotations are defined up to one rotation or
+reflection of the object frame and a sign per frame (:func:`lipgen.nrsfm._rotation.orient_frames`);
+the even half's rotations halfway between frames 2i and 2i + 2 are compared with the odd half's at
+frame 2i + 1, after the best such alignment (:func:`rotation_disagreement`). When the rotations are
+determined the halves agree to a fraction of a degree; when they are not, each half's triple lands
+elsewhere and they disagree by tens of degrees.
+
+:func:`depth_support` calls the depth supported when the halves' median disagreement is at most
+:data:`SUPPORT_DEG`; :func:`flat_answer` is the fallback: the same rotations, translations and image
+(x, y), zero depth in every frame, the result's ``info["depth_support"]`` saying so and why.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from lipgen._threads import single_threaded
+from lipgen.nrsfm._rotation import complete_rotations
+from lipgen.nrsfm._tracks import check_tracks
+from lipgen.nrsfm.record import Reconstruction, check_method_k
+
+__all__ = ["SUPPORT_DEG", "MIN_HALF_FRAMES", "rotation_disagreement", "rotation_stability",
+           "depth_support", "flat_answer"]
+
+log = logging.getLogger(__name__)
+
+SUPPORT_DEG = 2.0
+"""Largest median disagreement (degrees) of the even and odd halves' rotations for which the depth
+counts as supported (see :func:`depth_support`)."""
+
+MIN_HALF_FRAMES = 8
+"""Fewest frames in each half for the test; shorter sequences are not tested (depth kept)."""
+
+_INITS = 8
+"""Random starts (besides the identity) of the alignment of two rotation sequences."""
+
+
+def rotation_disagreement(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Per-frame angle between two estimates of one sequence's rotations, after the best alignment.
+
+    Each estimate is defined up to an orthogonal transform Q of the object frame (a rotation or a
+    reflection: ``R_f -> R_f Q``) and a sign per frame (``R_f -> diag(-1, -1, 1) R_f``): Q and the
+    signs that bring ``A``'s rows nearest ``B``'s are found by alternating Procrustes and sign
+    steps from the identity and from seeded random starts (deterministic), the best kept.
+
+    Parameters
+    ----------
+    A, B : (F, 3, 3) or (F, 2, 3) float
+        Rotations (only the first two rows, the orthographic projection, are used).
+
+    Returns
+    -------
+    (F,) float
+        Angle in degrees between each frame's aligned rotation from ``A`` and its rotation from ``B``.
+    """
+    A = np.asarray(A, dtype=np.float64)
+    B = np.asarray(B, dtype=np.float64)
+    if A.ndim != 3 or A.shape[1:] not in ((3, 3), (2, 3)) or A.shape[0] != B.shape[0] \
+            or B.shape[1:] not in ((3, 3), (2, 3)):
+        raise ValueError(f"A and B must be (F, 3, 3) or (F, 2, 3) rotations of the same F frames, got "
+                         f"shapes {A.shape} and {B.shape}")
+    A2, B2 = A[:, :2], B[:, :2]
+    rng = np.random.default_rng(0)
+    starts = [np.eye(3)] + [np.linalg.qr(rng.standard_normal((3, 3)))[0] for _ in range(_INITS)]
+    best = None
+    for Q in starts:
+        for _ in range(100):
+            sign = _signs(np.einsum("fij,jk->fik", A2, Q), B2)
+            U, _, Vt = np.linalg.svd(np.einsum("f,fji,fjk->ik", sign, A2, B2))
+            new = U @ Vt
+            done = bool(np.abs(new - Q).max() <= 1e-12)
+            Q = new
+            if done:
+                break
+        AQ = np.einsum("fij,jk->fik", A2, Q)
+        sign = _signs(AQ, B2)
+        err = float(np.sum((sign[:, None, None] * AQ - B2) ** 2))
+        if best is None or err < best[0]:
+            best = (err, sign[:, None, None] * AQ)
+    RA, RB = complete_rotations(best[1]), complete_rotations(B2)
+    # |RA - RB|_F = 2 sqrt(2) sin(angle / 2): accurate near 0, where arccos of the trace is not
+    chord = np.sqrt(np.sum((RA - RB) ** 2, axis=(1, 2))) / (2.0 * np.sqrt(2.0))
+    return np.degrees(2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
+
+
+def _signs(AQ: np.ndarray, B2: np.ndarray) -> np.ndarray:
+    sign = np.sign(np.einsum("fij,fij->f", AQ, B2))
+    sign[sign == 0] = 1.0
+    return sign
+
+
+def _midpoints(R: np.ndarray) -> np.ndarray:
+    """Rotations halfway between consecutive frames of ``R`` (F, 3, 3) -> (F - 1, 3, 3): each frame's
+    sign is first made continuous with the frame before, then the two frames' rows are averaged and
+    made orthonormal again (:func:`lipgen.nrsfm._rotation.nearest_orthonormal_rows`)."""
+    from lipgen.nrsfm._rotation import nearest_orthonormal_rows
+
+    R2 = np.array(R[:, :2], dtype=np.float64)
+    for f in range(1, len(R2)):
+        if float(np.sum(R2[f] * R2[f - 1])) < 0:
+            R2[f] = -R2[f]
+    mid, _ = nearest_orthonormal_rows(R2[1:] + R2[:-1])
+    return complete_rotations(mid)
+
+
+def _half_k(k: int, n_frames: int, n_points: int, mask: np.ndarray) -> int:
+    """The largest K <= k that both halves accept (0 if none)."""
+    for kk in range(int(k), 0, -1):
+        try:
+            for start in (0, 1):
+                check_method_k(kk, "dai", len(range(start, n_frames, 2)), n_points,
+                               int(mask[start::2].sum()))
+            return kk
+        except ValueError:
+            continue
+    return 0
+
+
+@single_threaded(always=True)   # the halves' corrective triples, as reconstruct's: one BLAS thread
+def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int = 4) -> tuple[float, dict]:
+    """Median disagreement (degrees) of the rotations found from the even and from the odd frames alone.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+        Tracks, rows u1, v1, u2, v2, ... (already scaled as ``dai`` scales them, see
+        :func:`lipgen.nrsfm.engine._normalise_scale`, for the same rotations bit for bit).
+    k : int
+        Basis shapes of each half's rank-3K factor; lowered to the largest K both halves accept.
+    visible : (F, P) array_like of bool, optional
+    seed, n_starts : int
+        As :func:`lipgen.nrsfm.reconstruct` (the starts of each half's corrective triple).
+
+    Returns
+    -------
+    angle : float
+        Median over the odd frames 2i + 1 of :func:`rotation_disagreement` between the odd half's
+        rotation and the even half's halfway between frames 2i and 2i + 2; NaN when not tested.
+    record : dict
+        ``angle_deg`` (the median), ``mean_deg``, ``k`` (of the halves, None if not tested),
+        ``reason``.
+    """
+    from lipgen.nrsfm.engine import _dai_rotations
+
+    tracks = check_tracks(W, visible)
+    F, P = tracks.mask.shape
+    if F // 2 < MIN_HALF_FRAMES:
+        return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": None,
+                              "reason": f"{F} frames: halves shorter than {MIN_HALF_FRAMES} frames, not tested"}
+    kk = _half_k(k, F, P, tracks.mask)
+    if kk < 1:
+        return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": None,
+                              "reason": "no K fits the halves: not tested"}
+    halves = []
+    for start in (0, 1):
+        rows = np.arange(2 * F).reshape(F, 2)[start::2].ravel()
+        vis = None if tracks.complete else tracks.mask[start::2]
+        try:
+            half = check_tracks(tracks.W[rows], vis)
+            halves.append(_dai_rotations(half, kk, seed=seed, n_starts=n_starts)[3])
+        except ValueError as err:  # a degenerate half (rank < 3, a point never seen): no figure
+            return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": kk,
+                                  "reason": f"a half could not be solved ({err}): not tested"}
+    between = _midpoints(halves[0])            # the even half at the odd frames' times
+    n = min(len(between), len(halves[1]))
+    angles = rotation_disagreement(between[:n], halves[1][:n])
+    angle = float(np.median(angles))
+    log.info("even / odd frames' rotations disagree by %.3g deg (median; halves at K = %d)", angle, kk)
+    return angle, {"angle_deg": angle, "mean_deg": float(np.mean(angles)), "k": kk,
+                   "reason": "even / odd frames"}
+
+
+@single_threaded(always=True)
+def depth_support(W, k: int, visible=None, *, threshold: float = SUPPORT_DEG, seed: int = 0,
+                  n_starts: int = 4) -> tuple[bool, dict]:
+    """Whether the tracks determine ``dai``'s rotations at K: :func:`rotation_stability` at most ``threshold``.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+    k : int
+    visible : (F, P) array_like of bool, optional
+    threshold : float
+        Degrees (default :data:`SUPPORT_DEG`).
+    seed, n_starts : int
+        As :func:`rotation_stability`.
+
+    Returns
+    -------
+    supported : bool
+        True also when the test cannot be made (too few frames; ``record["tested"]`` False).
+    record : dict
+        :func:`rotation_stability`'s record with ``supported``, ``tested`` and ``threshold_deg``.
+    """
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(threshold) < 180.0:
+        raise ValueError(f"threshold must be an angle in degrees in [0, 180), got {threshold!r}")
+    angle, record = rotation_stability(W, k, visible, seed=seed, n_starts=n_starts)
+    tested = bool(np.isfinite(angle))
+    supported = (not tested) or angle <= threshold
+    if tested:
+        verdict = "within" if supported else "above"
+        record = record | {"reason": f"the even and odd frames' rotations disagree by {angle:.3g} deg "
+                                     f"(median), {verdict} {threshold:g} deg"}
+    return bool(supported), record | {"supported": bool(supported), "tested": tested,
+                                      "threshold_deg": float(threshold)}
+
+
+def flat_answer(rec: Reconstruction, record: dict) -> Reconstruction:
+    """``rec`` with zero depth in every frame: the flat answer, its rotations, translations and image kept.
+
+    Parameters
+    ----------
+    rec : Reconstruction
+    record : dict
+        Kept as ``info["depth_support"]`` (why the depth was dropped).
+
+    Returns
+    -------
+    Reconstruction
+        Camera-frame shapes ``(x, y, 0)`` of ``rec`` (each frame at its mean depth), so its
+        reprojection is ``rec``'s; ``info["depth_factor"]`` is 0.
+    """
+    from lipgen.nrsfm.consensus import with_depth
+
+    z = np.zeros(rec.shapes[:, 2].shape)
+    return with_depth(rec, z, {"depth_support": record, "depth_factor": 0.0})
