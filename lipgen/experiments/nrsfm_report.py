@@ -71,7 +71,9 @@ def markdown(result: dict, settings) -> str:
              "every K it tries, the shapes only at the Ks the choice needs (`lipgen.nrsfm.kscan`), plus "
              "`dai-ba`'s "
              "refinement at the chosen K); `dai`'s depth is then the mean of the 4 smoothest Ks' depths, "
-             "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`); for `bregler` "
+             "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`), or zero (the "
+             "flat answer) when the even and the odd frames alone give rotations that disagree "
+             "(`lipgen.nrsfm.support`); for `bregler` "
              "the reprojection-curve rule. `em-ppca` counts K as deformation modes beyond the mean "
              "shape, so it has "
              "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
@@ -94,6 +96,15 @@ def markdown(result: dict, settings) -> str:
             lines.append(f"| {r.get('label', r['method'])} | {k} | {r['n_basis']} | {r['e3d']:.4f} | "
                          f"{100 * r['relative_reprojection']:.3g} "
                          f"| {r.get('cpu_seconds', float('nan')):.2f} | {r['seconds']:.2f} |")
+        for r in seq["runs"]:
+            if r["method"] == "dai" and r["auto"] and "depth_supported" in r:
+                angle = r["support_angle"]
+                verdict = ("kept" if r["depth_supported"] else
+                           f"dropped, the flat answer (else {r['e3d_unsupported']:.4f})")
+                lines += ["", f"`dai` K = auto: depth {verdict}"
+                          + (f"; the even and the odd frames' rotations disagree by {angle:.3g} degrees "
+                             "(median; `lipgen.nrsfm.support`)" if angle == angle else
+                             " (not tested: an exact K-shape fit, or too few frames)") + "."]
         c = seq["curve"]
         lines += ["", f"Reprojection curve (`dai`, `{name}_curve.png`): K = {c['ks'][0]}..{c['ks'][-1]}, "
                   "relative RMS " + ", ".join(f"{100 * v:.3g}%" for v in c["relative"])

@@ -34,7 +34,7 @@ from lipgen.nrsfm._rotation import complete_rotations
 from lipgen.nrsfm._tracks import check_tracks
 from lipgen.nrsfm.record import Reconstruction, check_method_k
 
-__all__ = ["SUPPORT_DEG", "MIN_HALF_FRAMES", "rotation_disagreement", "rotation_stability",
+__all__ = ["SUPPORT_DEG", "MIN_HALF_FRAMES", "rotation_disagreement", "view_spread", "rotation_stability",
            "depth_support", "flat_answer"]
 
 log = logging.getLogger(__name__)
@@ -98,6 +98,29 @@ def rotation_disagreement(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return np.degrees(2.0 * np.arcsin(np.clip(chord, 0.0, 1.0)))
 
 
+def view_spread(R: np.ndarray) -> float:
+    """How much the view direction varies over a sequence: the median angle (degrees) between each
+    frame's view direction (third row of ``R``, the same for both per-frame signs) and their principal
+    axis (a line: the nearer of its two directions).
+
+    Parameters
+    ----------
+    R : (F, 3, 3) float
+        Rotations.
+
+    Returns
+    -------
+    float
+        0 for a camera that does not turn; about 45-55 for views all around an axis.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    if R.ndim != 3 or R.shape[1:] != (3, 3):
+        raise ValueError(f"R must be (F, 3, 3) rotations, got shape {R.shape}")
+    n = R[:, 2]
+    axis = np.linalg.eigh(n.T @ n)[1][:, -1]
+    return float(np.median(np.degrees(np.arccos(np.clip(np.abs(n @ axis), 0.0, 1.0)))))
+
+
 def _signs(AQ: np.ndarray, B2: np.ndarray) -> np.ndarray:
     sign = np.sign(np.einsum("fij,fij->f", AQ, B2))
     sign[sign == 0] = 1.0
@@ -138,8 +161,8 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
     Parameters
     ----------
     W : (2F, P) array_like
-        Tracks, rows u1, v1, u2, v2, ... (already scaled as ``dai`` scales them, see
-        :func:`lipgen.nrsfm.engine._normalise_scale`, for the same rotations bit for bit).
+        Tracks, rows u1, v1, u2, v2, ... (divided by a power of two near their largest magnitude
+        first, as ``dai`` does: :func:`lipgen.nrsfm.engine._normalise_scale`).
     k : int
         Basis shapes of each half's rank-3K factor; lowered to the largest K both halves accept.
     visible : (F, P) array_like of bool, optional
@@ -155,13 +178,14 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
         ``angle_deg`` (the median), ``mean_deg``, ``k`` (of the halves, None if not tested),
         ``reason``.
     """
-    from lipgen.nrsfm.engine import _dai_rotations
+    from lipgen.nrsfm.engine import _dai_rotations, _normalise_scale
 
-    tracks = check_tracks(W, visible)
+    tracks = check_tracks(_normalise_scale(W, visible)[0], visible)
     F, P = tracks.mask.shape
     if F // 2 < MIN_HALF_FRAMES:
         return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": None,
-                              "reason": f"{F} frames: halves shorter than {MIN_HALF_FRAMES} frames, not tested"}
+                              "reason": f"{F} frames: halves shorter than {MIN_HALF_FRAMES} frames, "
+                                        "not tested"}
     kk = _half_k(k, F, P, tracks.mask)
     if kk < 1:
         return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": None,
@@ -180,15 +204,17 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
     n = min(len(between), len(halves[1]))
     angles = rotation_disagreement(between[:n], halves[1][:n])
     angle = float(np.median(angles))
-    log.info("even / odd frames' rotations disagree by %.3g deg (median; halves at K = %d)", angle, kk)
-    return angle, {"angle_deg": angle, "mean_deg": float(np.mean(angles)), "k": kk,
+    spread = 0.5 * (view_spread(halves[0]) + view_spread(halves[1]))
+    log.info("even / odd frames' rotations disagree by %.3g deg (median; halves at K = %d; views spread "
+             "%.3g deg)", angle, kk, spread)
+    return angle, {"angle_deg": angle, "mean_deg": float(np.mean(angles)), "spread_deg": spread, "k": kk,
                    "reason": "even / odd frames"}
 
 
 @single_threaded(always=True)
 def depth_support(W, k: int, visible=None, *, threshold: float = SUPPORT_DEG, seed: int = 0,
                   n_starts: int = 4) -> tuple[bool, dict]:
-    """Whether the tracks determine ``dai``'s rotations at K: :func:`rotation_stability` at most ``threshold``.
+    """Whether the tracks determine ``dai``'s rotations at K (:func:`rotation_stability` within ``threshold``).
 
     Parameters
     ----------
