@@ -214,7 +214,7 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
 @single_threaded(always=True)
 def depth_support(W, k: int, visible=None, *, threshold: float = SUPPORT_DEG, seed: int = 0,
                   n_starts: int = 4) -> tuple[bool, dict]:
-    """Whether the tracks determine ``dai``'s rotations at K (:func:`rotation_stability` within ``threshold``).
+    """Whether the tracks determine ``dai``'s rotations at K: the halves' disagreement within ``threshold``.
 
     Parameters
     ----------
