@@ -173,7 +173,8 @@ def _supported(scan: DaiScan, rec: Reconstruction, k: int, threshold: float) -> 
         return replace(rec, info=rec.info | {"depth_support": record})
     supported, record = depth_support(scan.W, k, scan.visible, threshold=threshold,
                                       seed=scan.options.get("seed", 0),
-                                      n_starts=scan.options.get("n_starts", 4))
+                                      n_starts=scan.options.get("n_starts", 4),
+                                      first_stage=scan.first_stage(k))
     if supported:
         return replace(rec, info=rec.info | {"depth_support": record})   # the same arrays, bit for bit
     log.warning("k='auto': depth not supported by the tracks (%s); returning the flat answer (zero depth)",
