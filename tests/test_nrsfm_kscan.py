@@ -16,7 +16,8 @@ from lipgen.nrsfm.validation import human_sequence
 
 
 def _exhaustive(W, kmax, visible=None):
-    """``k="auto"`` as it was before the scan: ``dai`` at every K, then smooth_k and the consensus."""
+    """``k="auto"`` as it was before the scan: ``dai`` at every K, then smooth_k and the consensus (the
+    scan is compared with ``support=None``: the depth-support test after it is in test_nrsfm_support)."""
     F, P = W.shape[0] // 2, W.shape[1]
     n_obs = F * P if visible is None else int(visible.sum())
     ks = candidate_ks(F, P, n_obs, "dai", kmax)
@@ -33,7 +34,7 @@ def _same(a, b):
 
 def test_auto_equals_the_exhaustive_search_and_skips_work():
     s = human_sequence(1101, 30)       # a development body, short: Ks 1-8 tried
-    rec = reconstruct_auto(s.W, "dai", kmax=8)
+    rec = reconstruct_auto(s.W, "dai", kmax=8, support=None)
     ref, n = _exhaustive(s.W, 8)
     assert _same(rec, ref) and rec.k == ref.k
     finished = rec.info["k_choice"]["finished"]
@@ -42,13 +43,13 @@ def test_auto_equals_the_exhaustive_search_and_skips_work():
 
 def test_auto_equals_the_exhaustive_search_on_exact_and_incomplete_tracks():
     W, _, _ = low_rank_sequence(40, 15, 2, np.random.default_rng(4))
-    rec = reconstruct_auto(W, "dai", kmax=4)
+    rec = reconstruct_auto(W, "dai", kmax=4, support=None)
     ref, _ = _exhaustive(W, 4)
     assert _same(rec, ref) and rec.k == 2 and rec.info["shapes"] == "rank-K fit"
     s = human_sequence(1100, 24)
     visible = np.random.default_rng(1).random((24, s.W.shape[1])) > 0.1
     W = np.where(np.repeat(visible, 2, axis=0), s.W, np.nan)
-    rec = reconstruct_auto(W, "dai", visible, kmax=5)
+    rec = reconstruct_auto(W, "dai", visible, kmax=5, support=None)
     ref, _ = _exhaustive(W, 5, visible)
     assert _same(rec, ref)
 
@@ -57,7 +58,7 @@ def test_a_failed_bound_finishes_every_k(monkeypatch):
     s = human_sequence(1101, 30)
     bound = DaiScan.bound                 # the rotations as usual, but a bound no roughness reaches
     monkeypatch.setattr(DaiScan, "bound", lambda self, k: (bound(self, k), 1e9)[1])
-    rec = reconstruct_auto(s.W, "dai", kmax=6)
+    rec = reconstruct_auto(s.W, "dai", kmax=6, support=None)
     assert all(rec.info["k_choice"]["finished"])
     assert _same(rec, _exhaustive(s.W, 6)[0])
 

@@ -200,3 +200,5 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     assert check["name"] in text and np.isfinite(check["e3d"]) and check["k"] >= 1
     assert 0.0 <= check["consensus_factor"] <= 1.0 and np.isfinite(check["e3d_single"])
     assert f"| {check['name']} | no |" in text          # seed 300 was looked at while choosing the rules
+    # 12 frames: halves of 6 frames are too short for the depth-support test (lipgen.nrsfm.support)
+    assert check["depth_supported"] and "halves (deg)" in text and "Depth dropped (flat answer): 0" in text

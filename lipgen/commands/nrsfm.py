@@ -41,7 +41,8 @@ Methods:
 --k auto reconstructs for K = 1, 2, ... (up to --kmax). dai and dai-ba: among the Ks whose
 rotations are smoothest in time (within 5% of the least roughness), the smallest K that explains
 noise-free tracks exactly with K shapes, else the smallest; the roughness per K is printed and
-plotted.
+plotted. dai then answers flat (zero depth) when the even and the odd frames alone give rotations
+that disagree (the tracks do not determine the depth); it prints which.
 em-pnd: the least Bayesian information criterion of its own likelihood among K = 0, 1, 2, 4, 8, 12
 (modes; up to --kmax), printed.
 bregler and em-ppca: the smallest K whose RMS reprojection error is at most --rtol of the RMS of
@@ -151,6 +152,9 @@ def _run(args) -> int:
         for kk, rough, exact in zip(choice["ks"], choice["rotation_roughness"], choice["exact"], strict=True):
             write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}\n")
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
+        if "depth_support" in rec.info:
+            verdict = "kept" if rec.depth_supported else "dropped: the flat answer (zero depth)"
+            write(f"depth {verdict} ({rec.info['depth_support']['reason']})\n")
         plot_k_choice(choice, plot)
         write(f"wrote {plot}\n")
     elif k == "auto" and args.method == "em-pnd":

@@ -14,12 +14,14 @@ PUBLISHED = {
 """Published e3D figures per sequence: (source, K, e3D)."""
 
 SEEN_SEEDS = frozenset({*range(100, 108), *range(300, 311), *range(400, 411), *range(700, 730),
-                        *range(800, 820), *range(900, 906), *range(1000, 1020), *range(1100, 1120)})
+                        *range(800, 820), *range(900, 906), *range(1000, 1020), *range(1100, 1120),
+                        *range(1200, 1220)})
 """Validation-body seeds looked at while the rules were chosen (the automatic K: 100-107, 300-310;
 the split-half shrinkage: 300-310, 400-410, 700-729, then checked once on 800-819; the consensus
 depth: 300-307, 400, 405-407 and 900-903, 900-905 generated, then checked once on 1000-1019, which
-were development bodies of issue 19's next pass, as 1100-1119 were of the pass after): the check
-marks them not fresh."""
+were development bodies of issue 19's next pass, as 1100-1119 and 1200-1219 were of the passes
+after; the depth-support test, :mod:`lipgen.nrsfm.support`, was chosen on 1000-1019, 1100-1119 and
+1200-1219): the check marks them not fresh."""
 
 
 def _ranges(seeds: list[int]) -> str:
@@ -32,6 +34,16 @@ def _ranges(seeds: list[int]) -> str:
             parts.append(str(start) if start == s else f"{start}-{s}")
             start = None
     return ", ".join(parts)
+
+
+def _halves(c: dict) -> str:
+    """The check table's cell of the depth-support test: the halves' disagreement, and flat when dropped."""
+    angle = c.get("support_angle")
+    if angle is None or angle != angle:       # not run (an older record) or not tested (NaN)
+        return "-"
+    if c.get("depth_supported", True):
+        return f"{angle:.2f}"
+    return f"{angle:.1f}: flat ({c['e3d_unsupported']:.3f})"
 
 
 def markdown(result: dict, settings) -> str:
@@ -59,7 +71,9 @@ def markdown(result: dict, settings) -> str:
              "every K it tries, the shapes only at the Ks the choice needs (`lipgen.nrsfm.kscan`), plus "
              "`dai-ba`'s "
              "refinement at the chosen K); `dai`'s depth is then the mean of the 4 smoothest Ks' depths, "
-             "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`); for `bregler` "
+             "shrunk by the James-Stein factor of their spread (`lipgen.nrsfm.consensus`), or zero (the "
+             "flat answer) when the even and the odd frames alone give rotations that disagree "
+             "(`lipgen.nrsfm.support`); for `bregler` "
              "the reprojection-curve rule. `em-ppca` counts K as deformation modes beyond the mean "
              "shape, so it has "
              "K + 1 basis shapes (column *shapes*): em-ppca K = 12 is the same model size as dai K = 13.",
@@ -82,6 +96,15 @@ def markdown(result: dict, settings) -> str:
             lines.append(f"| {r.get('label', r['method'])} | {k} | {r['n_basis']} | {r['e3d']:.4f} | "
                          f"{100 * r['relative_reprojection']:.3g} "
                          f"| {r.get('cpu_seconds', float('nan')):.2f} | {r['seconds']:.2f} |")
+        for r in seq["runs"]:
+            if r["method"] == "dai" and r["auto"] and "depth_supported" in r:
+                angle = r["support_angle"]
+                verdict = ("kept" if r["depth_supported"] else
+                           f"dropped, the flat answer (else {r['e3d_unsupported']:.4f})")
+                lines += ["", f"`dai` K = auto: depth {verdict}"
+                          + (f"; the even and the odd frames' rotations disagree by {angle:.3g} degrees "
+                             "(median; `lipgen.nrsfm.support`)" if angle == angle else
+                             " (not tested: an exact K-shape fit, or too few frames)") + "."]
         c = seq["curve"]
         lines += ["", f"Reprojection curve (`dai`, `{name}_curve.png`): K = {c['ks'][0]}..{c['ks'][-1]}, "
                   "relative RMS " + ", ".join(f"{100 * v:.3g}%" for v in c["relative"])
@@ -125,16 +148,22 @@ def markdown(result: dict, settings) -> str:
                   f"the consensus depth): {_ranges(sorted(SEEN_SEEDS))}; of the seeds below, "
                   + (f"{', '.join(map(str, seen))} were among them" if seen else "none was")
                   + " (column *fresh*). *dai K=auto*: the default, the consensus depth of the smoothest Ks "
-                  "(`lipgen.nrsfm.consensus`) shrunk by the James-Stein *factor*; *single K*: the chosen K's "
-                  "own depth.", "",
-                  "| sequence | fresh | flat | dai K=auto | K | factor | single K | CPU (s) |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "(`lipgen.nrsfm.consensus`) shrunk by the James-Stein *factor*, or the flat answer when "
+                  "the even and the odd frames' rotations disagree by more than the test's limit "
+                  "(`lipgen.nrsfm.support`; column *halves*: their median disagreement in degrees, *flat* "
+                  "where the depth was dropped, with the consensus answer's e3D in brackets); *single K*: "
+                  "the chosen K's own depth.", "",
+                  "| sequence | fresh | flat | dai K=auto | K | factor | halves (deg) | single K | CPU (s) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         lines += [f"| {c['name']} | {'no' if c['seed'] in SEEN_SEEDS else 'yes'} | {c['flat_e3d']:.3f} | "
-                  f"{c['e3d']:.3f} | {c['k']} | {c['consensus_factor']:.3f} | {c['e3d_single']:.3f} | "
-                  f"{c['cpu_seconds']:.1f} |" for c in result["check"]]
+                  f"{c['e3d']:.3f} | {c['k']} | {c['consensus_factor']:.3f} | {_halves(c)} | "
+                  f"{c['e3d_single']:.3f} | {c['cpu_seconds']:.1f} |" for c in result["check"]]
+        dropped = [c for c in result["check"] if not c.get("depth_supported", True)]
         lines += ["", f"Worse than the flat baseline: {len(worse)} of {len(result['check'])}"
                   + (f" ({', '.join(worse)})" if worse else "")
-                  + f"; with the chosen K's own depth {len(worse_single)}.",
+                  + f"; with the chosen K's own depth {len(worse_single)}. Depth dropped (flat answer): "
+                  f"{len(dropped)}"
+                  + (f" ({', '.join(c['name'] for c in dropped)})" if dropped else "") + ".",
                   ""]
     if any(r.get("label", r["method"]) != r["method"] for seq in result["sequences"].values()
            for r in seq["runs"]):

@@ -40,7 +40,10 @@ def reconstruct(W, k: int, method: str = DEFAULT_METHOD, visible=None, *, seed: 
         shrunk towards flat by the James-Stein factor of their spread
         (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, ``info["depth_consensus"]``; an exact
         K-shape fit is kept as it is; shrinking the depth by its split-half reliability is opt-in,
-        :func:`lipgen.nrsfm.kchoice.shrink_unreliable_depth`); for the others K from the
+        :func:`lipgen.nrsfm.kchoice.shrink_unreliable_depth`), and returns the flat answer (zero
+        depth, ``Reconstruction.depth_supported`` False, the reason in ``info["depth_support"]``)
+        when the even and the odd frames alone give rotations that disagree
+        (:func:`lipgen.nrsfm.support.depth_support`); for the others K from the
         reprojection curve (:func:`lipgen.nrsfm.reprojection_curve`, default thresholds; kept in
         ``info["k_curve"]``). For
         ``"em-ppca"`` the number of deformation modes beyond the mean shape (K >= 0, K + 1 basis

@@ -20,6 +20,7 @@ reports both sets).
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 
@@ -31,6 +32,7 @@ from lipgen.nrsfm.kscan import DaiScan, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
 from lipgen.nrsfm.reliability import shrink_depth, split_half_reliability
+from lipgen.nrsfm.support import SUPPORT_DEG, depth_support, flat_answer
 
 __all__ = ["curve_values", "choose_k", "smooth_k", "candidate_ks", "reconstruct_auto", "SMOOTH_TOL",
            "SMOOTH_METHODS", "shrink_unreliable_depth"]
@@ -96,7 +98,7 @@ def smooth_k(candidates: list[Reconstruction], tol: float = SMOOTH_TOL) -> tuple
 
 @single_threaded(always=True)
 def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus: int = CONSENSUS_KS,
-                     **options) -> Reconstruction:
+                     support: float | None = SUPPORT_DEG, **options) -> Reconstruction:
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
@@ -105,8 +107,11 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     ``dai`` then replaces the chosen K's depth by the consensus of the ``consensus`` smoothest Ks,
     shrunk by the James-Stein factor of their disagreement
     (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, kept in ``info["depth_consensus"]``;
-    an exact K-shape fit is kept as it is). ``dai-ba``'s refinement runs at the chosen K, without the
-    consensus. The split-half shrinkage (:func:`shrink_unreliable_depth`) stays opt-in: on fresh
+    an exact K-shape fit is kept as it is), and returns the flat answer (zero depth) when the even and
+    the odd frames alone give rotations that disagree by more than ``support`` degrees
+    (:func:`lipgen.nrsfm.support.depth_support`; kept in ``info["depth_support"]``, read by
+    ``Reconstruction.depth_supported``). ``dai-ba``'s refinement runs at the chosen K, without the
+    consensus or the test. The split-half shrinkage (:func:`shrink_unreliable_depth`) stays opt-in: on fresh
     bodies (seeds 800-819, 80 frames) it helped 5 and hurt 6. Other
     methods: K from the reprojection curve (:func:`curve_values`, :func:`choose_k`; kept in
     ``info["k_curve"]``).
@@ -120,6 +125,9 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
         Largest K tried.
     consensus : int
         ``dai``: number of the smoothest Ks whose depths are averaged (1: the chosen K's depth as it is).
+    support : float or None
+        ``dai``: the largest disagreement (degrees) of the halves' rotations for which the depth is
+        kept (default :data:`lipgen.nrsfm.support.SUPPORT_DEG`); None: no test.
     **options
         As :func:`lipgen.nrsfm.reconstruct`.
 
@@ -139,17 +147,39 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     ks = candidate_ks(F, P, tracks.n_observed, method, kmax)
     if not ks:  # no K fits: let the engine give its message for K = 1
         return reconstruct_k(W, 1, method, visible, **options)
-    runs, bounds = scan_smooth(DaiScan(W, visible, **options), ks, SMOOTH_TOL,
+    scan = DaiScan(W, visible, **options)
+    runs, bounds = scan_smooth(scan, ks, SMOOTH_TOL,
                                consensus if method == "dai" else 1)
     chosen, record = smooth_k(runs)
     record = _whole_record(record, ks, bounds)
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
     if method == "dai":
         rec = consensus_reconstruction(runs, [int(r.k) for r in runs].index(chosen), consensus)
+        if support is not None:
+            rec = _supported(scan, rec, chosen, support)
     else:
         rec = reconstruct_k(W, chosen, method, visible, **options)
     rec.info["k_choice"] = record
     return rec
+
+
+def _supported(scan: DaiScan, rec: Reconstruction, k: int, threshold: float) -> Reconstruction:
+    """``rec`` with ``info["depth_support"]`` (the same arrays) when the halves' rotations agree at K,
+    else the flat answer (:func:`lipgen.nrsfm.support.flat_answer`). An exact K-shape fit is not tested
+    (the tracks are explained exactly, and its frames need not follow each other in time)."""
+    if rec.info.get("shapes") == "rank-K fit":
+        record = {"supported": True, "tested": False, "angle_deg": float("nan"), "k": None,
+                  "reason": "exact K-shape fit: not tested, depth kept"}
+        return replace(rec, info=rec.info | {"depth_support": record})
+    supported, record = depth_support(scan.W, k, scan.visible, threshold=threshold,
+                                      seed=scan.options.get("seed", 0),
+                                      n_starts=scan.options.get("n_starts", 4),
+                                      first_stage=scan.first_stage(k))
+    if supported:
+        return replace(rec, info=rec.info | {"depth_support": record})   # the same arrays, bit for bit
+    log.warning("k='auto': depth not supported by the tracks (%s); returning the flat answer (zero depth)",
+                record["reason"])
+    return flat_answer(rec, record)
 
 
 def _whole_record(record: dict, ks: list[int], bounds: dict) -> dict:

@@ -58,6 +58,12 @@ class DaiScan:
                                                 n_starts=self.options.get("n_starts", 4))
         return rotation_roughness(self._rotations[k][3])
 
+    def first_stage(self, k: int) -> tuple:
+        """``dai``'s first stage at K (:func:`lipgen.nrsfm.engine._dai_rotations`), run once: the centred
+        tracks (2F, P), translations (F, 2), the record and the rotations (F, 3, 3)."""
+        self.bound(k)
+        return self._rotations[k]
+
     def may_be_exact(self, k: int) -> bool:
         """Whether ``dai`` at K may fit exactly K shapes (:func:`lipgen.nrsfm.engine._dai_parts`
         tries only then: tracks of numerical rank <= 3K, or incomplete ones whose rank-3K completion

@@ -109,6 +109,14 @@ class Reconstruction:
             object.__setattr__(self, name, arr)
 
     @property
+    def depth_supported(self) -> bool:
+        """False when the depth was dropped because the tracks do not determine the rotations
+        (``info["depth_support"]``, :func:`lipgen.nrsfm.support.depth_support`; ``dai`` with
+        ``k="auto"``): the shapes are then the flat answer (zero depth). True otherwise, also when
+        no test was made."""
+        return bool(self.info.get("depth_support", {}).get("supported", True))
+
+    @property
     def n_frames(self) -> int:
         return self.rotations.shape[0]
 
