@@ -164,3 +164,19 @@ def test_fixed_light_shader_needs_pyrenders_loops(tmp_path):
     path.write_text("void main() { for (int i = 0; i < n_directional_lights; i++) {} }\n")
     assert render._onepass.fixed_light_shader(str(path)) is None
     assert render._onepass.fixed_light_shader(str(tmp_path / "other.frag")) is None
+
+
+def test_fixed_light_shader_is_written_again_when_its_folder_has_gone():
+    """The copy lives in a temporary folder that a forked child's exit can remove; the cached path
+    must not outlive it."""
+    import os
+    import shutil
+
+    source = os.path.join(os.path.dirname(pytest.importorskip("pyrender").__file__), "shaders", "mesh.frag")
+    first = render._onepass.fixed_light_shader(source)
+    assert first is not None and os.path.exists(first)
+    shutil.rmtree(os.path.dirname(first))
+    again = render._onepass.fixed_light_shader(source)
+    assert again != first and os.path.exists(again)
+    with open(again) as fh:
+        assert "i < LIPGEN_N_DIRECTIONAL" in fh.read()

@@ -191,15 +191,24 @@ _LOOPS = {"LIPGEN_N_DIRECTIONAL": "for (int i = 0; i < n_directional_lights; i++
           "LIPGEN_N_SPOT": "for (int i = 0; i < n_spot_lights; i++)"}
 
 
-@functools.lru_cache(maxsize=8)
 def fixed_light_shader(path: str) -> str | None:
     """Path of a copy of the fragment shader at ``path`` whose light loops run to compile-time
     bounds (``LIPGEN_N_DIRECTIONAL``, ``LIPGEN_N_POINT``, ``LIPGEN_N_SPOT``, given as defines with
     the counts pyrender binds) instead of to the ``n_*_lights`` uniforms; None unless the shader
     is pyrender's ``mesh.frag`` (or lipgen's shadow-filtered copy) with each loop exactly once.
 
-    Written once per process to a temporary folder, removed at exit.
+    Written once per process to a temporary folder, removed at exit; written again if that folder
+    has gone (e.g. removed by a forked child's exit).
     """
+    out = _write_fixed_light_shader(path)
+    if out is not None and not os.path.exists(out):
+        _write_fixed_light_shader.cache_clear()
+        out = _write_fixed_light_shader(path)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _write_fixed_light_shader(path: str) -> str | None:
     if os.path.basename(path) != "mesh.frag" or not os.path.exists(path):
         return None
     with open(path) as fh:
