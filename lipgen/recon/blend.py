@@ -32,7 +32,7 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 
-__all__ = ["BlendFit", "fit_blend", "split_blobs"]
+__all__ = ["BlendFit", "fit_blend", "patch_holding", "split_blobs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,14 +108,10 @@ def fit_blend(gray: np.ndarray, starts, sigma: float, reach, min_depth_ratio: fl
     if not np.all(np.isfinite(lim) & (lim > 0)):
         raise ValueError(f"reach must be positive pixels, scalar or shape ({k},), got {np.shape(reach)}")
     margin = int(np.ceil(3.0 * sigma)) + 1
-    lo = np.floor(p0.min(0) - margin).astype(int)
-    hi = np.ceil(p0.max(0) + margin).astype(int) + 1
-    h, w = gray.shape
-    if lo.min() < 0 or hi[0] > w or hi[1] > h:
+    cut = patch_holding(gray, p0, margin)
+    if cut is None:
         return None
-    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
-    X = np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
-    img = gray[lo[1]:hi[1], lo[0]:hi[0]].ravel().astype(float)
+    img, X = cut[0].ravel().astype(float), cut[1]
     d = X - p0.mean(0)
     bg = np.column_stack([np.ones(len(d)), d, d * d, d[:, 0] * d[:, 1]])
     r2 = ((X[:, None] - p0[None]) ** 2).sum(-1).min(1)
@@ -216,3 +212,31 @@ def split_blobs(gray: np.ndarray, dots: np.ndarray, strength: np.ndarray, elonga
             new_str.append(blob_str[j] * fit.depth / fit.depth.max())
     keep = ~gone[:n]
     return (np.vstack([dots[keep], *new_uv]), np.concatenate([strength[keep], *new_str]), ~gone[n:])
+
+
+def patch_holding(gray: np.ndarray, c: np.ndarray, r: int):
+    """The patch of ``gray`` around some points, and its pixel centres.
+
+    Parameters
+    ----------
+    gray : (H, W) array
+        The image.
+    c : (k, 2) float
+        The points (px, x then y).
+    r : int
+        Margin around them (px).
+
+    Returns
+    -------
+    (patch, centres) or None
+        ``patch`` (h, w), the rows and columns of ``gray`` holding the points with the margin;
+        ``centres`` (h * w, 2) float, its pixel centres (x then y) in the patch's ravel order.
+        None where the patch would leave the image.
+    """
+    lo = np.floor(c.min(0) - r).astype(int)
+    hi = np.ceil(c.max(0) + r).astype(int) + 1
+    h, w = gray.shape
+    if lo.min() < 0 or hi[0] > w or hi[1] > h:
+        return None
+    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
+    return gray[lo[1]:hi[1], lo[0]:hi[0]], np.stack([xx.ravel(), yy.ravel()], 1).astype(float)

@@ -38,6 +38,7 @@ import logging
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED
+from lipgen.recon.blend import patch_holding
 from lipgen.recon.dots import ink_gray
 from lipgen.recon.pointreg import similarity_2d
 from lipgen.recon.track import twin_partners
@@ -84,7 +85,7 @@ def fit_pair(gray: np.ndarray, lines, init, sigma0: float, gate: float):
     t0 = np.einsum("ij,ij->i", np.asarray(init, float) - pts, dirs)
     c = pts + t0[:, None] * dirs
     r = int(np.ceil(3 * sigma0 + gate))
-    cut = _patch_around(gray, c, r)
+    cut = patch_holding(gray, c, r)
     if cut is None:
         return None
     patch, X = cut
@@ -145,7 +146,7 @@ def fit_pair_two_views(grays, cameras, centre, half, sigma0: float, gate: float)
     for gray, cam in zip(grays, cameras, strict=True):
         c = cam.project(np.array([m0 + h0, m0 - h0]))
         r = int(np.ceil(3 * sigma0)) + 2
-        cut = _patch_around(gray, c, r)
+        cut = patch_holding(gray, c, r)
         if cut is None:
             return None
         patch, X = cut
@@ -278,15 +279,3 @@ def _resolve_merged_in_both(trackers, views, cameras, sigma: float, gate: float 
             uv[pair], status[pair] = cameras[v].project(got), RECOVERED
         done += 4
     return done
-
-
-def _patch_around(gray: np.ndarray, c: np.ndarray, r: int):
-    """The patch of ``gray`` holding the points ``c`` ((k, 2) px) with a margin ``r`` px, and its
-    pixel centres ((n, 2) float, x then y, in the patch's ravel order); None where it leaves the image."""
-    lo = np.floor(c.min(0) - r).astype(int)
-    hi = np.ceil(c.max(0) + r).astype(int) + 1
-    h, w = gray.shape
-    if lo.min() < 0 or hi[0] > w or hi[1] > h:
-        return None
-    yy, xx = np.mgrid[lo[1]:hi[1], lo[0]:hi[0]]
-    return gray[lo[1]:hi[1], lo[0]:hi[0]], np.stack([xx.ravel(), yy.ravel()], 1).astype(float)
