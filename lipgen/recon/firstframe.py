@@ -34,7 +34,7 @@ from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["match_first_frame", "predict_layout", "check_layout"]
+__all__ = ["match_first_frame", "predict_layout", "check_layout", "checked_matches", "triangulate_matched"]
 
 
 def match_first_frame(dots, strength, expected, gate: float, robust: bool = False,
@@ -167,16 +167,14 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
     changed : (2, P) bool
         The matches changed or dropped, per view.
     """
-    model = as_float_array(model_points, "model_points", (None, 3), finite=False)
+    model, out = checked_matches(model_points, inits)
     P = len(model)
-    out = [as_float_array(u, "inits", (P, 2), finite=False).copy() for u in inits]
     changed = np.zeros((2, P), dtype=bool)
     both = np.all(np.isfinite(out[0]), axis=1) & np.all(np.isfinite(out[1]), axis=1)
     both &= np.all(np.isfinite(model), axis=1)
     if both.sum() < 6:
         return out, changed
-    X = np.full((P, 3), np.nan)
-    X[both] = triangulate(cameras[1], out[1][both], cameras[0], out[0][both])[0]
+    X = triangulate_matched(cameras, out, both)
     width = layout_spacing(model[both])
     pred, r, limit = _residuals(model, X, both, width, k, floor)
     # A marker far from all others (the nose) is not predicted by their offsets: not checked.
@@ -216,3 +214,45 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
             if err[v] > px_tol and err[v] >= err[1 - v] or err[1 - v] > px_tol and err[v] > px_tol:
                 out[v][i], changed[v, i] = np.nan, True
     return out, changed
+
+
+def checked_matches(model_points, inits) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The rest layout and a copy of each view's first-frame matches, checked.
+
+    Parameters
+    ----------
+    model_points : (P, 3) float
+        The markers' rest points (NaN rows allowed).
+    inits : (virtual, real) (P, 2) float
+        Each view's matches (NaN: unmatched).
+
+    Returns
+    -------
+    model : (P, 3) float
+    out : list of two (P, 2) float
+        Copies of the matches.
+    """
+    model = as_float_array(model_points, "model_points", (None, 3), finite=False)
+    out = [as_float_array(u, "inits", (len(model), 2), finite=False).copy() for u in inits]
+    return model, out
+
+
+def triangulate_matched(cameras, inits, mask: np.ndarray) -> np.ndarray:
+    """3-D points of the markers matched in both views.
+
+    Parameters
+    ----------
+    cameras : (virtual, real) PinholeCamera
+    inits : (virtual, real) (P, 2) float
+        Each view's matches.
+    mask : (P,) bool
+        The markers to triangulate (matched in both views).
+
+    Returns
+    -------
+    X : (P, 3) float
+        Their points; NaN elsewhere.
+    """
+    X = np.full((len(mask), 3), np.nan)
+    X[mask] = triangulate(cameras[1], inits[1][mask], cameras[0], inits[0][mask])[0]
+    return X

@@ -43,7 +43,7 @@ import logging
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.firstframe import check_layout
+from lipgen.recon.firstframe import check_layout, checked_matches, triangulate_matched
 from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
@@ -183,9 +183,8 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     grown : (2, P) bool
         The matches added or changed, per view.
     """
-    model = as_float_array(model_points, "model_points", (None, 3), finite=False)
+    model, out = checked_matches(model_points, inits)
     P = len(model)
-    out = [as_float_array(u, "inits", (P, 2), finite=False).copy() for u in inits]
     dv = [as_float_array(d, "dots", (None, 2)) for d in dots]
     if min_seeds < 3:
         raise ValueError(f"min_seeds must be at least 3, got {min_seeds!r}")
@@ -195,8 +194,7 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     seeds = matched[0] & matched[1] & has
     if seeds.sum() < min_seeds or len(dv[0]) == 0 or len(dv[1]) == 0:
         return out, grown
-    X = np.full((P, 3), np.nan)
-    X[seeds] = triangulate(cameras[1], out[1][seeds], cameras[0], out[0][seeds])[0]
+    X = triangulate_matched(cameras, out, seeds)
     width = layout_spacing(model[has])
     near = 0.8 * width if near is None else float(near)
     PX, pairs = stereo_candidates(dv[0], dv[1], cameras, max_gap)    # every pair whose rays meet
