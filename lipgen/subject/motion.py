@@ -37,6 +37,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from lipgen._threads import single_threaded
 from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.subject.activation import (
@@ -156,11 +157,17 @@ class Subject:
             lin += np.einsum("fp,pni->fni", self._contact_forces(lin), self.contact_response)
         return _wrap(self.mesh.vertices, lin) - self.mesh.vertices
 
+    @single_threaded(always=True)
     def _contact_forces(self, U: np.ndarray) -> np.ndarray:
         """(F, p) non-negative forces that keep the inner lip contours from crossing (an LCP).
 
         Pair k's vertical gap is ``g0 + G λ``; find λ >= 0 with gap >= 0 and λ·gap = 0 by an
         active-set iteration (exact for this small, symmetric positive definite G).
+
+        One BLAS thread, always: the truth must not depend on the machine. OpenBLAS's SkylakeX
+        kernels split these small solves and products across two threads with another rounding
+        (frames of a 30-frame clip differed by up to 7e-15 mm from one thread's), and the many tiny
+        calls cost 5x the CPU on two threads under load.
         """
         up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
         X = self.mesh.vertices
