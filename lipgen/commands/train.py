@@ -11,7 +11,9 @@ _EPILOG = """\
 The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
 140 + 10) are held out for lipgen evaluate; frames without a field (too few markers seen) are
 skipped. The reconstruction's normalisation reference frame must be a training frame (lipgen
-reconstruct chooses it outside the same default tail; give both the same --test-frames).
+reconstruct chooses it outside the same default tail; give both the same --test-frames), and so
+must the frames its rest was estimated on (lipgen reconstruct --rest recording). The rest the
+fields are measured from is recorded in the model's provenance.
 
 example:
   lipgen train recon.npz --out model.npz --modes 10
@@ -46,13 +48,20 @@ def _run(args) -> int:
         raise ValueError(f"the reconstruction's normalisation took its reference frame {ref} from the "
                          f"last {T} frames, which --test-frames {T} holds out as test frames; reconstruct "
                          f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
+    rest = recon.info.get("rest_source", {})
+    if rest.get("of") == "this recording" and rest.get("frames") and rest["frames"][1] >= F - T:
+        raise ValueError(f"the reconstruction's rest was estimated on frames {rest['frames'][0]}-"
+                         f"{rest['frames'][1]}, and --test-frames {T} holds out frames {F - T}-{F - 1}: "
+                         f"the test frames would have shaped the training data; reconstruct again with "
+                         f"lipgen reconstruct --test-frames {T}")
     mesh = model_mesh(recon.info["mesh_source"])
     model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
     model.provenance_ = _provenance(recon, args.recon, train)
     model.save(out)
     share = 100 * model.explained_variance_ratio_.sum()
     sys.stdout.write(f"trained {len(model.components_)} modes on {len(train)} frames ({share:.2f}% of the "
-                     f"variance); {len(test)} test frames held out -> {out}\n")
+                     f"variance; displacements from {model.provenance_['rest']}); {len(test)} test frames "
+                     f"held out -> {out}\n")
     return 0
 
 
@@ -67,5 +76,8 @@ def _provenance(recon, recon_path, train) -> dict:
         digest = dataset_digest(dataset) if dataset else None
     except OSError:  # the dataset has moved: the frames are still recorded
         digest = None
+    from lipgen.recon.restsource import rest_line
+
     return {"dataset": dataset, "dataset_id": digest, "recon": os.path.abspath(recon_path),
-            "frames": [int(f) for f in train]}
+            "frames": [int(f) for f in train], "rest": rest_line(recon),
+            "rest_kind": recon.info.get("rest_source", {}).get("kind", "model")}

@@ -1,0 +1,216 @@
+"""Where ``lipgen reconstruct`` measures displacements from: the model's rest or the recording's.
+
+A field is the displacement of the lips from rest. Measured from the *model's* rest markers, a
+subject whose lips have a shape of their own carries that shape difference as a constant
+displacement in every frame (2-3 mm per marker on the ``default`` preset's subjects), and the
+learned modes learn it as motion. A person reconstructing their own footage has no model rest
+that is theirs. Three sources of the rest (``rest`` / ``rest_from`` of
+:func:`measured_from_rest`):
+
+- ``"recording"``: the recording's own quiet rest (:func:`lipgen.recon.rest.quiet_rest`: each
+  marker's median over the densest half of the slowest frames), estimated on its **training
+  frames only** (all but the held-out tail, as the normalisation's reference frame), at the rig's
+  metric scale (:func:`lipgen.recon.rest.metric_renormalize`). A marker seen in too few rest frames
+  takes the model's rest (a warning names it; ``info["rest_source"]["fallback"]``).
+- ``rest_from``: another reconstruction's rest (one reconstructed with ``"recording"``), and its
+  frame of reference: a test utterance measured from the training recording's rest, as the thesis
+  measured all the data of its one subject from one rest.
+- ``"model"``: the model's rest markers, at the scale of a similarity fitted on the most neutral
+  training frame (the reconstruction as first built; on the ``easy`` preset the subject *is* the
+  model, and this is exact).
+
+The rest used is recorded in the reconstruction (``info["rest"]`` (P, 3) mm, ``info["rest_source"]``);
+``lipgen train`` records it in the model's provenance and refuses a held-out tail that overlaps the
+rest frames; ``lipgen evaluate`` measures the markers from it (:func:`rest_markers`).
+
+Validation (subject seeds 40-43, preset ``default``, 60 frames): see :data:`DEFAULT_REST`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+
+import numpy as np
+
+from lipgen.errors import TopologyMismatchError
+from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, quiet_rest
+
+__all__ = ["REST_CHOICES", "DEFAULT_REST", "check_rest_options", "rest_frames", "load_rest_from",
+           "measured_from_rest", "rest_markers", "rest_line"]
+
+log = logging.getLogger(__name__)
+
+REST_CHOICES = ("model", "recording")
+"""The rests a reconstruction can be measured from (besides another reconstruction's, ``rest_from``)."""
+
+DEFAULT_REST = "recording"
+"""The default of ``lipgen reconstruct --rest`` (chosen on validation data; see the module docstring)."""
+
+
+def check_rest_options(rest: str | None, rest_from=None) -> str:
+    """The rest choice to use (``rest`` None: :data:`DEFAULT_REST`); ``ValueError`` naming a bad one.
+
+    ``rest_from`` (a path) goes with the recording kind of rest only: ``rest="model"`` with it is refused.
+    """
+    if rest is not None and rest not in REST_CHOICES:
+        raise ValueError(f"unknown rest {rest!r}; choose one of {', '.join(REST_CHOICES)} (or give "
+                         "rest_from, another reconstruction)")
+    if rest_from is not None and rest == "model":
+        raise ValueError(f"rest 'model' and rest_from {str(rest_from)!r} contradict each other: the model's "
+                         "rest, or the rest of another recording; give one")
+    return DEFAULT_REST if rest is None else rest
+
+
+def rest_frames(n_frames: int, test_frames: int | None = None, explicit: bool = True) -> np.ndarray | None:
+    """(k,) int the training frames the recording's rest is estimated on (all but the held-out tail).
+
+    Parameters
+    ----------
+    n_frames : int
+    test_frames : int, optional
+        The held-out tail (default :func:`lipgen.recon.split.default_test_frames`).
+    explicit : bool
+        The recording's rest was asked for: fewer than :data:`~lipgen.recon.rest.MIN_REST_FRAMES`
+        training frames raise ``ValueError``. Else (the default choice) None is returned: the
+        caller measures from the model's rest, and says so.
+    """
+    from lipgen.recon.split import training_candidates
+
+    frames = training_candidates(n_frames, test_frames)
+    if len(frames) >= MIN_REST_FRAMES:
+        return frames
+    if explicit:
+        raise ValueError(f"the recording's rest needs at least {MIN_REST_FRAMES} training frames (before the "
+                         f"held-out tail) to find quiet ones in, got {len(frames)} of {n_frames} frames; "
+                         "record longer, hold out fewer (--test-frames), or measure from the model's rest "
+                         "(--rest model) or another recording's (--rest-from)")
+    return None
+
+
+def load_rest_from(path, mesh):
+    """The reconstruction at ``path`` whose rest another recording is to be measured from.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file written by ``lipgen reconstruct --rest recording``.
+    mesh : lipgen.LipMesh
+        The model mesh of the recording to measure (the same markers, topology).
+
+    Returns
+    -------
+    Reconstruction
+        Its ``info["rest"]`` is a (P, 3) float rest, mm, model frame.
+    """
+    from lipgen.recon.pipeline import Reconstruction
+
+    other = Reconstruction.load(path)
+    if other.info.get("topology_id") != mesh.topology_id or list(other.info.get("marker_names", [])) != list(
+            mesh.marker_names):
+        raise TopologyMismatchError(
+            f"rest_from {str(path)!r} was reconstructed on mesh topology {other.info.get('topology_id')} with "
+            f"markers {other.info.get('marker_names')}, not this model's ({mesh.topology_id}, "
+            f"{list(mesh.marker_names)}); take the rest of a recording reconstructed with the same --mesh")
+    kind = other.info.get("rest_source", {}).get("kind", "model")
+    if kind != "recording" or "rest" not in other.info:
+        raise ValueError(f"rest_from {str(path)!r} is measured from the model's rest (rest {kind!r}): it has no "
+                         "recording rest to lend; reconstruct that recording with --rest recording")
+    rest = np.asarray(other.info["rest"], dtype=np.float64)
+    P = len(mesh.markers)
+    if rest.shape != (P, 3) or not np.all(np.isfinite(rest)):
+        raise ValueError(f"rest_from {str(path)!r}: its rest must be finite ({P}, 3) markers (mm), got shape "
+                         f"{rest.shape}{'' if rest.shape != (P, 3) else ' with non-finite entries'}")
+    return other
+
+
+def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, rest_from=None,
+                       rest_from_path=None, why: str | None = None):
+    """``recon`` with its markers and fields measured from the chosen rest (module docstring).
+
+    Parameters
+    ----------
+    recon : Reconstruction
+        As :func:`lipgen.recon.pipeline.reconstruct_dataset` builds it (model's rest, fitted scale).
+    physics : lipgen.Physics
+        Of the model mesh.
+    rest : {"model", "recording"}
+    frames : (k,) int, optional
+        With ``"recording"``: the consecutive training frames the rest is estimated on (required).
+    rest_from : Reconstruction, optional
+        Another recording's (:func:`load_rest_from`): its rest and frame of reference are used.
+    rest_from_path : str, optional
+        Where ``rest_from`` was read, recorded as ``info["rest_from"]``.
+    why : str, optional
+        Recorded with ``"model"`` (e.g. why the default could not take the recording's rest).
+
+    Returns
+    -------
+    Reconstruction
+        ``info["rest"]`` (P, 3) mm the rest used and ``info["rest_source"]``: ``kind``, the ``frames``
+        it was estimated on, the markers that took the model's rest (``fallback``).
+    """
+    import dataclasses
+
+    mesh = physics.mesh
+    M = mesh.vertices[mesh.markers]
+    if rest_from is not None:
+        out, used = metric_renormalize(recon, physics, rest=np.asarray(rest_from.info["rest"]), reference=rest_from)
+        src = dict(rest_from.info["rest_source"])
+        source = {"kind": "recording", "of": "another recording", "frames": src.get("frames"),
+                  "fallback": src.get("fallback", []), "dataset": rest_from.info.get("dataset")}
+        info = {**out.info, "rest_source": source}
+        if rest_from_path is not None:
+            info["rest_from"] = os.path.abspath(rest_from_path)
+        return dataclasses.replace(out, info=info)
+    if check_rest_options(rest) == "model":
+        source = {"kind": "model", "frames": None, "fallback": [], **({"why": why} if why else {})}
+        return dataclasses.replace(recon, info={**recon.info, "rest": M.tolist(), "rest_source": source})
+    if frames is None:
+        raise ValueError("the recording's rest needs its training frames (frames=...)")
+    frames = np.asarray(frames, dtype=np.int64)
+    if len(frames) < MIN_REST_FRAMES or np.any(np.diff(frames) != 1):
+        raise ValueError(f"the recording's rest needs at least {MIN_REST_FRAMES} consecutive training frames, "
+                         f"got {len(frames)} frames {frames[:5].tolist()}...")
+    names = mesh.marker_names
+    estimate = {}
+
+    def quiet(X, m):
+        estimate["rest"] = quiet_rest(X[frames], m[frames], names=names)
+        return estimate["rest"]
+
+    out, used = metric_renormalize(recon, physics, rest=quiet)
+    fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
+    source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
+              "fallback": fallback}
+    return dataclasses.replace(out, info={**out.info, "rest_source": source})
+
+
+def rest_markers(recon, mesh) -> np.ndarray:
+    """(P, 3) float the rest markers ``recon``'s displacements are measured from, mm (model frame).
+
+    ``info["rest"]`` when recorded, else (a reconstruction from before the choice) the model's.
+    """
+    M = mesh.vertices[mesh.markers]
+    rest = recon.info.get("rest")
+    if rest is None:
+        return M.copy()
+    rest = np.asarray(rest, dtype=np.float64)
+    if rest.shape != M.shape:
+        raise ValueError(f"the reconstruction's rest must be the ({len(M)}, 3) rest markers, got shape "
+                         f"{rest.shape}")
+    return np.where(np.isfinite(rest), rest, M)
+
+
+def rest_line(recon) -> str:
+    """One sentence: where ``recon``'s displacements are measured from."""
+    src = recon.info.get("rest_source")
+    if src is None or src.get("kind") == "model":
+        why = "" if src is None or not src.get("why") else f" ({src['why']})"
+        return f"the model's rest markers, at the scale fitted on the reference frame{why}"
+    frames = src.get("frames")
+    span = f"frames {frames[0]}-{frames[1]}" if frames else "its training frames"
+    whose = ("this recording's" if src.get("of") == "this recording"
+             else f"another recording's ({src.get('dataset')})")
+    fallback = f"; the model's rest for {', '.join(src['fallback'])}" if src.get("fallback") else ""
+    return f"{whose} quiet rest (estimated on {span}), at the rig's metric scale{fallback}"
