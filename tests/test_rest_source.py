@@ -151,7 +151,8 @@ def test_a_second_recording_from_the_first_ones_rest(tmp_path, model, subject):
     lender = load_rest_from(tmp_path / "a.npz", mesh)
     b = measured_from_rest(second, physics, rest_from=lender, rest_from_path=tmp_path / "a.npz")
     assert np.allclose(np.asarray(b.info["rest"]), np.asarray(a.info["rest"]), atol=1e-12)
-    assert b.info["rest_source"]["of"] == "another recording" and b.info["rest_from"] == str(tmp_path / "a.npz")
+    assert b.info["rest_source"]["of"] == "another recording"
+    assert b.info["rest_from"] == str(tmp_path / "a.npz")
     test = np.arange(F - T, F)
     # measured on the test tail: 2.46 (model's rest) -> 0.80 mm
     assert _offset(b, mesh, true, M + shape, test) < 0.5 * _offset(second, mesh, true, M + shape, test)

@@ -134,9 +134,7 @@ def _dataset_or_recording(args, out: Path) -> Path:
 def _run(args) -> int:
     from lipgen.recon.account import account_lines, missing_marks
     from lipgen.recon.pipeline import reconstruct_dataset
-    from lipgen.recon.restsource import rest_line
-
-    from lipgen.recon.restsource import check_rest_options
+    from lipgen.recon.restsource import check_rest_options, rest_line
 
     out = check_file_output(args.out, args.force)
     check_rest_options(args.rest, args.rest_from)

@@ -119,8 +119,8 @@ def _overlay_picture(model, mesh, recon, true_fields, frame: int, out: Path) -> 
             loops = mesh.faces[:, [0, 1, 2, 0]]
             ax.add_collection(LineCollection(np.stack([W[loops, a], W[loops, b]], axis=-1), **style))
             ax.plot([], [], label=label, **style)
-        ax.plot(recon.markers[frame, seen, a] + shift[seen, a], recon.markers[frame, seen, b] + shift[seen, b],
-                "o", color="tab:blue", ms=4,
+        drawn = recon.markers[frame, seen] + shift[seen]
+        ax.plot(drawn[:, a], drawn[:, b], "o", color="tab:blue", ms=4,
                 label="observed markers")
         ax.set_aspect("equal")
         ax.set_title(name)
@@ -224,10 +224,12 @@ def _displacement_md(s: dict) -> list[str]:
         return []
     cells = ", ".join(f"{k} {_fmt(d[k]['rms_mm'])} / {_fmt(d[k]['offset_rms_mm'])} / "
                       f"{_fmt(d[k]['after_offset_rms_mm'])}" for k in ("train", "test"))
-    model = f" The model was trained on fields measured from {d['model_rest']}." if d.get("model_rest") else ""
-    return [f"- Marker displacements, measured from {d['rest']} (that rest is {_fmt(d['all']['rest_rms_mm'])} "
-            f"mm RMS from the subject's true rest), against the true displacements from the subject's own "
-            f"rest, mm RMS / each marker's constant offset (RMS over the markers) / after the offset: "
+    model = (f" The model was trained on fields measured from {d['model_rest']}." if d.get("model_rest")
+             else "")
+    return [f"- Marker displacements, measured from {d['rest']} (that rest is "
+            f"{_fmt(d['all']['rest_rms_mm'])} mm RMS from the subject's true rest), against the true "
+            f"displacements from the subject's own rest, mm RMS / each marker's constant offset (RMS over "
+            f"the markers) / after the offset: "
             f"{cells}.{model}"]
 
 

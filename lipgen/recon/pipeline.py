@@ -222,11 +222,10 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     measured from (:mod:`lipgen.recon.restsource`). The default takes the model's rest, and says
     so, when the training frames are too few for a quiet rest; an explicit ``"recording"`` refuses.
     """
-    from lipgen.recon.rest import MIN_REST_FRAMES
-    from lipgen.recon.restsource import check_rest_options, load_rest_from, measured_from_rest, rest_frames
-
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
+    from lipgen.recon.rest import MIN_REST_FRAMES
+    from lipgen.recon.restsource import check_rest_options, load_rest_from, measured_from_rest, rest_frames
 
     if normalisation not in METHODS:
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")

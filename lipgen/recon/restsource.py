@@ -109,13 +109,13 @@ def load_rest_from(path, mesh):
     if other.info.get("topology_id") != mesh.topology_id or list(other.info.get("marker_names", [])) != list(
             mesh.marker_names):
         raise TopologyMismatchError(
-            f"rest_from {str(path)!r} was reconstructed on mesh topology {other.info.get('topology_id')} with "
-            f"markers {other.info.get('marker_names')}, not this model's ({mesh.topology_id}, "
+            f"rest_from {str(path)!r} was reconstructed on mesh topology {other.info.get('topology_id')} "
+            f"with markers {other.info.get('marker_names')}, not this model's ({mesh.topology_id}, "
             f"{list(mesh.marker_names)}); take the rest of a recording reconstructed with the same --mesh")
     kind = other.info.get("rest_source", {}).get("kind", "model")
     if kind != "recording" or "rest" not in other.info:
-        raise ValueError(f"rest_from {str(path)!r} is measured from the model's rest (rest {kind!r}): it has no "
-                         "recording rest to lend; reconstruct that recording with --rest recording")
+        raise ValueError(f"rest_from {str(path)!r} is measured from the model's rest (rest {kind!r}): it has "
+                         "no recording rest to lend; reconstruct that recording with --rest recording")
     rest = np.asarray(other.info["rest"], dtype=np.float64)
     P = len(mesh.markers)
     if rest.shape != (P, 3) or not np.all(np.isfinite(rest)):
@@ -155,7 +155,8 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     mesh = physics.mesh
     M = mesh.vertices[mesh.markers]
     if rest_from is not None:
-        out, used = metric_renormalize(recon, physics, rest=np.asarray(rest_from.info["rest"]), reference=rest_from)
+        lent = np.asarray(rest_from.info["rest"])
+        out, _ = metric_renormalize(recon, physics, rest=lent, reference=rest_from)
         src = dict(rest_from.info["rest_source"])
         source = {"kind": "recording", "of": "another recording", "frames": src.get("frames"),
                   "fallback": src.get("fallback", []), "dataset": rest_from.info.get("dataset")}
@@ -170,8 +171,8 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
         raise ValueError("the recording's rest needs its training frames (frames=...)")
     frames = np.asarray(frames, dtype=np.int64)
     if len(frames) < MIN_REST_FRAMES or np.any(np.diff(frames) != 1):
-        raise ValueError(f"the recording's rest needs at least {MIN_REST_FRAMES} consecutive training frames, "
-                         f"got {len(frames)} frames {frames[:5].tolist()}...")
+        raise ValueError(f"the recording's rest needs at least {MIN_REST_FRAMES} consecutive training "
+                         f"frames, got {len(frames)} frames {frames[:5].tolist()}...")
     names = mesh.marker_names
     estimate = {}
 
@@ -179,7 +180,7 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
         estimate["rest"] = quiet_rest(X[frames], m[frames], names=names)
         return estimate["rest"]
 
-    out, used = metric_renormalize(recon, physics, rest=quiet)
+    out, _ = metric_renormalize(recon, physics, rest=quiet)
     fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
     source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
               "fallback": fallback}
