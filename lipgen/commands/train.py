@@ -49,11 +49,13 @@ def _run(args) -> int:
                          f"last {T} frames, which --test-frames {T} holds out as test frames; reconstruct "
                          f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
     rest = recon.info.get("rest_source", {})
-    if rest.get("of") == "this recording" and rest.get("frames") and rest["frames"][1] >= F - T:
-        raise ValueError(f"the reconstruction's rest was estimated on frames {rest['frames'][0]}-"
-                         f"{rest['frames'][1]}, and --test-frames {T} holds out frames {F - T}-{F - 1}: "
-                         f"the test frames would have shaped the training data; reconstruct again with "
-                         f"lipgen reconstruct --test-frames {T}")
+    own = rest.get("of") == "this recording"
+    held = sorted(f for f in rest.get("rest_frames", []) if f >= F - T) if own else []
+    if held:
+        raise ValueError(f"the reconstruction's rest is the median of frames including {held}, which "
+                         f"--test-frames {T} holds out (frames {F - T}-{F - 1}): the test frames would "
+                         f"have shaped the training data; reconstruct again with lipgen reconstruct "
+                         f"--test-frames {T}")
     mesh = model_mesh(recon.info["mesh_source"])
     model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
     model.provenance_ = _provenance(recon, args.recon, train)

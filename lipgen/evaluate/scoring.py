@@ -342,6 +342,13 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                                                                       or {}).get("rest"),
                             **{k: displacement_error(recon.markers, meas, rest, marks_model, true_rest, fr)
                                for k, fr in (("all", None), ("train", train), ("test", test))}}
+    src = recon.info.get("rest_source", {})
+    held = sorted(set(src.get("rest_frames", [])) & set(test.tolist())) if src.get("of") == "this recording" \
+        else []
+    out["split"]["rest_frames_in_test"] = held
+    if held:
+        log.warning("the reconstruction's rest is the median of frames including test frames %s: the "
+                    "held-out frames shaped the training data; reconstruct with --test-frames %d", held, T)
     prov_kind = (getattr(model, "provenance_", None) or {}).get("rest_kind")
     kind = recon.info.get("rest_source", {}).get("kind", "model")
     if prov_kind is not None and prov_kind != kind:

@@ -20,8 +20,8 @@ that is theirs. Three sources of the rest (``rest`` / ``rest_from`` of
   model, and this is exact).
 
 The rest used is recorded in the reconstruction (``info["rest"]`` (P, 3) mm, ``info["rest_source"]``);
-``lipgen train`` records it in the model's provenance and refuses a held-out tail that overlaps the
-rest frames; ``lipgen evaluate`` measures the markers from it (:func:`rest_markers`).
+``lipgen train`` records it in the model's provenance and refuses a held-out tail that holds a rest
+frame; ``lipgen evaluate`` measures the markers from it (:func:`rest_markers`).
 
 Validation (subject seeds 40-43, preset ``default``, 60 frames): see :data:`DEFAULT_REST`.
 """
@@ -147,8 +147,9 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     Returns
     -------
     Reconstruction
-        ``info["rest"]`` (P, 3) mm the rest used and ``info["rest_source"]``: ``kind``, the ``frames``
-        it was estimated on, the markers that took the model's rest (``fallback``).
+        ``info["rest"]`` (P, 3) mm the rest used and ``info["rest_source"]``: ``kind``, the first and
+        last of the training ``frames`` it was estimated on, the ``rest_frames`` whose median it is,
+        the markers that took the model's rest (``fallback``).
     """
     import dataclasses
 
@@ -177,13 +178,13 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     estimate = {}
 
     def quiet(X, m):
-        estimate["rest"] = quiet_rest(X[frames], m[frames], names=names)
+        estimate["rest"], estimate["at"] = quiet_rest(X[frames], m[frames], names=names, return_frames=True)
         return estimate["rest"]
 
     out, _ = metric_renormalize(recon, physics, rest=quiet)
     fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
     source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
-              "fallback": fallback}
+              "rest_frames": [int(f) for f in frames[estimate["at"]]], "fallback": fallback}
     return dataclasses.replace(out, info={**out.info, "rest_source": source})
 
 
