@@ -13,8 +13,8 @@ from lipgen.recon.pipeline import Reconstruction
 from lipgen.recon.restsource import (
     DEFAULT_REST,
     REST_CHOICES,
+    check_rest_from,
     check_rest_options,
-    load_rest_from,
     measured_from_rest,
     rest_frames,
     rest_markers,
@@ -150,7 +150,7 @@ def test_a_second_recording_from_the_first_ones_rest(tmp_path, model, subject):
     shape, (first, _), (second, true) = subject
     a = measured_from_rest(first, physics, "recording", rest_frames(F, T))
     a.save(tmp_path / "a.npz")
-    lender = load_rest_from(tmp_path / "a.npz", mesh)
+    lender = check_rest_from(Reconstruction.load(tmp_path / "a.npz"), mesh)
     b = measured_from_rest(second, physics, rest_from=lender, rest_from_path=tmp_path / "a.npz")
     assert np.allclose(np.asarray(b.info["rest"]), np.asarray(a.info["rest"]), atol=1e-12)
     assert b.info["rest_source"]["of"] == "another recording"
@@ -203,13 +203,13 @@ def test_bad_rest_options_are_refused_naming_the_value(tmp_path, model, subject,
     # a rest file measured from the model's rest, of the wrong shape, or of another mesh
     measured_from_rest(recon, physics, "model").save(tmp_path / "model.npz")
     with pytest.raises(ValueError, match="measured from the model's rest"):
-        load_rest_from(tmp_path / "model.npz", mesh)
+        check_rest_from(Reconstruction.load(tmp_path / "model.npz"), mesh)
     own = measured_from_rest(recon, physics, "recording", rest_frames(F, T))
     import dataclasses
 
     dataclasses.replace(own, info={**own.info, "rest": np.zeros((15, 3)).tolist()}).save(tmp_path / "s.npz")
     with pytest.raises(ValueError, match=r"finite \(16, 3\) markers .* got shape \(15, 3\)"):
-        load_rest_from(tmp_path / "s.npz", mesh)
+        check_rest_from(Reconstruction.load(tmp_path / "s.npz"), mesh)
     dataclasses.replace(own, info={**own.info, "topology_id": "other"}).save(tmp_path / "t.npz")
     assert main(["reconstruct", "ds", "--rest-from", str(tmp_path / "t.npz"), *out]) == 1
     assert "mesh topology other" in capsys.readouterr().err

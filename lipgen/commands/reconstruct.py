@@ -142,10 +142,10 @@ def _run(args) -> int:
         raise FileNotFoundError(f"--rest-from {args.rest_from}: no such file (a reconstruction written by "
                                 "lipgen reconstruct --rest recording)")
     if args.rest_from is not None:  # its mesh and rest, before any work
-        from lipgen.recon.pipeline import model_mesh
-        from lipgen.recon.restsource import load_rest_from
+        from lipgen.recon.pipeline import Reconstruction, model_mesh
+        from lipgen.recon.restsource import check_rest_from
 
-        load_rest_from(args.rest_from, model_mesh(args.mesh))
+        check_rest_from(Reconstruction.load(args.rest_from), model_mesh(args.mesh), args.rest_from)
     dataset = _dataset_or_recording(args, out)
     recon = reconstruct_dataset(dataset, args.mesh, progress=not args.no_progress,
                                 normalisation=args.normalisation, test_frames=args.test_frames,

@@ -31,6 +31,7 @@ from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.account import sighting_account
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
+from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
@@ -153,15 +154,6 @@ def _paths_resolved_from(info: dict, path) -> dict:
     return out
 
 
-def model_mesh(source: str = "lip_mesh(0)") -> LipMesh:
-    """The reconstruction model's mesh: ``"lip_mesh(R)"`` or a path to a saved :class:`LipMesh`."""
-    if source.startswith("lip_mesh(") and source.endswith(")"):
-        from lipgen.mesh.procedural import lip_mesh
-
-        return lip_mesh(int(source[len("lip_mesh("):-1]))
-    return LipMesh.load(source)
-
-
 def lab_frame(cal: RigCalibration) -> np.ndarray:
     """(4, 4) lab -> board transform set up from the calibrated rig (see the module docstring)."""
     rig = cal.rig
@@ -225,7 +217,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
     from lipgen.recon.rest import MIN_REST_FRAMES
-    from lipgen.recon.restsource import check_rest_options, load_rest_from, measured_from_rest, rest_frames
+    from lipgen.recon.restsource import check_rest_from, check_rest_options, measured_from_rest, rest_frames
 
     if normalisation not in METHODS:
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
@@ -246,7 +238,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
     rest_kind = check_rest_options(rest, rest_from)
-    lender = load_rest_from(rest_from, mesh) if rest_from is not None else None
+    lender = None if rest_from is None else check_rest_from(Reconstruction.load(rest_from), mesh, rest_from)
     frames_at_rest = (rest_frames(len(ds), test_frames, explicit=rest is not None)
                       if rest_kind == "recording" and lender is None else None)
     short = (f"{len(ds)} frames leave fewer than {MIN_REST_FRAMES} training frames for a quiet rest"

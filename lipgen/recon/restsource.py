@@ -36,7 +36,7 @@ import numpy as np
 from lipgen.errors import TopologyMismatchError
 from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, quiet_rest
 
-__all__ = ["REST_CHOICES", "DEFAULT_REST", "check_rest_options", "rest_frames", "load_rest_from",
+__all__ = ["REST_CHOICES", "DEFAULT_REST", "check_rest_options", "rest_frames", "check_rest_from",
            "measured_from_rest", "rest_markers", "rest_line"]
 
 log = logging.getLogger(__name__)
@@ -88,24 +88,23 @@ def rest_frames(n_frames: int, test_frames: int | None = None, explicit: bool = 
     return None
 
 
-def load_rest_from(path, mesh):
-    """The reconstruction at ``path`` whose rest another recording is to be measured from.
+def check_rest_from(other, mesh, path="rest_from"):
+    """``other``, a reconstruction whose rest another recording is to be measured from, checked.
 
     Parameters
     ----------
-    path : str or os.PathLike
-        A file written by ``lipgen reconstruct --rest recording``.
+    other : Reconstruction
+        Written by ``lipgen reconstruct --rest recording`` (e.g. ``Reconstruction.load(path)``).
     mesh : lipgen.LipMesh
         The model mesh of the recording to measure (the same markers, topology).
+    path : str or os.PathLike
+        Where ``other`` was read, for the messages.
 
     Returns
     -------
     Reconstruction
-        Its ``info["rest"]`` is a (P, 3) float rest, mm, model frame.
+        ``other``; its ``info["rest"]`` is a finite (P, 3) rest, mm, model frame.
     """
-    from lipgen.recon.pipeline import Reconstruction
-
-    other = Reconstruction.load(path)
     if other.info.get("topology_id") != mesh.topology_id or list(other.info.get("marker_names", [])) != list(
             mesh.marker_names):
         raise TopologyMismatchError(
@@ -138,7 +137,7 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     frames : (k,) int, optional
         With ``"recording"``: the consecutive training frames the rest is estimated on (required).
     rest_from : Reconstruction, optional
-        Another recording's (:func:`load_rest_from`): its rest and frame of reference are used.
+        Another recording's (:func:`check_rest_from`): its rest and frame of reference are used.
     rest_from_path : str, optional
         Where ``rest_from`` was read, recorded as ``info["rest_from"]``.
     why : str, optional
