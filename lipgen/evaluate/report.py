@@ -299,9 +299,12 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"{_fmt(tri['max_mm'])} mm) over the {100 * tri['visible_share']:.1f}% of marker sightings seen in "
           f"both views; median ray gap {_fmt(tri['ray_gap_median_mm'])} mm.",
           f"- Normalisation ({_METHOD_NAMES.get(nrm.get('method', 'thesis'), nrm.get('method'))}) error, "
-          f"normalised markers vs the true model-frame marks: **{_fmt(nrm['rms_mm'])} mm RMS**, with the "
-          f"scale fitted on frame {nrm['reference_frame']} (the most neutral-looking frame; the thesis used "
-          f"the first). The same method on the exact world marks: {_fmt(nrm['exact_input_rms_mm'])} mm, what "
+          f"normalised markers vs the true model-frame marks: **{_fmt(nrm['rms_mm'])} mm RMS**, "
+          + (f"at the rig's metric scale (scale 1; the head rotation from {nrm['metric_reference']}; its "
+             f"reference frame {nrm['reference_frame']})" if nrm.get("metric_reference") else
+             f"with the scale fitted on frame {nrm['reference_frame']} (the most neutral-looking frame; the "
+             "thesis used the first)")
+          + f". The same method on the exact world marks: {_fmt(nrm['exact_input_rms_mm'])} mm, what "
           "the method itself costs (the head turns by up to "
           f"{_fmt(nrm['head_rotation_deg_max'], 2)} deg here). The thesis's §3 lip-plane method on the exact "
           "marks, for comparison: "

@@ -302,7 +302,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
         "thesis_exact_input_rms_mm": thesis_exact,
         "reference_frame": ref_used, "fit_rms_mm": info["fit_rms_mm"],
         "outliers": len(info.get("outliers", [])),
-        "scale": info["scale"],
+        "scale": info["scale"], "metric_reference": info.get("metric_reference"),
         "head_rotation_deg_max": float(np.degrees(max(np.arccos(np.clip((np.trace(p[:3, :3]) - 1) / 2, -1, 1))
                                                       for p in truth["pose"])))}
     # Training data quality and the Table 5.1 analogue.

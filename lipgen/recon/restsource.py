@@ -160,7 +160,8 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
         src = dict(rest_from.info["rest_source"])
         source = {"kind": "recording", "of": "another recording", "frames": src.get("frames"),
                   "fallback": src.get("fallback", []), "dataset": rest_from.info.get("dataset")}
-        info = {**out.info, "rest_source": source}
+        info = {**_normalisation_kept(out, recon, f"the rotation of {rest_from.info.get('dataset')}"),
+                "rest_source": source}
         if rest_from_path is not None:
             info["rest_from"] = os.path.abspath(rest_from_path)
         return dataclasses.replace(out, info=info)
@@ -184,7 +185,18 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
     source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
               "rest_frames": [int(f) for f in frames[estimate["at"]]], "fallback": fallback}
-    return dataclasses.replace(out, info={**out.info, "rest_source": source})
+    info = _normalisation_kept(out, recon, "its own reference frame's rotation")
+    return dataclasses.replace(out, info={**info, "rest_source": source})
+
+
+def _normalisation_kept(out, recon, reference: str) -> dict:
+    """``out.info`` with the normalisation record of ``recon`` kept (its reference frame, fit), at
+    scale 1 and with the reference that scale-1 frame came from."""
+    norm = {**recon.info.get("normalisation", {}), "scale": 1.0, "fitted_scale":
+            recon.info.get("normalisation", {}).get("scale"), "metric_reference": reference,
+            "outliers": out.info["normalisation"]["outliers"],
+            "borrowed_frames": out.info["normalisation"]["borrowed_frames"]}
+    return {**out.info, "normalisation": norm}
 
 
 def rest_markers(recon, mesh) -> np.ndarray:
