@@ -43,11 +43,6 @@ def _run(args) -> int:
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames
     train, test = split_frames(recon.fields, T)
-    ref = recon.info.get("normalisation", {}).get("reference_frame")
-    if ref is not None and ref >= len(recon.fields) - T:
-        raise ValueError(f"the reconstruction's normalisation took its reference frame {ref} from the "
-                         f"last {T} frames, which --test-frames {T} holds out as test frames; reconstruct "
-                         f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
     rest = recon.info.get("rest_source", {})
     own = rest.get("of") == "this recording"
     held = sorted(f for f in rest.get("rest_frames", []) if f >= F - T) if own else []
@@ -56,6 +51,11 @@ def _run(args) -> int:
                          f"--test-frames {T} holds out (frames {F - T}-{F - 1}): the test frames would "
                          f"have shaped the training data; reconstruct again with lipgen reconstruct "
                          f"--test-frames {T}")
+    ref = recon.info.get("normalisation", {}).get("reference_frame")
+    if ref is not None and ref >= len(recon.fields) - T:
+        raise ValueError(f"the reconstruction's normalisation took its reference frame {ref} from the "
+                         f"last {T} frames, which --test-frames {T} holds out as test frames; reconstruct "
+                         f"again with lipgen reconstruct --test-frames {T} (or name --reference-frames)")
     mesh = model_mesh(recon.info["mesh_source"])
     model = ModeModel(args.modes).fit(recon.fields[train], mesh=mesh)
     model.provenance_ = _provenance(recon, args.recon, train)
