@@ -16,6 +16,7 @@ from lipgen.recon.restsource import (
     check_rest_from,
     check_rest_options,
     measured_from_rest,
+    pause_count,
     rest_frames,
     rest_markers,
 )
@@ -217,3 +218,19 @@ def test_bad_rest_options_are_refused_naming_the_value(tmp_path, model, subject,
     assert "mesh topology other" in capsys.readouterr().err
     with pytest.raises(ValueError, match="at least 10 consecutive training frames"):
         measured_from_rest(recon, physics, "recording", np.arange(0, 20, 2))
+
+
+def test_rest_frames_from_one_held_posture_are_not_taken_by_default(model, subject, caplog):
+    """Pauses: runs of rest frames more than PAUSE_GAP apart. The default asks for MIN_PAUSES of them
+    (a held vowel is quiet too); fewer give the model's rest, and the reason is recorded."""
+    import logging
+
+    mesh, physics = model
+    _, (recon, _), _ = subject
+    assert pause_count([]) == 0 and pause_count([3, 4, 6, 9]) == 1 and pause_count([3, 4, 20, 21]) == 2
+    own = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=2)
+    assert own.info["rest_source"]["kind"] == "recording" and own.info["rest_source"]["pauses"] >= 2
+    with caplog.at_level(logging.WARNING, logger="lipgen.recon.restsource"):
+        held = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=9)
+    src = held.info["rest_source"]
+    assert src["kind"] == "model" and "held posture" in src["why"] and "held posture" in caplog.text

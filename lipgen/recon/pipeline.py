@@ -212,12 +212,20 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     ``rest`` (``"model"`` or ``"recording"``; None: :data:`lipgen.recon.restsource.DEFAULT_REST`)
     and ``rest_from`` (the path of another reconstruction) say where the displacements are
     measured from (:mod:`lipgen.recon.restsource`). The default takes the model's rest, and says
-    so, when the training frames are too few for a quiet rest; an explicit ``"recording"`` refuses.
+    so, when the training frames are too few for a quiet rest (an explicit ``"recording"`` refuses)
+    or when their quietest frames are one held posture rather than pauses (an explicit
+    ``"recording"`` takes it, with a warning).
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
     from lipgen.recon.rest import MIN_REST_FRAMES
-    from lipgen.recon.restsource import check_rest_from, check_rest_options, measured_from_rest, rest_frames
+    from lipgen.recon.restsource import (
+        MIN_PAUSES,
+        check_rest_from,
+        check_rest_options,
+        measured_from_rest,
+        rest_frames,
+    )
 
     if normalisation not in METHODS:
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
@@ -335,6 +343,6 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         score=np.stack([t.score for t in tracks]), frame_index=np.arange(len(ds)), lab_to_board=T,
         similarity=S, rotations=norm.rotations, info=info)
     recon = measured_from_rest(recon, physics, "model" if short else rest_kind, frames_at_rest, lender,
-                               rest_from, why=short)
+                               rest_from, why=short, min_pauses=MIN_PAUSES if rest is None else 0)
     recon.info["seconds"]["rest"] = time.perf_counter() - t_track
     return recon

@@ -36,7 +36,8 @@ import numpy as np
 from lipgen.errors import TopologyMismatchError
 from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, quiet_rest
 
-__all__ = ["REST_CHOICES", "DEFAULT_REST", "check_rest_options", "rest_frames", "check_rest_from",
+__all__ = ["REST_CHOICES", "DEFAULT_REST", "PAUSE_GAP", "MIN_PAUSES", "pause_count", "check_rest_options",
+           "rest_frames", "check_rest_from",
            "measured_from_rest", "rest_markers", "rest_line"]
 
 log = logging.getLogger(__name__)
@@ -46,6 +47,23 @@ REST_CHOICES = ("model", "recording")
 
 DEFAULT_REST = "recording"
 """The default of ``lipgen reconstruct --rest`` (chosen on validation data; see the module docstring)."""
+
+
+PAUSE_GAP = 5
+"""Rest frames more than this many frames apart belong to different pauses (:func:`pause_count`)."""
+
+MIN_PAUSES = 2
+"""Pauses the default (``rest`` None) needs among the rest frames to take the recording's rest."""
+
+
+def pause_count(rest_frames) -> int:
+    """How many separate pauses the rest frames (sorted ints) come from: runs split by gaps > PAUSE_GAP.
+
+    The lips return to one rest in every pause, but a held vowel is quiet too: rest frames from one
+    run alone may be a held posture, from two or more the same posture was returned to.
+    """
+    f = np.sort(np.asarray(rest_frames, dtype=np.int64))
+    return 0 if len(f) == 0 else 1 + int(np.sum(np.diff(f) > PAUSE_GAP))
 
 
 def check_rest_options(rest: str | None, rest_from=None) -> str:
@@ -124,7 +142,7 @@ def check_rest_from(other, mesh, path="rest_from"):
 
 
 def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, rest_from=None,
-                       rest_from_path=None, why: str | None = None):
+                       rest_from_path=None, why: str | None = None, min_pauses: int = 0):
     """``recon`` with its markers and fields measured from the chosen rest (module docstring).
 
     Parameters
@@ -142,6 +160,9 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
         Where ``rest_from`` was read, recorded as ``info["rest_from"]``.
     why : str, optional
         Recorded with ``"model"`` (e.g. why the default could not take the recording's rest).
+    min_pauses : int
+        With ``"recording"``: rest frames from fewer pauses (:func:`pause_count`) give the model's
+        rest instead, and say why (the default choice passes :data:`MIN_PAUSES`); 0: never.
 
     Returns
     -------
@@ -182,9 +203,19 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
         return estimate["rest"]
 
     out, _ = metric_renormalize(recon, physics, rest=quiet)
+    at = [int(f) for f in frames[estimate["at"]]]
+    pauses = pause_count(at)
+    if pauses < min_pauses:
+        reason = (f"the quietest training frames {at} are one held posture ({pauses} pause), maybe not a "
+                  f"rest; record pauses, or give --rest recording or --rest-from")
+        log.warning("%s: measured from the model's rest", reason)
+        return measured_from_rest(recon, physics, "model", why=reason)
+    if pauses < MIN_PAUSES:
+        log.warning("the recording's rest is the median of frames %s, one held posture: if that is not a "
+                    "rest (a held vowel), measure from another recording's rest (--rest-from)", at)
     fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
     source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
-              "rest_frames": [int(f) for f in frames[estimate["at"]]], "fallback": fallback}
+              "rest_frames": at, "pauses": pauses, "fallback": fallback}
     info = _normalisation_kept(out, recon, "its own reference frame's rotation")
     return dataclasses.replace(out, info={**info, "rest_source": source})
 
