@@ -23,7 +23,23 @@ The rest used is recorded in the reconstruction (``info["rest"]`` (P, 3) mm, ``i
 ``lipgen train`` records it in the model's provenance and refuses a held-out tail that holds a rest
 frame; ``lipgen evaluate`` measures the markers from it (:func:`rest_markers`).
 
-Validation (subject seeds 40-43, preset ``default``, 60 frames): see :data:`DEFAULT_REST`.
+Validation (``lipgen generate --preset default --seed 1``, ``lipgen reconstruct --rest model``, then
+the recording's rest as :func:`measured_from_rest` takes it; scored by
+:func:`lipgen.evaluate.displacement.displacement_error`, the figures ``lipgen evaluate`` reports: the
+marker displacements against the true ones, RMS / each marker's constant offset, mm, training frames
+and the held-out tail):
+
+- **150 frames** (10 calibration frames; subject seeds 44, 45; pauses at frames 59-63 and 91-94):
+  from the model's rest -> from the recording's rest, seed 44 training 2.63 / 2.33 -> 1.58 / 0.99,
+  tail 2.17 / 2.15 -> 0.73 / 0.61; seed 45 training 2.80 / 2.54 -> 2.01 / 1.66, tail
+  2.17 / 2.17 -> 1.14 / 1.28 (rest frames from 2 and 3 pauses).
+- **60 frames** (40 calibration frames; subject seed 40, two utterances): the training frames
+  (0-49) hold no pause (the true displacement stays above 1.4 mm; the pause comes in the held-out
+  tail), so the quietest frames are one held posture (frames 27-35; 22-26) and the recording's
+  rest is worse: offsets 5.26 -> 6.05 and 2.82 -> 3.79 mm (training), and the second utterance
+  measured from the first one's rest 2.01 -> 4.78 mm (tail). Hence :data:`MIN_PAUSES`: the default
+  takes the recording's rest only from rest frames of 2 or more pauses (these clips: 1 pause, so
+  the model's rest, as before).
 """
 
 from __future__ import annotations
@@ -46,7 +62,9 @@ REST_CHOICES = ("model", "recording")
 """The rests a reconstruction can be measured from (besides another reconstruction's, ``rest_from``)."""
 
 DEFAULT_REST = "recording"
-"""The default of ``lipgen reconstruct --rest`` (chosen on validation data; see the module docstring)."""
+"""The default of ``lipgen reconstruct --rest``: the recording's rest when its rest frames come from
+:data:`MIN_PAUSES` pauses (else the model's, saying why); chosen on the validation clips of the
+module docstring."""
 
 
 PAUSE_GAP = 5
