@@ -21,13 +21,14 @@ thesis's section 3 lip planes with --normalisation thesis); and per frame the fi
 model reaching the markers with the least-norm force (Physics.reach, thesis eq 4.3). The ground
 truth is not read.
 
-Displacements are measured from rest. --rest recording (the default): the recording's own rest,
-each marker's median over its quietest training frames (speech pauses), at the rig's metric scale;
-the held-out tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of
-reference) of another reconstruction of the same subject, e.g. a test utterance measured from the
-training recording's rest. --rest model: the model's rest markers (right when the subject's lips
-have the model's shape). The choice is recorded in the output; lipgen train and evaluate use it.
-A recording with fewer than 10 training frames is measured from the model's rest by default.
+Displacements are measured from rest. --rest recording: the recording's own rest, each marker's
+median over its quietest training frames (speech pauses), at the rig's metric scale; the held-out
+tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
+another reconstruction of the same subject, e.g. a test utterance measured from the training
+recording's rest. --rest model: the model's rest markers (right when the subject's lips have the
+model's shape). By default the recording's rest is taken when its quietest frames come from two
+or more pauses, else (one held posture may be a held vowel; fewer than 10 training frames) the
+model's, with a warning. The choice is recorded in the output; lipgen train and evaluate use it.
 
 Every marker sighting is accounted for: accepted (both views agree), rejected (the views disagree,
 or a pose outlier), unpaired (one view only) or lost. The summary per marker goes to stderr, and
@@ -71,7 +72,8 @@ def add_parser(sub) -> None:
                    "'0-20' or '3,7,12' (default: all training frames)")
     p.add_argument("--rest", choices=REST_CHOICES, default=None,
                    help=f"where displacements are measured from: the recording's quiet rest (its training "
-                   f"frames) or the model's rest markers (default {DEFAULT_REST})")
+                   f"frames) or the model's rest markers (default {DEFAULT_REST} when its rest frames come "
+                   f"from 2 or more pauses, else model)")
     p.add_argument("--rest-from", default=None, metavar="RECON",
                    help="measure from the rest of another reconstruction (lipgen reconstruct --rest "
                    "recording) of the same subject and mesh, e.g. the training recording's")
