@@ -234,3 +234,32 @@ def test_rest_frames_from_one_held_posture_are_not_taken_by_default(model, subje
         held = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=9)
     src = held.info["rest_source"]
     assert src["kind"] == "model" and "held posture" in src["why"] and "held posture" in caplog.text
+
+
+def test_displacement_error_against_a_closed_form():
+    """A constant offset per marker plus a zero-mean wiggle: the offset, the rest error and what is
+    left after the offset come out exactly; unmeasured sightings do not count."""
+    from lipgen.evaluate.displacement import displacement_error
+
+    rng = np.random.default_rng(0)
+    Fn, P = 20, 16
+    true = rng.normal(0, 3, (Fn, P, 3))
+    true_rest = rng.normal(0, 10, (P, 3))
+    rest = true_rest + rng.normal(0, 1, (P, 3))
+    c = rng.normal(0, 1, (P, 3))
+    wiggle = np.where(np.arange(Fn)[:, None, None] % 2 == 0, 0.1, -0.1) * np.ones((Fn, P, 3))
+    markers = (true - true_rest) + rest + c + wiggle
+    measured = np.ones((Fn, P), bool)
+    markers[3, 5] = np.nan  # a lost sighting, its pair frame too (the wiggle stays zero-mean)
+    measured[[2, 3], 5] = False
+    d = displacement_error(markers, measured, rest, true, true_rest)
+    assert d["offset_rms_mm"] == pytest.approx(np.sqrt(np.mean(np.sum(c**2, axis=1))))
+    assert d["after_offset_rms_mm"] == pytest.approx(0.1 * np.sqrt(3))
+    err = np.sum((c + wiggle) ** 2, axis=-1)[measured]
+    assert d["rms_mm"] == pytest.approx(np.sqrt(np.mean(err)))
+    assert d["rest_rms_mm"] == pytest.approx(np.sqrt(np.mean(np.sum((rest - true_rest) ** 2, axis=1))))
+    assert d["sightings"] == Fn * P - 2
+    with pytest.raises(ValueError, match=r"measured must have shape \(20, 16\)"):
+        displacement_error(markers, measured[:5], rest, true, true_rest)
+    with pytest.raises(ValueError, match=r"rest must have shape \(16, 3\)"):
+        displacement_error(markers, measured, rest[:4], true, true_rest)
