@@ -144,8 +144,6 @@ def test_the_rest_is_recorded_and_evaluate_measures_from_it(dataset, recon, scor
     expect = displacement_error(own.markers, measured_markers(own), rest, truth, ds.rest_marks()[:P])
     for key in ("rms_mm", "offset_rms_mm", "after_offset_rms_mm", "rest_rms_mm"):
         assert got["displacements"]["all"][key] == pytest.approx(expect[key])
-    # easy preset: the subject is the model, so its rest is close to the model's
-    assert expect["rest_rms_mm"] < 1.0
 
 
 def _copy(dataset, tmp_path):
