@@ -32,7 +32,7 @@ and the held-out tail):
 - **150 frames** (10 calibration frames; subject seeds 44, 45; pauses at frames 59-63 and 91-94):
   from the model's rest -> from the recording's rest, seed 44 training 2.63 / 2.33 -> 1.58 / 0.99,
   tail 2.17 / 2.15 -> 0.73 / 0.61; seed 45 training 2.80 / 2.54 -> 2.01 / 1.66, tail
-  2.17 / 2.17 -> 1.14 / 1.28 (rest frames from 2 and 3 pauses).
+  2.11 / 2.17 -> 1.14 / 1.28 (rest frames from 2 and 3 pauses).
 - **60 frames** (40 calibration frames; subject seed 40, two utterances): the training frames
   (0-49) hold no pause (the true displacement stays above 1.4 mm; the pause comes in the held-out
   tail), so the quietest frames are one held posture (frames 27-35; 22-26) and the recording's
@@ -40,6 +40,10 @@ and the held-out tail):
   measured from the first one's rest 2.01 -> 4.78 mm (tail). Hence :data:`MIN_PAUSES`: the default
   takes the recording's rest only from rest frames of 2 or more pauses (these clips: 1 pause, so
   the model's rest, as before).
+- ``lipgen evaluate`` on subject seed 44 (150 frames; the test tail 140-149 is mostly a pause):
+  Table 5.1, 10 modes vs the true surface, rows xyz / yz / xy, 1.51 / 1.13 / 1.80 -> 0.28 / 0.29 /
+  0.45 mm² (relative 6.75 / 4.45 / 7.90 -> 1.15 / 1.08 / 1.89); physics 1.32 / 0.75 / 1.32 ->
+  0.30 / 0.38 / 0.28 mm².
 
 Held out, once, after the default was frozen (subject seeds 50-52, 150 frames as above; rest frames
 from 3 pauses each): training 2.89 / 2.71 -> 1.89 / 1.53, 3.85 / 3.65 -> 1.73 / 1.24,
