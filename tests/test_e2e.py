@@ -118,9 +118,10 @@ def test_cli_train_and_evaluate(tmp_path, dataset, recon):
 
 
 def test_the_rest_is_recorded_and_evaluate_measures_from_it(dataset, recon, scored):
-    """12 frames hold 10 training frames (the default tail is 2): their quietest frames are one run,
-    so the default measures from the model's rest and says why. The recording's rest, asked for, is
-    what evaluate then measures the displacements and Table 5.1 from."""
+    """The default measures from the model's rest. 12 frames hold 10 training frames (the default
+    tail is 2): their quietest frames are one run, so ``auto`` measures from the model's rest too
+    and says why. The recording's rest, asked for, is what evaluate then measures the displacements
+    and Table 5.1 from."""
     from lipgen.dataset.layout import Dataset
     from lipgen.evaluate.displacement import displacement_error
     from lipgen.evaluate.scoring import load_truth
@@ -129,9 +130,12 @@ def test_the_rest_is_recorded_and_evaluate_measures_from_it(dataset, recon, scor
     from lipgen.recon.restsource import measured_from_rest, rest_frames, rest_markers
 
     s, model, mesh = scored
-    src = recon.info["rest_source"]
-    assert src["kind"] == "model" and "held posture" in src["why"]
+    assert recon.info["rest_source"]["kind"] == "model" and "why" not in recon.info["rest_source"]
     assert np.array_equal(rest_markers(recon, mesh), mesh.vertices[mesh.markers])
+    auto = measured_from_rest(recon, Physics(mesh), "auto", rest_frames(FRAMES, 2, explicit=False))
+    src = auto.info["rest_source"]
+    assert src["kind"] == "model" and "held posture" in src["why"]
+    assert np.array_equal(rest_markers(auto, mesh), mesh.vertices[mesh.markers])
     own = measured_from_rest(recon, Physics(mesh), "recording", rest_frames(FRAMES, 2))
     rest = rest_markers(own, mesh)
     assert own.info["rest_source"]["kind"] == "recording"

@@ -188,13 +188,14 @@ def test_bad_rest_options_are_refused_naming_the_value(tmp_path, model, subject,
     from lipgen.commands import reconstruct as cmd
 
     assert (cmd.REST_CHOICES, cmd.DEFAULT_REST) == (REST_CHOICES, DEFAULT_REST)
+    assert check_rest_options(None) == "model"  # easy (the model's shape, no pauses) keeps its figures
     with pytest.raises(ValueError, match="unknown rest 'quiet'"):
         check_rest_options("quiet")
     with pytest.raises(ValueError, match="contradict"):
         check_rest_options("model", "train.npz")
     with pytest.raises(ValueError, match="at least 10 training frames .* got 6 of 8 frames"):
         rest_frames(8, 2)
-    assert rest_frames(8, 2, explicit=False) is None  # the default falls back (and says so)
+    assert rest_frames(8, 2, explicit=False) is None  # auto falls back (and says so)
     out = ["--out", str(tmp_path / "o.npz")]
     with pytest.raises(SystemExit):
         main(["reconstruct", "ds", "--rest", "quiet", *out])
@@ -220,8 +221,8 @@ def test_bad_rest_options_are_refused_naming_the_value(tmp_path, model, subject,
         measured_from_rest(recon, physics, "recording", np.arange(0, 20, 2))
 
 
-def test_rest_frames_from_one_held_posture_are_not_taken_by_default(model, subject, caplog):
-    """Pauses: runs of rest frames more than PAUSE_GAP apart. The default asks for MIN_PAUSES of them
+def test_rest_frames_from_one_held_posture_are_not_taken_by_auto(model, subject, caplog):
+    """Pauses: runs of rest frames more than PAUSE_GAP apart. ``auto`` asks for MIN_PAUSES of them
     (a held vowel is quiet too); fewer give the model's rest, and the reason is recorded."""
     import logging
 
@@ -230,6 +231,8 @@ def test_rest_frames_from_one_held_posture_are_not_taken_by_default(model, subje
     assert pause_count([]) == 0 and pause_count([3, 4, 6, 9]) == 1 and pause_count([3, 4, 20, 21]) == 2
     own = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=2)
     assert own.info["rest_source"]["kind"] == "recording" and own.info["rest_source"]["pauses"] >= 2
+    auto = measured_from_rest(recon, physics, "auto", rest_frames(F, T))  # MIN_PAUSES: the same rest
+    assert auto.info["rest_source"] == own.info["rest_source"] and auto.info["rest"] == own.info["rest"]
     with caplog.at_level(logging.WARNING, logger="lipgen.recon.restsource"):
         held = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=9)
     src = held.info["rest_source"]

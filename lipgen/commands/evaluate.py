@@ -32,9 +32,9 @@ def add_parser(sub) -> None:
     p.add_argument("--recon", help="reconstruction of this dataset (default: run lipgen reconstruct)")
     p.add_argument("--out", required=True, help="report folder (created)")
     p.add_argument("--test-frames", type=int, default=None, help="as given to lipgen train")
-    p.add_argument("--rest", choices=("model", "recording"), default=None,
+    p.add_argument("--rest", choices=("model", "recording", "auto"), default=None,
                    help="without --recon: where the reconstruction measures displacements from (as lipgen "
-                   "reconstruct --rest; default recording). A --recon file's own choice is used as recorded")
+                   "reconstruct --rest; default model). A --recon file's own choice is used as recorded")
     add_force(p, "the report files in --out")
     p.set_defaults(func=_run)
 

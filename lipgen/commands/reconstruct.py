@@ -9,7 +9,7 @@ from pathlib import Path
 from lipgen.commands._output import check_file_output
 from lipgen.commands.recording import add_footage_options, report_recording
 
-REST_CHOICES, DEFAULT_REST = ("model", "recording"), "recording"
+REST_CHOICES, DEFAULT_REST = ("model", "recording", "auto"), "model"
 """As :mod:`lipgen.recon.restsource`'s (not imported here: the parser starts fast; a test checks them)."""
 
 _EPILOG = """\
@@ -25,10 +25,11 @@ Displacements are measured from rest. --rest recording: the recording's own rest
 median over its quietest training frames (speech pauses), at the rig's metric scale; the held-out
 tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
 another reconstruction of the same subject, e.g. a test utterance measured from the training
-recording's rest. --rest model: the model's rest markers (right when the subject's lips have the
-model's shape). By default the recording's rest is taken when its quietest frames come from two
-or more pauses, else (one held posture may be a held vowel; fewer than 10 training frames) the
-model's, with a warning. The choice is recorded in the output; lipgen train and evaluate use it.
+recording's rest. --rest model (the default): the model's rest markers (right when the subject's
+lips have the model's shape, as on the easy preset). --rest auto: the recording's rest when its
+quietest frames come from two or more pauses, else (one held posture may be a held vowel; fewer
+than 10 training frames) the model's, with a warning; use it (or --rest recording) for speech
+with pauses. The choice is recorded in the output; lipgen train and evaluate use it.
 
 Every marker sighting is accounted for: accepted (both views agree), rejected (the views disagree,
 or a pose outlier), unpaired (one view only) or lost. The summary per marker goes to stderr, and
@@ -71,9 +72,9 @@ def add_parser(sub) -> None:
                    help="frames the normalisation may take its reference (most neutral) frame from, e.g. "
                    "'0-20' or '3,7,12' (default: all training frames)")
     p.add_argument("--rest", choices=REST_CHOICES, default=None,
-                   help=f"where displacements are measured from: the recording's quiet rest (its training "
-                   f"frames) or the model's rest markers (default {DEFAULT_REST} when its rest frames come "
-                   f"from 2 or more pauses, else model)")
+                   help=f"where displacements are measured from: the model's rest markers, the recording's "
+                   f"quiet rest (its training frames), or auto (the recording's when its rest frames come "
+                   f"from 2 or more pauses, else the model's); default {DEFAULT_REST}")
     p.add_argument("--rest-from", default=None, metavar="RECON",
                    help="measure from the rest of another reconstruction (lipgen reconstruct --rest "
                    "recording) of the same subject and mesh, e.g. the training recording's")

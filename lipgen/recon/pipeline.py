@@ -209,12 +209,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     ``test_frames`` (default :func:`lipgen.recon.split.default_test_frames`, as ``lipgen train``
     holds out), or only the ``reference_frames`` named.
 
-    ``rest`` (``"model"`` or ``"recording"``; None: :data:`lipgen.recon.restsource.DEFAULT_REST`)
-    and ``rest_from`` (the path of another reconstruction) say where the displacements are
-    measured from (:mod:`lipgen.recon.restsource`). The default takes the model's rest, and says
-    so, when the training frames are too few for a quiet rest (an explicit ``"recording"`` refuses)
-    or when their quietest frames are one held posture rather than pauses (an explicit
-    ``"recording"`` takes it, with a warning).
+    ``rest`` (``"model"``, ``"recording"`` or ``"auto"``; None:
+    :data:`lipgen.recon.restsource.DEFAULT_REST`, the model's) and ``rest_from`` (the path of
+    another reconstruction) say where the displacements are measured from
+    (:mod:`lipgen.recon.restsource`). ``"auto"`` takes the model's rest, and says so, when the
+    training frames are too few for a quiet rest (``"recording"`` refuses) or when their quietest
+    frames are one held posture rather than pauses (``"recording"`` takes it, with a warning).
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
@@ -246,8 +246,10 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
     rest_kind = check_rest_options(rest, rest_from)
+    auto = rest_kind == "auto"  # the recording's rest from 2 pauses, else the model's, saying why
+    rest_kind = "recording" if auto else rest_kind
     lender = None if rest_from is None else check_rest_from(Reconstruction.load(rest_from), mesh, rest_from)
-    frames_at_rest = (rest_frames(len(ds), test_frames, explicit=rest is not None)
+    frames_at_rest = (rest_frames(len(ds), test_frames, explicit=not auto)
                       if rest_kind == "recording" and lender is None else None)
     short = (f"{len(ds)} frames leave fewer than {MIN_REST_FRAMES} training frames for a quiet rest"
              if rest_kind == "recording" and lender is None and frames_at_rest is None else None)
@@ -343,6 +345,6 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         score=np.stack([t.score for t in tracks]), frame_index=np.arange(len(ds)), lab_to_board=T,
         similarity=S, rotations=norm.rotations, info=info)
     recon = measured_from_rest(recon, physics, "model" if short else rest_kind, frames_at_rest, lender,
-                               rest_from, why=short, min_pauses=MIN_PAUSES if rest is None else 0)
+                               rest_from, why=short, min_pauses=MIN_PAUSES if auto else 0)
     recon.info["seconds"]["rest"] = time.perf_counter() - t_track
     return recon
