@@ -174,7 +174,21 @@ CASES = [
     ("mesh", "a crack: a duplicated vertex used by faces", _cracked),
     ("physics", "unknown reach objective", _reach_objective),
     ("generate", "`--renderer cycles` without the pip `bpy`", lambda t: _cycles(t, "no bpy")),
+    ("reconstruct", "`--rest model` with `--rest-from`", lambda t: _rest("model", "train.npz")),
+    ("reconstruct", "`--rest recording` with 8 frames (6 training frames)", lambda t: _rest_frames(8)),
 ]
+
+
+def _rest(rest, rest_from):
+    from lipgen.recon.restsource import check_rest_options
+
+    check_rest_options(rest, rest_from)
+
+
+def _rest_frames(n):
+    from lipgen.recon.restsource import rest_frames
+
+    rest_frames(n)
 
 
 def _run(case, tmp: Path) -> tuple[str, str]:

@@ -9,7 +9,9 @@ from lipgen.commands._output import add_force, check_folder_output
 
 _EPILOG = """\
 REPORT/report.md gets the calibration against the true rig, the tracking error per mark (px), the
-3-D marker error after triangulation (mm), the normalisation error, the Table 5.1 analogue (rows
+3-D marker error after triangulation (mm), the normalisation error, the marker displacements
+against the true ones (measured from the reconstruction's rest: lipgen reconstruct --rest; their
+per-marker constant offset), the Table 5.1 analogue (rows
 xyz 8 points, yz, xy; columns 10 modes, full covariance, combined model, physics; against the
 reach fields and against the TRUE surface), the variance captured against the number of modes,
 and pictures. report.json holds the same figures.
@@ -30,6 +32,9 @@ def add_parser(sub) -> None:
     p.add_argument("--recon", help="reconstruction of this dataset (default: run lipgen reconstruct)")
     p.add_argument("--out", required=True, help="report folder (created)")
     p.add_argument("--test-frames", type=int, default=None, help="as given to lipgen train")
+    p.add_argument("--rest", choices=("model", "recording", "auto"), default=None,
+                   help="without --recon: where the reconstruction measures displacements from (as lipgen "
+                   "reconstruct --rest; default model). A --recon file's own choice is used as recorded")
     add_force(p, "the report files in --out")
     p.set_defaults(func=_run)
 
@@ -46,11 +51,14 @@ def _run(args) -> int:
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
     ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
+    if args.recon and args.rest is not None:
+        raise ValueError(f"--rest {args.rest} applies when evaluate reconstructs; the reconstruction "
+                         f"{args.recon} records its own rest (reconstruct again with --rest to change it)")
     if args.recon:
         recon = Reconstruction.load(args.recon)
     else:
         out.mkdir(parents=True, exist_ok=True)
-        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames)
+        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=args.rest)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)

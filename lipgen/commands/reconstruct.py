@@ -9,6 +9,9 @@ from pathlib import Path
 from lipgen.commands._output import check_file_output
 from lipgen.commands.recording import add_footage_options, report_recording
 
+REST_CHOICES, DEFAULT_REST = ("model", "recording", "auto"), "model"
+"""As :mod:`lipgen.recon.restsource`'s (not imported here: the parser starts fast; a test checks them)."""
+
 _EPILOG = """\
 steps: calibrate the camera and the mirror from the dataset's chessboard frames; detect and track
 the ink dots in both views (normalised correlation, first frame matched to the model's markers);
@@ -17,6 +20,16 @@ nose that leaves the least force on the model, one scale from the most neutral f
 thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the
 model reaching the markers with the least-norm force (Physics.reach, thesis eq 4.3). The ground
 truth is not read.
+
+Displacements are measured from rest. --rest recording: the recording's own rest, each marker's
+median over its quietest training frames (speech pauses), at the rig's metric scale; the held-out
+tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
+another reconstruction of the same subject, e.g. a test utterance measured from the training
+recording's rest. --rest model (the default): the model's rest markers (right when the subject's
+lips have the model's shape, as on the easy preset). --rest auto: the recording's rest when its
+quietest frames come from two or more pauses, else (one held posture may be a held vowel; fewer
+than 10 training frames) the model's, with a warning; use it (or --rest recording) for speech
+with pauses. The choice is recorded in the output; lipgen train and evaluate use it.
 
 Every marker sighting is accounted for: accepted (both views agree), rejected (the views disagree,
 or a pose outlier), unpaired (one view only) or lost. The summary per marker goes to stderr, and
@@ -33,6 +46,7 @@ examples:
   lipgen reconstruct data/s0 --out recon.npz
   lipgen reconstruct data/lowres --out recon.npz --allow-missing
   lipgen reconstruct data/s0 --mesh my_lips.npz --out recon.npz
+  lipgen reconstruct data/take2 --rest-from recon.npz --out take2.npz   (take2 from take 1's rest)
   lipgen reconstruct take1.mp4 --calib boards/ --out take1.npz     (writes take1_recording/ too)
   lipgen reconstruct frames/ --fps 60 --calib boards/ --out f.npz --recording rec_f
 """
@@ -57,6 +71,13 @@ def add_parser(sub) -> None:
     p.add_argument("--reference-frames", type=_frames, default=None, metavar="LIST",
                    help="frames the normalisation may take its reference (most neutral) frame from, e.g. "
                    "'0-20' or '3,7,12' (default: all training frames)")
+    p.add_argument("--rest", choices=REST_CHOICES, default=None,
+                   help=f"where displacements are measured from: the model's rest markers, the recording's "
+                   f"quiet rest (its training frames), or auto (the recording's when its rest frames come "
+                   f"from 2 or more pauses, else the model's); default {DEFAULT_REST}")
+    p.add_argument("--rest-from", default=None, metavar="RECON",
+                   help="measure from the rest of another reconstruction (lipgen reconstruct --rest "
+                   "recording) of the same subject and mesh, e.g. the training recording's")
     p.add_argument("--allow-missing", action="store_true",
                    help="exit 0 even when a whole marker was never accepted (default: exit status 3)")
     p.add_argument("--calib", default=None,
@@ -116,18 +137,30 @@ def _dataset_or_recording(args, out: Path) -> Path:
 def _run(args) -> int:
     from lipgen.recon.account import account_lines, missing_marks
     from lipgen.recon.pipeline import reconstruct_dataset
+    from lipgen.recon.restsource import check_rest_options, rest_line
 
     out = check_file_output(args.out, args.force)
+    check_rest_options(args.rest, args.rest_from)
+    if args.rest_from is not None and not Path(args.rest_from).is_file():
+        raise FileNotFoundError(f"--rest-from {args.rest_from}: no such file (a reconstruction written by "
+                                "lipgen reconstruct --rest recording)")
+    if args.rest_from is not None:  # its mesh and rest, before any work
+        from lipgen.recon.pipeline import Reconstruction, model_mesh
+        from lipgen.recon.restsource import check_rest_from
+
+        check_rest_from(Reconstruction.load(args.rest_from), model_mesh(args.mesh), args.rest_from)
     dataset = _dataset_or_recording(args, out)
     recon = reconstruct_dataset(dataset, args.mesh, progress=not args.no_progress,
                                 normalisation=args.normalisation, test_frames=args.test_frames,
-                                reference_frames=args.reference_frames)
+                                reference_frames=args.reference_frames, rest=args.rest,
+                                rest_from=args.rest_from)
     recon.save(out)
     account = recon.info["sightings"]
     sys.stderr.write("\n".join(account_lines(account)) + "\n")
     sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({100 * account['accepted_share']:.1f}% of "
                      f"marker sightings accepted: seen in both views, rays agreeing; calibration "
-                     f"{recon.calibration.rms['all']:.3f} px RMS) -> {out}\n")
+                     f"{recon.calibration.rms['all']:.3f} px RMS; displacements from {rest_line(recon)})"
+                     f" -> {out}\n")
     missing = missing_marks(account)
     if missing:
         sys.stderr.write(f"lipgen reconstruct: warning: {len(missing)} marker(s) never accepted in any "

@@ -11,7 +11,9 @@ _EPILOG = """\
 The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
 140 + 10) are held out for lipgen evaluate; frames without a field (too few markers seen) are
 skipped. The reconstruction's normalisation reference frame must be a training frame (lipgen
-reconstruct chooses it outside the same default tail; give both the same --test-frames).
+reconstruct chooses it outside the same default tail; give both the same --test-frames), and so
+must the frames its rest was estimated on (lipgen reconstruct --rest recording). The rest the
+fields are measured from is recorded in the model's provenance.
 
 example:
   lipgen train recon.npz --out model.npz --modes 10
@@ -41,6 +43,14 @@ def _run(args) -> int:
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames
     train, test = split_frames(recon.fields, T)
+    rest = recon.info.get("rest_source", {})
+    own = rest.get("of") == "this recording"
+    held = sorted(f for f in rest.get("rest_frames", []) if f >= F - T) if own else []
+    if held:
+        raise ValueError(f"the reconstruction's rest is the median of frames including {held}, which "
+                         f"--test-frames {T} holds out (frames {F - T}-{F - 1}): the test frames would "
+                         f"have shaped the training data; reconstruct again with lipgen reconstruct "
+                         f"--test-frames {T}")
     ref = recon.info.get("normalisation", {}).get("reference_frame")
     if ref is not None and ref >= len(recon.fields) - T:
         raise ValueError(f"the reconstruction's normalisation took its reference frame {ref} from the "
@@ -52,7 +62,8 @@ def _run(args) -> int:
     model.save(out)
     share = 100 * model.explained_variance_ratio_.sum()
     sys.stdout.write(f"trained {len(model.components_)} modes on {len(train)} frames ({share:.2f}% of the "
-                     f"variance); {len(test)} test frames held out -> {out}\n")
+                     f"variance; displacements from {model.provenance_['rest']}); {len(test)} test frames "
+                     f"held out -> {out}\n")
     return 0
 
 
@@ -67,5 +78,8 @@ def _provenance(recon, recon_path, train) -> dict:
         digest = dataset_digest(dataset) if dataset else None
     except OSError:  # the dataset has moved: the frames are still recorded
         digest = None
+    from lipgen.recon.restsource import rest_line
+
     return {"dataset": dataset, "dataset_id": digest, "recon": os.path.abspath(recon_path),
-            "frames": [int(f) for f in train]}
+            "frames": [int(f) for f in train], "rest": rest_line(recon),
+            "rest_kind": recon.info.get("rest_source", {}).get("kind", "model")}

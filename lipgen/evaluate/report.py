@@ -102,10 +102,13 @@ def _overlay_picture(model, mesh, recon, true_fields, frame: int, out: Path) -> 
     plt = _plt()
     from matplotlib.collections import LineCollection
 
+    from lipgen.recon.restsource import rest_markers
+
     seen = np.flatnonzero(recon.visible[frame, :8])
     rest = mesh.vertices
     d = node_dofs(mesh.markers[seen], "xyz")
-    y = (recon.markers[frame, seen] - rest[mesh.markers[seen]]).ravel()
+    shift = rest[mesh.markers] - rest_markers(recon, mesh)  # markers drawn on the model's rest
+    y = (recon.markers[frame, seen] + shift[seen] - rest[mesh.markers[seen]]).ravel()
     est = model.llse(d).estimate(y)
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     for ax, (a, b, name) in zip(axes, ((0, 1, "front (x-y)"), (2, 1, "side (z-y)")), strict=True):
@@ -116,7 +119,8 @@ def _overlay_picture(model, mesh, recon, true_fields, frame: int, out: Path) -> 
             loops = mesh.faces[:, [0, 1, 2, 0]]
             ax.add_collection(LineCollection(np.stack([W[loops, a], W[loops, b]], axis=-1), **style))
             ax.plot([], [], label=label, **style)
-        ax.plot(recon.markers[frame, seen, a], recon.markers[frame, seen, b], "o", color="tab:blue", ms=4,
+        drawn = recon.markers[frame, seen] + shift[seen]
+        ax.plot(drawn[:, a], drawn[:, b], "o", color="tab:blue", ms=4,
                 label="observed markers")
         ax.set_aspect("equal")
         ax.set_title(name)
@@ -214,6 +218,21 @@ def _conditions_picture(ds, frame: int, out: Path) -> str | None:
         return None
 
 
+def _displacement_md(s: dict) -> list[str]:
+    d = s.get("displacements")
+    if d is None:
+        return []
+    cells = ", ".join(f"{k} {_fmt(d[k]['rms_mm'])} / {_fmt(d[k]['offset_rms_mm'])} / "
+                      f"{_fmt(d[k]['after_offset_rms_mm'])}" for k in ("train", "test"))
+    model = (f" The model was trained on fields measured from {d['model_rest']}." if d.get("model_rest")
+             else "")
+    return [f"- Marker displacements, measured from {d['rest']} (that rest is "
+            f"{_fmt(d['all']['rest_rms_mm'])} mm RMS from the subject's true rest), against the true "
+            f"displacements from the subject's own rest, mm RMS / each marker's constant offset (RMS over "
+            f"the markers) / after the offset: "
+            f"{cells}.{model}"]
+
+
 def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None) -> Path:
     """Write ``report.md``, ``report.json`` and the pictures into folder ``out``."""
     from lipgen.evaluate.metric import ERROR_DEFINITION
@@ -280,9 +299,12 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"{_fmt(tri['max_mm'])} mm) over the {100 * tri['visible_share']:.1f}% of marker sightings seen in "
           f"both views; median ray gap {_fmt(tri['ray_gap_median_mm'])} mm.",
           f"- Normalisation ({_METHOD_NAMES.get(nrm.get('method', 'thesis'), nrm.get('method'))}) error, "
-          f"normalised markers vs the true model-frame marks: **{_fmt(nrm['rms_mm'])} mm RMS**, with the "
-          f"scale fitted on frame {nrm['reference_frame']} (the most neutral-looking frame; the thesis used "
-          f"the first). The same method on the exact world marks: {_fmt(nrm['exact_input_rms_mm'])} mm, what "
+          f"normalised markers vs the true model-frame marks: **{_fmt(nrm['rms_mm'])} mm RMS**, "
+          + (f"at the rig's metric scale (scale 1; the head rotation from {nrm['metric_reference']}; its "
+             f"reference frame {nrm['reference_frame']})" if nrm.get("metric_reference") else
+             f"with the scale fitted on frame {nrm['reference_frame']} (the most neutral-looking frame; the "
+             "thesis used the first)")
+          + f". The same method on the exact world marks: {_fmt(nrm['exact_input_rms_mm'])} mm, what "
           "the method itself costs (the head turns by up to "
           f"{_fmt(nrm['head_rotation_deg_max'], 2)} deg here). The thesis's §3 lip-plane method on the exact "
           "marks, for comparison: "
@@ -294,7 +316,7 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
           f"node (the true displacement itself is {_fmt(fld['true_rms_displacement_mm'])} mm RMS; reach from "
           f"the TRUE model-frame markers, the model's own floor, "
           f"{_fmt(fld['reach_from_true_markers_rms_mm'])} mm); "
-          f"{fld['frames_without_field']} frame(s) without a field.", "",
+          f"{fld['frames_without_field']} frame(s) without a field.", *_displacement_md(s), "",
           "## Table 5.1 on these data (mean squared error per hidden DOF over the test frames)", "",
           f"Error: {ERROR_DEFINITION}.", ""]
     L += _table51_md(s["table51"], s["thesis_unit_mm"])

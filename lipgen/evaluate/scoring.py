@@ -302,7 +302,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
         "thesis_exact_input_rms_mm": thesis_exact,
         "reference_frame": ref_used, "fit_rms_mm": info["fit_rms_mm"],
         "outliers": len(info.get("outliers", [])),
-        "scale": info["scale"],
+        "scale": info["scale"], "metric_reference": info.get("metric_reference"),
         "head_rotation_deg_max": float(np.degrees(max(np.arccos(np.clip((np.trace(p[:3, :3]) - 1) / 2, -1, 1))
                                                       for p in truth["pose"])))}
     # Training data quality and the Table 5.1 analogue.
@@ -331,6 +331,29 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     if out["split"]["reference_frame_in_test"]:
         log.warning("the normalisation's reference frame %d is a test frame: the held-out frames shaped "
                     "the training data; reconstruct with --test-frames %d", ref_used, T)
+    from lipgen.evaluate.displacement import displacement_error
+    from lipgen.recon.restsource import rest_line, rest_markers
+
+    # Displacements from the rest the reconstruction measures from (lipgen reconstruct --rest).
+    rest = rest_markers(recon, mesh)
+    meas = measured_markers(recon)
+    true_rest = ds.rest_marks()[:P]
+    out["displacements"] = {"rest": rest_line(recon), "model_rest": (getattr(model, "provenance_", None)
+                                                                      or {}).get("rest"),
+                            **{k: displacement_error(recon.markers, meas, rest, marks_model, true_rest, fr)
+                               for k, fr in (("all", None), ("train", train), ("test", test))}}
+    src = recon.info.get("rest_source", {})
+    held = sorted(set(src.get("rest_frames", [])) & set(test.tolist())) if src.get("of") == "this recording" \
+        else []
+    out["split"]["rest_frames_in_test"] = held
+    if held:
+        log.warning("the reconstruction's rest is the median of frames including test frames %s: the "
+                    "held-out frames shaped the training data; reconstruct with --test-frames %d", held, T)
+    prov_kind = (getattr(model, "provenance_", None) or {}).get("rest_kind")
+    kind = recon.info.get("rest_source", {}).get("kind", "model")
+    if prov_kind is not None and prov_kind != kind:
+        log.warning("the model was trained on fields measured from a %s rest, this reconstruction is "
+                    "measured from a %s rest", prov_kind, kind)
     from lipgen.modes.combined import CombinedModel
 
     # The combined model chooses its physical prior and the marker noise from the training fields.
@@ -339,7 +362,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                               "noise_variance_mm2": comb.noise_variance_,
                               "log_likelihood": comb.selection_.log_likelihood}
     out["table51"] = table51(model, physics, recon, test, true_fields, min(10, len(model.components_)),
-                             combined=comb)
+                             combined=comb, rest=rest)
     var = np.asarray(model.full_variance_)
     out["variance"] = {"cumulative_share": (np.cumsum(var) / model.total_variance_).tolist(),
                        "ten_modes": float(var[:10].sum() / model.total_variance_)}

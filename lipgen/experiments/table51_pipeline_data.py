@@ -31,7 +31,9 @@ def reconstruct(path: Path, progress: bool):
         return Reconstruction.load(file)
     from lipgen.dataset.layout import Dataset
 
-    recon = reconstruct_dataset(path, progress=progress, reference_frames=range(len(Dataset(path))))
+    # as reconstructed before the rest choice: normalised() measures from the rest its settings name
+    recon = reconstruct_dataset(path, progress=progress, reference_frames=range(len(Dataset(path))),
+                                rest="model")
     recon.save(file)
     return recon
 

@@ -31,6 +31,7 @@ from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.account import sighting_account
 from lipgen.recon.calibrate import RigCalibration, calibrate_rig
+from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
@@ -122,7 +123,7 @@ class Reconstruction:
         return cls(**{k: d[k] for k in names if k != "info"}, info=info)
 
 
-_PATH_KEYS = ("dataset", "mesh_source")
+_PATH_KEYS = ("dataset", "mesh_source", "rest_from")
 """Paths in ``Reconstruction.info``: absolute in memory, relative to the file on disk (a file
 names no folder of the machine it was made on, and still finds its dataset and mesh when the
 two move together)."""
@@ -151,15 +152,6 @@ def _paths_resolved_from(info: dict, path) -> dict:
         if _is_file_source(out.get(key)) and not os.path.isabs(out[key]):
             out[key] = os.path.normpath(os.path.join(base, out[key]))
     return out
-
-
-def model_mesh(source: str = "lip_mesh(0)") -> LipMesh:
-    """The reconstruction model's mesh: ``"lip_mesh(R)"`` or a path to a saved :class:`LipMesh`."""
-    if source.startswith("lip_mesh(") and source.endswith(")"):
-        from lipgen.mesh.procedural import lip_mesh
-
-        return lip_mesh(int(source[len("lip_mesh("):-1]))
-    return LipMesh.load(source)
 
 
 def lab_frame(cal: RigCalibration) -> np.ndarray:
@@ -208,16 +200,32 @@ def _check_marks(ds, mesh: LipMesh) -> None:
 
 def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: ReconstructSettings | None = None,
                         progress: bool = False, normalisation: str = "least-force",
-                        test_frames: int | None = None, reference_frames=None) -> Reconstruction:
+                        test_frames: int | None = None, reference_frames=None, rest: str | None = None,
+                        rest_from=None) -> Reconstruction:
     """Run the whole reconstruction on a dataset folder (see the module docstring).
 
     ``normalisation`` is one of :data:`lipgen.recon.normalize.METHODS`. The normalisation's
     reference frame is the most neutral-looking of the training frames: all but the last
     ``test_frames`` (default :func:`lipgen.recon.split.default_test_frames`, as ``lipgen train``
     holds out), or only the ``reference_frames`` named.
+
+    ``rest`` (``"model"``, ``"recording"`` or ``"auto"``; None:
+    :data:`lipgen.recon.restsource.DEFAULT_REST`, the model's) and ``rest_from`` (the path of
+    another reconstruction) say where the displacements are measured from
+    (:mod:`lipgen.recon.restsource`). ``"auto"`` takes the model's rest, and says so, when the
+    training frames are too few for a quiet rest (``"recording"`` refuses) or when their quietest
+    frames are one held posture rather than pauses (``"recording"`` takes it, with a warning).
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
+    from lipgen.recon.rest import MIN_REST_FRAMES
+    from lipgen.recon.restsource import (
+        MIN_PAUSES,
+        check_rest_from,
+        check_rest_options,
+        measured_from_rest,
+        rest_frames,
+    )
 
     if normalisation not in METHODS:
         raise ValueError(f"unknown normalisation {normalisation!r}; choose one of {METHODS}")
@@ -237,6 +245,16 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
                            "photos: build the folder with lipgen recording init VIDEO --calib DIR")
     mesh = model_mesh(mesh_source)
     _check_marks(ds, mesh)
+    rest_kind = check_rest_options(rest, rest_from)
+    auto = rest_kind == "auto"  # the recording's rest from 2 pauses, else the model's, saying why
+    rest_kind = "recording" if auto else rest_kind
+    lender = None if rest_from is None else check_rest_from(Reconstruction.load(rest_from), mesh, rest_from)
+    frames_at_rest = (rest_frames(len(ds), test_frames, explicit=not auto)
+                      if rest_kind == "recording" and lender is None else None)
+    short = (f"{len(ds)} frames leave fewer than {MIN_REST_FRAMES} training frames for a quiet rest"
+             if rest_kind == "recording" and lender is None and frames_at_rest is None else None)
+    if short:
+        log.warning("%s: measured from the model's rest", short)
     with blas_threads(1):  # a small bundle adjustment
         cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.calibration_boards())
     t_cal = time.perf_counter()
@@ -321,8 +339,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "sightings": account,
         "seconds": {"calibration": t_cal - t0, "tracking": t_track - t_cal, "rest": t_end - t_track},
     }
-    return Reconstruction(
+    recon = Reconstruction(
         fields=fields, markers=norm.markers, visible=vis[:, :P], lab_points=points, ray_gap=gap,
         uv=np.stack([t.uv for t in tracks]), status=np.stack([t.status for t in tracks]),
         score=np.stack([t.score for t in tracks]), frame_index=np.arange(len(ds)), lab_to_board=T,
         similarity=S, rotations=norm.rotations, info=info)
+    recon = measured_from_rest(recon, physics, "model" if short else rest_kind, frames_at_rest, lender,
+                               rest_from, why=short, min_pauses=MIN_PAUSES if auto else 0)
+    recon.info["seconds"]["rest"] = time.perf_counter() - t_track
+    return recon

@@ -100,7 +100,7 @@ def renormalize(recon, reference, physics=None, rest=None):
     method = norm_info.get("method", "least-force")
     if physics is None:
         from lipgen.fem import Physics
-        from lipgen.recon.pipeline import model_mesh
+        from lipgen.recon.modelmesh import model_mesh
 
         physics = Physics(model_mesh(info["mesh_source"]))
     mesh = physics.mesh

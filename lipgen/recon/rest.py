@@ -121,7 +121,7 @@ def _densest_half(X, m, q) -> np.ndarray:
 
 
 def quiet_rest(markers, measured, share: float = 0.15, min_frames: int = MIN_REST_FRAMES,
-               min_sightings: float = MIN_SIGHTINGS, names=None) -> np.ndarray:
+               min_sightings: float = MIN_SIGHTINGS, names=None, return_frames: bool = False):
     """(P, 3) each marker's median position over the rest frames, mm; NaN where it cannot be told.
 
     Parameters
@@ -139,6 +139,8 @@ def quiet_rest(markers, measured, share: float = 0.15, min_frames: int = MIN_RES
         else its row is NaN and a warning names it (the pipeline then takes the model's rest).
     names : sequence of str, optional
         The markers' names (P,), for that warning.
+    return_frames : bool
+        Also return the rest frames, (k,) int indices into ``markers``.
 
     Returns
     -------
@@ -169,7 +171,7 @@ def quiet_rest(markers, measured, share: float = 0.15, min_frames: int = MIN_RES
         log.warning("rest from %d quiet frames: %s measured in fewer than %d of them; the model's rest is "
                     "used there", len(q), ", ".join(f"{names[j] if names is not None else f'marker {j}'} "
                                                     f"({count[j]})" for j in few), need)
-    return out
+    return (out, q) if return_frames else out
 
 
 def metric_renormalize(recon, physics, rest=None, reference=None):
