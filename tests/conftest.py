@@ -1,14 +1,23 @@
 """Fixtures shared by more than one test module."""
 
+import sys
+
 import numpy as np
 import pytest
 
-from lipgen import Physics, dofs, lip_mesh
-from lipgen.modes.model import ModeModel
+# Bytecode caches are written even where PYTHONDONTWRITEBYTECODE is set (as on the shared
+# development machines): without them every test process compiles lipgen and rewrites the
+# asserts of all test modules from source again, 25 s of CPU against 7 s for the collection alone,
+# paid by each xdist worker. The caches go in the gitignored __pycache__ folders, are written
+# atomically, and a changed source is compiled again (Python's and pytest's own mtime and size
+# checks). Subprocesses keep the environment's setting, and read the caches.
+sys.dont_write_bytecode = False
 
 
 @pytest.fixture(scope="module")
 def usd_mesh():
+    from lipgen import lip_mesh
+
     return lip_mesh(0)
 
 
@@ -16,6 +25,9 @@ def usd_mesh():
 def usd_fitted(usd_mesh):
     """A ModeModel trained as the thesis did (least-strain fields reaching random marker goals,
     through the FEM), and the weights of 24 held-out frames."""
+    from lipgen import Physics, dofs
+    from lipgen.modes.model import ModeModel
+
     rng = np.random.default_rng(7)
     physics = Physics(usd_mesh)
     model = ModeModel(n_modes=10).fit_from_markers(physics, rng.normal(scale=2.0, size=(80, 16, 3)))
