@@ -16,7 +16,6 @@ from lipgen.nrsfm.kscan import DaiScan
 from lipgen.nrsfm.synthetic import low_rank_sequence
 from lipgen.nrsfm.validation import human_sequence
 
-
 # dai at one K is a pure function of the tracks: the exhaustive references of the tests below share
 # their runs (the 1101 body's Ks 1-6 serve kmax 6 and 8) instead of running dai twice at each K.
 _DAI_RUNS = {}
