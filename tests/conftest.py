@@ -14,11 +14,16 @@ import pytest
 # environment's setting, and read the caches.
 sys.dont_write_bytecode = False
 
+# Imported here, before any test, and not inside the fixtures: the one-BLAS-thread fixture below
+# limits the BLAS/OpenMP libraries already loaded, and these imports load them (scipy's OpenBLAS
+# among them: loaded later, inside a test, it ran on two threads, and default_subject took 5-10x
+# the CPU).
+from lipgen import Physics, dofs, lip_mesh  # noqa: E402
+from lipgen.modes.model import ModeModel  # noqa: E402
+
 
 @pytest.fixture(scope="module")
 def usd_mesh():
-    from lipgen import lip_mesh
-
     return lip_mesh(0)
 
 
@@ -26,9 +31,6 @@ def usd_mesh():
 def usd_fitted(usd_mesh):
     """A ModeModel trained as the thesis did (least-strain fields reaching random marker goals,
     through the FEM), and the weights of 24 held-out frames."""
-    from lipgen import Physics, dofs
-    from lipgen.modes.model import ModeModel
-
     rng = np.random.default_rng(7)
     physics = Physics(usd_mesh)
     model = ModeModel(n_modes=10).fit_from_markers(physics, rng.normal(scale=2.0, size=(80, 16, 3)))
