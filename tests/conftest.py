@@ -7,8 +7,8 @@ import pytest
 
 # Bytecode caches are written even where PYTHONDONTWRITEBYTECODE is set (as on the shared
 # development machines): without them every test process compiles lipgen and rewrites the
-# asserts of all test modules from source again. The collection alone took 13.6-15.5 s of CPU
-# against 7.8-10.2 s with the caches (interleaved, load 9.5), paid by each xdist worker. The
+# asserts of all test modules from source again. The collection alone took 16.4-16.5 s of CPU
+# against 7.6-9.8 s with the caches (interleaved, load 6-7), paid by each xdist worker. The
 # caches go in the gitignored __pycache__ folders, are written atomically, and a changed source is
 # compiled again (Python's and pytest's own mtime and size checks). Subprocesses keep the
 # environment's setting, and read the caches.
