@@ -149,7 +149,10 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
     from lipgen.cli import main
     from lipgen.dataset.pictures import preset_of
 
-    easy = generate(tmp_path / "e", replace(s, conditions=ImageConditions(), noise=1.0), progress=False)
+    # the easy side with the linear truth: preset_of and `show --beside` read the image conditions
+    # and the frames, not the truth's physics (the layered one would be simulated a third time)
+    easy_settings = replace(s, conditions=ImageConditions(), noise=1.0, truth_physics="linear")
+    easy = generate(tmp_path / "e", easy_settings, progress=False)
     assert preset_of(Dataset(easy)) == "easy" and preset_of(ds) == "custom"  # hard + video
     picture = tmp_path / "p.png"
     assert main(["show", str(easy), "--beside", str(a), "--frame", "1", "--out", str(picture)]) == 0
