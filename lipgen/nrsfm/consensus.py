@@ -42,7 +42,8 @@ from lipgen.nrsfm.engine import _as_basis
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import Reconstruction
 
-__all__ = ["CONSENSUS_KS", "consensus_depth", "with_depth", "consensus_reconstruction"]
+__all__ = ["CONSENSUS_KS", "ERROR_CORRELATION", "design_effect", "consensus_depth", "with_depth",
+           "consensus_reconstruction"]
 
 log = logging.getLogger(__name__)
 
@@ -51,13 +52,49 @@ CONSENSUS_KS = 4
 bodies: 4 left the fewest sequences worse than flat and hurt the fewest)."""
 
 
+ERROR_CORRELATION = 0.0
+"""Assumed correlation of the averaged Ks' depth errors (they come from the same tracks), which sets the
+James-Stein factor's noise through :func:`design_effect` (0: independent errors, the factor as first built)."""
+
+
+def design_effect(m: int, rho: float) -> float:
+    """How much the noise left in the mean of ``m`` estimates exceeds ``s2 / m`` when their errors are
+    pairwise correlated by ``rho``.
+
+    With errors of variance ``v`` and correlation ``rho``, the spread about their mean has expectation
+    ``s2 = (1 - rho) v`` and the mean's error variance is ``(1 + (m - 1) rho) v / m`` (Kish's design
+    effect of correlated replicates), so the noise is ``design_effect * s2 / m`` with
+    ``design_effect = (1 + (m - 1) rho) / (1 - rho)``.
+
+    Parameters
+    ----------
+    m : int
+        Number of estimates averaged (at least 1).
+    rho : float
+        In [0, 1).
+
+    Returns
+    -------
+    float
+        1 for independent errors; grows without bound as ``rho`` nears 1.
+    """
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+        raise ValueError(f"m must be a positive integer, got {m!r}")
+    if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(rho) < 1.0:
+        raise ValueError(f"rho must be a correlation in [0, 1), got {rho!r}")
+    if rho == 0:
+        return 1.0
+    return (1.0 + (m - 1) * float(rho)) / (1.0 - float(rho))
+
+
 def _centred_depth(rec: Reconstruction) -> np.ndarray:
     z = rec.shapes[:, 2]
     return z - z.mean(axis=1, keepdims=True)
 
 
 def consensus_depth(candidates: list[Reconstruction], chosen: int,
-                    m: int = CONSENSUS_KS) -> tuple[np.ndarray, dict]:
+                    m: int = CONSENSUS_KS, rho: float = ERROR_CORRELATION) -> tuple[np.ndarray, dict]:
     """The shrunk mean depth of the ``m`` smoothest reconstructions (see the module docstring).
 
     Parameters
@@ -70,13 +107,17 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     m : int
         Number of depths averaged (at least 1; 1 returns the chosen depth, unshrunk; fewer
         candidates than ``m``: all of them).
+    rho : float
+        Assumed correlation of the depths' errors, in [0, 1): the noise is :func:`design_effect` times
+        ``s2 / m`` (default :data:`ERROR_CORRELATION`).
 
     Returns
     -------
     z : (F, P) float
         Camera-frame depth, centred in each frame.
     record : dict
-        ``ks`` (averaged), ``factor`` (the James-Stein factor), ``spread`` (``s2 / m`` over ``|zbar|^2``).
+        ``ks`` (averaged), ``factor`` (the James-Stein factor), ``spread`` (``s2 / m`` over ``|zbar|^2``),
+        ``design_effect``.
     """
     if not candidates:
         raise ValueError("consensus_depth needs at least one reconstruction")
@@ -88,9 +129,11 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     if len(shapes) != 1:
         raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
                          "sequence")
+    design_effect(1, rho)   # checks rho
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
     picked = [chosen] + order[: int(m) - 1]
+    effect = design_effect(len(picked), rho)
     ref = _centred_depth(candidates[chosen])
     Z = []
     for i in picked:
@@ -103,10 +146,10 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
         spread, factor = 0.0, 1.0
     else:
         spread = float(np.sum((Z - zbar) ** 2)) / (len(picked) - 1) / len(picked) / power
-        factor = max(0.0, 1.0 - spread)
+        factor = max(0.0, 1.0 - effect * spread)
     ks = [int(candidates[i].k) for i in picked]
     log.info("consensus depth of K = %s: James-Stein factor %.3f", ks, factor)
-    return factor * zbar, {"ks": ks, "factor": factor, "spread": spread}
+    return factor * zbar, {"ks": ks, "factor": factor, "spread": spread, "design_effect": effect}
 
 
 def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> Reconstruction:
@@ -139,7 +182,7 @@ def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> 
 
 
 def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
-                             m: int = CONSENSUS_KS) -> Reconstruction:
+                             m: int = CONSENSUS_KS, rho: float = ERROR_CORRELATION) -> Reconstruction:
     """The chosen reconstruction with the consensus depth (:func:`consensus_depth`), or itself when it is
     an exact K-shape fit or ``m`` is 1.
 
@@ -148,6 +191,8 @@ def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
     candidates : list of Reconstruction
     chosen : int
     m : int
+    rho : float
+        As :func:`consensus_depth`.
 
     Returns
     -------
@@ -159,6 +204,6 @@ def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
         reason = "exact K-shape fit: depth kept" if m != 1 else "m = 1: depth kept"
         record = {"ks": [int(rec.k)], "factor": 1.0, "spread": 0.0, "reason": reason}
         return replace(rec, info=rec.info | {"depth_consensus": record})   # the same arrays, bit for bit
-    z, record = consensus_depth(candidates, chosen, m)
+    z, record = consensus_depth(candidates, chosen, m, rho)
     return with_depth(rec, z, {"depth_consensus": record | {"reason": f"mean of the {len(record['ks'])} "
                                                                       "smoothest Ks, James-Stein shrunk"}})
