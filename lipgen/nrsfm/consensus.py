@@ -69,7 +69,7 @@ def design_effect(m: int, rho: float) -> float:
     Parameters
     ----------
     m : int
-        Number of estimates averaged (at least 1).
+        Number of estimates averaged (at least 2: one estimate has no spread).
     rho : float
         In [0, 1).
 
@@ -78,14 +78,18 @@ def design_effect(m: int, rho: float) -> float:
     float
         1 for independent errors; grows without bound as ``rho`` nears 1.
     """
-    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
-        raise ValueError(f"m must be a positive integer, got {m!r}")
-    if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
-            or not 0.0 <= float(rho) < 1.0:
-        raise ValueError(f"rho must be a correlation in [0, 1), got {rho!r}")
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 2:
+        raise ValueError(f"m must be an integer of at least 2 (estimates averaged), got {m!r}")
+    _check_rho(rho)
     if rho == 0:
         return 1.0
     return (1.0 + (m - 1) * float(rho)) / (1.0 - float(rho))
+
+
+def _check_rho(rho) -> None:
+    if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(rho) < 1.0:
+        raise ValueError(f"rho must be a correlation in [0, 1), got {rho!r}")
 
 
 def _centred_depth(rec: Reconstruction) -> np.ndarray:
@@ -129,11 +133,11 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     if len(shapes) != 1:
         raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
                          "sequence")
-    design_effect(1, rho)   # checks rho
+    _check_rho(rho)
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
     picked = [chosen] + order[: int(m) - 1]
-    effect = design_effect(len(picked), rho)
+    effect = design_effect(len(picked), rho) if len(picked) > 1 else 1.0
     ref = _centred_depth(candidates[chosen])
     Z = []
     for i in picked:
