@@ -29,6 +29,16 @@ factors, never on drink, jaws or the fresh seeds (there: worse than flat 5 -> 3 
 it helped 10 bodies and hurt 10 (walk-1000: 0.115 -> 0.218), so it trades accuracy on good sequences
 for fewer failures (``renders/examples/nrsfm/fresh_1000_1019.md``). ``consensus=1`` in
 :func:`lipgen.nrsfm.kchoice.reconstruct_auto` keeps the chosen K's own depth.
+
+The Ks' errors are not independent, so ``s2 / m`` understates the noise left in their mean;
+:func:`design_effect` scales it for an assumed correlation ``rho`` of the errors (Kish's design effect).
+It stays opt-in (``rho`` 0 by default: the factor above, bit for bit): on 17 development bodies (1000,
+1005, 1006, 1009, 1014, 1102, 1105, 1106, 1113, 1116, 1206, 1209, 1210, 1302, 1305, 1310, 1318; 80
+frames, with the depth-support test) ``rho`` 0.1 and 0.2 took the bodies worse than flat from 3 to 2
+(only dance-1310 crossed, by 0.006) while hurting 4 and 5 more good bodies by over 0.01 (walk-1000
+0.218 -> 0.240 and 0.270); mean e3D 0.460 -> 0.464 and 0.469. Where ``dai`` fails, its Ks agree on the
+wrong depth (walk-1116: factor 0.90, halves 3.5 degrees apart): a bias that no spread of the Ks sees
+(``renders/examples/nrsfm/fresh_1400_1419.md``).
 """
 
 from __future__ import annotations
@@ -54,7 +64,8 @@ bodies: 4 left the fewest sequences worse than flat and hurt the fewest)."""
 
 ERROR_CORRELATION = 0.0
 """Assumed correlation of the averaged Ks' depth errors (they come from the same tracks), which sets the
-James-Stein factor's noise through :func:`design_effect` (0: independent errors, the factor as first built)."""
+James-Stein factor's noise through :func:`design_effect` (0: independent errors, the factor as first
+built)."""
 
 
 def design_effect(m: int, rho: float) -> float:

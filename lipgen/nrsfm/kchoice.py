@@ -126,13 +126,13 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
         Largest K tried.
     consensus : int
         ``dai``: number of the smoothest Ks whose depths are averaged (1: the chosen K's depth as it is).
+    support : float or None
+        ``dai``: the largest disagreement (degrees) of the halves' rotations for which the depth is
+        kept (default :data:`lipgen.nrsfm.support.SUPPORT_DEG`); None: no test.
     rho : float
         ``dai``: assumed correlation of those Ks' depth errors, which sets the James-Stein factor's noise
         (:func:`lipgen.nrsfm.consensus.design_effect`; default
         :data:`lipgen.nrsfm.consensus.ERROR_CORRELATION`).
-    support : float or None
-        ``dai``: the largest disagreement (degrees) of the halves' rotations for which the depth is
-        kept (default :data:`lipgen.nrsfm.support.SUPPORT_DEG`); None: no test.
     **options
         As :func:`lipgen.nrsfm.reconstruct`.
 
