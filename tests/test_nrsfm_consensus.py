@@ -6,7 +6,7 @@ import pytest
 
 from lipgen.nrsfm import e3d
 from lipgen.nrsfm._rotation import expm_so3
-from lipgen.nrsfm.consensus import consensus_depth, consensus_reconstruction, with_depth
+from lipgen.nrsfm.consensus import consensus_depth, consensus_reconstruction, design_effect, with_depth
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.kchoice import candidate_ks, smooth_k
 from lipgen.nrsfm.record import Reconstruction
@@ -167,3 +167,65 @@ def test_auto_is_the_consensus_of_dai_at_every_k():
     np.testing.assert_allclose(rec.shapes[:, :2], runs[i].shapes[:, :2], atol=1e-9 * np.abs(s.W).max())
     assert np.array_equal(consensus_reconstruction(runs, i, 1).S, runs[i].S)
     assert np.isfinite(e3d(S_est=rec.S, S_true=s.S))
+
+
+def test_design_effect_closed_form_and_monte_carlo():
+    """(1 + (m - 1) rho) / (1 - rho): 1 for independent errors or one estimate, 2 for four at rho 0.2; and
+    what it claims: the mean's error variance over the expected s2 / m, checked on correlated draws."""
+    assert design_effect(4, 0.0) == 1.0 and design_effect(2, 0.5) == pytest.approx(3.0, abs=1e-12)
+    assert design_effect(4, 0.2) == pytest.approx(2.0, abs=1e-12)
+    m, rho = 4, 0.3
+    cov = (1 - rho) * np.eye(m) + rho * np.ones((m, m))
+    e = np.random.default_rng(7).standard_normal((40000, m)) @ np.linalg.cholesky(cov).T
+    ratio = np.var(e.mean(axis=1)) / (np.mean(np.var(e, axis=1, ddof=1)) / m)
+    assert ratio == pytest.approx(design_effect(m, rho), rel=0.03)
+
+
+def test_correlated_errors_shrink_more_by_the_design_effect():
+    """The closed form of test_james_stein_factor_closed_form with rho: m = 2, spread 1/4, so the factor
+    is 1 - (1 + rho) / (1 - rho) / 4; rho 0 gives the same bytes as the default."""
+    rng = np.random.default_rng(1)
+    F, P = 10, 8
+    cam = _centre(rng.standard_normal((F, 3, P)))
+    z = cam[:, 2]
+    d = _centre(rng.standard_normal((F, P)))
+    d -= z * np.sum(d * z) / np.sum(z * z)
+    d *= 0.5 * np.sqrt(np.sum(z * z) / np.sum(d * d))
+    a, b = cam.copy(), cam.copy()
+    a[:, 2], b[:, 2] = z + d, z - d
+    recs = [_record(a, _rotations(F, 0.01, rng), 3), _record(b, _rotations(F, 0.02, rng), 4)]
+    out, record = consensus_depth(recs, 0, m=2, rho=0.2)
+    assert record["design_effect"] == pytest.approx(1.5)
+    assert record["factor"] == pytest.approx(0.625, abs=1e-12)
+    np.testing.assert_allclose(out, 0.625 * z, atol=1e-12)
+    assert np.array_equal(consensus_depth(recs, 0, m=2, rho=0.0)[0], consensus_depth(recs, 0, m=2)[0])
+    for bad in (-0.1, 1.0, float("nan"), "0.2", True):
+        with pytest.raises(ValueError, match="rho must be a correlation in"):
+            consensus_depth(recs, 0, m=2, rho=bad)
+    with pytest.raises(ValueError, match="m must be an integer of at least 2 .estimates averaged., got 1"):
+        design_effect(1, 0.1)
+
+
+def test_auto_with_rho_scales_only_the_depth(monkeypatch):
+    """reconstruct_auto(rho=...) hands rho to the consensus; against rho 0 on the same runs it keeps the
+    rotations and the image and scales the depth by the ratio of the two James-Stein factors."""
+    from lipgen.nrsfm import kchoice
+    from lipgen.nrsfm.validation import human_sequence
+
+    default = []
+
+    def spy(runs, chosen, m, rho):
+        default.append(consensus_reconstruction(runs, chosen, m))
+        return consensus_reconstruction(runs, chosen, m, rho)
+
+    monkeypatch.setattr(kchoice, "consensus_reconstruction", spy)
+    s = human_sequence(302, 12)
+    out = kchoice.reconstruct_auto(s.W, "dai", kmax=2, support=None, rho=0.3)
+    ref = default[0]
+    a, b = ref.info["depth_consensus"], out.info["depth_consensus"]
+    assert out.k == ref.k and np.array_equal(out.rotations, ref.rotations) and b["factor"] < a["factor"]
+    assert b["design_effect"] == pytest.approx(design_effect(len(b["ks"]), 0.3)) and a["design_effect"] == 1.0
+    scale = np.abs(s.W).max()
+    np.testing.assert_allclose(out.shapes[:, :2], ref.shapes[:, :2], atol=1e-9 * scale)
+    ratio = b["factor"] / a["factor"]
+    np.testing.assert_allclose(out.shapes[:, 2], ref.shapes[:, 2] * ratio, atol=1e-9 * scale)

@@ -107,7 +107,7 @@ def add_parser(sub) -> None:
         "and on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation), beside "
         "the flat zero-depth baseline; write benchmarks.md, benchmarks.json and the "
         "curves to --out. Takes minutes (two development bodies at 80 frames; the check of dai's "
-        "automatic K against the flat baseline on fresh seeds 1300-1319, --check-seeds); --full runs eight "
+        "automatic K against the flat baseline on fresh seeds 1400-1419, --check-seeds); --full runs eight "
         "bodies at 300 frames and the development seeds 300-310 and 400-410 at 300 and 80 frames (about an "
         "hour of CPU). Example: lipgen experiment nrsfm --sequences --no-synthetic --check-seeds 800 801 "
         "(the check alone).",
@@ -127,7 +127,7 @@ def add_parser(sub) -> None:
                    help="standard sequences to run (default: drink jaws; none: skip them)")
     n.add_argument("--check-seeds", nargs="*", type=int, default=None, metavar="SEED",
                    help="seeds of the check of dai's automatic K against the flat baseline (80-frame "
-                   "bodies; default 1300-1319, --full: 300-310 and 400-410; none: skip it)")
+                   "bodies; default 1400-1419, --full: 300-310 and 400-410; none: skip it)")
     add_force(n, "the report files in --out")
     n.set_defaults(func=_nrsfm)
     ls = exp.add_parser(

@@ -15,13 +15,14 @@ PUBLISHED = {
 
 SEEN_SEEDS = frozenset({*range(100, 108), *range(300, 311), *range(400, 411), *range(700, 730),
                         *range(800, 820), *range(900, 906), *range(1000, 1020), *range(1100, 1120),
-                        *range(1200, 1220)})
+                        *range(1200, 1220), *range(1300, 1320)})
 """Validation-body seeds looked at while the rules were chosen (the automatic K: 100-107, 300-310;
 the split-half shrinkage: 300-310, 400-410, 700-729, then checked once on 800-819; the consensus
 depth: 300-307, 400, 405-407 and 900-903, 900-905 generated, then checked once on 1000-1019, which
 were development bodies of issue 19's next pass, as 1100-1119 and 1200-1219 were of the passes
 after; the depth-support test, :mod:`lipgen.nrsfm.support`, was chosen on 1000-1019, 1100-1119 and
-1200-1219): the check marks them not fresh."""
+1200-1219; 1300-1319 were its fresh check, then development bodies of the next pass): the check marks
+them not fresh."""
 
 
 def _ranges(seeds: list[int]) -> str:

@@ -29,6 +29,16 @@ factors, never on drink, jaws or the fresh seeds (there: worse than flat 5 -> 3 
 it helped 10 bodies and hurt 10 (walk-1000: 0.115 -> 0.218), so it trades accuracy on good sequences
 for fewer failures (``renders/examples/nrsfm/fresh_1000_1019.md``). ``consensus=1`` in
 :func:`lipgen.nrsfm.kchoice.reconstruct_auto` keeps the chosen K's own depth.
+
+The Ks' errors are not independent, so ``s2 / m`` understates the noise left in their mean;
+:func:`design_effect` scales it for an assumed correlation ``rho`` of the errors (Kish's design effect).
+It stays opt-in (``rho`` 0 by default: the factor above, bit for bit): on 17 development bodies (1000,
+1005, 1006, 1009, 1014, 1102, 1105, 1106, 1113, 1116, 1206, 1209, 1210, 1302, 1305, 1310, 1318; 80
+frames, with the depth-support test) ``rho`` 0.1 and 0.2 took the bodies worse than flat from 3 to 2
+(only dance-1310 crossed, by 0.006) while hurting 4 and 5 more good bodies by over 0.01 (walk-1000
+0.218 -> 0.240 and 0.270); mean e3D 0.460 -> 0.464 and 0.469. Where ``dai`` fails, its Ks agree on the
+wrong depth (walk-1116: factor 0.90, halves 3.5 degrees apart): a bias that no spread of the Ks sees
+(``renders/examples/nrsfm/fresh_1400_1419.md``).
 """
 
 from __future__ import annotations
@@ -42,7 +52,8 @@ from lipgen.nrsfm.engine import _as_basis
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import Reconstruction
 
-__all__ = ["CONSENSUS_KS", "consensus_depth", "with_depth", "consensus_reconstruction"]
+__all__ = ["CONSENSUS_KS", "ERROR_CORRELATION", "design_effect", "consensus_depth", "with_depth",
+           "consensus_reconstruction"]
 
 log = logging.getLogger(__name__)
 
@@ -51,13 +62,54 @@ CONSENSUS_KS = 4
 bodies: 4 left the fewest sequences worse than flat and hurt the fewest)."""
 
 
+ERROR_CORRELATION = 0.0
+"""Assumed correlation of the averaged Ks' depth errors (they come from the same tracks), which sets the
+James-Stein factor's noise through :func:`design_effect` (0: independent errors, the factor as first
+built)."""
+
+
+def design_effect(m: int, rho: float) -> float:
+    """How much the noise left in the mean of ``m`` estimates exceeds ``s2 / m`` when their errors are
+    pairwise correlated by ``rho``.
+
+    With errors of variance ``v`` and correlation ``rho``, the spread about their mean has expectation
+    ``s2 = (1 - rho) v`` and the mean's error variance is ``(1 + (m - 1) rho) v / m`` (Kish's design
+    effect of correlated replicates), so the noise is ``design_effect * s2 / m`` with
+    ``design_effect = (1 + (m - 1) rho) / (1 - rho)``.
+
+    Parameters
+    ----------
+    m : int
+        Number of estimates averaged (at least 2: one estimate has no spread).
+    rho : float
+        In [0, 1).
+
+    Returns
+    -------
+    float
+        1 for independent errors; grows without bound as ``rho`` nears 1.
+    """
+    if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 2:
+        raise ValueError(f"m must be an integer of at least 2 (estimates averaged), got {m!r}")
+    _check_rho(rho)
+    if rho == 0:
+        return 1.0
+    return (1.0 + (m - 1) * float(rho)) / (1.0 - float(rho))
+
+
+def _check_rho(rho) -> None:
+    if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
+            or not 0.0 <= float(rho) < 1.0:
+        raise ValueError(f"rho must be a correlation in [0, 1), got {rho!r}")
+
+
 def _centred_depth(rec: Reconstruction) -> np.ndarray:
     z = rec.shapes[:, 2]
     return z - z.mean(axis=1, keepdims=True)
 
 
 def consensus_depth(candidates: list[Reconstruction], chosen: int,
-                    m: int = CONSENSUS_KS) -> tuple[np.ndarray, dict]:
+                    m: int = CONSENSUS_KS, rho: float = ERROR_CORRELATION) -> tuple[np.ndarray, dict]:
     """The shrunk mean depth of the ``m`` smoothest reconstructions (see the module docstring).
 
     Parameters
@@ -70,13 +122,17 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     m : int
         Number of depths averaged (at least 1; 1 returns the chosen depth, unshrunk; fewer
         candidates than ``m``: all of them).
+    rho : float
+        Assumed correlation of the depths' errors, in [0, 1): the noise is :func:`design_effect` times
+        ``s2 / m`` (default :data:`ERROR_CORRELATION`).
 
     Returns
     -------
     z : (F, P) float
         Camera-frame depth, centred in each frame.
     record : dict
-        ``ks`` (averaged), ``factor`` (the James-Stein factor), ``spread`` (``s2 / m`` over ``|zbar|^2``).
+        ``ks`` (averaged), ``factor`` (the James-Stein factor), ``spread`` (``s2 / m`` over ``|zbar|^2``),
+        ``design_effect``.
     """
     if not candidates:
         raise ValueError("consensus_depth needs at least one reconstruction")
@@ -88,9 +144,11 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     if len(shapes) != 1:
         raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
                          "sequence")
+    _check_rho(rho)
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
     picked = [chosen] + order[: int(m) - 1]
+    effect = design_effect(len(picked), rho) if len(picked) > 1 else 1.0
     ref = _centred_depth(candidates[chosen])
     Z = []
     for i in picked:
@@ -103,10 +161,10 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
         spread, factor = 0.0, 1.0
     else:
         spread = float(np.sum((Z - zbar) ** 2)) / (len(picked) - 1) / len(picked) / power
-        factor = max(0.0, 1.0 - spread)
+        factor = max(0.0, 1.0 - effect * spread)
     ks = [int(candidates[i].k) for i in picked]
     log.info("consensus depth of K = %s: James-Stein factor %.3f", ks, factor)
-    return factor * zbar, {"ks": ks, "factor": factor, "spread": spread}
+    return factor * zbar, {"ks": ks, "factor": factor, "spread": spread, "design_effect": effect}
 
 
 def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> Reconstruction:
@@ -139,7 +197,7 @@ def with_depth(rec: Reconstruction, z: np.ndarray, info: dict | None = None) -> 
 
 
 def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
-                             m: int = CONSENSUS_KS) -> Reconstruction:
+                             m: int = CONSENSUS_KS, rho: float = ERROR_CORRELATION) -> Reconstruction:
     """The chosen reconstruction with the consensus depth (:func:`consensus_depth`), or itself when it is
     an exact K-shape fit or ``m`` is 1.
 
@@ -148,6 +206,8 @@ def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
     candidates : list of Reconstruction
     chosen : int
     m : int
+    rho : float
+        As :func:`consensus_depth`.
 
     Returns
     -------
@@ -159,6 +219,6 @@ def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
         reason = "exact K-shape fit: depth kept" if m != 1 else "m = 1: depth kept"
         record = {"ks": [int(rec.k)], "factor": 1.0, "spread": 0.0, "reason": reason}
         return replace(rec, info=rec.info | {"depth_consensus": record})   # the same arrays, bit for bit
-    z, record = consensus_depth(candidates, chosen, m)
+    z, record = consensus_depth(candidates, chosen, m, rho)
     return with_depth(rec, z, {"depth_consensus": record | {"reason": f"mean of the {len(record['ks'])} "
                                                                       "smoothest Ks, James-Stein shrunk"}})

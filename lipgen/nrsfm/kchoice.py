@@ -26,7 +26,7 @@ import numpy as np
 
 from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
-from lipgen.nrsfm.consensus import CONSENSUS_KS, consensus_reconstruction
+from lipgen.nrsfm.consensus import CONSENSUS_KS, ERROR_CORRELATION, consensus_reconstruction
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.kscan import DaiScan, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
@@ -98,7 +98,8 @@ def smooth_k(candidates: list[Reconstruction], tol: float = SMOOTH_TOL) -> tuple
 
 @single_threaded(always=True)
 def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus: int = CONSENSUS_KS,
-                     support: float | None = SUPPORT_DEG, **options) -> Reconstruction:
+                     support: float | None = SUPPORT_DEG, rho: float = ERROR_CORRELATION,
+                     **options) -> Reconstruction:
     """:func:`lipgen.nrsfm.reconstruct` with ``k="auto"``.
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
@@ -128,6 +129,10 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     support : float or None
         ``dai``: the largest disagreement (degrees) of the halves' rotations for which the depth is
         kept (default :data:`lipgen.nrsfm.support.SUPPORT_DEG`); None: no test.
+    rho : float
+        ``dai``: assumed correlation of those Ks' depth errors, which sets the James-Stein factor's noise
+        (:func:`lipgen.nrsfm.consensus.design_effect`; default
+        :data:`lipgen.nrsfm.consensus.ERROR_CORRELATION`).
     **options
         As :func:`lipgen.nrsfm.reconstruct`.
 
@@ -154,7 +159,7 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     record = _whole_record(record, ks, bounds)
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
     if method == "dai":
-        rec = consensus_reconstruction(runs, [int(r.k) for r in runs].index(chosen), consensus)
+        rec = consensus_reconstruction(runs, [int(r.k) for r in runs].index(chosen), consensus, rho)
         if support is not None:
             rec = _supported(scan, rec, chosen, support)
     else:
