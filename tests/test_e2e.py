@@ -207,3 +207,32 @@ def test_a_dataset_from_another_mesh_is_refused(tmp_path, dataset, recon):
                              mesh=lip_mesh(1))
     with pytest.raises(TopologyMismatchError, match="nodes"):
         score(Dataset(dataset), wrong, recon, test_frames=3)
+
+
+def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, scored, tmp_path, monkeypatch):
+    """Without --recon and --rest, evaluate measures from the kind of rest the model's provenance
+    names (a model trained on the recording's rest is not scored against the model's)."""
+    import copy
+
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.cli import main
+
+    _, model, _ = scored
+    asked = []
+
+    def stop(*args, rest=None, **kwargs):
+        asked.append(rest)
+        raise RuntimeError("stopped before the work")
+
+    monkeypatch.setattr(pipeline, "reconstruct_dataset", stop)
+    for kind, given, expect in (("recording", None, "recording"), ("model", None, "model"),
+                                ("recording", "model", "model"), ("given", None, None)):
+        trained = copy.deepcopy(model)
+        trained.provenance_ = {**(trained.provenance_ or {}), "rest_kind": kind}
+        trained.save(tmp_path / f"m_{kind}.npz")
+        args = ["evaluate", str(dataset), "--model", str(tmp_path / f"m_{kind}.npz"), "--out",
+                str(tmp_path / f"r_{kind}_{given}"), "--test-frames", "2"]
+        args += ["--rest", given] if given else []
+        with pytest.raises(RuntimeError, match="stopped"):
+            main(args)
+        assert asked[-1] == expect

@@ -229,3 +229,14 @@ def test_auto_with_rho_scales_only_the_depth(monkeypatch):
     np.testing.assert_allclose(out.shapes[:, :2], ref.shapes[:, :2], atol=1e-9 * scale)
     ratio = b["factor"] / a["factor"]
     np.testing.assert_allclose(out.shapes[:, 2], ref.shapes[:, 2] * ratio, atol=1e-9 * scale)
+
+
+def test_auto_refuses_a_bad_rho_on_every_path_before_any_work():
+    """A bad rho is refused even where it would not be used (another method, an exact fit)."""
+    from lipgen.nrsfm import kchoice
+    from lipgen.nrsfm.validation import human_sequence
+
+    W = human_sequence(302, 12).W
+    for method in ("dai", "bregler"):
+        with pytest.raises(ValueError, match="rho must be a correlation in"):
+            kchoice.reconstruct_auto(W, method, kmax=2, rho=1.5)

@@ -130,7 +130,7 @@ def test_renormalize_reaches_fields_from_the_rest_given(model, recordings):
     recon = _reconstruction(X, N, mesh)
     unit = Similarity(1.0, rotation_matrix([0.2, -0.6, 0.3]).T, np.zeros(3))
     plain = renormalize(recon, unit, physics)
-    assert "rest" not in plain.info
+    assert np.array_equal(plain.info["rest"], M) and plain.info["rest_source"]["kind"] == "model"
     rest = true[0].copy()  # A's first frame is the subject's rest
     rest[3] = np.nan
     given = renormalize(recon, unit, physics, rest=rest)
@@ -140,6 +140,10 @@ def test_renormalize_reaches_fields_from_the_rest_given(model, recordings):
     expect = reach_fields(physics, given.markers - used, given.visible, mesh.markers, 4)
     assert np.allclose(given.fields, expect, equal_nan=True, atol=1e-12)
     assert not np.allclose(given.fields, plain.fields, equal_nan=True)
+    assert given.info["rest_source"]["kind"] == "given"
+    # the record follows the fields: measured again from the model's rest, the given rest is gone
+    again = renormalize(given, unit, physics)
+    assert np.array_equal(again.info["rest"], M) and again.info["rest_source"]["kind"] == "model"
     metric, quiet = metric_renormalize(recon, physics)
     assert metric.info["normalisation"]["scale"] == 1.0
     assert np.allclose(quiet, quiet_rest(metric.markers, metric.visible), equal_nan=True)

@@ -34,7 +34,8 @@ def add_parser(sub) -> None:
     p.add_argument("--test-frames", type=int, default=None, help="as given to lipgen train")
     p.add_argument("--rest", choices=("model", "recording", "auto"), default=None,
                    help="without --recon: where the reconstruction measures displacements from (as lipgen "
-                   "reconstruct --rest; default model). A --recon file's own choice is used as recorded")
+                   "reconstruct --rest; default: the kind the model was trained on, else model). A --recon "
+                   "file's own choice is used as recorded")
     add_force(p, "the report files in --out")
     p.set_defaults(func=_run)
 
@@ -57,8 +58,15 @@ def _run(args) -> int:
     if args.recon:
         recon = Reconstruction.load(args.recon)
     else:
+        # by default, from the kind of rest the model was trained on (lipgen train records it)
+        trained = (model.provenance_ or {}).get("rest_kind")
+        rest = args.rest or (trained if trained in ("model", "recording") else None)
+        if rest == "recording":  # too few training frames: refused before the report folder is made
+            from lipgen.recon.restsource import rest_frames
+
+            rest_frames(len(ds), args.test_frames)
         out.mkdir(parents=True, exist_ok=True)
-        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=args.rest)
+        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=rest)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)

@@ -52,7 +52,7 @@ from lipgen.nrsfm.engine import _as_basis
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import Reconstruction
 
-__all__ = ["CONSENSUS_KS", "ERROR_CORRELATION", "design_effect", "consensus_depth", "with_depth",
+__all__ = ["CONSENSUS_KS", "ERROR_CORRELATION", "design_effect", "check_rho", "consensus_depth", "with_depth",
            "consensus_reconstruction"]
 
 log = logging.getLogger(__name__)
@@ -91,13 +91,14 @@ def design_effect(m: int, rho: float) -> float:
     """
     if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 2:
         raise ValueError(f"m must be an integer of at least 2 (estimates averaged), got {m!r}")
-    _check_rho(rho)
+    check_rho(rho)
     if rho == 0:
         return 1.0
     return (1.0 + (m - 1) * float(rho)) / (1.0 - float(rho))
 
 
-def _check_rho(rho) -> None:
+def check_rho(rho) -> None:
+    """``ValueError`` naming ``rho`` unless it is a correlation in [0, 1) (a bool is refused)."""
     if isinstance(rho, bool) or not isinstance(rho, (int, float, np.integer, np.floating)) \
             or not 0.0 <= float(rho) < 1.0:
         raise ValueError(f"rho must be a correlation in [0, 1), got {rho!r}")
@@ -144,7 +145,7 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
     if len(shapes) != 1:
         raise ValueError(f"the candidates' shapes differ: {sorted(shapes)}; give reconstructions of one "
                          "sequence")
-    _check_rho(rho)
+    check_rho(rho)
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen]
     picked = [chosen] + order[: int(m) - 1]

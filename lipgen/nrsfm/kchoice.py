@@ -26,7 +26,7 @@ import numpy as np
 
 from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
-from lipgen.nrsfm.consensus import CONSENSUS_KS, ERROR_CORRELATION, consensus_reconstruction
+from lipgen.nrsfm.consensus import CONSENSUS_KS, ERROR_CORRELATION, check_rho, consensus_reconstruction
 from lipgen.nrsfm.engine import reconstruct_k
 from lipgen.nrsfm.kscan import DaiScan, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
@@ -140,6 +140,7 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     -------
     Reconstruction
     """
+    check_rho(rho)  # before any work, on every path (it is used by dai's consensus only)
     if method not in SMOOTH_METHODS:
         ks, _, relative = curve_values(W, None, method, visible, **options)
         chosen, rule = choose_k(ks, relative)

@@ -128,8 +128,10 @@ def renormalize(recon, reference, physics=None, rest=None):
                                           "reference_from": source, "fit_rms_mm": float("nan"),
                                           "borrowed_frames": int(norm.borrowed.sum()),
                                           "outliers": np.argwhere(outliers).tolist()}}
-    if rest is not None:
-        new_info["rest"] = base.tolist()
+    # the rest these fields are measured from, never the input's (a caller that knows where a given
+    # rest came from, e.g. restsource.measured_from_rest, records its source again)
+    new_info["rest"] = base.tolist()
+    new_info["rest_source"] = {"kind": "model" if rest is None else "given", "frames": None, "fallback": []}
     return dataclasses.replace(recon, fields=fields, markers=norm.markers, similarity=S,
                                rotations=norm.rotations, info=new_info)
 

@@ -109,14 +109,14 @@ def check_rest_options(rest: str | None, rest_from=None) -> str:
     """The rest choice to use (``rest`` None: :data:`DEFAULT_REST`), one of :data:`REST_CHOICES`;
     ``ValueError`` naming a bad one.
 
-    ``rest_from`` (a path) goes with the recording kind of rest only: ``rest="model"`` with it is refused.
+    ``rest_from`` (a path) brings its own rest: any ``rest`` with it is refused.
     """
     if rest is not None and rest not in REST_CHOICES:
         raise ValueError(f"unknown rest {rest!r}; choose one of {', '.join(REST_CHOICES)} (or give "
                          "rest_from, another reconstruction)")
-    if rest_from is not None and rest == "model":
-        raise ValueError(f"rest 'model' and rest_from {str(rest_from)!r} contradict each other: the model's "
-                         "rest, or the rest of another recording; give one")
+    if rest_from is not None and rest is not None:
+        raise ValueError(f"rest {rest!r} (--rest) and rest_from {str(rest_from)!r} (--rest-from) contradict "
+                         "each other: the rest of another recording is its own choice; give one of them")
     return DEFAULT_REST if rest is None else rest
 
 
