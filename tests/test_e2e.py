@@ -209,7 +209,8 @@ def test_a_dataset_from_another_mesh_is_refused(tmp_path, dataset, recon):
         score(Dataset(dataset), wrong, recon, test_frames=3)
 
 
-def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, scored, tmp_path, monkeypatch):
+def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, recon, scored, tmp_path,
+                                                                     monkeypatch, capsys):
     """Without --recon and --rest, evaluate measures from the kind of rest the model's provenance
     names (a model trained on the recording's rest is not scored against the model's)."""
     import copy
@@ -218,10 +219,11 @@ def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, s
     from lipgen.cli import main
 
     _, model, _ = scored
-    asked = []
+    asked, lent = [], []
 
-    def stop(*args, rest=None, **kwargs):
+    def stop(*args, rest=None, rest_from=None, **kwargs):
         asked.append(rest)
+        lent.append(rest_from)
         raise RuntimeError("stopped before the work")
 
     monkeypatch.setattr(pipeline, "reconstruct_dataset", stop)
@@ -236,3 +238,21 @@ def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, s
         with pytest.raises(RuntimeError, match="stopped"):
             main(args)
         assert asked[-1] == expect
+    # --rest-from: another reconstruction's rest (here one measured from its own quiet rest)
+    from lipgen.fem import Physics
+    from lipgen.recon.restsource import measured_from_rest, rest_frames
+
+    _, _, mesh = scored
+    lender = tmp_path / "lender.npz"
+    measured_from_rest(recon, Physics(mesh), "recording", rest_frames(FRAMES, 2)).save(lender)
+    base = ["evaluate", str(dataset), "--model", str(tmp_path / "m_recording.npz"), "--test-frames", "2"]
+    with pytest.raises(RuntimeError, match="stopped"):
+        main(base + ["--out", str(tmp_path / "rf"), "--rest-from", str(lender)])
+    assert asked[-1] is None and lent[-1] == str(lender)  # the lender's rest, not the trained kind
+    bad = [(["--rest-from", str(tmp_path / "none.npz")], "no such file"),
+           (["--rest-from", str(lender), "--rest", "model"], "contradict"),
+           (["--rest-from", str(lender), "--recon", str(lender)], "applies when evaluate reconstructs")]
+    for extra, message in bad:
+        out = tmp_path / f"bad_{message.split()[0]}"
+        assert main(base + ["--out", str(out)] + extra) == 1
+        assert message in capsys.readouterr().err and not out.exists()

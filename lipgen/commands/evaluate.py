@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from lipgen.commands._output import add_force, check_folder_output
 
@@ -36,6 +37,9 @@ def add_parser(sub) -> None:
                    help="without --recon: where the reconstruction measures displacements from (as lipgen "
                    "reconstruct --rest; default: the kind the model was trained on, else model). A --recon "
                    "file's own choice is used as recorded")
+    p.add_argument("--rest-from", default=None, metavar="RECON",
+                   help="without --recon: measure from another reconstruction's rest (as lipgen reconstruct "
+                   "--rest-from), e.g. the training recording's")
     add_force(p, "the report files in --out")
     p.set_defaults(func=_run)
 
@@ -52,21 +56,30 @@ def _run(args) -> int:
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
     ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
-    if args.recon and args.rest is not None:
-        raise ValueError(f"--rest {args.rest} applies when evaluate reconstructs; the reconstruction "
-                         f"{args.recon} records its own rest (reconstruct again with --rest to change it)")
+    for flag, value in (("--rest", args.rest), ("--rest-from", args.rest_from)):
+        if args.recon and value is not None:
+            raise ValueError(f"{flag} {value} applies when evaluate reconstructs; the reconstruction "
+                             f"{args.recon} records its own rest (reconstruct again with {flag} to "
+                             "change it)")
     if args.recon:
         recon = Reconstruction.load(args.recon)
     else:
         # by default, from the kind of rest the model was trained on (lipgen train records it)
-        trained = (model.provenance_ or {}).get("rest_kind")
-        rest = args.rest or (trained if trained in ("model", "recording") else None)
-        if rest == "recording":  # too few training frames: refused before the report folder is made
-            from lipgen.recon.restsource import rest_frames
+        from lipgen.recon.restsource import check_rest_from, check_rest_options, rest_frames
 
+        trained = (model.provenance_ or {}).get("rest_kind")
+        rest = args.rest or (trained if trained in ("model", "recording") and not args.rest_from else None)
+        check_rest_options(args.rest, args.rest_from)  # before the report folder is made
+        if args.rest_from is not None:
+            if not Path(args.rest_from).is_file():
+                raise FileNotFoundError(f"--rest-from {args.rest_from}: no such file (a reconstruction "
+                                        "written by lipgen reconstruct --rest recording)")
+            check_rest_from(Reconstruction.load(args.rest_from), model_mesh(), args.rest_from)
+        if rest == "recording":  # too few training frames: refused before the report folder is made
             rest_frames(len(ds), args.test_frames)
         out.mkdir(parents=True, exist_ok=True)
-        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=rest)
+        recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=rest,
+                                    rest_from=args.rest_from)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
     s = score(ds, model, recon, args.test_frames, mesh)
