@@ -43,9 +43,9 @@ def _run(args) -> int:
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames
     train, test = split_frames(recon.fields, T)
-    rest = recon.info.get("rest_source", {})
-    own = rest.get("of") == "this recording"
-    held = sorted(f for f in rest.get("rest_frames", []) if f >= F - T) if own else []
+    from lipgen.recon.restsource import rest_frames_held_out
+
+    held = rest_frames_held_out(recon, range(F - T, F))
     if held:
         raise ValueError(f"the reconstruction's rest is the median of frames including {held}, which "
                          f"--test-frames {T} holds out (frames {F - T}-{F - 1}): the test frames would "

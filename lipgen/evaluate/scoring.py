@@ -332,7 +332,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
         log.warning("the normalisation's reference frame %d is a test frame: the held-out frames shaped "
                     "the training data; reconstruct with --test-frames %d", ref_used, T)
     from lipgen.evaluate.displacement import displacement_error
-    from lipgen.recon.restsource import rest_line, rest_markers
+    from lipgen.recon.restsource import rest_frames_held_out, rest_line, rest_markers
 
     # Displacements from the rest the reconstruction measures from (lipgen reconstruct --rest).
     rest = rest_markers(recon, mesh)
@@ -342,9 +342,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
                                                                       or {}).get("rest"),
                             **{k: displacement_error(recon.markers, meas, rest, marks_model, true_rest, fr)
                                for k, fr in (("all", None), ("train", train), ("test", test))}}
-    src = recon.info.get("rest_source", {})
-    held = sorted(set(src.get("rest_frames", [])) & set(test.tolist())) if src.get("of") == "this recording" \
-        else []
+    held = rest_frames_held_out(recon, test)
     out["split"]["rest_frames_in_test"] = held
     if held:
         log.warning("the reconstruction's rest is the median of frames including test frames %s: the "

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 __all__ = ["make_dataset", "reconstruct", "normalised", "marker_error", "model_line", "order_lines",
            "reference_line", "beside_lines"]
 
@@ -84,19 +82,14 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
     default the model's rest) against the true ones (model-frame marks minus the subject's rest) over the
     accepted sightings; ``"after_offset"``: once each marker's mean error over the frames (a
     constant offset, e.g. from the normalisation's reference frame) is taken out."""
+    from lipgen.evaluate.displacement import displacement_error
     from lipgen.evaluate.scoring import load_truth
 
     P = len(mesh.markers)
-    truth = load_truth(ds)
     rest = mesh.vertices[mesh.markers] if rest is None else rest
-    err = (recon.markers - rest) - (truth["marks_model"][:, :P] - ds.rest_marks()[:P])
-    err = np.where(recon.visible[..., None], err, np.nan)
-    seen = np.any(recon.visible, axis=0)
-    offset = np.zeros((P, 3))
-    offset[seen] = np.nanmean(err[:, seen], axis=0)
-    with np.errstate(invalid="ignore"):
-        return {"rms": float(np.sqrt(np.nanmean(np.sum(err**2, axis=-1)))),
-                "after_offset": float(np.sqrt(np.nanmean(np.sum((err - offset) ** 2, axis=-1))))}
+    d = displacement_error(recon.markers, recon.visible, rest, load_truth(ds)["marks_model"][:, :P],
+                           ds.rest_marks()[:P])
+    return {"rms": d["rms_mm"], "after_offset": d["after_offset_rms_mm"]}
 
 
 def model_line(s: dict) -> str:

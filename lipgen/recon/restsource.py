@@ -73,7 +73,7 @@ from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, quiet_rest
 
 __all__ = ["REST_CHOICES", "DEFAULT_REST", "PAUSE_GAP", "MIN_PAUSES", "pause_count", "check_rest_options",
            "rest_frames", "check_rest_from",
-           "measured_from_rest", "rest_markers", "rest_line"]
+           "measured_from_rest", "rest_markers", "rest_frames_held_out", "rest_line"]
 
 log = logging.getLogger(__name__)
 
@@ -287,6 +287,15 @@ def rest_markers(recon, mesh) -> np.ndarray:
         raise ValueError(f"the reconstruction's rest must be the ({len(M)}, 3) rest markers, got shape "
                          f"{rest.shape}")
     return np.where(np.isfinite(rest), rest, M)
+
+
+def rest_frames_held_out(recon, held_out) -> list[int]:
+    """The frames of ``recon``'s own quiet rest (``--rest recording``) that are in ``held_out``
+    (ints), sorted: held-out frames that shaped the training data (empty for any other rest)."""
+    src = recon.info.get("rest_source", {})
+    if src.get("of") != "this recording":
+        return []
+    return sorted(set(src.get("rest_frames", [])) & {int(f) for f in held_out})
 
 
 def rest_line(recon) -> str:
