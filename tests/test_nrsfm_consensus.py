@@ -43,9 +43,10 @@ def test_identical_depths_are_kept_and_signs_aligned():
     assert record["factor"] == 1.0 and record["ks"] == [1, 2, 3]
 
 
-def test_james_stein_factor_closed_form():
-    """Two depths z + d and z - d with d orthogonal to z: mean z, spread |d|^2 (sum over 1 degree of
-    freedom, over m = 2), factor 1 - |d|^2 / |z|^2."""
+def _two_depths():
+    """Two runs whose depths are z + d and z - d, d orthogonal to z with |d|^2 = |z|^2 / 4.
+
+    Returns the generator (as it is left), the camera-frame shapes (F, 3, P), z and the runs."""
     rng = np.random.default_rng(1)
     F, P = 10, 8
     cam = _centre(rng.standard_normal((F, 3, P)))
@@ -56,6 +57,14 @@ def test_james_stein_factor_closed_form():
     a, b = cam.copy(), cam.copy()
     a[:, 2], b[:, 2] = z + d, z - d
     recs = [_record(a, _rotations(F, 0.01, rng), 3), _record(b, _rotations(F, 0.02, rng), 4)]
+    return rng, cam, z, recs
+
+
+def test_james_stein_factor_closed_form():
+    """Two depths z + d and z - d with d orthogonal to z: mean z, spread |d|^2 (sum over 1 degree of
+    freedom, over m = 2), factor 1 - |d|^2 / |z|^2."""
+    rng, cam, z, recs = _two_depths()
+    F, P = z.shape
     out, record = consensus_depth(recs, 0, m=2)
     assert record["factor"] == pytest.approx(0.75, abs=1e-12)
     np.testing.assert_allclose(out, 0.75 * z, atol=1e-12)
@@ -184,16 +193,7 @@ def test_design_effect_closed_form_and_monte_carlo():
 def test_correlated_errors_shrink_more_by_the_design_effect():
     """The closed form of test_james_stein_factor_closed_form with rho: m = 2, spread 1/4, so the factor
     is 1 - (1 + rho) / (1 - rho) / 4; rho 0 gives the same bytes as the default."""
-    rng = np.random.default_rng(1)
-    F, P = 10, 8
-    cam = _centre(rng.standard_normal((F, 3, P)))
-    z = cam[:, 2]
-    d = _centre(rng.standard_normal((F, P)))
-    d -= z * np.sum(d * z) / np.sum(z * z)
-    d *= 0.5 * np.sqrt(np.sum(z * z) / np.sum(d * d))
-    a, b = cam.copy(), cam.copy()
-    a[:, 2], b[:, 2] = z + d, z - d
-    recs = [_record(a, _rotations(F, 0.01, rng), 3), _record(b, _rotations(F, 0.02, rng), 4)]
+    _, _, z, recs = _two_depths()
     out, record = consensus_depth(recs, 0, m=2, rho=0.2)
     assert record["design_effect"] == pytest.approx(1.5)
     assert record["factor"] == pytest.approx(0.625, abs=1e-12)
