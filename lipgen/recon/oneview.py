@@ -146,14 +146,15 @@ def pair_one_view(trackers: list[MarkerTracker], views, cameras, rest_points, ma
     dist[:, ~valid] = np.inf
     pending = valid & ~ok & np.all(np.isfinite(pred), axis=1) & (dist.min(1) <= 2.5 * spacing)
     confirmed = confirmed_runs(trackers)
+    fresh = np.ones((2, P), dtype=bool) if fresh is None else np.asarray(fresh, dtype=bool)
     plans = {}
     for k in np.flatnonzero(pending):
         for a in range(2):              # A sees k; B is searched for k's dot
             b = 1 - a
-            if not seen[a, k] or (seen[b, k] and confirmed[b, k]) or (fresh is not None and not fresh[a, k]):
+            if not seen[a, k] or (seen[b, k] and confirmed[b, k]) or not fresh[a, k]:
                 continue
             got = _partner(trackers[b], cameras, a, uv[a][k], pred, k, pending, ok, uv[b], seen[b],
-                           confirmed[b], max_gap, near * spacing, ratio, max_dark)
+                           confirmed[b], fresh[b], max_gap, near * spacing, ratio, max_dark)
             if got is not None:
                 plans.setdefault(k, []).append((b, got))
     for k, found in plans.items():
@@ -177,7 +178,8 @@ def pair_one_view(trackers: list[MarkerTracker], views, cameras, rest_points, ma
 
 def _partner(tb: MarkerTracker, cameras, a: int, uv_a: np.ndarray, pred: np.ndarray, k: int,
              pending: np.ndarray, ok: np.ndarray, uv_b: np.ndarray, seen_b: np.ndarray,
-             confirmed_b: np.ndarray, max_gap: float, near: float, ratio: float, max_dark: float):
+             confirmed_b: np.ndarray, fresh_b: np.ndarray, max_gap: float, near: float, ratio: float,
+             max_dark: float):
     """View B's dot for marker ``k`` seen in view A at ``uv_a``: ``(dot (2,), holder)`` or None.
 
     ``holder`` is the marker holding the dot in B (-1: free)."""
@@ -197,9 +199,10 @@ def _partner(tb: MarkerTracker, cameras, a: int, uv_a: np.ndarray, pred: np.ndar
         if dist[i] < sep:
             holder[i] = j
     usable = g <= max_gap
-    # A dot held by a marker seen in both views, or by one confirmed in its run, is not free.
+    # A dot held by a marker seen in both views, by one confirmed in its run, or by a fresh
+    # acquisition (two acquisitions in conflict: which is right is unknown) is not free.
     busy = (holder >= 0) & (holder != k)
-    busy[busy] = ok[holder[busy]] | confirmed_b[holder[busy]]
+    busy[busy] = ok[holder[busy]] | confirmed_b[holder[busy]] | fresh_b[holder[busy]]
     usable &= ~busy
     idx = np.flatnonzero(usable)
     if len(idx) == 0:
