@@ -173,9 +173,9 @@ class ReconstructSettings:
         (:class:`lipgen.recon.motioncheck.MotionCheck`, which gives the figures). Validation
         ``hard`` 7-10 and 20-22: 199 -> 111 accepted sightings over 3 px.
     one_view_pairing : bool
-        With the calibrated cameras and the markers at rest: a marker seen in one view only takes
-        the other view's dot where the 3-D layout puts it on its epipolar line
-        (:func:`lipgen.recon.oneview.pair_one_view`, which gives the figures).
+        With the calibrated cameras and the markers at rest: a marker acquired in one view only
+        takes the other view's dot where the 3-D layout puts it on its epipolar line
+        (:func:`lipgen.recon.oneview.pair_one_view`; :mod:`lipgen.recon.oneview` gives the figures).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)

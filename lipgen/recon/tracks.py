@@ -71,9 +71,11 @@ class TrackerSettings:
     max_strength_ratio : float or None
         An acquisition takes no dot more than this many times as dark as the median of the
         view's markers' dots (None: no limit): a blob much darker than ink is the mouth's inside
-        at a lip corner. On main's acquisitions of ``hard`` 7 / 8 / 10 / 21 / 22 and ``default``
+        at a lip corner. Of main's acquisitions on ``hard`` 7 / 8 / 10 / 21 / 22 and ``default``
         8 (validation; truth for diagnosis only), 2 of 67 right ones and 10 of 30 wrong ones
-        (4 of them ``upper_corner_left`` in the mouth's corner) were darker than 2x.
+        (6 of them ``upper_corner_left`` in the mouth's corner) were more than 2x as dark. With
+        it, ``hard`` 10 / 22 accepted sightings over 3 px fall from 16 / 25 to 0 / 0
+        (:mod:`lipgen.recon.oneview` gives the figures).
     blend : bool
         Two or three markers whose predictions share one blob (round, or elongated: blurred
         neighbours merged) have it split by a joint fit of their dots
