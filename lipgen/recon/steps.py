@@ -39,6 +39,7 @@ from lipgen.recon.firstframe import match_first_frame
 from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
+from lipgen.recon.oneview import pair_one_view
 from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
@@ -171,6 +172,10 @@ class ReconstructSettings:
         neighbours' steps; wrong sightings are taken back or swapped
         (:class:`lipgen.recon.motioncheck.MotionCheck`, which gives the figures). Validation
         ``hard`` 7-10 and 20-22: 199 -> 111 accepted sightings over 3 px.
+    one_view_pairing : bool
+        With the calibrated cameras and the markers at rest: a marker acquired in one view only
+        takes the other view's dot where the 3-D layout puts it on its epipolar line
+        (:func:`lipgen.recon.oneview.pair_one_view`; :mod:`lipgen.recon.oneview` gives the figures).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -194,6 +199,7 @@ class ReconstructSettings:
     walk_frames: int = 3
     acquire_pending: int | None = 10
     motion_check: bool = True
+    one_view_pairing: bool = True
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -306,6 +312,10 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
+            if settings.one_view_pairing and rest_points is not None:
+                fresh = np.stack([tr.acquired for tr in trackers])
+                fresh |= False if pending is None else pending.since >= 0
+                pair_one_view(trackers, views, cameras, rest_points, gap_limit.limit(), fresh, names=names)
             if pending is not None:
                 forgot = pending.step(trackers, cameras, gap_limit.limit())
                 ever &= ~forgot

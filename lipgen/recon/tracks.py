@@ -68,6 +68,14 @@ class TrackerSettings:
         builds on wrong first-frame matches); with the robust first frame 66.7 % and 141.
     acquire_ratio : float
         Ambiguity ratio of an acquisition.
+    max_strength_ratio : float or None
+        An acquisition takes no dot more than this many times as dark as the median of the
+        view's markers' dots (None: no limit): a blob much darker than ink is the mouth's inside
+        at a lip corner. Of main's acquisitions on ``hard`` 7 / 8 / 10 / 21 / 22 and ``default``
+        8 (validation; truth for diagnosis only), 2 of 67 right ones and 10 of 30 wrong ones
+        (6 of them ``upper_corner_left`` in the mouth's corner) were more than 2x as dark. With
+        it, ``hard`` 10 / 22 accepted sightings over 3 px fall from 16 / 25 to 0 / 0
+        (:mod:`lipgen.recon.oneview` gives the figures).
     blend : bool
         Two or three markers whose predictions share one blob (round, or elongated: blurred
         neighbours merged) have it split by a joint fit of their dots
@@ -90,6 +98,7 @@ class TrackerSettings:
     motion_penalty: float = 0.3
     twin_distance: float | None = None
     min_strength_ratio: float = 0.5
+    max_strength_ratio: float | None = 2.0
     acquire_gate: float | None = 6.0
     acquire_ratio: float = 0.6
     blend: bool = True
