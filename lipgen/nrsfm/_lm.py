@@ -10,7 +10,7 @@ state: the same input gives the same bytes, given the same BLAS thread count (se
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
+from scipy.linalg import lapack
 
 __all__ = ["levenberg_marquardt"]
 
@@ -66,7 +66,7 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
         J = jac(x)
         D = np.maximum(D, (J * J).sum(0))
         # R of [J | r] holds J's R and Q^T r in its last column (Q is never formed)
-        Rjr = scipy.linalg.qr(np.column_stack([J, r]), mode="r", overwrite_a=True, check_finite=False)[0]
+        Rjr = _r_factor(J, r)
         Rj, qtr = Rjr[:x.size, :x.size], Rjr[:x.size, x.size]
         rhs = np.concatenate([-qtr, np.zeros(x.size)])
         root = np.sqrt(np.maximum(D, 1e-300))
@@ -94,3 +94,21 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
                 and (beat <= 0.0 or np.log(cost / beat) > -(max_iter - it) * np.log1p(-gain))):
             break
     return x, cost, it
+
+
+def _r_factor(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The upper triangle R of the QR factorisation of ``[J | r]`` (m, n + 1), its first n + 1 rows.
+
+    LAPACK's ``dgeqrf`` with the workspace it asks for, as ``scipy.linalg.qr(mode="r")`` calls it (the
+    same bits), but on one Fortran-ordered copy, and only the rows that hold R made triangular
+    (``scipy.linalg.qr`` copies the stacked array to Fortran order and clears the whole m x (n + 1)).
+    """
+    m, n = J.shape
+    a = np.empty((m, n + 1), order="F")
+    a[:, :n] = J
+    a[:, n] = r
+    lwork = int(lapack.dgeqrf(a, lwork=-1, overwrite_a=True)[-2][0].real)
+    qr, _, _, info = lapack.dgeqrf(a, lwork=lwork, overwrite_a=True)
+    if info != 0:
+        raise ValueError(f"LAPACK dgeqrf failed (info {info}) on [J | r] of shape {a.shape}")
+    return np.triu(qr[:n + 1])

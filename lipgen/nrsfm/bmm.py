@@ -57,14 +57,22 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     rho = 1.0 / max(np.linalg.norm(base.reshape(F, -1), 2), 1e-300)
     norm0 = np.linalg.norm(base)
     it = 0
+    complete = bool(seen.all())
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        X, rank = _shrink((A - Y / rho).reshape(F, -1), 1.0 / rho)
+        # each product and difference once, in the same order of operations (the same bits)
+        Y_rho = Y / rho
+        X, rank = _shrink((A - Y_rho).reshape(F, -1), 1.0 / rho)
         X = X.reshape(F, 3, P)
-        T = X + Y / rho
+        T = X + Y_rho
         depth = np.einsum("fik,fip->fkp", depth_axis, T)      # (F, 1, P)
-        A = np.where(seen3, base + depth_axis * depth, T)
-        gap = np.linalg.norm(X - A)
-        Y += rho * (X - A)
+        A = depth_axis * depth
+        A += base
+        if not complete:
+            A = np.where(seen3, A, T)
+        X -= A                                                 # X - A from here on
+        gap = np.linalg.norm(X)
+        X *= rho
+        Y += X
         if gap <= tol * max(np.linalg.norm(A), norm0):
             break
         rho *= growth
