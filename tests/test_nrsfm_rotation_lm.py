@@ -64,7 +64,7 @@ def test_damped_step_solves_the_stacked_least_squares_problem():
     rng = np.random.default_rng(5)
     n = 12
     Rj = np.triu(rng.standard_normal((n, n)))
-    Rj[:, -2:] = Rj[:, :2] @ rng.standard_normal((2, 2))      # rank deficient, as the gauge makes it
+    Rj[:, -2:] = Rj[:, :2] @ rng.standard_normal((2, 2))  # rank deficient, as the gauge makes it
     qtr = rng.standard_normal(n)
     root = np.exp(rng.standard_normal(n))
     step = _DampedStep(Rj, qtr, root)
@@ -91,8 +91,11 @@ def _plain_trace_norm_shapes(Wc, R, mask=None, tol=1e-8, max_iter=1000, growth=1
         w, V = np.linalg.eigh(Z.T @ Z)
         s = np.sqrt(np.maximum(w, 0.0))
         keep = s > 1.0 / rho
-        X = ((Z @ V[:, keep]) * (1.0 - (1.0 / rho) / s[keep]) @ V[:, keep].T if keep.any()
-             else np.zeros_like(Z)).reshape(F, 3, P)
+        X = (
+            (Z @ V[:, keep]) * (1.0 - (1.0 / rho) / s[keep]) @ V[:, keep].T
+            if keep.any()
+            else np.zeros_like(Z)
+        ).reshape(F, 3, P)
         T = X + Y / rho
         depth = np.einsum("fik,fip->fkp", depth_axis, T)
         A = np.where(seen3, base + depth_axis * depth, T)

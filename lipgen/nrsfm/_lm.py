@@ -25,8 +25,9 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
 
     Each step solves ``min |J dx + r|^2 + lam |D^(1/2) dx|^2`` with ``D`` the running maximum of
     ``diag(J^T J)`` (as MINPACK scales), through a QR factorisation of J as MINPACK does (the
-    normal equations square J's condition number and stall near exact solutions); ``lam``
-    shrinks after a step that lowers the cost and grows otherwise.
+    normal equations square J's condition number and stall near exact solutions), and one SVD of
+    the scaled n x n factor per Jacobian that serves every trial of ``lam`` (:class:`_DampedStep`);
+    ``lam`` shrinks after a step that lowers the cost and grows otherwise.
 
     Parameters
     ----------

@@ -71,7 +71,7 @@ class _Metric:
         return terms
 
     def residual(self, x: np.ndarray) -> np.ndarray:
-        """(2F,) scale-free residuals ``|m1 g|^2 - |m2 g|^2`` and ``2 (m1 g).(m2 g)`` over their mean scale."""
+        """(2F,) residuals ``|m1 g|^2 - |m2 g|^2`` and ``2 (m1 g).(m2 g)`` over their mean scale."""
         p, q, a, b, c = self._terms(x)
         scale = np.mean(a + b)
         return np.concatenate([a - b, 2 * c]) / scale
