@@ -10,7 +10,7 @@ state: the same input gives the same bytes, given the same BLAS thread count (se
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg
+from scipy.linalg import lapack
 
 __all__ = ["levenberg_marquardt"]
 
@@ -25,8 +25,9 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
 
     Each step solves ``min |J dx + r|^2 + lam |D^(1/2) dx|^2`` with ``D`` the running maximum of
     ``diag(J^T J)`` (as MINPACK scales), through a QR factorisation of J as MINPACK does (the
-    normal equations square J's condition number and stall near exact solutions); ``lam``
-    shrinks after a step that lowers the cost and grows otherwise.
+    normal equations square J's condition number and stall near exact solutions), and one SVD of
+    the scaled n x n factor per Jacobian that serves every trial of ``lam`` (:class:`_DampedStep`);
+    ``lam`` shrinks after a step that lowers the cost and grows otherwise.
 
     Parameters
     ----------
@@ -66,13 +67,12 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
         J = jac(x)
         D = np.maximum(D, (J * J).sum(0))
         # R of [J | r] holds J's R and Q^T r in its last column (Q is never formed)
-        Rjr = scipy.linalg.qr(np.column_stack([J, r]), mode="r", overwrite_a=True, check_finite=False)[0]
+        Rjr = _r_factor(J, r)
         Rj, qtr = Rjr[:x.size, :x.size], Rjr[:x.size, x.size]
-        rhs = np.concatenate([-qtr, np.zeros(x.size)])
-        root = np.sqrt(np.maximum(D, 1e-300))
+        step_of = _DampedStep(Rj, qtr, np.sqrt(np.maximum(D, 1e-300)))
         accepted = False
         while lam < 1e16:
-            dx = np.linalg.lstsq(np.vstack([Rj, np.diag(np.sqrt(lam) * root)]), rhs, rcond=None)[0]
+            dx = step_of(lam)
             xn = x + dx
             rn = fun(xn)
             new = 0.5 * float(rn @ rn)
@@ -94,3 +94,48 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
                 and (beat <= 0.0 or np.log(cost / beat) > -(max_iter - it) * np.log1p(-gain))):
             break
     return x, cost, it
+
+
+def _r_factor(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The upper triangle R of the QR factorisation of ``[J | r]`` (m, n + 1), its first n + 1 rows.
+
+    LAPACK's ``dgeqrf`` with the workspace it asks for, as ``scipy.linalg.qr(mode="r")`` calls it (the
+    same bits), but on one Fortran-ordered copy, and only the rows that hold R made triangular
+    (``scipy.linalg.qr`` copies the stacked array to Fortran order and clears the whole m x (n + 1)).
+    """
+    m, n = J.shape
+    a = np.empty((m, n + 1), order="F")
+    a[:, :n] = J
+    a[:, n] = r
+    lwork = int(lapack.dgeqrf(a, lwork=-1, overwrite_a=True)[-2][0].real)
+    qr, _, _, info = lapack.dgeqrf(a, lwork=lwork, overwrite_a=True)
+    if info != 0:
+        raise ValueError(f"LAPACK dgeqrf failed (info {info}) on [J | r] of shape {a.shape}")
+    return np.triu(qr[:n + 1])
+
+
+class _DampedStep:
+    """The step ``dx`` minimising ``|Rj dx + qtr|^2 + lam |root * dx|^2`` for any number of ``lam``.
+
+    With ``y = root * dx`` this is ridge regression on ``B = Rj / root``: one SVD ``B = U s V^T`` per
+    Jacobian, then each ``lam > 0`` costs two products, ``y = -V (s / (s^2 + lam)) U^T qtr`` (as MINPACK
+    reuses its QR across the damping's trials, where a least-squares solve of the stacked
+    ``[Rj; sqrt(lam) diag(root)]`` per trial took most of the search's time on short sequences). ``lam``
+    0 (Gauss-Newton near the solution, where the gauge directions leave Rj singular) is the minimum-norm
+    least-squares step of ``[Rj; 0]``, as before.
+    """
+
+    def __init__(self, Rj: np.ndarray, qtr: np.ndarray, root: np.ndarray):
+        self.Rj, self.qtr, self.root = Rj, qtr, root
+        self._svd = None
+
+    def __call__(self, lam: float) -> np.ndarray:
+        n = self.root.size
+        if lam == 0.0:
+            rhs = np.concatenate([-self.qtr, np.zeros(n)])
+            return np.linalg.lstsq(np.vstack([self.Rj, np.zeros((n, n))]), rhs, rcond=None)[0]
+        if self._svd is None:
+            U, s, Vt = np.linalg.svd(self.Rj / self.root, full_matrices=False)
+            self._svd = (s, U.T @ self.qtr, Vt)
+        s, c, Vt = self._svd
+        return -(Vt.T @ (s * c / (s * s + lam))) / self.root

@@ -57,14 +57,22 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     rho = 1.0 / max(np.linalg.norm(base.reshape(F, -1), 2), 1e-300)
     norm0 = np.linalg.norm(base)
     it = 0
+    complete = bool(seen.all())
+    # the arithmetic of the plain iteration, element for element (the same bits), in buffers made once
+    Y_rho, Z, X = np.empty_like(A), np.empty_like(A), np.empty_like(A)
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        X, rank = _shrink((A - Y / rho).reshape(F, -1), 1.0 / rho)
-        X = X.reshape(F, 3, P)
-        T = X + Y / rho
+        np.divide(Y, rho, out=Y_rho)
+        rank = _shrink(np.subtract(A, Y_rho, out=Z).reshape(F, -1), 1.0 / rho, out=X.reshape(F, -1))
+        T = np.add(X, Y_rho, out=Y_rho)                        # X + Y / rho
         depth = np.einsum("fik,fip->fkp", depth_axis, T)      # (F, 1, P)
-        A = np.where(seen3, base + depth_axis * depth, T)
-        gap = np.linalg.norm(X - A)
-        Y += rho * (X - A)
+        np.multiply(depth_axis, depth, out=A)
+        A += base
+        if not complete:
+            np.copyto(A, T, where=~seen3)
+        X -= A                                                 # X - A from here on
+        gap = np.linalg.norm(X)
+        X *= rho
+        Y += X
         if gap <= tol * max(np.linalg.norm(A), norm0):
             break
         rho *= growth
@@ -75,8 +83,9 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     return A
 
 
-def _shrink(Z: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
-    """Singular value soft-thresholding of a tall matrix, through the eigenvectors of its Gram matrix.
+def _shrink(Z: np.ndarray, tau: float, out: np.ndarray) -> int:
+    """Singular value soft-thresholding of a tall matrix, through the eigenvectors of its Gram matrix,
+    written into ``out`` (the shape of Z); returns the rank kept.
 
     ``Z V diag(max(1 - tau / s, 0)) V^T`` equals ``U diag(max(s - tau, 0)) V^T`` for ``Z = U s V^T``;
     the n x n Gram matrix (n = 3P columns) is far cheaper to decompose than Z itself.
@@ -85,9 +94,11 @@ def _shrink(Z: np.ndarray, tau: float) -> tuple[np.ndarray, int]:
     s = np.sqrt(np.maximum(w, 0.0))
     keep = s > tau
     if not keep.any():
-        return np.zeros_like(Z), 0
+        out[...] = 0.0
+        return 0
     Vk = V[:, keep]
-    return (Z @ Vk) * (1.0 - tau / s[keep]) @ Vk.T, int(keep.sum())
+    np.matmul((Z @ Vk) * (1.0 - tau / s[keep]), Vk.T, out=out)
+    return int(keep.sum())
 
 
 def rank_k_shapes(shapes: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:

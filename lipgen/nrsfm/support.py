@@ -269,19 +269,18 @@ def rival_minimum(M: np.ndarray, R: np.ndarray, cost: float, *, n_starts: int = 
         ``found`` (bool), ``starts`` (tried), and for a rival ``cost_ratio`` and ``angle_deg``.
     """
     from lipgen.nrsfm._lm import levenberg_marquardt
-    from lipgen.nrsfm._rotation import _metric_jacobian, _metric_residual, rotations_from_triple
+    from lipgen.nrsfm._rotation import _Metric, rotations_from_triple
 
     M = np.asarray(M, dtype=np.float64)
     if M.ndim != 2 or M.shape[0] != 2 * len(R) or M.shape[1] < 3:
         raise ValueError(f"M must be (2F, r >= 3) for the F = {len(R)} rotations given, got shape {M.shape}")
-    M1, M2 = M[0::2], M[1::2]
+    metric = _Metric(M[0::2], M[1::2])
     r = M.shape[1]
     limit = ratio * float(cost)
     rng = np.random.default_rng(int(seed) + 123)
     for i in range(int(n_starts)):
         g0 = rng.standard_normal((r, 3))
-        x, c, _ = levenberg_marquardt(lambda x: _metric_residual(x, M1, M2),
-                                      lambda x: _metric_jacobian(x, M1, M2), g0.ravel(), max_iter=300)
+        x, c, _ = levenberg_marquardt(metric.residual, metric.jacobian, g0.ravel(), max_iter=300)
         if c <= limit:
             other, _ = rotations_from_triple(M, x.reshape(r, 3))
             apart = float(np.median(rotation_disagreement(other, R)))

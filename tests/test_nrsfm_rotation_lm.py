@@ -1,0 +1,121 @@
+"""The corrective triple's arithmetic made cheaper: against the plain formulas it replaced.
+
+The Jacobian, the QR's R factor and the trace-norm ADMM must give the very bits of the plain code
+(``reconstruct``'s answers are pinned bit for bit elsewhere, so a change here would show there too,
+but far less directly); the damped step is the same solution of the same problem, to rounding.
+"""
+
+import numpy as np
+import pytest
+import scipy.linalg
+
+from lipgen.nrsfm import bmm
+from lipgen.nrsfm._lm import _DampedStep, _r_factor
+from lipgen.nrsfm._rotation import _Metric, _metric_terms, expm_so3
+
+
+def _plain_residual(x, M1, M2):
+    p, q, a, b, c = _metric_terms(x.reshape(-1, 3), M1, M2)
+    scale = np.mean(a + b)
+    return np.concatenate([a - b, 2 * c]) / scale
+
+
+def _plain_jacobian(x, M1, M2):
+    p, q, a, b, c = _metric_terms(x.reshape(-1, 3), M1, M2)
+    F = M1.shape[0]
+    scale = np.mean(a + b)
+    da = 2 * (M1[:, :, None] * p[:, None, :]).reshape(F, -1)
+    db = 2 * (M2[:, :, None] * q[:, None, :]).reshape(F, -1)
+    dc = (M1[:, :, None] * q[:, None, :] + M2[:, :, None] * p[:, None, :]).reshape(F, -1)
+    dscale = (da + db).mean(0)
+    r1, r2 = (a - b) / scale, 2 * c / scale
+    J1 = (da - db) / scale - np.outer(r1, dscale) / scale
+    J2 = 2 * dc / scale - np.outer(r2, dscale) / scale
+    return np.vstack([J1, J2])
+
+
+@pytest.mark.parametrize(("F", "r"), [(300, 36), (40, 6), (3, 3)])
+def test_metric_gives_the_plain_formulas_bits(F, r):
+    rng = np.random.default_rng(F + r)
+    M = rng.standard_normal((2 * F, r)) * np.logspace(-3, 3, r)
+    M1, M2 = M[0::2], M[1::2]
+    metric = _Metric(M1, M2)
+    for _ in range(3):
+        x = rng.standard_normal(3 * r)
+        # the residual first (its terms are reused by the Jacobian at the same x), then the other order
+        assert np.array_equal(metric.residual(x), _plain_residual(x, M1, M2))
+        assert np.array_equal(metric.jacobian(x), _plain_jacobian(x, M1, M2))
+        y = x + 1e-9
+        assert np.array_equal(metric.jacobian(y), _plain_jacobian(y, M1, M2))
+        assert np.array_equal(metric.residual(y), _plain_residual(y, M1, M2))
+
+
+@pytest.mark.parametrize(("m", "n"), [(600, 45), (160, 9), (20, 27), (2204, 3)])
+def test_r_factor_gives_scipy_qr_bits(m, n):
+    rng = np.random.default_rng(m * n)
+    J, r = rng.standard_normal((m, n)), rng.standard_normal(m)
+    expected = scipy.linalg.qr(np.column_stack([J, r]), mode="r", check_finite=False)[0]
+    got = _r_factor(J, r)
+    assert got.shape == (min(m, n + 1), n + 1)
+    assert np.array_equal(got, expected[: n + 1])
+
+
+def test_damped_step_solves_the_stacked_least_squares_problem():
+    rng = np.random.default_rng(5)
+    n = 12
+    Rj = np.triu(rng.standard_normal((n, n)))
+    Rj[:, -2:] = Rj[:, :2] @ rng.standard_normal((2, 2))  # rank deficient, as the gauge makes it
+    qtr = rng.standard_normal(n)
+    root = np.exp(rng.standard_normal(n))
+    step = _DampedStep(Rj, qtr, root)
+    rhs = np.concatenate([-qtr, np.zeros(n)])
+    for lam in (1e-15, 1e-6, 1e-3, 1.0, 1e6):
+        stacked = np.vstack([Rj, np.diag(np.sqrt(lam) * root)])
+        expected = np.linalg.lstsq(stacked, rhs, rcond=None)[0]
+        np.testing.assert_allclose(step(lam), expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    # lam 0: the minimum-norm least-squares step, by the same call as before
+    expected = np.linalg.lstsq(np.vstack([Rj, np.zeros((n, n))]), rhs, rcond=None)[0]
+    assert np.array_equal(step(0.0), expected)
+
+
+def _plain_trace_norm_shapes(Wc, R, mask=None, tol=1e-8, max_iter=1000, growth=1.1):
+    F, P = R.shape[0], Wc.shape[1]
+    seen3 = (np.ones((F, P), dtype=bool) if mask is None else mask)[:, None, :]
+    base = np.einsum("fji,fjp->fip", R[:, :2], Wc.reshape(F, 2, P)) * seen3
+    depth_axis = R[:, 2][:, :, None]
+    A, Y = base.copy(), np.zeros_like(base)
+    rho = 1.0 / max(np.linalg.norm(base.reshape(F, -1), 2), 1e-300)
+    norm0 = np.linalg.norm(base)
+    for _ in range(max_iter):
+        Z = (A - Y / rho).reshape(F, -1)
+        w, V = np.linalg.eigh(Z.T @ Z)
+        s = np.sqrt(np.maximum(w, 0.0))
+        keep = s > 1.0 / rho
+        X = (
+            (Z @ V[:, keep]) * (1.0 - (1.0 / rho) / s[keep]) @ V[:, keep].T
+            if keep.any()
+            else np.zeros_like(Z)
+        ).reshape(F, 3, P)
+        T = X + Y / rho
+        depth = np.einsum("fik,fip->fkp", depth_axis, T)
+        A = np.where(seen3, base + depth_axis * depth, T)
+        gap = np.linalg.norm(X - A)
+        Y += rho * (X - A)
+        if gap <= tol * max(np.linalg.norm(A), norm0):
+            break
+        rho *= growth
+    return A
+
+
+@pytest.mark.parametrize("hidden", [False, True])
+def test_trace_norm_shapes_give_the_plain_iterations_bits(hidden):
+    rng = np.random.default_rng(11)
+    F, P, K = 40, 9, 2
+    basis = rng.standard_normal((K, 3, P))
+    shapes = np.einsum("fk,kip->fip", rng.standard_normal((F, K)), basis)
+    R = np.stack([expm_so3(0.05 * f * np.array([0.3, 1.0, 0.1])) for f in range(F)])
+    W = np.einsum("fij,fjp->fip", R[:, :2], shapes).reshape(2 * F, P)
+    Wc = W - W.mean(axis=1, keepdims=True)
+    mask = rng.random((F, P)) > 0.15 if hidden else None
+    expected = _plain_trace_norm_shapes(Wc, R, mask)
+    assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask), expected)
