@@ -30,7 +30,8 @@ from lipgen._threads import blas_threads
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.account import sighting_account
-from lipgen.recon.calibrate import RigCalibration, calibrate_rig
+from lipgen.recon.calibcache import calibrated
+from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.split import training_candidates
@@ -255,8 +256,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
              if rest_kind == "recording" and lender is None and frames_at_rest is None else None)
     if short:
         log.warning("%s: measured from the model's rest", short)
-    with blas_threads(1):  # a small bundle adjustment
-        cal = calibrate_rig([c.image for c in ds.calibration()], ds.rig, ds.calibration_boards())
+    # once per process for the same images (a small bundle adjustment, on one BLAS thread)
+    cal = calibrated([c.image for c in ds.calibration()], ds.rig, ds.calibration_boards())
     t_cal = time.perf_counter()
     T = lab_frame(cal)
     lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])

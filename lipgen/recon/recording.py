@@ -114,7 +114,7 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
     """
     from lipgen import __version__
     from lipgen.dataset.footage import RecordingSettings, read_source, recording_manifest, source_info
-    from lipgen.recon.calibrate import calibrate_rig
+    from lipgen.recon.calibcache import calibrated
     from lipgen.recon.pipeline import model_mesh
     from lipgen.rig.target import Chessboard
 
@@ -145,7 +145,7 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
     elif side is not None and side != mirror_side:
         log.warning("--mirror-side %s, but the %s half is the darker (%.1f%% less light), as a mirror is",
                     mirror_side, side, 100 * (1 - ratio))
-    cal = calibrate_rig(photos, _layout(size, mirror_side, col), chess)
+    cal = calibrated(photos, _layout(size, mirror_side, col), chess)  # reconstruct reuses it (calibcache)
     for d in cal.dropped:
         log.warning("calibration photo %s: %s view left out (%.2f px RMS)", files[d["image"]].name, d["view"],
                     d["rms_px"])
