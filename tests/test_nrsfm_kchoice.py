@@ -3,6 +3,7 @@ where a fixed K is worse than the flat baseline."""
 
 import numpy as np
 import pytest
+from _nrsfm_scans import share_dai_scans
 
 from lipgen._rotation import rotation_matrix
 from lipgen.experiments.nrsfm_benchmarks import flat_e3d
@@ -61,9 +62,10 @@ def test_auto_k_recovers_exact_low_rank_shapes():
     assert e3d(S_est=rec.S, S_true=S) < 1e-6
 
 
-def test_auto_k_beats_flat_where_a_fixed_k_does_not():
+def test_auto_k_beats_flat_where_a_fixed_k_does_not(monkeypatch):
     """Validation body pickup-101 at 80 frames (a development seed): at K = 6 the rotations jitter
     and the shapes are worse than no depth at all; the smoothest rotations pick a K far better."""
+    scans = share_dai_scans(monkeypatch)  # the three k="auto" calls below run dai's stages once
     s = human_sequence(101, 80)
     flat = flat_e3d(s.W, s.S)
     fixed = e3d(S_est=reconstruct(s.W, 6).S, S_true=s.S)
@@ -80,3 +82,4 @@ def test_auto_k_beats_flat_where_a_fixed_k_does_not():
     default = reconstruct_auto(s.W, "dai", kmax=8)
     assert not default.depth_supported
     assert e3d(S_est=default.S, S_true=s.S) == pytest.approx(flat, rel=1e-6)
+    assert len(scans) == 1

@@ -3,6 +3,7 @@ fallback of k="auto", and its determinism."""
 
 import numpy as np
 import pytest
+from _nrsfm_scans import share_dai_scans
 
 from lipgen._rotation import rotation_matrix
 from lipgen._threads import blas_threads
@@ -48,9 +49,10 @@ def test_disagreement_of_a_camera_turn_is_its_angle():
         rotation_disagreement(B[:5], B[:6])
 
 
-def test_a_determined_body_agrees_and_keeps_its_reconstruction_bit_for_bit():
+def test_a_determined_body_agrees_and_keeps_its_reconstruction_bit_for_bit(monkeypatch):
     """Development body 1100 (5 degrees per frame, 40 frames): the halves agree to a fraction of a
     degree, and k="auto" returns the consensus answer itself, flagged as supported."""
+    share_dai_scans(monkeypatch)  # both k="auto" calls below run dai's stages once
     s = human_sequence(1100, 40)
     angle, record = rotation_stability(s.W, 4)
     assert angle < 0.2 * SUPPORT_DEG and record["k"] == 4 and 30 < record["spread_deg"] < 60
@@ -71,11 +73,12 @@ def test_undetermined_rotations_are_flagged():
     assert "do not determine" in record["reason"]
 
 
-def test_a_dancer_with_undetermined_rotations_is_answered_flat():
+def test_a_dancer_with_undetermined_rotations_is_answered_flat(monkeypatch):
     """Development body 1106 (dance, 80 frames), where dai's rotations were 31 degrees from the truth
     and its answer no better than flat: the halves disagree by tens of degrees at its K, a triple
     35 degrees away fits the whole sequence about as well as the chosen one, and k="auto" returns
     the flat answer: the same image, zero depth, flagged."""
+    share_dai_scans(monkeypatch)  # both k="auto" calls below run dai's stages once
     s = human_sequence(1106, 80)
     rec = reconstruct_auto(s.W, "dai", kmax=4)
     record = rec.info["depth_support"]

@@ -36,6 +36,7 @@ from lipgen.rig._pyscene import (
     _pyrender_mesh,
     _set_vertices,
     _upload_vertices,
+    delete_offscreen,
     internals_known,
 )
 from lipgen.rig.camera import MirrorRig
@@ -318,7 +319,7 @@ class RigRenderer:
     def close(self) -> None:
         """Release the OpenGL context."""
         if getattr(self, "_renderer", None) is not None:
-            self._renderer.delete()
+            delete_offscreen(self.pyrender, self._renderer)
             self._renderer = None
 
     def __enter__(self) -> RigRenderer:
