@@ -78,6 +78,25 @@ def test_damped_step_solves_the_stacked_least_squares_problem():
     assert np.array_equal(step(0.0), expected)
 
 
+def test_a_parameter_without_effect_stays_put():
+    # review finding: with its scale at ~0 the SVD's round-off in that coordinate grew to ~1e146
+    from lipgen.nrsfm._lm import levenberg_marquardt
+
+    rng = np.random.default_rng(0)
+    A = rng.standard_normal((20, 6))
+    A[:, 2] = 0.0
+    b = 0.5 * rng.standard_normal(20)
+    x, cost, _ = levenberg_marquardt(lambda x: np.tanh(A @ x) - b,
+                                     lambda x: (1 - np.tanh(A @ x) ** 2)[:, None] * A, np.zeros(6))
+    assert x[2] == 0.0
+    live = [0, 1, 3, 4, 5]
+    x5, cost5, _ = levenberg_marquardt(lambda y: np.tanh(A[:, live] @ y) - b,
+                                       lambda y: (1 - np.tanh(A[:, live] @ y) ** 2)[:, None] * A[:, live],
+                                       np.zeros(5))
+    np.testing.assert_allclose(x[live], x5, rtol=1e-9, atol=1e-12)
+    assert cost == pytest.approx(cost5, rel=1e-12)
+
+
 def _plain_trace_norm_shapes(Wc, R, mask=None, tol=1e-8, max_iter=1000, growth=1.1):
     F, P = R.shape[0], Wc.shape[1]
     seen3 = (np.ones((F, P), dtype=bool) if mask is None else mask)[:, None, :]
@@ -119,3 +138,7 @@ def test_trace_norm_shapes_give_the_plain_iterations_bits(hidden):
     mask = rng.random((F, P)) > 0.15 if hidden else None
     expected = _plain_trace_norm_shapes(Wc, R, mask)
     assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask), expected)
+    if hidden:  # a 0/1 mask means the same; a mask of another shape is named
+        assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask.astype(int)), expected)
+        with pytest.raises(ValueError, match=r"mask must be \(F, P\) = \(40, 9\).*\(40, 8\)"):
+            bmm.min_trace_norm_shapes(Wc, R, mask[:, :8])

@@ -151,3 +151,13 @@ def test_pairing_needs_enough_markers_seen_in_both_views():
         pair_one_view(tracks, [None, None], _two_views(), GRID, 1.0, np.ones((2, 5), dtype=bool))
     with pytest.raises(ValueError, match="ratio"):
         pair_one_view(tracks, [None, None], _two_views(), GRID, 1.0, ratio=1.5)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, 0.4, float("nan")])
+def test_a_darkness_limit_below_the_minimum_is_refused(bad):
+    # 0 once meant "no limit" and a limit under min_strength_ratio refused every acquisition
+    with pytest.raises(ValueError, match="max_strength_ratio.*" + ("nan" if bad != bad else repr(bad))):
+        TrackerSettings(max_strength_ratio=bad)
+    with pytest.raises(ValueError, match="min_strength_ratio"):
+        TrackerSettings(min_strength_ratio=-0.1)
+    assert TrackerSettings(max_strength_ratio=None).max_strength_ratio is None

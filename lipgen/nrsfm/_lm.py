@@ -69,10 +69,14 @@ def levenberg_marquardt(fun, jac, x0: np.ndarray, max_iter: int = 200, ftol: flo
         # R of [J | r] holds J's R and Q^T r in its last column (Q is never formed)
         Rjr = _r_factor(J, r)
         Rj, qtr = Rjr[:x.size, :x.size], Rjr[:x.size, x.size]
-        step_of = _DampedStep(Rj, qtr, np.sqrt(np.maximum(D, 1e-300)))
+        # a parameter with no effect so far (a zero column) keeps MINPACK's scale 1 and does not
+        # move: the SVD's round-off in its coordinate, over a scale of ~0, had grown to ~1e146
+        dead = D == 0
+        step_of = _DampedStep(Rj, qtr, np.where(dead, 1.0, np.sqrt(D)))
         accepted = False
         while lam < 1e16:
             dx = step_of(lam)
+            dx[dead] = 0.0
             xn = x + dx
             rn = fun(xn)
             new = 0.5 * float(rn @ rn)

@@ -48,7 +48,9 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     """
     F, P = R.shape[0], Wc.shape[1]
     Wf = Wc.reshape(F, 2, P)
-    seen = np.ones((F, P), dtype=bool) if mask is None else mask
+    seen = np.ones((F, P), dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    if seen.shape != (F, P):
+        raise ValueError(f"mask must be (F, P) = {(F, P)} bool, got shape {seen.shape}")
     seen3 = seen[:, None, :]
     base = np.einsum("fji,fjp->fip", R[:, :2], Wf) * seen3   # R2^T W: in-image part, object frame
     depth_axis = R[:, 2][:, :, None]                           # r3_f as (F, 3, 1)

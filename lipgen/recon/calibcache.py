@@ -18,6 +18,7 @@ import copy
 import hashlib
 import logging
 import os
+import threading
 from collections import OrderedDict
 from collections.abc import Sequence
 
@@ -38,14 +39,15 @@ CACHE_SIZE = 4
 """Calibrations kept per process (each is a few kB: a rig and per-image errors)."""
 
 _CACHE: OrderedDict[bytes, RigCalibration] = OrderedDict()
+_LOCK = threading.Lock()  # the add-on and scripts may calibrate from several threads
 
 
-def _key(frames: list[np.ndarray], layout: MirrorRig, board, options: dict) -> bytes:
+def _key(frames: list[np.ndarray], layout: MirrorRig, boards: list, options: dict) -> bytes:
     """A digest of every input of :func:`calibrate_rig` that its result depends on."""
     h = hashlib.blake2b(digest_size=32)
     cam = layout.camera
     h.update(repr((cam.width, cam.height, layout.mirror_side, layout.split, len(frames))).encode())
-    h.update(repr(_boards(board, len(frames))).encode())  # frozen dataclasses: every field
+    h.update(repr(boards).encode())  # frozen dataclasses: every field
     h.update(repr(sorted(options.items())).encode())
     for f in frames:
         a = np.ascontiguousarray(f)
@@ -75,20 +77,26 @@ def calibrated(raw_frames: Sequence, layout: MirrorRig, board, **options) -> Rig
         A copy the caller may change.
     """
     frames = [np.asarray(f) for f in raw_frames]
+    boards = _boards(board, len(frames))  # once: an iterator of boards is read here only
     if os.environ.get(CACHE_ENV) == "off":
         with blas_threads(1):  # a small bundle adjustment (lipgen._threads)
-            return calibrate_rig(frames, layout, board, **options)
-    key = _key(frames, layout, board, options)
-    if key in _CACHE:
-        _CACHE.move_to_end(key)
+            return calibrate_rig(frames, layout, boards, **options)
+    key = _key(frames, layout, boards, options)
+    with _LOCK:
+        hit = _CACHE.get(key)
+        if hit is not None:
+            _CACHE.move_to_end(key)
+            hit = copy.deepcopy(hit)
+    if hit is not None:
         log.info(
             "calibration: the same %d images as earlier in this process; their calibration is reused",
             len(frames),
         )
-        return copy.deepcopy(_CACHE[key])
+        return hit
     with blas_threads(1):
-        cal = calibrate_rig(frames, layout, board, **options)
-    _CACHE[key] = copy.deepcopy(cal)
-    while len(_CACHE) > CACHE_SIZE:
-        _CACHE.popitem(last=False)
+        cal = calibrate_rig(frames, layout, boards, **options)
+    with _LOCK:
+        _CACHE[key] = copy.deepcopy(cal)
+        while len(_CACHE) > CACHE_SIZE:
+            _CACHE.popitem(last=False)
     return cal

@@ -106,6 +106,8 @@ def confirmed_runs(trackers: list[MarkerTracker]) -> np.ndarray:
             if not alive.any():
                 break
             out[v] |= alive & (st_o != LOST) & (t < len(trackers[v]._out) - 1)
+            if not (alive & ~out[v]).any():
+                break  # every run still alive is confirmed: older frames change nothing (else O(F^2))
     return out
 
 
@@ -154,7 +156,9 @@ def pair_one_view(
         ``min_established``: with fewer the layout predicts the lips 7-9 mm off on ``hard`` 21).
     max_dark : float
         Greatest darkness of the dot, as a share of the median of the view's markers' dots (at
-        least ``TrackerSettings.min_strength_ratio`` of it).
+        least ``TrackerSettings.min_strength_ratio`` of it). Tighter than an acquisition's
+        ``TrackerSettings.max_strength_ratio`` (2): a pairing takes a dot the view itself did not
+        choose, on the other view's word alone.
     names : sequence of str, optional
         Marker names, for the log.
 
@@ -227,12 +231,15 @@ def pair_one_view(
             )
             if got is not None:
                 plans.setdefault(k, []).append((b, got))
+    # (view, marker) given a dot this frame: a holder that takes a dot of its own is not released
+    # (released after its own take, it would lose that take)
+    takes = {(f[0][0], k) for k, f in plans.items() if len(f) == 1}
     for k, found in plans.items():
         if len(found) != 1:
             continue  # each view's sighting finds a partner: which is right is unknown
         b, (p, holder) = found[0]
         tb = trackers[b]
-        if holder >= 0 and holder != k:
+        if holder >= 0 and holder != k and (b, holder) not in takes:
             tb.reject([holder])
             tb.unlearn(holder)
             changed[b, holder] = True

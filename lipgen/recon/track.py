@@ -164,9 +164,11 @@ class MarkerTracker:
         free = np.linalg.norm(dots[:, None] - uv[status != LOST][None], axis=2).min(1, initial=np.inf) \
             >= cfg.dots.separation / 2
         known = np.isfinite(self.strength) & seen
-        if known.any():   # as dark as the markers' dots: not a texture blob, nor the mouth's inside
-            r = strength / float(np.median(self.strength[known]))
-            free &= (r >= cfg.min_strength_ratio) & (r <= (cfg.max_strength_ratio or np.inf))
+        typical = float(np.median(self.strength[known])) if known.any() else 0.0
+        if typical > 0:   # as dark as the markers' dots: not a texture blob, nor the mouth's inside
+            r = strength / typical
+            free &= (r >= cfg.min_strength_ratio) & (r <= (np.inf if cfg.max_strength_ratio is None
+                                                           else cfg.max_strength_ratio))
         match = acquire_layout(self.reference, uv, seen, wanted, dots, free, cfg.acquire_gate,
                                cfg.acquire_ratio)
         got = match >= 0

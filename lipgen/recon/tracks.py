@@ -103,6 +103,14 @@ class TrackerSettings:
     acquire_ratio: float = 0.6
     blend: bool = True
 
+    def __post_init__(self):
+        lo, hi = self.min_strength_ratio, self.max_strength_ratio
+        if not (np.isfinite(lo) and lo >= 0):
+            raise ValueError(f"min_strength_ratio must be a finite number >= 0, got {lo!r}")
+        if hi is not None and not (hi >= lo):  # also refuses NaN
+            raise ValueError(f"max_strength_ratio must be None (no limit) or at least min_strength_ratio "
+                             f"({lo!r}), got {hi!r}")
+
     @property
     def twins(self) -> float:
         return float(self.twin_distance if self.twin_distance is not None else 2.5 * self.dots.sigma)
