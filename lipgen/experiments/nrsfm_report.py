@@ -4,7 +4,7 @@ baseline."""
 
 from __future__ import annotations
 
-__all__ = ["PUBLISHED", "SEEN_SEEDS", "markdown"]
+__all__ = ["PUBLISHED", "SEEN_SEEDS", "ROUNDING", "worse_than_flat", "markdown"]
 
 PUBLISHED = {
     "drink": [("Akhter et al. 2008, trajectory basis", 13, 0.025),
@@ -23,6 +23,17 @@ were development bodies of issue 19's next pass, as 1100-1119 and 1200-1219 were
 after; the depth-support test, :mod:`lipgen.nrsfm.support`, was chosen on 1000-1019, 1100-1119 and
 1200-1219; 1300-1319 were its fresh check, then development bodies of the next pass): the check marks
 them not fresh."""
+
+
+ROUNDING = 1e-9
+"""Relative margin above the flat baseline still counted as equal to it: the flat *answer* (the
+tracks with zero depth, as the depth-support test returns it) is computed on another path than the
+baseline and came out 1.5e-12 above it on human-dance-1410."""
+
+
+def worse_than_flat(e3d: float, flat: float) -> bool:
+    """``e3d`` worse than the flat baseline's ``flat`` by more than rounding (:data:`ROUNDING`)."""
+    return e3d > flat * (1.0 + ROUNDING)
 
 
 def _ranges(seeds: list[int]) -> str:
@@ -137,12 +148,12 @@ def markdown(result: dict, settings) -> str:
             lines.append(f"| {entry['name']} | {entry['points']} | {entry['degrees_per_frame']:.1f} | "
                          f"{entry['flat_e3d']:.3f} | " + " | ".join(cells) + " |")
         worse = [(e["name"], r["method"], r["k"]) for e in result["validation"] for r in e["runs"]
-                 if r["e3d"] > e["flat_e3d"]]
+                 if worse_than_flat(r["e3d"], e["flat_e3d"])]
         listed = ", ".join(f"{n} {m} K={k}" for n, m, k in worse) if worse else "none"
         lines += ["", f"Runs worse than the flat baseline: {listed}.", ""]
     if result.get("check"):
-        worse = [c["name"] for c in result["check"] if c["e3d"] > c["flat_e3d"]]
-        worse_single = [c["name"] for c in result["check"] if c["e3d_single"] > c["flat_e3d"]]
+        worse = [c["name"] for c in result["check"] if worse_than_flat(c["e3d"], c["flat_e3d"])]
+        worse_single = [c["name"] for c in result["check"] if worse_than_flat(c["e3d_single"], c["flat_e3d"])]
         seen = sorted({c["seed"] for c in result["check"] if c["seed"] in SEEN_SEEDS})
         lines += ["## Check: `dai` with K = auto beside the flat baseline", "",
                   "Seeds run while the rules were chosen (the automatic K, the split-half depth shrinkage, "
