@@ -366,9 +366,12 @@ def _lm_fit(img, bg, dx, dy, params, iterations, sigma, weight=None):
         r2 = ex * ex + ey * ey
         gg = np.exp(-r2 / (2 * ps * ps))
         model = p[:, 4:] @ bg.T - pa * gg
+        # ps * ps * ps, not ps ** 3: numpy 1.26's AVX-512 power (SVML) falls back to libm's, 1 ulp
+        # apart, when its overlap check, which overshoots a strided view's end, meets the output
+        # allocated just after ``p``: the fit then depended on the heap layout (1e-8 px, run to run).
         jac = np.concatenate([
             (-pa * gg * ex / ps ** 2)[..., None], (-pa * gg * ey / ps ** 2)[..., None],
-            (-pa * gg * r2 / ps ** 3)[..., None], -gg[..., None],
+            (-pa * gg * r2 / (ps * ps * ps))[..., None], -gg[..., None],
             np.broadcast_to(bg, (len(p), *bg.shape))], axis=2)
         return model - img, jac
 
