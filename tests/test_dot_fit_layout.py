@@ -1,4 +1,4 @@
-"""The dot fit must not depend on where numpy puts its arrays (issue found by review, det15j).
+"""The dot fit and the corner fit must not depend on where numpy puts its arrays (found by review, det15j).
 
 numpy 1.26 on AVX-512 computes ``np.power`` with SVML, but falls back to libm's ``pow`` (1 ulp
 apart) when a conservative overlap check, which overshoots a strided view's end, meets an output
@@ -62,3 +62,36 @@ def test_dot_fit_is_the_same_with_either_power_implementation():
             _PowerPath.libm = False
     assert np.isfinite(fits[0]).all()
     assert fits[0].tobytes() == fits[1].tobytes(), np.abs(fits[0] - fits[1]).max()
+
+
+_LIBM_ATAN2 = np.frompyfunc(math.atan2, 2, 1)
+
+
+class _StridedTakesLibm:
+    """numpy, except that ``arctan2`` on a non-contiguous input is libm's (as numpy's overlap check
+    can make it), and numpy's own on contiguous inputs."""
+
+    def __getattr__(self, name):
+        return getattr(np, name)
+
+    @staticmethod
+    def arctan2(y, x):
+        if all(np.asarray(a).flags.c_contiguous for a in (y, x)):
+            return np.arctan2(y, x)
+        return _LIBM_ATAN2(np.asarray(y, float), np.asarray(x, float)).astype(np.float64)
+
+
+def test_the_corner_fits_start_is_the_same_with_either_arctan2(monkeypatch):
+    # the same hazard in the chessboard corner fit's edge angles (lead's audit after det15j)
+    from lipgen.recon import cornerfit
+
+    rng = np.random.default_rng(2)
+    rows, cols = 5, 7
+    grid = np.stack(np.meshgrid(np.arange(cols) * 23.0, np.arange(rows) * 21.0), axis=-1)
+    c0 = (grid.reshape(-1, 2) + rng.normal(0.0, 1.5, (rows * cols, 2))) @ [[0.97, 0.24], [-0.24, 0.97]]
+    plain = cornerfit._prepare(c0, (rows, cols), 0.45, 12.0)
+    monkeypatch.setattr(cornerfit, "np", _StridedTakesLibm())
+    forced = cornerfit._prepare(c0, (rows, cols), 0.45, 12.0)
+    assert plain.keys() == forced.keys()
+    for key in plain:
+        assert np.asarray(plain[key]).tobytes() == np.asarray(forced[key]).tobytes(), key

@@ -144,9 +144,11 @@ def _prepare(c0: np.ndarray, grid_shape, reach: float, max_radius: float) -> dic
         near[tuple(lo)] = np.minimum(near[tuple(lo)], d)
         near[tuple(hi)] = np.minimum(near[tuple(hi)], d)
     radius = np.clip(reach * near.ravel(), 2.0, max_radius)
-    # the edge along u has its normal perpendicular to u
-    phi1 = np.arctan2(du[:, 0], -du[:, 1])
-    phi2 = np.arctan2(dv[:, 0], -dv[:, 1])
+    # the edge along u has its normal perpendicular to u. Contiguous inputs: on a strided view numpy
+    # (1.26, AVX-512) may take libm's arctan2 instead of its vector one, 1 ulp apart, depending on
+    # where the output is allocated (tests/test_dot_fit_layout.py)
+    phi1 = np.arctan2(np.ascontiguousarray(du[:, 0]), -du[:, 1])
+    phi2 = np.arctan2(np.ascontiguousarray(dv[:, 0]), -dv[:, 1])
     n = len(c0)
     # spacing of each family of lines along its normal: the next row (column) of corners
     L = np.column_stack([np.cos(phi1) * dv[:, 0] + np.sin(phi1) * dv[:, 1],
