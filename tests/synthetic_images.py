@@ -45,6 +45,15 @@ def frame(base, uv, rng, noise: float = 0.01, **kw) -> np.ndarray:
     return np.clip(np.round(img * 255), 0, 255).astype(np.uint8)
 
 
+def swaying_views(cameras, points, n_frames: int, rng: np.random.Generator, shape=(120, 160)):
+    """``points`` (P, 3) mm swaying together (a sine of 1.5 / 1.0 / 2.0 mm per axis) seen by
+    ``cameras``: their uv (V, F, P, 2) and a textured background per camera (drawn from ``rng``)."""
+    t = np.arange(n_frames)[:, None, None]
+    marks = np.asarray(points)[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
+    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cameras])
+    return uv, [background(shape, rng) for _ in cameras]
+
+
 def marker_paths(n_frames: int, n_markers: int, rng: np.random.Generator, shape=(120, 160),
                  spacing: float = 14.0, amplitude: float = 6.0, own: float = 1.5) -> np.ndarray:
     """Known smooth paths (F, P, 2): a jittered grid moving together (sinusoidal translation of

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from synthetic_images import background, draw_dots, frame
+from synthetic_images import background, draw_dots, frame, swaying_views
 from test_raygap import _two_views
 
 from lipgen.recon.oneview import confirmed_runs, pair_one_view
@@ -29,10 +29,7 @@ def _clip(pairing: bool, lure: bool = False, slid: bool = False, seed: int = 3):
     Returns the (virtual, real) tracks and the true uv (2, F, P, 2)."""
     cams = _two_views()
     rng = np.random.default_rng(seed)
-    t = np.arange(F)[:, None, None]
-    marks = GRID[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
-    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])  # (2, F, P, 2)
-    bases = [background((120, 160), rng) for _ in cams]
+    uv, bases = swaying_views(cams, GRID, F, rng)  # uv (2, F, P, 2)
     trackers = []
     for v in range(2):
         init, ref = uv[v, 0].copy(), uv[v, 0].copy()

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from synthetic_images import background, frame
+from synthetic_images import frame, swaying_views
 from test_raygap import _two_views
 
 from lipgen.recon.pending import PendingAcquisitions
@@ -25,10 +25,7 @@ def _clip(pending: bool, wrong: bool = False, seed: int = 2):
     cams = _two_views()
     rng = np.random.default_rng(seed)
     grid = np.array([(x, y, 0.0) for y in (-7.0, 0.0, 7.0) for x in (-10.5, -3.5, 3.5, 10.5)])
-    t = np.arange(F)[:, None, None]
-    marks = grid[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
-    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])        # (2, F, P, 2)
-    bases = [background((120, 160), rng) for _ in cams]
+    uv, bases = swaying_views(cams, grid, F, rng)  # uv (2, F, P, 2)
     trackers = []
     for v in range(2):
         init = uv[v, 0].copy()

@@ -313,8 +313,7 @@ def _partner(
     others = np.flatnonzero(pending)
     others = others[others != k]
     d_other = np.linalg.norm(pred[others] - pts[best], axis=1).min() if len(others) else np.inf
-    known = np.isfinite(tb.strength) & seen_b
-    typ = float(np.median(tb.strength[known])) if known.any() else np.nan
+    typ = tb.typical_strength(seen_b)
     log.debug(
         "pair %d view %d frame %d: dot %.2f %.2f, %.2f mm from the prediction, next marker %.2f, "
         "next dot %.2f, strength %.2f",

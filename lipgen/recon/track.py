@@ -163,8 +163,7 @@ class MarkerTracker:
             return
         free = np.linalg.norm(dots[:, None] - uv[status != LOST][None], axis=2).min(1, initial=np.inf) \
             >= cfg.dots.separation / 2
-        known = np.isfinite(self.strength) & seen
-        typical = float(np.median(self.strength[known])) if known.any() else 0.0
+        typical = self.typical_strength(seen)
         if typical > 0:   # as dark as the markers' dots: not a texture blob, nor the mouth's inside
             r = strength / typical
             free &= (r >= cfg.min_strength_ratio) & (r <= (np.inf if cfg.max_strength_ratio is None
@@ -292,6 +291,11 @@ class MarkerTracker:
         if not self._out:
             return np.zeros(len(self.init), dtype=bool)
         return (self._before[1] > 0) | self.acquired
+
+    def typical_strength(self, seen: np.ndarray) -> float:
+        """Median darkness of the ``seen`` (P,) bool markers' dots known so far (NaN: none)."""
+        known = np.isfinite(self.strength) & seen
+        return float(np.median(self.strength[known])) if known.any() else np.nan
 
     def take(self, k: int, p: np.ndarray, gray: np.ndarray, strength: float) -> None:
         """Set marker ``k``'s sighting in the last image to ``p (2,)`` from outside (a check that
