@@ -41,7 +41,7 @@ def test_split4_same_surface_four_times_the_triangles():
     np.testing.assert_allclose(s.normals[m[0]], 0.5 * (item.normals[0] + item.normals[1]))
 
 
-@pytest.mark.slow
+@pytest.mark.slow(cover="tests/test_imaging.py::test_motion_blur_instants_and_lighting_are_seeded")
 @pytest.mark.render
 def test_hard_sampling_stays_below_the_sensor_noise(tmp_path):
     """The hard preset's blur instants (at most ``blur_step_px`` apart) and head mesh against dense

@@ -37,7 +37,7 @@ def test_small_demo_end_to_end(tmp_path):
     _check_demo(_run_demo(tmp_path, "--frames", "17", "--workers", "1"), tmp_path)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(cover="tests/test_fem_demo_bench.py::test_small_demo_end_to_end")
 @pytest.mark.render
 def test_full_demo(tmp_path):
     """`lipgen demo` with its defaults (150 frames, 2 workers); `make test-slow` runs it."""

@@ -115,7 +115,7 @@ def test_reach_plan_without_cholesky_qr_is_the_same(system, monkeypatch):
     assert np.abs(F - F1).max() <= 1e-9 * np.abs(F1).max()
 
 
-@pytest.mark.slow  # ~5 s quiet, 25 s at load 28
+@pytest.mark.slow(cover="tests/test_fem_multi_rhs.py::test_reach_plan_with_block_solves_equals_the_superlu_plan")
 @needs_cholmod
 def test_solvers_bench_quick_reports_ratios():
     from lipgen.bench import available_suites, solvers

@@ -167,7 +167,7 @@ def _check_defaults(work, physics):
                 assert got == pytest.approx(float(np.mean(at_markers[k])), rel=1e-6), (split, axes, k)
 
 
-@pytest.mark.slow
+@pytest.mark.slow(cover="tests/test_table51_pipeline.py::test_seed_record_equals_independent_scoring")
 @pytest.mark.render
 def test_five_seed_pipeline(tmp_path, _egl):
     from lipgen.experiments.table51_pipeline import write_pipeline_report

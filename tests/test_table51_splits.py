@@ -44,7 +44,12 @@ def test_paired_interval_is_scipys_paired_t_test_on_the_log_errors():
     assert g == pytest.approx(1.0) and lo < 1 < hi
 
 
-@pytest.mark.slow
+@pytest.mark.slow(
+    cover=(
+        "tests/test_table51_splits.py::test_paired_interval_is_scipys_paired_t_test_on_the_log_errors",
+        "tests/test_table51_pipeline.py::test_report_from_seed_records",
+    )
+)
 def test_splits_on_two_small_subjects(tmp_path):
     """About 30 s of CPU (four subjects, the combined model's cross-validation): the slow set."""
     from lipgen.experiments.table51_splits import write_splits_report
