@@ -90,7 +90,10 @@ def _shrink(Z: np.ndarray, tau: float, out: np.ndarray) -> int:
     written into ``out`` (the shape of Z); returns the rank kept.
 
     ``Z V diag(max(1 - tau / s, 0)) V^T`` equals ``U diag(max(s - tau, 0)) V^T`` for ``Z = U s V^T``;
-    the n x n Gram matrix (n = 3P columns) is far cheaper to decompose than Z itself.
+    the n x n Gram matrix (n = 3P columns) is far cheaper to decompose than Z itself. With k of the n
+    values kept, ``(Z Vk) (w Vk^T)`` costs 2 F n k multiply-adds and ``Z (Vk w Vk^T)`` F n^2 + n^2 k: the
+    cheaper of the two (the rank climbs to ~n as the penalty grows: on drink 120 of 123 for the last
+    third of the iterations, where the one product takes 0.9 ms against 2.3 ms).
     """
     w, V = np.linalg.eigh(Z.T @ Z)
     s = np.sqrt(np.maximum(w, 0.0))
@@ -99,8 +102,14 @@ def _shrink(Z: np.ndarray, tau: float, out: np.ndarray) -> int:
         out[...] = 0.0
         return 0
     Vk = V[:, keep]
-    np.matmul((Z @ Vk) * (1.0 - tau / s[keep]), Vk.T, out=out)
-    return int(keep.sum())
+    factor = 1.0 - tau / s[keep]
+    F, n = Z.shape
+    k = Vk.shape[1]
+    if F * n + n * k < 2 * F * k:
+        np.matmul(Z, (Vk * factor) @ Vk.T, out=out)
+    else:
+        np.matmul((Z @ Vk) * factor, Vk.T, out=out)
+    return k
 
 
 def rank_k_shapes(shapes: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
