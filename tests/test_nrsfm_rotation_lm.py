@@ -196,7 +196,7 @@ def _plain_trace_norm_shapes(Wc, R, mask=None, tol=1e-8, max_iter=1000, growth=1
 
 
 @pytest.mark.parametrize("hidden", [False, True])
-def test_trace_norm_shapes_give_the_plain_iterations_bits(hidden):
+def test_trace_norm_shapes_give_the_plain_iterations(hidden):
     rng = np.random.default_rng(11)
     F, P, K = 40, 9, 2
     basis = rng.standard_normal((K, 3, P))
@@ -206,9 +206,13 @@ def test_trace_norm_shapes_give_the_plain_iterations_bits(hidden):
     Wc = W - W.mean(axis=1, keepdims=True)
     mask = rng.random((F, P)) > 0.15 if hidden else None
     expected = _plain_trace_norm_shapes(Wc, R, mask)
-    assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask), expected)
+    got = bmm.min_trace_norm_shapes(Wc, R, mask)
+    # few values kept here: the eigenpairs above the threshold only (dsyevr). Exactly K shapes make
+    # the iteration ill-conditioned (the plain one moves by 6-8e-10 when Wc moves by 1e-15 of
+    # itself), so the same to within the ADMM's stopping tolerance (1e-8 of the shapes' norm)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-8 * np.abs(expected).max())
     if hidden:  # a 0/1 mask means the same; a mask of another shape is named
-        assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask.astype(int)), expected)
+        assert np.array_equal(bmm.min_trace_norm_shapes(Wc, R, mask.astype(int)), got)
         with pytest.raises(ValueError, match=r"mask must be \(F, P\) = \(40, 9\).*\(40, 8\)"):
             bmm.min_trace_norm_shapes(Wc, R, mask[:, :8])
 
@@ -221,14 +225,18 @@ def test_shrink_gives_the_thresholded_svd(tau_rank):
         rng.standard_normal((30, 30)))[0]
     U, s, Vt = np.linalg.svd(Z, full_matrices=False)
     tau = 0.5 * (s[tau_rank - 1] + s[tau_rank])
+    expected = (U * np.maximum(s - tau, 0.0)) @ Vt
+    for few in (False, True):  # all eigenpairs, or those above tau^2 only
+        out = np.empty_like(Z)
+        assert bmm._shrink(Z, tau, out, few=few) == tau_rank
+        np.testing.assert_allclose(out, expected, rtol=0, atol=1e-12)
     out = np.empty_like(Z)
-    assert bmm._shrink(Z, tau, out) == tau_rank
-    np.testing.assert_allclose(out, (U * np.maximum(s - tau, 0.0)) @ Vt, rtol=0, atol=1e-12)
+    assert bmm._shrink(Z, 2 * s[0], out, few=True) == 0 and not out.any()
 
 
 def test_trace_norm_shapes_keeping_most_values_give_the_plain_iterations():
     # noisy shapes: the kept rank climbs past the one-product switch (k > F n / (2F - n), here 18
-    # of 30); the same iterates to rounding, so the same stop
+    # of 30); the same iterates to rounding (2e-13 of the shapes), so the same stop
     rng = np.random.default_rng(12)
     F, P = 40, 10
     shapes = rng.standard_normal((1, 3, P)) + 0.3 * rng.standard_normal((F, 3, P))
@@ -238,8 +246,8 @@ def test_trace_norm_shapes_keeping_most_values_give_the_plain_iterations():
     ranks = []
     shrink = bmm._shrink
 
-    def counted(Z, tau, out):
-        ranks.append(shrink(Z, tau, out))
+    def counted(Z, tau, out, few):
+        ranks.append(shrink(Z, tau, out, few))
         return ranks[-1]
 
     bmm._shrink = counted
@@ -249,4 +257,4 @@ def test_trace_norm_shapes_keeping_most_values_give_the_plain_iterations():
         bmm._shrink = shrink
     assert max(ranks) > 18
     expected = _plain_trace_norm_shapes(Wc, R)
-    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
