@@ -104,6 +104,8 @@ _GEQRT_COLUMNS = 64
 """From this many columns of ``[J | r]`` on, the QR runs LAPACK's ``dgeqrt`` (blocks of
 :data:`_GEQRT_BLOCK` columns); below, ``dgeqrf``."""
 _GEQRT_BLOCK = 32
+_TPQRT_BLOCK = 16
+"""Block size of :class:`_DampedStep`'s ``dtpqrt`` (8-32 timed alike on n = 18-117)."""
 
 
 def _r_factor(J: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -165,6 +167,3 @@ class _DampedStep:
             raise ValueError(f"LAPACK dtpqrt failed (info {info}) on the damped {n} x {n} system")
         return -solve_triangular(R[:n, :n], R[:n, n], check_finite=False)
 
-
-_TPQRT_BLOCK = 16
-"""Block size of :class:`_DampedStep`'s ``dtpqrt`` (8-32 timed alike on n = 18-117)."""
