@@ -232,6 +232,7 @@ def test_shrink_gives_the_thresholded_svd(tau_rank):
         np.testing.assert_allclose(out, expected, rtol=0, atol=1e-12)
     out = np.empty_like(Z)
     assert bmm._shrink(Z, 2 * s[0], out, few=True) == 0 and not out.any()
+    assert bmm._shrink(Z, 1e200, out, few=True) == 0 and not out.any()  # tau^2 overflows: all pairs
 
 
 def test_trace_norm_shapes_keeping_most_values_give_the_plain_iterations():

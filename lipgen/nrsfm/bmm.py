@@ -107,7 +107,7 @@ def _shrink(Z: np.ndarray, tau: float, out: np.ndarray, few: bool = False) -> in
     eigenpairs above ``tau^2`` are computed (:data:`_FEW`); the same values to rounding.
     """
     G = Z.T @ Z
-    if few:
+    if few and tau * tau < np.inf:   # dsyevr needs finite bounds
         w, V = scipy.linalg.eigh(G, subset_by_value=(tau * tau, np.inf), driver="evr", check_finite=False)
     else:
         w, V = np.linalg.eigh(G)
