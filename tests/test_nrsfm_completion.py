@@ -145,3 +145,51 @@ def test_hide_points_hides_the_fraction_asked_at_random_or_in_runs():
 
     assert run_share(~gaps) > 0.9 and run_share(~random) < 0.2
     assert np.array_equal(gaps, hide_points(500, 40, "gaps", 0.1, seed=1))
+
+
+def _fill_by_constraint(W0, prior, mask, N):
+    """Each frame's hidden entries with the model exact: min sum D (x - prior)^2 subject to the
+    model's rows (N_H^T x = -N^T w~), by its closed form (Lagrange multipliers), frame by frame."""
+    F, P = mask.shape
+    out = W0.reshape(F, 2, P).copy()
+    var = prior_variance(W0, mask)[::2]
+    for f in np.flatnonzero((~mask).any(1)):
+        idx = np.flatnonzero(~mask[f])
+        NH, Dinv = N[idx], var[f, idx]
+        for c in range(2):
+            s, k = prior.reshape(F, 2, P)[f, c, idx], out[f, c] @ N
+            lam = np.linalg.solve((NH.T * Dinv) @ NH, NH.T @ s + k)
+            out[f, c, idx] = s - Dinv * (NH @ lam)
+    return out.reshape(2 * F, P)
+
+
+def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singular():
+    """Rank P - 2 leaves one model row per frame; with its noise at the floor the normal equations'
+    matrix rounded to a singular one (LinAlgError on drink with 10 % hidden at K = 13). The stacked
+    least squares gives the exact-model closed form, and the moderate-noise answer is unchanged."""
+    from lipgen.nrsfm.completion import _fill
+
+    F, P = 40, 10
+    W = _low_rank(F, P, P - 2, seed=8)
+    mask = _mask(F, P, 0.3, 9)
+    mask[:, :2] = True
+    assert ((~mask).sum(1) > 1).any()
+    W0 = np.where(np.repeat(mask, 2, axis=0), W, 0.0)
+    prior = interpolate_in_time(W0, mask)
+    N = np.linalg.qr(np.random.default_rng(10).standard_normal((P, 1)))[0]
+    floor = 1e-24 * float((W0**2).mean())
+    full = _fill(W0, prior, mask, N, floor)
+    exact = _fill_by_constraint(W0, prior, mask, N)
+    np.testing.assert_allclose(full, exact, rtol=0, atol=1e-9 * np.abs(W).max())
+    # moderate noise: the normal equations are well conditioned there, and agree
+    noise = 1e-2 * float((W0**2).mean())
+    var = prior_variance(W0, mask)[::2]
+    ref = W0.reshape(F, 2, P).copy()
+    for f in np.flatnonzero((~mask).any(1)):
+        idx = np.flatnonzero(~mask[f])
+        A = N[idx] @ N[idx].T / noise + np.diag(1.0 / var[f, idx])
+        for c in range(2):
+            rhs = prior.reshape(F, 2, P)[f, c, idx] / var[f, idx] - N[idx] @ (ref[f, c] @ N) / noise
+            ref[f, c, idx] = np.linalg.solve(A, rhs)
+    np.testing.assert_allclose(_fill(W0, prior, mask, N, noise), ref.reshape(2 * F, P), rtol=1e-10,
+                               atol=1e-12 * np.abs(W).max())

@@ -263,9 +263,15 @@ def _fill(W0: np.ndarray, prior: np.ndarray, mask: np.ndarray, N: np.ndarray, no
         NH = N[idx]                                               # (n, h, d)
         start = np.take_along_axis(x0[frames], idx[:, None, :], axis=2)   # (n, 2, h)
         D = np.take_along_axis(weight[frames], idx, axis=1)      # (n, h)
-        A = NH @ NH.transpose(0, 2, 1) / noise + D[:, :, None] * np.eye(h)
-        rhs = start * D[:, None, :] - (full[frames] @ N) @ NH.transpose(0, 2, 1) / noise   # (n, 2, h)
-        x = np.linalg.solve(A, rhs.transpose(0, 2, 1)).transpose(0, 2, 1)
+        # min |(k + x NH)| / sqrt(noise) + sum D (x - start)^2 as one stacked least-squares problem,
+        # the model's rows first (Householder QR with the heavy rows on top stays accurate where the
+        # normal equations would lose D under NH NH^T / noise: noise at its floor made them singular)
+        root = np.sqrt(D)
+        M = np.concatenate([NH.transpose(0, 2, 1) / np.sqrt(noise), root[:, :, None] * np.eye(h)], axis=1)
+        b = np.concatenate([-(full[frames] @ N).transpose(0, 2, 1) / np.sqrt(noise),
+                            (start * root[:, None, :]).transpose(0, 2, 1)], axis=1)   # (n, d + h, 2)
+        Q, R = np.linalg.qr(M)
+        x = np.linalg.solve(R, Q.transpose(0, 2, 1) @ b).transpose(0, 2, 1)
         rows = full[frames]
         np.put_along_axis(rows, idx[:, None, :].repeat(2, axis=1), x, axis=2)
         full[frames] = rows
