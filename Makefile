@@ -26,18 +26,19 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/lipgen demo --out renders
 
-# `test` leaves out the slow set (pyproject addopts: -m 'not slow'); `test-fast` also the
-# rendering and Blender tests; `test-slow` is the slow set alone (the full demo); `test-all` everything.
+# `test` is the quick tier: it leaves out the slow set (pyproject addopts: -m 'not slow'), whose tests
+# each name their cheaper cover (tests/test_tiers.py); `test-fast` also leaves out the rendering and
+# Blender tests; `test-slow` is the slow set alone; `test-all` everything. CI runs test, then test-slow.
 test: $(STAMP) espeak
 	$(BIN)/python -m pytest $(PYTEST_ARGS)
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest $(PYTEST_ARGS) -m "not slow and not render and not blender"
 
-test-slow: $(STAMP)
+test-slow: $(STAMP) espeak
 	$(BIN)/python -m pytest $(PYTEST_ARGS) -m slow
 
-test-all: $(STAMP)
+test-all: $(STAMP) espeak
 	$(BIN)/python -m pytest $(PYTEST_ARGS) -m "slow or not slow"
 
 bench: $(STAMP)
