@@ -82,8 +82,9 @@ def test_one_held_out_realisation_with_marker_noise_estimates_the_noise_and_scor
     assert all(np.all(np.isfinite(r) & (np.asarray(r) > 0)) for r in ratios.values())
 
 
-@pytest.mark.slow(cover="tests/test_table51.py::"
-                  "test_one_held_out_realisation_with_marker_noise_estimates_the_noise_and_scores_every_row")
+@pytest.mark.slow(cover=("tests/test_table51.py::"
+                         "test_one_held_out_realisation_with_marker_noise_estimates_the_noise_and_scores_every_row",
+                         "tests/test_physics_prior.py::test_combined_model_beats_both_on_motion_outside_the_training_span"))
 def test_combined_beats_both_outside_the_span_with_marker_noise():
     """The held-out-action protocol of Table 5.1 at full size (head motion, 140 training frames
     without the smile and the funneler, 40 test frames that use them, 8 realisations) with 0.3 mm
