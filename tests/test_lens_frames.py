@@ -30,8 +30,9 @@ def _rig() -> MirrorRig:
                      base.mirror_offset, base.mirror_side, base.split)
 
 
-def _corners(rig, poses, board, rng, noise=0.1):
-    """Per pose: view -> raw pixels of the whole board where the view sees it whole (OpenCV's projection)."""
+def _corners(rig, poses, board, rng, noise=0.1, dist=DIST):
+    """Per pose: view -> raw pixels of the whole board where the view sees it whole (OpenCV's
+    projection through the lens ``dist``)."""
     cam = rig.camera
     out = []
     for P in poses:
@@ -42,7 +43,7 @@ def _corners(rig, poses, board, rng, noise=0.1):
         for v, view in enumerate(VIEWS):
             if inside[v].all():
                 Xs = rig.reflect(X) if view == "virtual" else X  # the mirror view sees the reflection
-                uv, _ = cv2.projectPoints(Xs, cv2.Rodrigues(cam.R)[0], cam.t, cam.K, DIST)
+                uv, _ = cv2.projectPoints(Xs, cv2.Rodrigues(cam.R)[0], cam.t, cam.K, dist)
                 per[view] = uv.reshape(-1, 2) + noise * rng.standard_normal((len(X), 2))
         out.append(per)
     return out
