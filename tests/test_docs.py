@@ -47,8 +47,8 @@ def test_every_tutorial_has_blocks_that_run():
         assert _blocks(page), f"{page.name} has no python or sh block to test"
 
 
-# The tutorials that run in `make test`; the others render and reconstruct frames (5-12 s each) and
-# run in the slow set, while `make test` checks that every command of theirs parses.
+# The tutorials that run in `make test`; the others render and reconstruct frames or scan NRSfM's K
+# (5-12 s each) and run in the slow set, while `make test` checks that every command of theirs parses.
 QUICK = ("usd",)
 
 
@@ -83,7 +83,7 @@ def test_tutorial_runs_as_written(page, tmp_path, monkeypatch):
 @pytest.mark.slow(cover=("tests/test_docs.py::test_every_tutorial_command_parses_and_its_imports_resolve",
                          "tests/test_docs.py::test_tutorial_runs_as_written"))
 @pytest.mark.parametrize("page", _params(quick=False))
-def test_rendering_tutorial_runs_as_written(page, tmp_path, monkeypatch):
+def test_long_tutorial_runs_as_written(page, tmp_path, monkeypatch):
     _run_as_written(page, tmp_path, monkeypatch)
 
 
