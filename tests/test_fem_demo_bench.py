@@ -35,7 +35,7 @@ def test_small_demo_end_to_end(tmp_path, capsys):
     frames rendered by one process: what the default demo does, on a tenth of its frames (about
     the fewest whose 5 folds each leave the 11 training frames its 10 modes need). It runs the
     command line in this process (`lipgen demo` in a subprocess is the full demo's test): a new
-    interpreter's imports cost 3-4 s of CPU that say nothing more about the loop."""
+    interpreter's imports cost about 2 s of CPU that say nothing more about the loop."""
     pytest.importorskip("cv2")
     from lipgen.cli import main
 
