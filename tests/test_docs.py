@@ -7,6 +7,7 @@ run in a Blender session. ``text`` blocks are not run.
 
 from __future__ import annotations
 
+import ast
 import importlib.util
 import re
 import shlex
@@ -46,15 +47,19 @@ def test_every_tutorial_has_blocks_that_run():
         assert _blocks(page), f"{page.name} has no python or sh block to test"
 
 
-def _params():
+# The tutorials that run in `make test`; the others render and reconstruct frames or scan NRSfM's K
+# (5-12 s each) and run in the slow set, while `make test` checks that every command of theirs parses.
+QUICK = ("usd",)
+
+
+def _params(quick: bool):
     # pages that render frames carry the render mark (left out of `make test-fast`)
     render = [pytest.mark.render]
     return [pytest.param(p, id=p.stem, marks=render if "pyrender" in NEEDS.get(p.stem, ()) else [])
-            for p in _pages() if p.stem != "blender"]
+            for p in _pages() if p.stem != "blender" and (p.stem in QUICK) == quick]
 
 
-@pytest.mark.parametrize("page", _params())
-def test_tutorial_runs_as_written(page, tmp_path, monkeypatch):
+def _run_as_written(page: Path, tmp_path: Path, monkeypatch) -> None:
     _skip_unless_available(page)
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__tutorial__"}
@@ -70,6 +75,45 @@ def test_tutorial_runs_as_written(page, tmp_path, monkeypatch):
             assert cli.main(args[1:]) == 0, f"{page.name}: `{line}` failed"
 
 
+@pytest.mark.parametrize("page", _params(quick=True))
+def test_tutorial_runs_as_written(page, tmp_path, monkeypatch):
+    _run_as_written(page, tmp_path, monkeypatch)
+
+
+@pytest.mark.slow(cover=("tests/test_docs.py::test_every_tutorial_command_parses_and_its_imports_resolve",
+                         "tests/test_docs.py::test_tutorial_runs_as_written"))
+@pytest.mark.parametrize("page", _params(quick=False))
+def test_long_tutorial_runs_as_written(page, tmp_path, monkeypatch):
+    _run_as_written(page, tmp_path, monkeypatch)
+
+
+def test_every_tutorial_command_parses_and_its_imports_resolve(capsys):
+    """What `make test` checks of the tutorials it does not run: each ``lipgen`` line parses with
+    the command's own parser, each python block compiles, and its imports resolve (Blender's
+    blocks aside: ``bpy`` is Blender's)."""
+    for page in _pages():
+        for i, (lang, code) in enumerate(_blocks(page)):
+            where = f"{page.name} block {i + 1}"
+            if lang == "python":
+                tree = compile(code, f"<{where}>", "exec", flags=ast.PyCF_ONLY_AST)
+                for node in tree.body:
+                    if isinstance(node, (ast.Import, ast.ImportFrom)) and not code.startswith("# Blender"):
+                        exec(compile(ast.Module([node], []), f"<{where}>", "exec"), {})
+                continue
+            for line in code.splitlines():
+                args = shlex.split(line, comments=True)
+                if not args:
+                    continue
+                assert args[0] == "lipgen", f"{page.name}: sh blocks hold lipgen commands, got {line!r}"
+                try:
+                    parsed = cli.build_parser(args[1]).parse_args(args[1:])
+                except SystemExit:
+                    err = capsys.readouterr().err
+                    raise AssertionError(f"{where}: `{line}` does not parse: {err}") from None
+                assert parsed.func, f"{where}: `{line}` names no command"
+
+
+@pytest.mark.slow(cover="tests/test_docs.py::test_every_tutorial_command_parses_and_its_imports_resolve")
 @pytest.mark.blender
 @pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module")
 def test_blender_tutorial_runs_in_blender(tmp_path):

@@ -10,38 +10,45 @@ from lipgen.bench import physics as bench_physics
 from lipgen.commands.demo import NAMED_FORCES, named_force
 
 
-def _check_demo(out, folder):
-    assert out.returncode == 0, out.stderr
+def _check_demo(returncode, stdout, stderr, folder):
+    assert returncode == 0, stderr
     for name in ("physics_forces.png", "rest_state.png", "fig_2_2.png"):
         path = folder / "demo" / name
         assert path.stat().st_size > 10_000 and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-        assert str(path) in out.stdout
+        assert str(path) in stdout
     report = folder / "demo" / "report" / "report.md"
-    assert str(report) in out.stdout and "| total before the report |" in report.read_text()
+    assert str(report) in stdout and "| total before the report |" in report.read_text()
     for name in ("recon.npz", "model.npz"):
         assert (folder / "demo" / name).stat().st_size > 1000
 
 
 def _run_demo(folder, *extra):
     # No timeout: how long this takes depends on the machine's load, not on lipgen.
-    return subprocess.run([sys.executable, "-m", "lipgen", "demo", "--out", str(folder), "--no-progress",
-                           *extra], capture_output=True, text=True)
+    out = subprocess.run([sys.executable, "-m", "lipgen", "demo", "--out", str(folder), "--no-progress",
+                          *extra], capture_output=True, text=True)
+    return out.returncode, out.stdout, out.stderr
 
 
 @pytest.mark.render
-def test_small_demo_end_to_end(tmp_path):
+def test_small_demo_end_to_end(tmp_path, capsys):
     """The whole loop (pictures, dataset, reconstruction, modes, evaluation, report) on 17
     frames rendered by one process: what the default demo does, on a tenth of its frames (about
-    the fewest whose 5 folds each leave the 11 training frames its 10 modes need)."""
+    the fewest whose 5 folds each leave the 11 training frames its 10 modes need). It runs the
+    command line in this process (`lipgen demo` in a subprocess is the full demo's test): a new
+    interpreter's imports cost about 2 s of CPU that say nothing more about the loop."""
     pytest.importorskip("cv2")
-    _check_demo(_run_demo(tmp_path, "--frames", "17", "--workers", "1"), tmp_path)
+    from lipgen.cli import main
+
+    status = main(["demo", "--out", str(tmp_path), "--no-progress", "--frames", "17", "--workers", "1"])
+    out = capsys.readouterr()
+    _check_demo(status, out.out, out.err, tmp_path)
 
 
 @pytest.mark.slow(cover="tests/test_fem_demo_bench.py::test_small_demo_end_to_end")
 @pytest.mark.render
 def test_full_demo(tmp_path):
     """`lipgen demo` with its defaults (150 frames, 2 workers); `make test-slow` runs it."""
-    _check_demo(_run_demo(tmp_path), tmp_path)
+    _check_demo(*_run_demo(tmp_path), tmp_path)
 
 
 def test_named_forces_reach_their_peak():

@@ -255,3 +255,39 @@ def test_head_mesh_sets_the_tessellation_and_keeps_the_surface(mesh):
         ImageConditions(head_mesh=(28, 0, 36, 64))
     with pytest.raises(ValueError, match="blur_step_px must be in"):
         ImageConditions(blur_step_px=0.0)
+
+
+def test_a_subjects_textures_are_made_once_from_its_seed(mesh, monkeypatch):
+    """Face models of one subject share its read-only textures, drawn once per process from the
+    subject's seed; another seed or strength draws again. (Small stand-ins for the 1024x1024 maps,
+    drawn from the generator they are given, count the draws.)"""
+    from lipgen.subject import face, skin
+
+    calls = []
+
+    def texture(rng, strength):
+        calls.append(strength)
+        return rng.integers(0, 256, (4, 4, 3), dtype=np.uint8)
+
+    monkeypatch.setattr(skin, "skin_texture", texture)
+    monkeypatch.setattr(skin, "lip_texture", texture)
+    face._subject_textures.cache_clear()
+    try:
+        a = FaceModel(mesh, FaceLook(texture=1.0, texture_seed=3))
+        b = FaceModel(mesh, FaceLook(texture=1.0, texture_seed=3, dot_diameter=2.0))
+        assert len(calls) == 2
+        other = FaceModel(mesh, FaceLook(texture=1.0, texture_seed=4))
+        weaker = FaceModel(mesh, FaceLook(texture=0.5, texture_seed=3))
+        assert calls == [1.0, 1.0, 1.0, 1.0, 0.5, 0.5]
+    finally:
+        face._subject_textures.cache_clear()  # the stand-ins must not outlive this test
+    rng = np.random.default_rng([3, 7])
+    tone = skin.skin_tone(rng)
+    want = (texture(rng, 1.0), texture(rng, 1.0))
+    for k, tex in enumerate(want):
+        assert a.materials[k].texture is b.materials[k].texture
+        assert not a.materials[k].texture.flags.writeable
+        np.testing.assert_array_equal(a.materials[k].texture, tex)
+        assert not np.array_equal(other.materials[k].texture, tex)
+        assert weaker.materials[k].texture is not a.materials[k].texture
+    assert a.materials[0].color == pytest.approx(tone)

@@ -59,6 +59,32 @@ def test_report_and_command(small, tmp_path):
     assert main(bad) == 1
 
 
+def test_one_held_out_realisation_with_marker_noise_estimates_the_noise_and_scores_every_row():
+    """The full-size held-out-action protocol's first realisation (the slow set runs all 8 and their
+    geometric means): the combined model's per-frame mixture finds the 0.3 mm marker noise's
+    variance, and every estimator scores every row."""
+    from lipgen import Physics, lip_mesh
+    from lipgen.experiments.table51_protocol import _score
+    from lipgen.experiments.table51_span import _realisation, _versus
+    from lipgen.subject.motion import default_subject
+
+    s = Table51Settings(marker_noise_mm=0.3)
+    physics = Physics(lip_mesh(0))
+    cols = ("modes", "full", "physics_force", "physics_energy", "combined")
+    rng = np.random.default_rng(0)
+    subject = default_subject(0, s.truth_resolution)
+    model, combined, test, rows = _realisation(s, subject, physics, 0.09, rng, 13)
+    assert 0.6 * 0.09 < combined["combined"].noise_variance_ < 1.3 * 0.09
+    table = _score(model, physics, test, rows, 0.09, combined, cols)
+    assert set(table) == set(rows) and all(set(cells) == set(cols) for cells in table.values())
+    ratios = _versus(table)
+    assert set(ratios) == set(rows)
+    assert all(np.all(np.isfinite(r) & (np.asarray(r) > 0)) for r in ratios.values())
+
+
+@pytest.mark.slow(cover=("tests/test_table51.py::"
+                         "test_one_held_out_realisation_with_marker_noise_estimates_the_noise_and_scores_every_row",
+                         "tests/test_physics_prior.py::test_combined_model_beats_both_on_motion_outside_the_training_span"))
 def test_combined_beats_both_outside_the_span_with_marker_noise():
     """The held-out-action protocol of Table 5.1 at full size (head motion, 140 training frames
     without the smile and the funneler, 40 test frames that use them, 8 realisations) with 0.3 mm

@@ -23,6 +23,7 @@ always did.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,6 +120,21 @@ def boundary_loops(faces: np.ndarray) -> list[np.ndarray]:
     return loops
 
 
+@functools.lru_cache(maxsize=4)
+def _subject_textures(texture_seed, strength: float) -> tuple:
+    """(skin tone, skin texture, lip texture) of a subject, made once per process for the last 4
+    subjects: the same seed gives the same bytes, and a dataset's every worker, a campaign's
+    datasets of one subject and a test session's renderers of the default subject made them anew
+    (0.7 s of CPU each). The arrays are read-only, shared by the face models of that subject."""
+    from lipgen.subject import skin as proc
+
+    rng = np.random.default_rng([texture_seed, 7])
+    tone = proc.skin_tone(rng)
+    skin_tex, lip_tex = proc.skin_texture(rng, strength), proc.lip_texture(rng, strength)
+    skin_tex.flags.writeable = lip_tex.flags.writeable = False
+    return tone, skin_tex, lip_tex
+
+
 class FaceModel:
     """The rendered subject around a :class:`~lipgen.mesh.LipMesh`, built once at rest.
 
@@ -144,11 +160,7 @@ class FaceModel:
         skin_tex = lip_tex = None
         skin = look.skin
         if look.texture > 0:
-            from lipgen.subject import skin as proc
-
-            rng = np.random.default_rng([look.texture_seed, 7])
-            skin = proc.skin_tone(rng)
-            skin_tex, lip_tex = proc.skin_texture(rng, look.texture), proc.lip_texture(rng, look.texture)
+            skin, skin_tex, lip_tex = _subject_textures(look.texture_seed, float(look.texture))
         # wet vermilion: smoother (more specular) than the skin when textured
         self.materials = (Material("skin", skin, 0.65, label=1, texture=skin_tex),
                           Material("vermilion", look.vermilion, 0.4 if lip_tex is None else 0.3, label=2,
