@@ -62,8 +62,9 @@ def test_equals_the_least_norm_force_reach(lips):
         T = _similarity_3d(model[others], points[others])  # the first round's similarity
         back = np.linalg.solve(T[:3, :3], (points - T[:3, 3]).T).T
         seen = others[others < P]
-        U, _ = physics.reach(node_dofs(markers[seen], "xyz", physics.n_nodes),
-                             (back[seen] - model[seen]).ravel())
+        U, _ = physics.reach(
+            node_dofs(markers[seen], "xyz", physics.n_nodes), (back[seen] - model[seen]).ravel()
+        )
         expect = T[:3, :3] @ (model[i] + U[markers[i]]) + T[:3, 3]
         np.testing.assert_allclose(pred[i], expect, atol=1e-5)
 

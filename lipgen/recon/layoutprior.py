@@ -50,8 +50,9 @@ def physics_layout_covariance(physics, n_rigid: int = 1) -> np.ndarray:
     return out
 
 
-def predict_layout_physics(model, points, use, covariance, smoothing: float = 0.01,
-                           rounds: int = 8) -> np.ndarray:
+def predict_layout_physics(
+    model, points, use, covariance, smoothing: float = 0.01, rounds: int = 8
+) -> np.ndarray:
     """Each point's 3-D position predicted from the other used points with the physics prior.
 
     Parameters
@@ -85,7 +86,9 @@ def predict_layout_physics(model, points, use, covariance, smoothing: float = 0.
     if not np.all(np.isfinite(points[use])):
         raise ValueError("points must be finite where use is True")
     if not (np.isfinite(smoothing) and smoothing > 0):
-        raise ValueError(f"smoothing must be > 0 (a noise variance relative to the prior's), got {smoothing!r}")
+        raise ValueError(
+            f"smoothing must be > 0 (a noise variance relative to the prior's), got {smoothing!r}"
+        )
     if int(rounds) != rounds or rounds < 1:
         raise ValueError(f"rounds must be an integer >= 1, got {rounds!r}")
     out = np.full((P, 3), np.nan)
