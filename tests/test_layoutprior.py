@@ -82,3 +82,25 @@ def test_bad_input_is_named(lips):
     bad[0] = np.nan
     with pytest.raises(ValueError, match="finite where use"):
         predict_layout_physics(model, bad, use, cov)
+
+
+def test_predict_layout_takes_the_prior_as_an_option(lips):
+    from lipgen.recon.firstframe import predict_layout
+
+    _, model, cov = lips
+    rng = np.random.default_rng(4)
+    A, t = _similarity(5)
+    points = (model + np.vstack([rng.normal(size=(len(model) - 1, 3)), np.zeros((1, 3))])) @ A.T + t
+    use = np.ones(len(model), bool)
+    with_prior = predict_layout(model, points, use, 5.0, covariance=cov)
+    np.testing.assert_array_equal(with_prior, predict_layout_physics(model, points, use, cov))
+    assert np.abs(with_prior - predict_layout(model, points, use, 5.0)).max() > 0.1
+
+
+def test_rows_without_a_layout_are_predicted_nan(lips):
+    _, model, cov = lips
+    holed = model.copy()
+    holed[5] = np.nan
+    use = np.all(np.isfinite(holed), axis=1)
+    pred = predict_layout_physics(holed, model, use, cov)
+    assert np.isnan(pred[5]).all() and np.isfinite(np.delete(pred, 5, axis=0)).all()

@@ -58,7 +58,8 @@ def predict_layout_physics(
     Parameters
     ----------
     model : (P, 3) float
-        The layout at rest (the model's markers, then its rigid points), mm.
+        The layout at rest (the model's markers, then its rigid points), mm; NaN rows (no
+        layout) are predicted NaN.
     points : (P, 3) float
         The points, mm; read where ``use``.
     use : (P,) bool
@@ -76,15 +77,15 @@ def predict_layout_physics(
     (P, 3) float
         Predicted positions (for used points, from the others); NaN where fewer than 4 others.
     """
-    model = as_float_array(model, "model", (None, 3))
+    model = as_float_array(model, "model", (None, 3), finite=False)
     P = len(model)
     points = as_float_array(points, "points", (P, 3), finite=False)
     use = np.asarray(use, dtype=bool)
     cov = as_float_array(covariance, "covariance", (3 * P, 3 * P))
     if use.shape != (P,):
         raise ValueError(f"use must be a ({P},) bool mask, got shape {use.shape}")
-    if not np.all(np.isfinite(points[use])):
-        raise ValueError("points must be finite where use is True")
+    if not (np.all(np.isfinite(points[use])) and np.all(np.isfinite(model[use]))):
+        raise ValueError("points and model must be finite where use is True")
     if not (np.isfinite(smoothing) and smoothing > 0):
         raise ValueError(
             f"smoothing must be > 0 (a noise variance relative to the prior's), got {smoothing!r}"
