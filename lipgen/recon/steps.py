@@ -176,6 +176,12 @@ class ReconstructSettings:
         With the calibrated cameras and the markers at rest: a marker acquired in one view only
         takes the other view's dot where the 3-D layout puts it on its epipolar line
         (:func:`lipgen.recon.oneview.pair_one_view`; :mod:`lipgen.recon.oneview` gives the figures).
+    physics_layout_prior : bool
+        :func:`~lipgen.recon.pipeline.reconstruct_dataset` gives the 3-D layout checks of the first
+        frame and of the identity re-check the model's physics prior
+        (:mod:`lipgen.recon.layoutprior`). Off: validation ``hard`` 21 69 -> 25 accepted
+        sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted, held out unchanged
+        (``renders/examples/tracking/hard15k_physics_layout.md``); not yet adopted.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -200,6 +206,7 @@ class ReconstructSettings:
     acquire_pending: int | None = 10
     motion_check: bool = True
     one_view_pairing: bool = True
+    physics_layout_prior: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
