@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.layoutprior import predict_layout_physics
 from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.pinhole import PinholeCamera, triangulate
@@ -80,11 +81,14 @@ def match_first_frame(dots, strength, expected, gate: float, robust: bool = Fals
     return np.where(sub >= 0, keep[np.maximum(sub, 0)], -1)
 
 
-def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width: float) -> np.ndarray:
+def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width: float,
+                   covariance: np.ndarray | None = None) -> np.ndarray:
     """Each marker's 3-D position predicted from the other used markers (leave one out).
 
     The similarity from ``model[use]`` to ``points[use]``, then the Gaussian-weighted mean (width
     ``width`` mm in the layout) of the used markers' residual offsets, each marker's own left out.
+    With ``covariance``, the physics prior instead
+    (:func:`lipgen.recon.layoutprior.predict_layout_physics`; ``width`` is not used).
 
     Parameters
     ----------
@@ -96,12 +100,17 @@ def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width
         Markers the prediction is made from (at least 4).
     width : float
         Width of the offsets' weights, mm.
+    covariance : (3P, 3P) float, optional
+        The layout's prior covariance in the frame of ``model``
+        (:func:`lipgen.recon.layoutprior.physics_layout_covariance`).
 
     Returns
     -------
     (P, 3) float
         Predicted positions (for used markers, from the others).
     """
+    if covariance is not None:
+        return predict_layout_physics(model, points, use, covariance)
     P = len(model)
     out = np.full((P, 3), np.nan)
     idx = np.flatnonzero(use)
@@ -117,13 +126,14 @@ def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width
     return out
 
 
-def _residuals(model, points, use, width, k, floor, rounds: int = 3) -> tuple[np.ndarray, np.ndarray, float]:
+def _residuals(model, points, use, width, k, floor, rounds: int = 3,
+               covariance=None) -> tuple[np.ndarray, np.ndarray, float]:
     """Leave-one-out residuals with the out-of-place markers left out of the prediction.
 
     Returns (pred (P, 3), residual (P,), limit mm)."""
     inl = use.copy()
     for _ in range(rounds):
-        pred = predict_layout(model, points, inl, width)
+        pred = predict_layout(model, points, inl, width, covariance)
         r = np.linalg.norm(points - pred, axis=1)
         sigma = 1.4826 * float(np.median(r[inl & np.isfinite(r)]))
         limit = max(k * sigma, floor)
@@ -137,7 +147,7 @@ def _residuals(model, points, use, width, k, floor, rounds: int = 3) -> tuple[np
 def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
                  cameras: tuple[PinholeCamera, PinholeCamera], model_points, max_gap: float,
                  k: float = 4.0, floor: float = 1.0, px_tol: float = 2.0,
-                 ratio: float = 0.6) -> tuple[list[np.ndarray], np.ndarray]:
+                 ratio: float = 0.6, covariance=None) -> tuple[list[np.ndarray], np.ndarray]:
     """Check the first frame's matches of both views jointly against the 3-D layout; fix or drop the wrong.
 
     Parameters
@@ -159,6 +169,8 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
         projection; the view farther from it loses its match (both when both are farther).
     ratio : float
         A replacement pair must be nearer its prediction than ``ratio`` times the next pair.
+    covariance : (3P, 3P) float, optional
+        Predict with the physics prior (:func:`predict_layout`); None: the offsets' mean.
 
     Returns
     -------
@@ -176,7 +188,7 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
         return out, changed
     X = triangulate_matched(cameras, out, both)
     width = layout_spacing(model[both])
-    pred, r, limit = _residuals(model, X, both, width, k, floor)
+    pred, r, limit = _residuals(model, X, both, width, k, floor, covariance=covariance)
     # A marker far from all others (the nose) is not predicted by their offsets: not checked.
     near = np.linalg.norm(model[:, None] - model[both][None], axis=2)
     near[near == 0] = np.inf

@@ -258,7 +258,7 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
 
 def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
                       cameras: tuple[PinholeCamera, PinholeCamera], max_gap: float,
-                      model_points=None, grow: bool = True, names=None
+                      model_points=None, grow: bool = True, names=None, covariance=None
                       ) -> tuple[list[np.ndarray], np.ndarray]:
     """The first frame's matches checked between the views, against the 3-D layout, and grown.
 
@@ -282,6 +282,8 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         Grow the matches.
     names : sequence of str, optional
         Marker names, for the log.
+    covariance : (3P, 3P) float, optional
+        The layout check's physics prior (:func:`~lipgen.recon.firstframe.check_layout`).
 
     Returns
     -------
@@ -306,7 +308,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         return ", ".join(f"{VIEWS[v]} {i if names is None else names[i]}"
                          for v, i in zip(*np.nonzero(moved), strict=True))
 
-    inits, moved = check_layout(inits, dots, cameras, model_points, max_gap)
+    inits, moved = check_layout(inits, dots, cameras, model_points, max_gap, covariance=covariance)
     if moved.any():
         log.info("first frame: %d match(es) out of place in the 3-D layout changed or dropped (%s)",
                  int(moved.sum()), label(moved))
@@ -315,7 +317,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         if grown.any():
             log.info("first frame: %d match(es) grown from the markers matched in both views (%s)",
                      int(grown.sum()), label(grown))
-            inits, moved = check_layout(inits, dots, cameras, model_points, max_gap)
+            inits, moved = check_layout(inits, dots, cameras, model_points, max_gap, covariance=covariance)
             if moved.any():
                 log.info("first frame: %d grown match(es) out of place changed or dropped (%s)",
                          int(moved.sum()), label(moved))

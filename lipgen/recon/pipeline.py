@@ -276,10 +276,15 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
     names = [*mesh.marker_names, "nose"]
+    layout_cov = None
+    if settings.physics_layout_prior:
+        from lipgen.recon.layoutprior import physics_layout_covariance
+
+        layout_cov = physics_layout_covariance(Physics(mesh))
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks = track_raw_frames(frames, ds.rig, expected, settings,
                                   (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names,
-                                  rest_points=marks_rest)
+                                  rest_points=marks_rest, layout_covariance=layout_cov)
     if bar is not None:
         bar.close()
     t_track = time.perf_counter()

@@ -47,15 +47,18 @@ class IdentityCheck:
         The markers at rest in the frame of the cameras, mm.
     frames : int
         Frames in a row the check must propose the same marker's new dot before it is taken.
+    covariance : (3P, 3P) float, optional
+        The layout check's physics prior (:func:`~lipgen.recon.firstframe.check_layout`).
     """
 
-    def __init__(self, rest_points, frames: int = 3):
+    def __init__(self, rest_points, frames: int = 3, covariance=None):
         self.rest = np.asarray(rest_points, dtype=float)
         if self.rest.ndim != 2 or self.rest.shape[1] != 3:
             raise ValueError(f"rest_points must have shape (P, 3), got {self.rest.shape}")
         if int(frames) < 1:
             raise ValueError(f"frames must be at least 1, got {frames!r}")
         self.frames = int(frames)
+        self.covariance = covariance
         P = len(self.rest)
         self.run = np.zeros((2, P), dtype=np.int64)
         self.prev = np.full((2, P, 2), np.nan)
@@ -90,7 +93,7 @@ class IdentityCheck:
         P = len(self.rest)
         now = [np.where((tr._out[-1][1] != LOST)[:, None], tr._out[-1][0], np.nan) for tr in trackers]
         dots = [tr.dot_history[-1][0] for tr in trackers]
-        out, changed = check_layout(now, dots, cameras, self.rest, max_gap)
+        out, changed = check_layout(now, dots, cameras, self.rest, max_gap, covariance=self.covariance)
         new = np.stack([np.where(changed[v][:, None], out[v], np.nan) for v in range(2)])   # (2, P, 2)
         prop = changed & np.all(np.isfinite(new), axis=2)
         gate = np.array([tr.cfg.recovery_gate for tr in trackers])[:, None]

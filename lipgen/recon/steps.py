@@ -176,6 +176,12 @@ class ReconstructSettings:
         With the calibrated cameras and the markers at rest: a marker acquired in one view only
         takes the other view's dot where the 3-D layout puts it on its epipolar line
         (:func:`lipgen.recon.oneview.pair_one_view`; :mod:`lipgen.recon.oneview` gives the figures).
+    physics_layout_prior : bool
+        :func:`~lipgen.recon.pipeline.reconstruct_dataset` gives the 3-D layout checks of the first
+        frame and of the identity re-check the model's physics prior
+        (:mod:`lipgen.recon.layoutprior`). Off: validation ``hard`` 21 69 -> 25 accepted
+        sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted, held out unchanged
+        (``renders/examples/tracking/hard15k_physics_layout.md``); not yet adopted.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -200,6 +206,7 @@ class ReconstructSettings:
     acquire_pending: int | None = 10
     motion_check: bool = True
     one_view_pairing: bool = True
+    physics_layout_prior: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
@@ -216,7 +223,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                      settings: ReconstructSettings = ReconstructSettings(),
                      progress: Callable[[int], None] | None = None,
                      cameras: tuple[PinholeCamera, PinholeCamera] | None = None,
-                     names=None, rest_points=None) -> tuple[Tracks, Tracks]:
+                     names=None, rest_points=None, layout_covariance=None) -> tuple[Tracks, Tracks]:
     """Detect and track the markers in both views of a raw sequence.
 
     Parameters
@@ -244,6 +251,10 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         ``cameras`` and ``settings.first_frame_lures``, the first frame's dots that no dot of the
         other view places near the layout in 3-D (the nose's shadow, tooth gaps) are not matched
         (:func:`lipgen.recon.stereo_init.layout_dots`).
+    layout_covariance : (3P, 3P) float, optional
+        The physics prior of ``rest_points``' layout
+        (:func:`lipgen.recon.layoutprior.physics_layout_covariance`), for the 3-D layout checks of
+        the first frame and of the identity re-check; None: their Gaussian-weighted offsets.
 
     Returns
     -------
@@ -261,7 +272,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
-    recheck = (IdentityCheck(rest_points, settings.identity_recheck)
+    recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     motion = (MotionCheck(rest_points)
               if cameras is not None and rest_points is not None and settings.motion_check else None)
@@ -294,7 +305,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if cameras is not None:
                 inits, bad = check_first_frame(inits, found, cameras, settings.max_ray_gap,
                                                rest_points if settings.first_frame_layout else None,
-                                               settings.first_frame_grow, names)
+                                               settings.first_frame_grow, names, layout_covariance)
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
