@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -41,176 +40,19 @@ from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
 from lipgen.recon.oneview import pair_one_view
 from lipgen.recon.pending import PendingAcquisitions
-from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.recheck import IdentityCheck
+from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.stereo_init import layout_dots
-from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings, Tracks
+from lipgen.recon.track import LOST, MarkerTracker, Tracks
 from lipgen.recon.twins import resolve_twins
 from lipgen.recon.viewcheck import check_views
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["ReconstructSettings", "track_raw_frames", "triangulate_tracks", "reach_fields",
+__all__ = ["track_raw_frames", "triangulate_tracks", "reach_fields",
            "expected_projections"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class ReconstructSettings:
-    """Settings of the reconstruction.
-
-    Attributes
-    ----------
-    tracker : TrackerSettings
-        Dot look and tracking parameters.
-    init_gate : float
-        Largest distance (px) between a first-frame dot and its marker's expected position
-        after the 2-D alignment.
-    max_ray_gap : float
-        Largest distance (mm) between a marker's two rays; beyond it the pair is a mis-track
-        and the marker is treated as not seen in that frame.
-    min_visible : int
-        Fewest visible markers for a frame's field to be reconstructed (else its field is NaN).
-    twin_model : bool
-        Find markers whose dots merge in one view (twins) with a model of both dots on their
-        epipolar lines from the other view (:mod:`lipgen.recon.twins`).
-    ray_gap_k : float or None
-        The views disagree when the rays pass farther apart than ``ray_gap_k`` times the median
-        gap of the sequence's agreeing sightings (:class:`lipgen.recon.raygap.RayGapLimit`),
-        within [``min_ray_gap_px``, ``max_ray_gap``]; None: ``max_ray_gap`` alone.
-    min_ray_gap_px : float
-        Least ray-gap limit, in pixels at the lab origin (converted to mm by the calibrated views).
-    first_frame_lures : bool
-        Drop first-frame matches on dots that no dot of the other view places near the marker
-        layout in 3-D (:func:`lipgen.recon.stereo_init.layout_dots`). Off: measured before
-        ``first_frame_dark`` and ``first_frame_layout`` existed, it cut the validation sets'
-        accepted sightings over 3 px from 141 to 99 but accepted fewer (66.7 -> 63.9 %) and was
-        worse on hard seed 9 (16 -> 55 over 3 px).
-    robust_first_frame : bool
-        Match the first frame with the trimmed registration (``robust`` of
-        :func:`lipgen.recon.pointreg.match_to_expected`): outlying matches are left out of the
-        similarity fit and of the deformation, and the markers left unmatched are acquired on
-        later frames. Off: measured before ``first_frame_dark`` and ``first_frame_layout``
-        existed, it was better on the validation sets in total (57.9 -> 66.7 % accepted, 163 ->
-        141 over 3 px) but the recording tutorial's 20-frame H.264 clip then never acquired
-        ``lower_mid`` (exit status 3), and hard test seed 12 collapsed (29.7 -> 3.1 %).
-    step_k : float or None
-        A sighting whose 3-D point moved farther from the marker's last accepted point than
-        ``step_k`` times the 90th percentile of that marker's accepted steps (per frame, at least
-        ``min_step``) is a jump along the epipolar line and is taken back in both views
-        (:class:`lipgen.recon.jumps.StepLimit`); None: no step check.
-    min_step : float
-        Least step limit, mm per frame.
-    epipolar_recovery : bool
-        Look for a marker lost in one view on the epipolar line of the other view's sighting,
-        where a faint dot (under the detector's contrast floor: the defocused mirror view of
-        ``hard``) may be taken (:func:`lipgen.recon.epipolar.recover_along_epipolar`); it then
-        passes the same view checks as any re-acquired sighting.
-    first_frame_layout : bool
-        Check the first frame's matches of both views jointly in 3-D against the model's marker
-        layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
-        out of place (a lure along the epipolar line, which the ray gap cannot see) takes the pair
-        of free dots nearest where the other markers put it, or its wrong view is left unmatched.
-    first_frame_grow : bool
-        With ``first_frame_layout``: grow the first frame's matches from the markers matched in
-        both views, in 3-D along the epipolar lines (:func:`lipgen.recon.grow.grow_first_frame`),
-        then check the layout again.
-    first_frame_dark : float or None
-        Match each view's first frame on the dots at least this fraction as dark as the median
-        of the markers' dots (:func:`lipgen.recon.firstframe.match_first_frame`); None: all dots.
-        On ``default`` the lures near the lips are skin blobs at 0.29-0.36 of the markers'
-        median darkness, the faintest marker dots at 0.45-0.62 (validation seeds 7, 8).
-    backfill : bool
-        With the calibrated cameras, a marker first seen in a view after the first frame is
-        tracked back from there to the frames before it, each sighting confirmed by the other view
-        (:func:`lipgen.recon.backfill.backfill`). With ``identity_recheck``, ``rewalk`` and
-        ``walk_frames`` (measured together; calibrate, track, triangulate, scored against the
-        truth; accepted share, accepted sightings over 3 px in both views; before -> after): the
-        demo's 150-frame ``easy`` clip 98.9 -> 99.6 %; validation ``default`` seeds 7 / 8 / 9
-        89.7 / 94.6 / 92.5 -> 92.1 / 97.4 / 92.8 %, over 3 px 0 / 8 / 0 -> 0 / 0 / 0; noise 32
-        seeds 7-10 +0 to +1.6 points, the same 3 over 3 px; ``hard`` seeds 7-10 23.2 / 80.3 /
-        77.2 / 53.8 -> 23.9 / 82.6 / 83.1 / 62.2 %, over 3 px 60 / 1 / 26 / 35 -> 67 / 1 / 26 / 37;
-        easy seed 7 unchanged (99.9 %). Test seeds ``default`` 11 / 12 / 13 (once, at the end):
-        93.5 / 93.3 / 98.4 -> 97.3 / 93.4 / 99.4 %, over 3 px 30 / 0 / 0 -> 0 / 0 / 0.
-    identity_recheck : int or None
-        With the calibrated cameras and the markers at rest, the first frame's 3-D layout check
-        is run on every later frame too; a marker it gives a new dot this many frames in a row is
-        re-tracked from there, forward and backward (:class:`lipgen.recon.recheck.IdentityCheck`).
-        None: off. On 8-frame H.264 clips (640x480, crf 12) of seeds 5-10, the RMS difference
-        from the PNG frames' tracks over sightings both accept: seed 5 1.42 -> 0.17 px (a lure
-        9 px along the epipolar line, matched with the mouth open, re-identified at frame 3), the
-        others 0.15-0.18 px as before.
-    rewalk : bool
-        With the calibrated cameras, a marker found again (after a loss, or from the motion
-        prediction) in both views is walked back until the history agrees: frames it was lost in
-        are filled, and earlier sightings on another dot replaced
-        (:func:`lipgen.recon.backfill.rewalk`).
-    walk_frames : int
-        A walk back (``backfill``, ``rewalk``) is made once the marker has been seen in both
-        views this many frames in a row from where the walk starts
-        (:class:`lipgen.recon.backfill.WalkQueue`): a wrong pair taken back within a frame or two
-        is not carried back.
-    acquire_pending : int or None
-        With the calibrated cameras, an acquisition the other view does not see yet is kept in
-        its view for up to this many frames until the other view confirms it (rays that meet) or
-        contradicts it (:class:`lipgen.recon.pending.PendingAcquisitions`); None: withdrawn at once.
-        With ``first_frame_grow`` (main b0a1c18 -> both; accepted share of visible sightings,
-        px RMS mirror / direct, accepted sightings over 3 px mirror / direct): hard 7 32.1 ->
-        71.3 %, 2.77 / 10.76 -> 0.85 / 0.49 px, 9 / 52 -> 5 / 2; hard 8 82.3 % unchanged; hard 9
-        78.8 -> 84.3 %, 1.45 / 1.73 -> 0.43 / 0.34 px, 13 / 14 -> 1 / 0; hard 10 62.2 -> 67.7 %,
-        1.83 / 3.65 -> 2.14 / 1.93 px, 19 / 18 -> 18 / 17; default 7 / 8 / 9 92.1 / 97.4 / 92.8 ->
-        97.9 / 98.1 / 98.4 %, none over 3 px before or after; easy 7 99.9 % and the demo's clip
-        99.6 % unchanged. Grow alone: hard 7 74.7 % but 29 / 26 over 3 px, hard 10 64.2 %;
-        pending alone: hard 7 / 9 / 10 31.5 / 78.1 / 58.3 %. Held out (once, after the freeze):
-        default 11 / 12 / 13 97.3 / 93.4 / 99.4 -> 97.5 / 99.2 / 99.4 %, none over 3 px; hard 11
-        / 12 / 13 (12 and 13 new) 71.2 / 69.3 / 79.1 -> 72.4 / 63.1 / 77.9 %, over 3 px 16 / 5 /
-        8 -> 22 / 21 / 8: on ``hard`` no gain held out.
-    motion_check : bool
-        With the calibrated cameras and the markers at rest: every frame, each point is checked
-        against the 3-D layout (behind the lips; a run out of place) and each step against the
-        neighbours' steps; wrong sightings are taken back or swapped
-        (:class:`lipgen.recon.motioncheck.MotionCheck`, which gives the figures). Validation
-        ``hard`` 7-10 and 20-22: 199 -> 111 accepted sightings over 3 px.
-    one_view_pairing : bool
-        With the calibrated cameras and the markers at rest: a marker acquired in one view only
-        takes the other view's dot where the 3-D layout puts it on its epipolar line
-        (:func:`lipgen.recon.oneview.pair_one_view`; :mod:`lipgen.recon.oneview` gives the figures).
-    physics_layout_prior : bool
-        :func:`~lipgen.recon.pipeline.reconstruct_dataset` gives the 3-D layout checks of the first
-        frame and of the identity re-check the model's physics prior
-        (:mod:`lipgen.recon.layoutprior`). Off: validation ``hard`` 21 69 -> 25 accepted
-        sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted, held out unchanged
-        (``renders/examples/tracking/hard15k_physics_layout.md``); not yet adopted.
-    """
-
-    tracker: TrackerSettings = field(default_factory=TrackerSettings)
-    init_gate: float = 6.0
-    max_ray_gap: float = 2.0
-    min_visible: int = 4
-    twin_model: bool = True
-    ray_gap_k: float | None = 8.0
-    min_ray_gap_px: float = 1.0
-    first_frame_lures: bool = False
-    robust_first_frame: bool = False
-    step_k: float | None = 4.0
-    min_step: float = 1.0
-    epipolar_recovery: bool = True
-    first_frame_layout: bool = True
-    first_frame_grow: bool = True
-    first_frame_dark: float | None = 0.4
-    backfill: bool = True
-    identity_recheck: int | None = 3
-    rewalk: bool = True
-    walk_frames: int = 3
-    acquire_pending: int | None = 10
-    motion_check: bool = True
-    one_view_pairing: bool = True
-    physics_layout_prior: bool = False
-
-    def ray_gap_limit(self, cameras) -> RayGapLimit:
-        """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
-        return RayGapLimit(self.max_ray_gap, self.ray_gap_k, self.min_ray_gap_px / px_per_mm(cameras))
 
 
 def expected_projections(views: tuple[PinholeCamera, PinholeCamera], points) -> np.ndarray:
