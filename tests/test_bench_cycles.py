@@ -5,8 +5,12 @@ import pytest
 pytestmark = [pytest.mark.render, pytest.mark.blender]
 
 
-@pytest.mark.slow(cover=("tests/test_bench_cycles.py::test_the_bench_measures_one_round_of_its_baseline",
-                         "tests/test_cycles.py::test_cycles_draws_the_same_picture_as_pyrender[plain]"))
+@pytest.mark.slow(
+    cover=(
+        "tests/test_bench_cycles.py::test_the_bench_measures_one_round_of_its_baseline",
+        "tests/test_cycles.py::test_cycles_draws_the_same_picture_as_pyrender[plain]",
+    )
+)
 def test_cycles_bench_suite_runs_quick():
     pytest.importorskip("bpy")
     pytest.importorskip("pyrender")

@@ -152,7 +152,8 @@ def test_a_small_inline_campaign_into_a_file_url_matches_generate_and_resumes(tm
     from lipgen.dataset import generate as gen
 
     monkeypatch.setenv("LIPGEN_STAGING", str(tmp_path / "staging"))
-    plan = parse_plan({**_PLAN, "base": {**BASE, "frames": 4}, "items": [{"seed": 3}, {"seed": 4, "frames": 2}],
+    plan = parse_plan({**_PLAN, "base": {**BASE, "frames": 4},
+                       "items": [{"seed": 3}, {"seed": 4, "frames": 2}],
                        "campaign": {"stages": ["generate", "nrsfm"], "chunk_frames": 2}})
     root = tmp_path / "bucket" / "runs" / "c"
     url = f"file://{root}"
