@@ -16,10 +16,17 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import scipy.linalg
 
 __all__ = ["min_trace_norm_shapes", "rank_k_shapes"]
 
 log = logging.getLogger(__name__)
+
+
+_FEW = 12
+"""While the last shrinkage kept at most this many values (the rank climbs slowly, from 0), the next
+asks LAPACK's ``dsyevr`` for the eigenpairs above the threshold only: on drink's 123 x 123 Gram matrix
+0.36-0.8 ms for 1-10 of them against 1.0 ms for all (``dsyevd``), and slower from ~15 on."""
 
 
 def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None = None,
@@ -60,11 +67,14 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     norm0 = np.linalg.norm(base)
     it = 0
     complete = bool(seen.all())
-    # the arithmetic of the plain iteration, element for element (the same bits), in buffers made once
+    # the plain iteration's elementwise arithmetic (the same bits) in buffers made once; the
+    # shrinkage's cheaper routes give its values to rounding
     Y_rho, Z, X = np.empty_like(A), np.empty_like(A), np.empty_like(A)
+    rank = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
         np.divide(Y, rho, out=Y_rho)
-        rank = _shrink(np.subtract(A, Y_rho, out=Z).reshape(F, -1), 1.0 / rho, out=X.reshape(F, -1))
+        rank = _shrink(np.subtract(A, Y_rho, out=Z).reshape(F, -1), 1.0 / rho, out=X.reshape(F, -1),
+                       few=rank <= _FEW)
         T = np.add(X, Y_rho, out=Y_rho)                        # X + Y / rho
         depth = np.einsum("fik,fip->fkp", depth_axis, T)      # (F, 1, P)
         np.multiply(depth_axis, depth, out=A)
@@ -85,22 +95,36 @@ def min_trace_norm_shapes(Wc: np.ndarray, R: np.ndarray, mask: np.ndarray | None
     return A
 
 
-def _shrink(Z: np.ndarray, tau: float, out: np.ndarray) -> int:
+def _shrink(Z: np.ndarray, tau: float, out: np.ndarray, few: bool = False) -> int:
     """Singular value soft-thresholding of a tall matrix, through the eigenvectors of its Gram matrix,
     written into ``out`` (the shape of Z); returns the rank kept.
 
     ``Z V diag(max(1 - tau / s, 0)) V^T`` equals ``U diag(max(s - tau, 0)) V^T`` for ``Z = U s V^T``;
-    the n x n Gram matrix (n = 3P columns) is far cheaper to decompose than Z itself.
+    the n x n Gram matrix (n = 3P columns) is far cheaper to decompose than Z itself. With k of the n
+    values kept, ``(Z Vk) (w Vk^T)`` costs 2 F n k multiply-adds and ``Z (Vk w Vk^T)`` F n^2 + n^2 k: the
+    cheaper of the two (the rank climbs to ~n as the penalty grows: on drink 120 of 123 for the last
+    third of the iterations, where the one product takes 0.9 ms against 2.3 ms). ``few``: only the
+    eigenpairs above ``tau^2`` are computed (:data:`_FEW`); the same values to rounding.
     """
-    w, V = np.linalg.eigh(Z.T @ Z)
+    G = Z.T @ Z
+    if few and tau * tau < np.inf:   # dsyevr needs finite bounds
+        w, V = scipy.linalg.eigh(G, subset_by_value=(tau * tau, np.inf), driver="evr", check_finite=False)
+    else:
+        w, V = np.linalg.eigh(G)
     s = np.sqrt(np.maximum(w, 0.0))
     keep = s > tau
     if not keep.any():
         out[...] = 0.0
         return 0
     Vk = V[:, keep]
-    np.matmul((Z @ Vk) * (1.0 - tau / s[keep]), Vk.T, out=out)
-    return int(keep.sum())
+    factor = 1.0 - tau / s[keep]
+    F, n = Z.shape
+    k = Vk.shape[1]
+    if F * n + n * k < 2 * F * k:
+        np.matmul(Z, (Vk * factor) @ Vk.T, out=out)
+    else:
+        np.matmul((Z @ Vk) * factor, Vk.T, out=out)
+    return k
 
 
 def rank_k_shapes(shapes: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
