@@ -102,6 +102,9 @@ def test_pure_wheel_record_is_complete_and_correct(tmp_path):
 @needs_bpy
 @pytest.mark.skipif(not (sys.platform == "linux" and platform.machine() == "x86_64"),
                     reason="installs the linux-x64 zip")
+@pytest.mark.slow(cover=("tests/test_blender_extension.py::test_source_manifest_passes_blenders_validator",
+                         "tests/test_blender_extension.py::test_manifest_with_wheels_keeps_tables_and_parses",
+                         "tests/test_blender_extension.py::test_pure_wheel_record_is_complete_and_correct"))
 def test_built_zip_validates_installs_and_works_in_a_bare_blender(tmp_path):
     # The build downloads the scipy wheel once (into the shared cache) and then works offline.
     out = subprocess.run([sys.executable, "-m", "lipgen", "blender-extension", "--out",

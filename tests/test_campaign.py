@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _campaign_inline import inline_executor
 
 from lipgen.campaign import (
     CampaignError,
@@ -213,6 +214,8 @@ _GEN_NRSFM = {"base": BASE, "campaign": {"stages": ["generate", "nrsfm"], "chunk
 
 
 @pytest.mark.render
+@pytest.mark.slow(cover=("tests/test_campaign.py::test_a_small_inline_campaign_matches_generate_fails_one_item_and_resumes",
+                         "tests/test_campaign.py::test_a_dead_local_worker_loses_only_its_own_task"))
 def test_a_local_campaign_matches_generate_fails_one_item_and_resumes(tmp_path):
     pytest.importorskip("lipgen.rig.render")
     from lipgen.dataset.generate import generate
@@ -267,6 +270,56 @@ def test_a_worker_reuses_its_renderer_for_the_next_dataset_with_the_same_bytes(t
     ref = gen.generate(tmp_path / "ref", b, progress=False)
     x, y = _files(ref), _files(tmp_path / "b")
     assert x.keys() == y.keys() and all(x[k] == y[k] for k in x), "a reused renderer changed the bytes"
+
+
+_SMALL = {"base": {**BASE, "frames": 4}, "campaign": {"stages": ["generate", "nrsfm"], "chunk_frames": 2},
+          # item 1 has too few frames for NRSfM with K = 2: it must fail alone
+          "items": [{"seed": 3}, {"seed": 4, "frames": 2}]}
+
+
+@pytest.fixture
+def inline_campaign(monkeypatch):
+    pytest.importorskip("lipgen.rig.render")
+    with inline_executor(monkeypatch) as ex:
+        yield ex
+
+
+@pytest.mark.render
+def test_a_small_inline_campaign_matches_generate_fails_one_item_and_resumes(tmp_path, inline_campaign):
+    from lipgen.dataset import generate as gen
+    from lipgen.dataset.generate import generate
+
+    plan = parse_plan(_SMALL)
+    out = tmp_path / "c"
+    index = run_campaign(plan, out, executor=inline_campaign, progress=False)
+    ok, bad = index["items"]
+    assert ok["status"] == "done" and bad["status"] == "failed", index["items"]
+    assert bad["stages"]["generate"]["status"] == "done" and bad["stages"]["nrsfm"]["status"] == "failed"
+    assert "too large" in bad["stages"]["nrsfm"]["error"]
+    assert ok["stages"]["generate"]["chunks"] == 3  # 5 files in chunks of 2
+    assert ok["stages"]["generate"]["peak_rss_mib"] > 0 and ok["stages"]["nrsfm"]["seconds"] > 0
+    assert index["versions"]["lipgen"] and index["runs"][0]["executor"] == "inline"
+    assert read_index(out)["fingerprint"] == plan.fingerprint()
+    nr = json.loads((out / "items/0000/nrsfm.json").read_text())
+    assert np.isfinite(nr["truth_tracks"]["e3d"]) and nr["truth_tracks"]["frames"] == 4
+    gen._close_worker()  # the tasks' renderer, kept in this process as in a worker
+    ref = generate(tmp_path / "ref", plan.items[0].settings, progress=False)
+    a, b = _files(ref), _files(out / "items/0000/dataset")
+    assert a.keys() == b.keys() and all(a[k] == b[k] for k in a), "campaign dataset differs from generate"
+    report = write_campaign_report(out).read_text()
+    assert "## Failed items" in report and "| 0001 |" in report and "too large" in report
+    with pytest.raises(CampaignError, match="--resume"):
+        run_campaign(plan, out, executor=inline_campaign, progress=False)
+    other = parse_plan({**_SMALL, "base": {**_SMALL["base"], "noise": 2.0}})
+    with pytest.raises(CampaignError, match="another plan"):
+        run_campaign(other, out, executor=inline_campaign, resume=True, progress=False)
+    before = {p: p.stat().st_mtime_ns for p in (out / "items/0000").rglob("*") if p.is_file()}
+    lost = out / "items/0001/dataset/truth/000001.npz"
+    lost.unlink()  # a frame lost: resume renders it again
+    index = run_campaign(plan, out, executor=inline_campaign, resume=True, progress=False)
+    after = {p: p.stat().st_mtime_ns for p in (out / "items/0000").rglob("*") if p.is_file()}
+    assert after == before, "a finished item was redone"
+    assert index["items"][1]["status"] == "failed" and lost.is_file() and len(index["runs"]) == 2
 
 
 # --- documentation that runs ------------------------------------------------------------------

@@ -1,4 +1,5 @@
-"""``lipgen campaign`` on an embedded local Ray with 2 CPUs (in ``make test``): one Ray for the
+"""``lipgen campaign`` on an embedded local Ray with 2 CPUs (the slow set: Ray's start alone costs
+about 10 s; ``make test`` runs the campaign's logic in-process, tests/test_campaign.py): one Ray for the
 module, started without Ray's fixed 30 s window (so a loaded machine does not skip it); a worker
 killed mid-task loses only its task, and the datasets are byte-identical to ``lipgen generate``.
 """
@@ -92,6 +93,9 @@ def test_the_embedded_start_waits_for_a_live_raylet_and_fails_for_a_dead_one(mon
 
 
 @pytest.mark.render
+@pytest.mark.slow(cover=("tests/test_campaign.py::test_a_small_inline_campaign_matches_generate_fails_one_item_and_resumes",
+                         "tests/test_campaign.py::test_a_dead_local_worker_loses_only_its_own_task",
+                         "tests/test_campaign_ray.py::test_the_embedded_start_waits_for_a_live_raylet_and_fails_for_a_dead_one"))
 def test_a_ray_campaign_reruns_lost_work_and_is_byte_identical_to_generate(ray_executor, tmp_path):
     pytest.importorskip("lipgen.rig.render")
     from lipgen.dataset.generate import generate

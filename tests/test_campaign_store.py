@@ -10,6 +10,7 @@ import json
 from pathlib import Path
 
 import pytest
+from _campaign_inline import inline_executor
 
 from lipgen.campaign import CampaignError, parse_plan, run_campaign
 from lipgen.campaign.remote import Store, check_store, read_store_index, store_lock, write_store_index
@@ -101,6 +102,8 @@ def _store_files(root: Path) -> dict[str, bytes]:
 
 
 @pytest.mark.render
+@pytest.mark.slow(cover=("tests/test_campaign_store.py::test_a_small_inline_campaign_into_a_file_url_matches_generate_and_resumes",
+                         "tests/test_campaign.py::test_a_dead_local_worker_loses_only_its_own_task"))
 def test_a_campaign_into_a_file_url_matches_generate_and_resumes(tmp_path, monkeypatch):
     pytest.importorskip("lipgen.rig.render")
     pytest.importorskip("pyarrow")
@@ -136,5 +139,46 @@ def test_a_campaign_into_a_file_url_matches_generate_and_resumes(tmp_path, monke
     a, b = _store_files(ref1), _store_files(root / "items/0001/dataset")
     assert a.keys() == b.keys() and all(a[k] == b[k] for k in a), "resumed store dataset differs"
     # the report reads the store and is written into it
+    md = write_campaign_report(url)
+    assert md == f"{url}/report/report.md" and "## Failed items" in (root / "report/report.md").read_text()
+
+
+@pytest.mark.render
+def test_a_small_inline_campaign_into_a_file_url_matches_generate_and_resumes(tmp_path, monkeypatch):
+    """The store's staging, upload and download on a small plan, its tasks run in this process."""
+    pytest.importorskip("lipgen.rig.render")
+    pytest.importorskip("pyarrow")
+    from lipgen.campaign.aggregate import write_campaign_report
+    from lipgen.dataset import generate as gen
+
+    monkeypatch.setenv("LIPGEN_STAGING", str(tmp_path / "staging"))
+    plan = parse_plan({**_PLAN, "base": {**BASE, "frames": 4},
+                       "items": [{"seed": 3}, {"seed": 4, "frames": 2}],
+                       "campaign": {"stages": ["generate", "nrsfm"], "chunk_frames": 2}})
+    root = tmp_path / "bucket" / "runs" / "c"
+    url = f"file://{root}"
+    with inline_executor(monkeypatch) as ex:
+        index = run_campaign(plan, url, executor=ex, progress=False)
+        ok, bad = index["items"][0], index["items"][1]
+        assert ok["status"] == "done" and bad["status"] == "failed", index["items"]
+        assert "too large" in bad["stages"]["nrsfm"]["error"]
+        nr = json.loads((root / "items/0000/nrsfm.json").read_text())  # a stage after generate, uploaded
+        assert nr["truth_tracks"]["frames"] == 4
+        assert index_from_table(read_index_table(root)) == read_index(root)
+        assert not list((tmp_path / "staging").rglob("*.png")), "frames were left in the staging folder"
+        assert not (root / ".campaign.lock").exists()
+        with pytest.raises(CampaignError, match="--resume"):
+            run_campaign(plan, url, executor=ex, progress=False)
+        before = {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file() and "0000" in p.parts}
+        (root / "items/0001/dataset/truth/000001.npz").unlink()
+        index = run_campaign(plan, url, executor=ex, resume=True, progress=False)
+        after = {p: p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file() and "0000" in p.parts}
+        assert after == before, "a finished item was redone"
+        assert (root / "items/0001/dataset/truth/000001.npz").is_file() and len(index["runs"]) == 2
+        gen._close_worker()  # the tasks' renderer, kept in this process as in a worker
+    for k, item in enumerate(plan.items):
+        ref = gen.generate(tmp_path / f"ref{k}", item.settings, progress=False)
+        a, b = _store_files(ref), _store_files(root / "items" / item.name / "dataset")
+        assert a.keys() == b.keys() and all(a[n] == b[n] for n in a), f"store item {k} differs from generate"
     md = write_campaign_report(url)
     assert md == f"{url}/report/report.md" and "## Failed items" in (root / "report/report.md").read_text()

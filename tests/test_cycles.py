@@ -84,7 +84,30 @@ def _rms(e):
     return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
 
 
-@pytest.mark.parametrize("dist", [None, (-0.15, 0.05, 0.002, -0.001, 0.0)], ids=["pinhole", "distorted"])
+_DISTORTED = (-0.15, 0.05, 0.002, -0.001, 0.0)
+
+
+def _check_dots_land(face, dist, cycles_kw):
+    pytest.importorskip("bpy")
+    pytest.importorskip("pyrender")
+    from test_render import _frames
+
+    base = default_rig(320, 240)
+    cam = base.camera
+    rig = base if dist is None else MirrorRig(PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, dist),
+                                              base.mirror_normal, base.mirror_offset)
+    err = centroid_offsets(rig, face, _frames(face.mesh, 1, seed=3), cycles_kw)
+    assert len(err["cycles"]) >= 15
+    for name, e in err.items():
+        assert _rms(e) < 0.5, f"{name}: dot centroids {_rms(e):.3f} px RMS from the truth"
+        assert np.abs(e.mean(axis=0)).max() < 0.2, f"{name}: common offset {e.mean(axis=0)} px"
+    # the two renderers agree with each other dot by dot
+    assert _rms(err["cycles"] - err["pyrender"]) < 0.5
+
+
+@pytest.mark.slow(cover=("tests/test_cycles.py::test_cycles_dots_land_on_the_truth_without_the_denoiser",
+                         "tests/test_cycles.py::test_cycles_draws_the_same_picture_as_pyrender[plain]"))
+@pytest.mark.parametrize("dist", [None, _DISTORTED], ids=["pinhole", "distorted"])
 def test_cycles_dots_land_on_the_truth_like_pyrender(face, dist):
     """Both renderers put each dot's centroid on its truth projection, through a lens with and
     without distortion, at 320x240 with 8 samples (denoised).
@@ -94,27 +117,30 @@ def test_cycles_dots_land_on_the_truth_like_pyrender(face, dist):
     smooths into the dot's edge. A convention slip (half a pixel, a flipped shift, the mirror's
     flip) moves every dot by >= 0.5 px in common, far beyond 0.2 px.
     """
-    pytest.importorskip("bpy")
-    pytest.importorskip("pyrender")
-    from test_render import _frames
-
-    base = default_rig(320, 240)
-    cam = base.camera
-    rig = base if dist is None else MirrorRig(PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, dist),
-                                              base.mirror_normal, base.mirror_offset)
-    err = centroid_offsets(rig, face, _frames(face.mesh, 1, seed=3), {"samples": 8, "threads": 1})
-    assert len(err["cycles"]) >= 15
-    for name, e in err.items():
-        assert _rms(e) < 0.5, f"{name}: dot centroids {_rms(e):.3f} px RMS from the truth"
-        assert np.abs(e.mean(axis=0)).max() < 0.2, f"{name}: common offset {e.mean(axis=0)} px"
-    # the two renderers agree with each other dot by dot
-    assert _rms(err["cycles"] - err["pyrender"]) < 0.5
+    _check_dots_land(face, dist, {"samples": 8, "threads": 1})
 
 
+def test_cycles_dots_land_on_the_truth_without_the_denoiser(face):
+    """The same check through the distorted lens with 4 samples and no denoiser (a sixth of the
+    CPU: the denoiser is most of a denoised frame's cost; measured 0.36 px RMS, 0.02 px common
+    offset, 0.26 px from pyrender). The denoised path is drawn by the picture tests below."""
+    _check_dots_land(face, _DISTORTED, {"samples": 4, "denoise": False, "threads": 1})
+
+
+@pytest.mark.slow(cover="tests/test_cycles.py::test_generate_with_cycles_at_one_frame_and_one_sample")
 def test_generate_with_cycles_writes_the_same_truth_and_repeats_its_frames(tmp_path):
     """``generate`` with Cycles: the truth files are byte for byte pyrender's (the truth never
     depends on the renderer), the manifest records the renderer and its samples, and the same
     settings give the same frames."""
+    _check_generate_with_cycles(tmp_path, {"frames": 2, "calib_frames": 1}, 4)
+
+
+def test_generate_with_cycles_at_one_frame_and_one_sample(tmp_path):
+    """The same checks on one frame, no chessboard, at 1 sample."""
+    _check_generate_with_cycles(tmp_path, {"frames": 1, "calib_frames": 0}, 1)
+
+
+def _check_generate_with_cycles(tmp_path, counts: dict, samples: int) -> None:
     pytest.importorskip("bpy")
     pytest.importorskip("pyrender")
     from PIL import Image
@@ -125,19 +151,22 @@ def test_generate_with_cycles_writes_the_same_truth_and_repeats_its_frames(tmp_p
     def read_manifest(folder):
         return json.loads((folder / "manifest.json").read_text())
 
-    base = {"frames": 2, "calib_frames": 1, "size": (160, 120), "seed": 5}
+    base = {**counts, "size": (160, 120), "seed": 5}
     pr = generate(tmp_path / "pr", GenerateSettings(**base), progress=False)
-    cy = [generate(tmp_path / f"cy{k}", GenerateSettings(**base, renderer="cycles", cycles_samples=4),
+    cy = [generate(tmp_path / f"cy{k}", GenerateSettings(**base, renderer="cycles", cycles_samples=samples),
                    progress=False) for k in range(2)]
     settings = read_manifest(cy[0])["settings"]
-    assert settings["renderer"] == "cycles" and settings["cycles_samples"] == 4
+    assert settings["renderer"] == "cycles" and settings["cycles_samples"] == samples
     assert "renderer" not in read_manifest(pr)["settings"]
-    for sub in ("truth/000000.npz", "truth/000001.npz", "calib/000000.npz"):
+    frames = [f"{k:06d}" for k in range(counts["frames"])]
+    calib = [f"{k:06d}" for k in range(counts["calib_frames"])]
+    truths = [f"truth/{f}.npz" for f in frames] + [f"calib/{f}.npz" for f in calib]
+    for sub in truths:
         with np.load(pr / sub) as a, np.load(cy[0] / sub) as b:
             assert a.files == b.files
             for k in a.files:
                 np.testing.assert_array_equal(a[k], b[k], err_msg=f"{sub}: {k}")
-    for sub in ("raw/000000.png", "raw/000001.png", "calib/000000.png"):
+    for sub in [f"raw/{f}.png" for f in frames] + [f"calib/{f}.png" for f in calib]:
         images = [np.asarray(Image.open(d / sub)) for d in (pr, *cy)]
         assert images[0].shape == images[1].shape == (120, 160, 3)
         np.testing.assert_array_equal(images[1], images[2], err_msg=f"cycles is not repeatable: {sub}")
@@ -172,10 +201,9 @@ def test_cycles_draws_the_same_picture_as_pyrender(texture):
         assert np.corrcoef(gx, gy)[0, 1] > 0.9
 
 
-def test_cycles_lights_are_pyrender_lights():
-    """A grey matte plane lit by a directional light, a point light, or the ambient light alone:
-    the same radiance in both renderers within 10 % in linear light (measured 4-7 %: pyrender
-    scales diffuse light by 1 - F and encodes with gamma 2.2 rather than the sRGB curve)."""
+def _light_ratios(cycles_kw) -> np.ndarray:
+    """Cycles' radiance over pyrender's, in linear light, on a grey matte plane lit by a
+    directional light, a point light, or the ambient light alone."""
     pytest.importorskip("bpy")
     pytest.importorskip("pyrender")
     from lipgen.rig.cycles import CyclesRenderer
@@ -192,9 +220,24 @@ def test_cycles_lights_are_pyrender_lights():
               Scene((plane,), (), (0.5, 0.5, 0.5), black)]
     with RigRenderer(rig) as pr:
         a = [pr.render_views(s)[1][0][50:70, 30:50].mean() / 255 for s in scenes]
-    with CyclesRenderer(rig, samples=16, threads=1) as cr:
+    with CyclesRenderer(rig, threads=1, **cycles_kw) as cr:
         b = [cr.render_views(s)[1][0][50:70, 30:50].mean() / 255 for s in scenes]
     from lipgen.rig.scene import srgb_to_linear
 
-    ratio = srgb_to_linear(np.array(b)) / np.array(a) ** 2.2
+    return srgb_to_linear(np.array(b)) / np.array(a) ** 2.2
+
+
+@pytest.mark.slow(cover="tests/test_cycles.py::test_cycles_lights_are_pyrender_lights_without_the_denoiser")
+def test_cycles_lights_are_pyrender_lights():
+    """A grey matte plane lit by a directional light, a point light, or the ambient light alone:
+    the same radiance in both renderers within 10 % in linear light (measured 4-7 %: pyrender
+    scales diffuse light by 1 - F and encodes with gamma 2.2 rather than the sRGB curve)."""
+    ratio = _light_ratios({"samples": 16})
+    assert np.all(np.abs(ratio - 1) < 0.1), ratio
+
+
+def test_cycles_lights_are_pyrender_lights_without_the_denoiser():
+    """The same lights with 4 samples and no denoiser (a sixth of the CPU; measured 4-7 % too: the
+    20x20-pixel mean of a flat plane leaves little path-tracing noise)."""
+    ratio = _light_ratios({"samples": 4, "denoise": False})
     assert np.all(np.abs(ratio - 1) < 0.1), ratio

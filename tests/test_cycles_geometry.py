@@ -17,7 +17,18 @@ from lipgen.subject.face import DOT_LABEL0, FaceLook, FaceModel
 pytestmark = [pytest.mark.render, pytest.mark.blender]
 
 
+@pytest.mark.slow(cover="tests/test_cycles_geometry.py::test_cycles_depth_and_masks_fit_an_undenoised_one_sample_picture")
 def test_cycles_depth_and_masks_are_pyrenders_and_fit_the_cycles_picture():
+    _check_depth_and_masks({"samples": 4})
+
+
+def test_cycles_depth_and_masks_fit_an_undenoised_one_sample_picture():
+    """The same checks on Cycles' cheapest picture (1 sample, no denoiser): the background is
+    the world colour on every sample, and the dots are dark in any of them."""
+    _check_depth_and_masks({"samples": 1, "denoise": False})
+
+
+def _check_depth_and_masks(cycles_kw):
     pytest.importorskip("bpy")
     pytest.importorskip("pyrender")
     from scipy import ndimage
@@ -32,7 +43,7 @@ def test_cycles_depth_and_masks_are_pyrenders_and_fit_the_cycles_picture():
                     base.mirror_normal, base.mirror_offset)
     face = FaceModel(lip_mesh(1), FaceLook(dot_diameter=4.0))
     scene = face.scene(face.mesh.vertices)
-    with CyclesRenderer(rig, samples=4, threads=1) as cr:  # one GL context at a time: this one first
+    with CyclesRenderer(rig, threads=1, **cycles_kw) as cr:  # one GL context at a time: this one first
         cy = cr.render(scene, depth=True, labels=True)
         views = cr.render_views(scene, depth=True)
     assert views[0][2] is None and views[0][1].shape == (rig.virtual_view.height, rig.virtual_view.width)

@@ -45,6 +45,44 @@ def _same(a, b):
                                                                        "translation"))
 
 
+def _small_noisy_tracks(visible_share=None):
+    """Rank-3 tracks of 30 frames and 20 points with 0.01 of noise: the scan skips one K of 5 (in
+    0.3 s, against 3 s for the human bodies below); ``visible_share``: a random visibility mask."""
+    W, _, _ = low_rank_sequence(30, 20, 3, np.random.default_rng(4))
+    W = W + 0.01 * np.random.default_rng(1).standard_normal(W.shape)
+    if visible_share is None:
+        return W, None
+    visible = np.random.default_rng(2).random((30, 20)) < visible_share
+    return np.where(np.repeat(visible, 2, axis=0), W, np.nan), visible
+
+
+def test_auto_equals_the_exhaustive_search_on_small_tracks_and_skips_work():
+    W, _ = _small_noisy_tracks()
+    rec = reconstruct_auto(W, "dai", kmax=5, support=None)
+    ref, n = _exhaustive(W, 5)
+    assert _same(rec, ref) and rec.k == ref.k
+    finished = rec.info["k_choice"]["finished"]
+    assert len(finished) == n and 4 <= sum(finished) < n      # the consensus needs 4; some were skipped
+    W, _, _ = low_rank_sequence(40, 15, 2, np.random.default_rng(4))  # exact tracks: a rank-K fit
+    rec = reconstruct_auto(W, "dai", kmax=4, support=None)
+    ref, _ = _exhaustive(W, 4)
+    assert _same(rec, ref) and rec.k == 2 and rec.info["shapes"] == "rank-K fit"
+    W, visible = _small_noisy_tracks(0.9)
+    rec = reconstruct_auto(W, "dai", visible, kmax=4, support=None)
+    ref, _ = _exhaustive(W, 4, visible)
+    assert _same(rec, ref)
+
+
+def test_a_failed_bound_finishes_every_k_on_small_tracks(monkeypatch):
+    W, _ = _small_noisy_tracks()
+    bound = DaiScan.bound                 # the rotations as usual, but a bound no roughness reaches
+    monkeypatch.setattr(DaiScan, "bound", lambda self, k: (bound(self, k), 1e9)[1])
+    rec = reconstruct_auto(W, "dai", kmax=5, support=None)
+    assert all(rec.info["k_choice"]["finished"])
+    assert _same(rec, _exhaustive(W, 5)[0])
+
+
+@pytest.mark.slow(cover="tests/test_nrsfm_kscan.py::test_auto_equals_the_exhaustive_search_on_small_tracks_and_skips_work")
 def test_auto_equals_the_exhaustive_search_and_skips_work():
     # a development body, short: Ks 1-6 tried, 1 and 3 skipped (Ks 7-8 added 3.4 s of dai stages to
     # the scan and 6 s to the reference, and only more Ks skipped the same way)
@@ -56,6 +94,7 @@ def test_auto_equals_the_exhaustive_search_and_skips_work():
     assert len(finished) == n and 4 <= sum(finished) < n      # the consensus needs 4; some were skipped
 
 
+@pytest.mark.slow(cover="tests/test_nrsfm_kscan.py::test_auto_equals_the_exhaustive_search_on_small_tracks_and_skips_work")
 def test_auto_equals_the_exhaustive_search_on_exact_and_incomplete_tracks():
     W, _, _ = low_rank_sequence(40, 15, 2, np.random.default_rng(4))
     rec = reconstruct_auto(W, "dai", kmax=4, support=None)
@@ -69,6 +108,7 @@ def test_auto_equals_the_exhaustive_search_on_exact_and_incomplete_tracks():
     assert _same(rec, ref)
 
 
+@pytest.mark.slow(cover="tests/test_nrsfm_kscan.py::test_a_failed_bound_finishes_every_k_on_small_tracks")
 def test_a_failed_bound_finishes_every_k(monkeypatch):
     s = human_sequence(1101, 30)
     bound = DaiScan.bound                 # the rotations as usual, but a bound no roughness reaches
