@@ -256,3 +256,35 @@ def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, r
         out = tmp_path / f"bad_{message.split()[0]}"
         assert main(base + ["--out", str(out)] + extra) == 1
         assert message in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("on", [True, False])
+def test_the_physics_layout_prior_reaches_the_tracker_from_the_model_mesh(dataset, recon, monkeypatch, on):
+    """`reconstruct_dataset` hands the tracker the layout covariance of its model mesh (markers,
+    then the rigid nose), or None with the setting off. Stops at the tracker (the calibration is cached
+    from the `recon` fixture), so it costs little."""
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.fem import Physics
+    from lipgen.recon.layoutprior import physics_layout_covariance
+    from lipgen.recon.modelmesh import model_mesh
+    from lipgen.recon.settings import ReconstructSettings
+
+    seen = {}
+
+    class Reached(Exception):
+        pass
+
+    def capture(*args, **kwargs):
+        seen.update(kwargs)
+        raise Reached
+
+    monkeypatch.setattr(pipeline, "track_raw_frames", capture)
+    with pytest.raises(Reached):
+        reconstruct_dataset(dataset, settings=ReconstructSettings(physics_layout_prior=on))
+    mesh = model_mesh()
+    if not on:
+        assert seen["layout_covariance"] is None
+        return
+    P = len(mesh.markers)
+    assert seen["rest_points"].shape == (P + 1, 3)
+    np.testing.assert_array_equal(seen["layout_covariance"], physics_layout_covariance(Physics(mesh)))

@@ -104,3 +104,19 @@ def test_rows_without_a_layout_are_predicted_nan(lips):
     use = np.all(np.isfinite(holed), axis=1)
     pred = predict_layout_physics(holed, model, use, cov)
     assert np.isnan(pred[5]).all() and np.isfinite(np.delete(pred, 5, axis=0)).all()
+
+
+def test_the_tracker_checks_the_layout_covariance_before_any_frame():
+    from lipgen.recon.settings import ReconstructSettings
+    from lipgen.recon.steps import track_raw_frames
+
+    def frames():
+        raise AssertionError("a frame was read")
+        yield
+
+    expected = np.zeros((2, 5, 2))
+    with pytest.raises(ValueError, match=r"layout_covariance must have shape \(15, 15\)"):
+        track_raw_frames(frames(), None, expected, ReconstructSettings(), rest_points=np.zeros((5, 3)),
+                         layout_covariance=np.eye(12))
+    with pytest.raises(ValueError, match="needs rest_points"):
+        track_raw_frames(frames(), None, expected, ReconstructSettings(), layout_covariance=np.eye(15))

@@ -1,9 +1,10 @@
 """The corrective triple's arithmetic made cheaper: against the plain formulas it replaced.
 
-The residual, the QR's R factor below 64 columns and the trace-norm ADMM while it keeps few singular
-values must give the very bits of the plain code; the regrouped Jacobian, the QR from 64 columns on
-(``dgeqrt``), the damped step (``dtpqrt``) and the ADMM's one-product shrinkage are the same values
-to rounding, pinned here against the plain formulas or an independent solver.
+The residual and the QR's R factor below 64 columns must give the very bits of the plain code;
+the trace-norm ADMM (few values kept: the subset eigensolver) agrees with the plain iteration to
+1e-8; the regrouped Jacobian, the QR from 64 columns on (``dgeqrt``), the damped step (``dtpqrt``)
+and the ADMM's one-product shrinkage are the same values to rounding, pinned here against the plain
+formulas or an independent solver.
 """
 
 import numpy as np
@@ -259,3 +260,20 @@ def test_trace_norm_shapes_keeping_most_values_give_the_plain_iterations():
     assert max(ranks) > 18
     expected = _plain_trace_norm_shapes(Wc, R)
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("few", [False, True])
+def test_non_finite_input_raises_instead_of_a_silent_answer(few):
+    """The subset eigensolver returns no eigenpairs for a NaN Gram matrix (a silent zero), and a NaN
+    Jacobian made every damping trial fail quietly: both now raise."""
+    from lipgen.nrsfm import bmm
+    from lipgen.nrsfm._lm import _DampedStep
+
+    Z = np.ones((6, 4))
+    Z[2, 1] = np.nan
+    with pytest.raises(np.linalg.LinAlgError, match="NaN or inf"):
+        bmm._shrink(Z, 0.5, np.empty_like(Z), few=few)
+    Rj = np.triu(np.ones((3, 3)))
+    Rj[0, 2] = np.inf
+    with pytest.raises(FloatingPointError, match="NaN or inf"):
+        _DampedStep(Rj, np.ones(3), np.ones(3))

@@ -11,6 +11,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 TESTS = Path(__file__).resolve().parent
 
 
@@ -51,15 +53,14 @@ def _covers(mark: ast.expr, where: str) -> list[str]:
     return covers
 
 
-def test_every_slow_test_names_a_fast_cover_that_exists():
-    files = {p.relative_to(TESTS.parent).as_posix(): _tests_in(p) for p in sorted(TESTS.glob("test_*.py"))}
+def _check(files: dict[str, dict[str, list[ast.expr]]]) -> int:
+    """Check every slow test of ``files`` (path -> test -> decorators); the number checked."""
     slow = {
         (f, name)
         for f, tests in files.items()
         for name, decorators in tests.items()
         if any(_slow_mark(d) for d in decorators)
     }
-    assert slow, "no slow tests found: has the mark's spelling changed?"
     for f, name in sorted(slow):
         mark = next(m for m in map(_slow_mark, files[f][name]) if m is not None)
         for cover in _covers(mark, f"{f}::{name}"):
@@ -67,15 +68,32 @@ def test_every_slow_test_names_a_fast_cover_that_exists():
             test = test.split("[")[0]
             assert file in files and test in files[file], f"{f}::{name}: its cover {cover} does not exist"
             assert (file, test) not in slow, f"{f}::{name}: its cover {cover} is in the slow set too"
+    return len(slow)
 
 
-def test_the_check_sees_a_missing_cover(tmp_path):
+def test_every_slow_test_names_a_fast_cover_that_exists():
+    files = {p.relative_to(TESTS.parent).as_posix(): _tests_in(p) for p in sorted(TESTS.glob("test_*.py"))}
+    assert _check(files) > 0, "no slow tests found: has the mark's spelling changed?"
+
+
+@pytest.mark.parametrize(
+    ("source", "message"),
+    [
+        ("@pytest.mark.slow\ndef test_long():\n    pass\n", "needs cover="),
+        (
+            "@pytest.mark.slow(cover='tests/test_bad.py::test_gone')\ndef test_long():\n    pass\n",
+            "does not exist",
+        ),
+        (
+            "@pytest.mark.slow(cover='tests/test_bad.py::test_other')\ndef test_long():\n    pass\n\n"
+            "@pytest.mark.slow(cover='tests/test_bad.py::test_long')\ndef test_other():\n    pass\n",
+            "in the slow set too",
+        ),
+        ("pytestmark = pytest.mark.slow(cover='x')\n", "a whole module"),
+    ],
+)
+def test_the_check_sees_a_bad_cover(tmp_path, source, message):
     bad = tmp_path / "test_bad.py"
-    bad.write_text("import pytest\n\n@pytest.mark.slow\ndef test_long():\n    pass\n")
-    (mark,) = _tests_in(bad)["test_long"]
-    try:
-        _covers(_slow_mark(mark), "test_bad.py::test_long")
-    except AssertionError as e:
-        assert "needs cover=" in str(e)
-    else:  # pragma: no cover
-        raise AssertionError("a slow mark without a cover passed")
+    bad.write_text("import pytest\n\n" + source)
+    with pytest.raises(AssertionError, match=message):
+        _check({"tests/test_bad.py": _tests_in(bad)})

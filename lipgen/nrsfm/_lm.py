@@ -148,6 +148,8 @@ class _DampedStep:
     """
 
     def __init__(self, Rj: np.ndarray, qtr: np.ndarray, root: np.ndarray):
+        if not (np.isfinite(Rj).all() and np.isfinite(qtr).all()):
+            raise FloatingPointError("Levenberg-Marquardt: the Jacobian or the residual holds NaN or inf")
         self.Rj, self.qtr, self.root = Rj, qtr, root
 
     def __call__(self, lam: float) -> np.ndarray:

@@ -107,6 +107,8 @@ def _shrink(Z: np.ndarray, tau: float, out: np.ndarray, few: bool = False) -> in
     eigenpairs above ``tau^2`` are computed (:data:`_FEW`); the same values to rounding.
     """
     G = Z.T @ Z
+    if not np.isfinite(G).all():  # dsyevr would return no eigenpairs, i.e. a silent zero
+        raise np.linalg.LinAlgError("trace-norm shrinkage: the shapes hold NaN or inf")
     if few and tau * tau < np.inf:   # dsyevr needs finite bounds
         w, V = scipy.linalg.eigh(G, subset_by_value=(tau * tau, np.inf), driver="evr", check_finite=False)
     else:

@@ -276,11 +276,13 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
     frames = (f.image for f in ds)
     names = [*mesh.marker_names, "nose"]
+    physics = Physics(mesh)  # a large factorisation keeps its threads
     layout_cov = None
     if settings.physics_layout_prior:
         from lipgen.recon.layoutprior import physics_layout_covariance
 
-        layout_cov = physics_layout_covariance(Physics(mesh))
+        with blas_threads(1):  # the same bits whatever the thread count: it feeds threshold tests
+            layout_cov = physics_layout_covariance(physics)
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks = track_raw_frames(frames, ds.rig, expected, settings,
                                   (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names,
@@ -305,7 +307,6 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         log.warning("nose lost in %d frame(s): interpolated", int((~nose_seen).sum()))
         for a in range(3):
             points[~nose_seen, P, a] = np.interp(np.flatnonzero(~nose_seen), good, points[good, P, a])
-    physics = Physics(mesh)  # a large factorisation keeps its threads
     with blas_threads(1):  # per-frame poses and reaches: many small products and solves
         norm = normalize_markers(points[:, :P], points[:, P], upper, lower, mesh.vertices[mesh.markers],
                                  model_nose=mesh.nose, visible=vis[:, :P], reference_frame="auto",

@@ -103,6 +103,11 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     (virtual, real) : Tracks
     """
     exp = as_float_array(expected, "expected", (2, None, 2), finite=False)
+    if layout_covariance is not None:
+        if rest_points is None:
+            raise ValueError("layout_covariance needs rest_points (the layout it is the prior of)")
+        n = 3 * len(rest_points)
+        layout_covariance = as_float_array(layout_covariance, "layout_covariance", (n, n))
     trackers: list[MarkerTracker] = []
     gap_limit = None if cameras is None else settings.ray_gap_limit(cameras)
     last3d = np.full((exp.shape[1], 3), np.nan)      # each marker's last accepted point (lab, mm)
