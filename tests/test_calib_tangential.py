@@ -69,6 +69,19 @@ def test_rendered_corners_lie_where_opencv_projects_the_true_board(frames):
     assert np.sqrt(np.mean(np.sum(err_wrong**2, axis=1))) > 5 * rms  # the test can tell the signs apart
 
 
+def _assert_gives_back_the_lens(cal, rig, poses):
+    """Reprojection, p1 p2 within 10 %, k1 within 10 %, and the pixels it maps: the face volume
+    through both views, in the true world frame."""
+    assert cal.rms["all"] <= 0.3, cal.rms
+    est = cal.rig.camera.dist
+    np.testing.assert_allclose(est[2:4], DIST[2:4], rtol=0.10)
+    assert abs(est[0] - DIST[0]) < 0.1 * abs(DIST[0]), est
+    true_frame = cal.in_frame(poses[0][:3, :3], poses[0][:3, 3])
+    X = np.random.default_rng(0).uniform([-40, -35, -20], [40, 45, 25], (300, 3))
+    for e, t in zip(true_frame.views, rig.views, strict=True):
+        assert np.abs(e.project(X) - t.project(X)).max() < 0.5
+
+
 def test_calibration_gives_back_the_tangential_terms_of_projected_corners():
     """The calibration step of the rendered test below, on the corners OpenCV projects (0.1 px of
     noise) for 10 board poses: the automatic lens model keeps p1 and p2 and gives them back, with k1,
@@ -83,14 +96,7 @@ def test_calibration_gives_back_the_tangential_terms_of_projected_corners():
     obs = _corners(rig, poses, BOARD, np.random.default_rng(5), dist=np.array(DIST))
     assert all(len(o) == 2 for o in obs)
     cal = calibrate_from_corners(obs, rig, BOARD, distortion=True)
-    assert cal.rms["all"] <= 0.3, cal.rms
-    est = cal.rig.camera.dist
-    np.testing.assert_allclose(est[2:4], DIST[2:4], rtol=0.10)
-    assert abs(est[0] - DIST[0]) < 0.1 * abs(DIST[0]), est
-    true_frame = cal.in_frame(poses[0][:3, :3], poses[0][:3, 3])
-    X = np.random.default_rng(0).uniform([-40, -35, -20], [40, 45, 25], (300, 3))
-    for e, t in zip(true_frame.views, rig.views, strict=True):
-        assert np.abs(e.project(X) - t.project(X)).max() < 0.5
+    _assert_gives_back_the_lens(cal, rig, poses)
 
 
 @pytest.mark.slow(cover=("tests/test_calib_tangential.py::"
@@ -101,12 +107,4 @@ def test_calibration_gives_back_the_rendered_tangential_terms(frames):
 
     rig, poses, images = frames
     cal = calibrate_rig(images, rig, BOARD, distortion=True)  # the automatic choice keeps p1, p2 here
-    assert cal.rms["all"] <= 0.3, cal.rms
-    est = cal.rig.camera.dist
-    np.testing.assert_allclose(est[2:4], DIST[2:4], rtol=0.10)
-    assert abs(est[0] - DIST[0]) < 0.1 * abs(DIST[0]), est
-    # the pixels it maps: the face volume through both views, in the true world frame
-    true_frame = cal.in_frame(poses[0][:3, :3], poses[0][:3, 3])
-    X = np.random.default_rng(0).uniform([-40, -35, -20], [40, 45, 25], (300, 3))
-    for e, t in zip(true_frame.views, rig.views, strict=True):
-        assert np.abs(e.project(X) - t.project(X)).max() < 0.5
+    _assert_gives_back_the_lens(cal, rig, poses)

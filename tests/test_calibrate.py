@@ -46,6 +46,23 @@ def test_corners_are_numbered_from_the_black_corner_in_every_pose(sequence):
     assert find_corners(np.full((100, 80), 0.5), BOARD) is None
 
 
+def _assert_recovers_the_rig(cal, rig, poses, rng):
+    """8 images per view, the true rig within the bounds, and what matters downstream:
+    triangulating points around the face (drawn from ``rng``)."""
+    assert cal.n_images == {"virtual": 8, "real": 8, "both": 8}
+    assert cal.rms["all"] < 0.2
+    err = compare_to_truth(cal.in_frame(*poses[0]), rig.views)
+    for view in ("virtual", "real"):
+        assert np.abs(err[view]["focal_px"]).max() < 2.0
+        assert err[view]["principal_point_px"] < 2.0
+        assert err[view]["rotation_deg"] < 0.3
+        assert err[view]["center_mm"] < 2.0
+    assert err["relative"]["rotation_deg"] < 0.1 and abs(err["relative"]["baseline_mm"]) < 1.0
+    X = rng.uniform([-30, -25, -15], [30, 35, 20], (300, 3))
+    P, gap = cal.in_frame(*poses[0]).triangulate(rig.real_view.project(X), rig.virtual_view.project(X))
+    assert np.sqrt(((P - X) ** 2).sum(1).mean()) < 0.2
+
+
 def test_calibration_from_projected_corners_recovers_the_true_rig():
     """The fit of the ray-cast test below on the corners the true rig projects (0.1 px of noise)
     for the same 8 poses: the same bounds against the truth and on triangulation. With the corner
@@ -66,18 +83,7 @@ def test_calibration_from_projected_corners_recovers_the_true_rig():
         obs.append({view: rig.to_raw(view, uv[v] + rng.normal(0, 0.1, uv[v].shape))
                     for v, view in enumerate(("virtual", "real"))})
     cal = calibrate_from_corners(obs, rig, BOARD)
-    assert cal.n_images == {"virtual": 8, "real": 8, "both": 8}
-    assert cal.rms["all"] < 0.2
-    err = compare_to_truth(cal.in_frame(*poses[0]), rig.views)
-    for view in ("virtual", "real"):
-        assert np.abs(err[view]["focal_px"]).max() < 2.0
-        assert err[view]["principal_point_px"] < 2.0
-        assert err[view]["rotation_deg"] < 0.3
-        assert err[view]["center_mm"] < 2.0
-    assert err["relative"]["rotation_deg"] < 0.1 and abs(err["relative"]["baseline_mm"]) < 1.0
-    X = rng.uniform([-30, -25, -15], [30, 35, 20], (300, 3))
-    P, gap = cal.in_frame(*poses[0]).triangulate(rig.real_view.project(X), rig.virtual_view.project(X))
-    assert np.sqrt(((P - X) ** 2).sum(1).mean()) < 0.2
+    _assert_recovers_the_rig(cal, rig, poses, rng)
 
 
 @pytest.mark.slow(cover=("tests/test_calibrate.py::test_calibration_from_projected_corners_recovers_the_true_rig",
@@ -86,20 +92,7 @@ def test_calibration_from_projected_corners_recovers_the_true_rig():
 def test_calibration_recovers_the_true_rig(sequence):
     rig, poses, raws = sequence
     cal = calibrate_rig(raws, rig, BOARD)
-    assert cal.n_images == {"virtual": 8, "real": 8, "both": 8}
-    assert cal.rms["all"] < 0.2
-    err = compare_to_truth(cal.in_frame(*poses[0]), rig.views)
-    for view in ("virtual", "real"):
-        assert np.abs(err[view]["focal_px"]).max() < 2.0
-        assert err[view]["principal_point_px"] < 2.0
-        assert err[view]["rotation_deg"] < 0.3
-        assert err[view]["center_mm"] < 2.0
-    assert err["relative"]["rotation_deg"] < 0.1 and abs(err["relative"]["baseline_mm"]) < 1.0
-    # What matters downstream: triangulating points around the face.
-    rng = np.random.default_rng(1)
-    X = rng.uniform([-30, -25, -15], [30, 35, 20], (300, 3))
-    P, gap = cal.in_frame(*poses[0]).triangulate(rig.real_view.project(X), rig.virtual_view.project(X))
-    assert np.sqrt(((P - X) ** 2).sum(1).mean()) < 0.2
+    _assert_recovers_the_rig(cal, rig, poses, np.random.default_rng(1))
     again = RigCalibration.from_dict(cal.to_dict())
     assert np.allclose(again.rig.camera.K, cal.rig.camera.K)
 
