@@ -59,6 +59,16 @@ def _params(quick: bool):
             for p in _pages() if p.stem != "blender" and (p.stem in QUICK) == quick]
 
 
+def _lipgen_lines(page: Path, code: str):
+    """(line, its words) of each command of an sh block; every one must be a ``lipgen`` command."""
+    for line in code.splitlines():
+        args = shlex.split(line, comments=True)
+        if not args:
+            continue
+        assert args[0] == "lipgen", f"{page.name}: sh blocks hold lipgen commands, got {line!r}"
+        yield line, args
+
+
 def _run_as_written(page: Path, tmp_path: Path, monkeypatch) -> None:
     _skip_unless_available(page)
     monkeypatch.chdir(tmp_path)
@@ -67,11 +77,7 @@ def _run_as_written(page: Path, tmp_path: Path, monkeypatch) -> None:
         if lang == "python":
             exec(compile(code, f"<{page.name} block {i + 1}>", "exec"), namespace)
             continue
-        for line in code.splitlines():
-            args = shlex.split(line, comments=True)
-            if not args:
-                continue
-            assert args[0] == "lipgen", f"{page.name}: sh blocks hold lipgen commands, got {line!r}"
+        for line, args in _lipgen_lines(page, code):
             assert cli.main(args[1:]) == 0, f"{page.name}: `{line}` failed"
 
 
@@ -100,11 +106,7 @@ def test_every_tutorial_command_parses_and_its_imports_resolve(capsys):
                     if isinstance(node, (ast.Import, ast.ImportFrom)) and not code.startswith("# Blender"):
                         exec(compile(ast.Module([node], []), f"<{where}>", "exec"), {})
                 continue
-            for line in code.splitlines():
-                args = shlex.split(line, comments=True)
-                if not args:
-                    continue
-                assert args[0] == "lipgen", f"{page.name}: sh blocks hold lipgen commands, got {line!r}"
+            for line, args in _lipgen_lines(page, code):
                 try:
                     parsed = cli.build_parser(args[1]).parse_args(args[1:])
                 except SystemExit:

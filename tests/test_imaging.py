@@ -125,19 +125,13 @@ def test_presets_and_settings_round_trip():
         GenerateSettings.from_preset("medium")
 
 
-@pytest.mark.render
-def test_hard_image_conditions_repeat_their_bytes_on_small_frames(tmp_path):
-    """The hard preset's frame formation (lens, lighting, motion blur, sensor, h264 video) gives the
-    same files twice, on two small frames with the linear truth (the layered truth physics, 1.3 s a
-    frame, is the full test's, in the slow set)."""
-    pytest.importorskip("pyrender")
+def _two_hard_frames_twice(tmp_path, s):
+    """Generate ``s`` (2 frames, h264) twice: the same bytes, a lens and lighting in the manifest,
+    the exposure's truth, and a video that reads back as the frames. Returns (folder, Dataset)."""
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import Dataset
     from lipgen.dataset.video import read_video_frames
 
-    s = GenerateSettings.from_preset("hard", frames=2, seed=2, size=(160, 120), calib_frames=0,
-                                     script="AA:0.1 OO:0.1")
-    s = replace(s, conditions=replace(s.conditions, video_codec="h264"), truth_physics="linear")
     a, b = generate(tmp_path / "a", s, progress=False), generate(tmp_path / "b", s, progress=False)
     files = sorted(p.relative_to(a) for p in Path(a).rglob("*") if p.is_file())
     assert files and all((Path(a) / f).read_bytes() == (Path(b) / f).read_bytes() for f in files)
@@ -146,6 +140,20 @@ def test_hard_image_conditions_repeat_their_bytes_on_small_frames(tmp_path):
     assert ds[1].truth["uv_exposure"].shape == (2, 2, 17, 2)
     video = list(read_video_frames(Path(a) / ds.manifest["video"]["file"]))
     assert len(video) == 2 and np.abs(video[1].astype(int) - ds[1].image).mean() < 4
+    return a, ds
+
+
+@pytest.mark.render
+def test_hard_image_conditions_repeat_their_bytes_on_small_frames(tmp_path):
+    """The hard preset's frame formation (lens, lighting, motion blur, sensor, h264 video) gives the
+    same files twice, on two small frames with the linear truth (the layered truth physics, 1.3 s a
+    frame, is the full test's, in the slow set)."""
+    pytest.importorskip("pyrender")
+
+    s = GenerateSettings.from_preset("hard", frames=2, seed=2, size=(160, 120), calib_frames=0,
+                                     script="AA:0.1 OO:0.1")
+    s = replace(s, conditions=replace(s.conditions, video_codec="h264"), truth_physics="linear")
+    _two_hard_frames_twice(tmp_path, s)
 
 
 @pytest.mark.slow(cover="tests/test_imaging.py::test_hard_image_conditions_repeat_their_bytes_on_small_frames")
@@ -159,16 +167,7 @@ def test_hard_frames_are_deterministic_and_keep_their_truth(tmp_path):
     s = GenerateSettings.from_preset("hard", frames=2, seed=2, size=(320, 240), calib_frames=0,
                                      script="AA:0.1 OO:0.1")
     s = replace(s, conditions=replace(s.conditions, video_codec="h264"))
-    a, b = generate(tmp_path / "a", s, progress=False), generate(tmp_path / "b", s, progress=False)
-    files = sorted(p.relative_to(a) for p in Path(a).rglob("*") if p.is_file())
-    assert files and all((Path(a) / f).read_bytes() == (Path(b) / f).read_bytes() for f in files)
-    ds = Dataset(a)
-    assert ds.rig.camera.dist is not None and "lighting" in ds.manifest
-    assert ds[1].truth["uv_exposure"].shape == (2, 2, 17, 2)
-    from lipgen.dataset.video import read_video_frames
-
-    video = list(read_video_frames(Path(a) / ds.manifest["video"]["file"]))
-    assert len(video) == 2 and np.abs(video[1].astype(int) - ds[1].image).mean() < 4
+    a, ds = _two_hard_frames_twice(tmp_path, s)
     # the picture of a hard frame beside an easy one
     from lipgen.cli import main
     from lipgen.dataset.pictures import preset_of
