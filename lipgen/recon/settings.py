@@ -164,6 +164,8 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
+    pair_never_seen: bool = False
+    epipolar_never_seen: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
