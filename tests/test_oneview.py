@@ -17,8 +17,14 @@ M, N, F = 5, 9, 10
 GRID = np.array([(x, y, 0.0) for y in (-7.0, 0.0, 7.0) for x in (-10.5, -3.5, 3.5, 10.5)])
 
 
-def _clip(pairing: bool, lure: bool = False, slid: bool = False, seed: int = 3, matched0: bool = False,
-          never_seen: bool = False):
+def _clip(
+    pairing: bool,
+    lure: bool = False,
+    slid: bool = False,
+    seed: int = 3,
+    matched0: bool = False,
+    never_seen: bool = False,
+):
     """Two views of 12 marks (3 rows of 4, 7 mm apart) swaying together; mark M is matched in
     neither view's first frame, and view 0 acquires it at frame 1.
 
@@ -124,7 +130,7 @@ def test_pairable_marks_acquisitions_pending_and_never_seen_in_the_other_view():
     trackers[0].acquired = np.array([True, False, False])
     since = np.array([[-1, -1, -1], [-1, 4, -1]])
     assert pairable(trackers, since).tolist() == [[True, False, False], [False, True, False]]
-    ever = np.array([[True, True, False], [True, False, True]])   # view 1 never saw 1; view 0 never saw 2
+    ever = np.array([[True, True, False], [True, False, True]])  # view 1 never saw 1; view 0 never saw 2
     assert pairable(trackers, since, ever).tolist() == [[True, True, False], [False, True, True]]
     with pytest.raises(ValueError, match=r"ever must be a \(2, 3\) bool array"):
         pairable(trackers, since, np.ones((2, 4), dtype=bool))

@@ -54,7 +54,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from lipgen.recon.acquire import place_layout
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
 from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
 from lipgen.recon.track import MarkerTracker, search_box
@@ -65,8 +64,7 @@ __all__ = ["recover_along_epipolar"]
 
 def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_gap: float,
                            gap_share: float = 0.5, strength_ratio: float = 0.3,
-                           floor: float = 0.03, max_ratio: float = 1.5, never_seen: bool = False
-                           ) -> np.ndarray:
+                           floor: float = 0.03, max_ratio: float = 1.5) -> np.ndarray:
     """Find markers lost in one view on the epipolar line of the other view's sighting (in place).
 
     Call after both trackers' :meth:`~lipgen.recon.track.MarkerTracker.step` on one image pair
@@ -90,10 +88,6 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         Least darkness at all (0..1 of full scale), under the detector's ``min_contrast``.
     max_ratio : float
         Greatest darkness of the peak, as a share of the same reference.
-    never_seen : bool
-        Also search for markers this view has never seen, where its layout registered to its
-        seen markers puts them (:func:`lipgen.recon.acquire.place_layout`; at least 3 seen), within
-        twice the ``gate``: a faint dot under the floor is never acquired by the view's own rules.
 
     Returns
     -------
@@ -111,24 +105,19 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         uv_a, st_a, _ = ta._out[-1]
         uv_b, st_b, _ = tb._out[-1]
         continuing = np.isin(st_b, (TRACKED, RECOVERED)) & ~tb.reacquired
-        had = np.all(np.isfinite(ta._before[0]), axis=1)
-        seen_a = st_a != LOST
-        new = np.zeros_like(had)
-        if never_seen and ta.reference is not None and seen_a.sum() >= 3:
-            new = ~had & ~seen_a
-        want = np.flatnonzero((st_a == LOST) & continuing & (had | new) & ~ta.twins)
+        want = np.flatnonzero((st_a == LOST) & continuing & np.all(np.isfinite(ta._before[0]), axis=1)
+                              & ~ta.twins)
         if len(want) == 0:
             continue
         gray = ink_gray(views[a])
         cfg = ta.cfg
         # Where this view's lost markers are now: carried with their seen neighbours' motion in
         # this image (what the tracker's next step would do), so the search stays local.
+        seen_a = st_a != LOST
         pred = ta._before[0].copy()
         carry_lost_markers(pred, ta._before[0], uv_a, seen_a)
         pred[seen_a] = uv_a[seen_a]
-        if new[want].any():
-            pred[new] = place_layout(ta.reference, np.where(seen_a[:, None], uv_a, 0.0), seen_a)[new]
-        reach = np.where(new[want], 2.0 * cfg.gate, cfg.gate * (1.0 + np.minimum(ta.gap[want], 3) / 3.0))
+        reach = cfg.gate * (1.0 + np.minimum(ta.gap[want], 3) / 3.0)
         # The tracker's own search region (all markers and a margin), so the noise floor of the
         # response is the image's, not that of a patch of lip.
         placed = np.all(np.isfinite(pred), axis=1)

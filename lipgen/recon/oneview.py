@@ -140,7 +140,9 @@ def pairable(trackers: list[MarkerTracker], pending_since=None, ever=None) -> np
     if ever is not None:
         ever = np.asarray(ever, dtype=bool)
         if ever.shape != fresh.shape:
-            raise ValueError(f"ever must be a {fresh.shape} bool array (per view and marker), got shape {ever.shape}")
+            raise ValueError(
+                f"ever must be a {fresh.shape} bool array (per view and marker), got shape {ever.shape}"
+            )
         fresh |= ~ever[::-1]
     return fresh
 

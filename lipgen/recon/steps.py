@@ -169,8 +169,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
-                recover_along_epipolar(trackers, views, cameras, gap_limit.limit(),
-                                       never_seen=settings.epipolar_never_seen)
+                recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
             if settings.one_view_pairing and rest_points is not None:
                 fresh = pairable(trackers, None if pending is None else pending.since,
                                  ever if settings.pair_never_seen else None)
