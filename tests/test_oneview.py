@@ -8,7 +8,7 @@ import pytest
 from synthetic_images import background, draw_dots, frame, swaying_views
 from test_raygap import _two_views
 
-from lipgen.recon.oneview import confirmed_runs, pair_one_view, pairable
+from lipgen.recon.oneview import confirmed_runs, pair_one_view
 from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.track import LOST, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
@@ -17,14 +17,7 @@ M, N, F = 5, 9, 10
 GRID = np.array([(x, y, 0.0) for y in (-7.0, 0.0, 7.0) for x in (-10.5, -3.5, 3.5, 10.5)])
 
 
-def _clip(
-    pairing: bool,
-    lure: bool = False,
-    slid: bool = False,
-    seed: int = 3,
-    matched0: bool = False,
-    never_seen: bool = False,
-):
+def _clip(pairing: bool, lure: bool = False, slid: bool = False, seed: int = 3):
     """Two views of 12 marks (3 rows of 4, 7 mm apart) swaying together; mark M is matched in
     neither view's first frame, and view 0 acquires it at frame 1.
 
@@ -32,9 +25,7 @@ def _clip(
     runs along the rows), and view 1's layout puts M halfway between the two: view 1's own
     acquisition refuses both as ambiguous. Mark N (7 mm below M) is hidden in view 0 in every
     clip, so view 1's track of it is never confirmed: on its own dot it must stay. With ``slid``,
-    view 1's first-frame match of N sits on M's dot instead (N's own dot hidden there too). With
-    ``matched0``, view 0's first frame matches M (a run, not an acquisition); ``never_seen`` lets
-    the pairing start from the sightings of markers the other view has never seen.
+    view 1's first-frame match of N sits on M's dot instead (N's own dot hidden there too).
     Returns the (virtual, real) tracks and the true uv (2, F, P, 2)."""
     cams = _two_views()
     rng = np.random.default_rng(seed)
@@ -42,8 +33,7 @@ def _clip(
     trackers = []
     for v in range(2):
         init, ref = uv[v, 0].copy(), uv[v, 0].copy()
-        if not (matched0 and v == 0):
-            init[M] = np.nan
+        init[M] = np.nan
         if v == 0:
             init[N] = np.nan
         if slid and v == 1:
@@ -52,7 +42,6 @@ def _clip(
             ref[M] += [0.0, 2.5]  # the layout puts M halfway between its dot and the blob
         trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref))
     pending = PendingAcquisitions(12, max_age=10)
-    ever = np.zeros((2, 12), dtype=bool)
     for f in range(F):
         images = []
         for v in range(2):
@@ -67,11 +56,10 @@ def _clip(
             trackers[v].step(images[v])
         if f > 0:
             if pairing:
-                fresh = pairable(trackers, pending.since, ever if never_seen else None)
+                fresh = np.stack([tr.acquired for tr in trackers]) | (pending.since >= 0)
                 pair_one_view(trackers, images, cams, GRID, 1.0, fresh)
             pending.step(trackers, cams, 1.0)
             check_views(trackers, cams, 1.0)
-        ever |= np.stack([tr._out[-1][1] != LOST for tr in trackers])
     return [tr.tracks() for tr in trackers], uv
 
 
@@ -106,34 +94,6 @@ def test_a_one_view_track_on_another_markers_dot_is_released_for_it():
     for v in range(2):
         assert _err(tracks, uv, v, M)[1:].max() < 0.5
     assert tracks[1].rejected[1, N] and not tracks[1].visible[1:, N].any(), "N released from frame 1"
-
-
-def test_a_first_frame_run_the_other_view_never_saw_is_paired_with_never_seen():
-    # View 0 matches M in the first frame (a run, not an acquisition); view 1 never sees it by its
-    # own rules (its dot and the lure below are both near where its layout puts M): hard 25's
-    # mirror. Limited to acquisitions, the pairing never fires; with never_seen it does, on M's dot.
-    for never_seen in (False, True):
-        tracks, uv = _clip(pairing=True, lure=True, matched0=True, never_seen=never_seen)
-        assert tracks[0].visible[:, M].all() and _err(tracks, uv, 0, M).max() < 0.5
-        both = tracks[0].visible[:, M] & tracks[1].visible[:, M]
-        if not never_seen:
-            assert not both.any(), "a continuing run is not a source of the pairing"
-            continue
-        assert both[1:].all()
-        assert _err(tracks, uv, 1, M)[1:].max() < 0.5
-        # N, hidden in view 0, keeps view 1's own right track.
-        assert tracks[1].visible[:, N].all() and _err(tracks, uv, 1, N).max() < 0.5
-
-
-def test_pairable_marks_acquisitions_pending_and_never_seen_in_the_other_view():
-    trackers = [MarkerTracker(np.zeros((3, 2))) for _ in range(2)]
-    trackers[0].acquired = np.array([True, False, False])
-    since = np.array([[-1, -1, -1], [-1, 4, -1]])
-    assert pairable(trackers, since).tolist() == [[True, False, False], [False, True, False]]
-    ever = np.array([[True, True, False], [True, False, True]])  # view 1 never saw 1; view 0 never saw 2
-    assert pairable(trackers, since, ever).tolist() == [[True, True, False], [False, True, True]]
-    with pytest.raises(ValueError, match=r"ever must be a \(2, 3\) bool array"):
-        pairable(trackers, since, np.ones((2, 4), dtype=bool))
 
 
 def test_confirmed_runs_follow_each_views_current_run():

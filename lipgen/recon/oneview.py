@@ -76,7 +76,7 @@ from lipgen.recon.track import LOST, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["pair_one_view", "confirmed_runs", "pairable"]
+__all__ = ["pair_one_view", "confirmed_runs"]
 
 log = logging.getLogger(__name__)
 
@@ -109,42 +109,6 @@ def confirmed_runs(trackers: list[MarkerTracker]) -> np.ndarray:
             if not (alive & ~out[v]).any():
                 break  # every run still alive is confirmed: older frames change nothing (else O(F^2))
     return out
-
-
-def pairable(trackers: list[MarkerTracker], pending_since=None, ever=None) -> np.ndarray:
-    """Per view and marker: may this view's sighting be paired (the ``fresh`` of :func:`pair_one_view`)?
-
-    This image's acquisitions and the pending ones, whose identity the view's layout gave. With
-    ``ever``, also the sighting of a marker the *other* view has never seen, whatever its run: on
-    ``hard`` 25 the mirror's dots of ``upper_mid``, ``upper_left``, ``upper_right`` and
-    ``corner_right`` are faint or merged into the mouth's dark line, the first frame matched them
-    in the direct view only, and the mirror never acquired them by its own 2-D rules: the pairing,
-    limited to acquisitions, never fired for them (``renders/examples/tracking/hard15l_seed25.md``).
-    A marker the other view has never seen has no track there that could have slid onto it.
-
-    Parameters
-    ----------
-    trackers : (virtual, real) MarkerTracker
-    pending_since : (2, P) int, optional
-        :attr:`lipgen.recon.pending.PendingAcquisitions.since` (>= 0: pending).
-    ever : (2, P) bool, optional
-        Seen in each view in an earlier image.
-
-    Returns
-    -------
-    (2, P) bool
-    """
-    fresh = np.stack([tr.acquired for tr in trackers])
-    if pending_since is not None:
-        fresh |= np.asarray(pending_since) >= 0
-    if ever is not None:
-        ever = np.asarray(ever, dtype=bool)
-        if ever.shape != fresh.shape:
-            raise ValueError(
-                f"ever must be a {fresh.shape} bool array (per view and marker), got shape {ever.shape}"
-            )
-        fresh |= ~ever[::-1]
-    return fresh
 
 
 def pair_one_view(

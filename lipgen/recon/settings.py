@@ -139,14 +139,6 @@ class ReconstructSettings:
         ``hard`` 21 69 -> 25 accepted sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted,
         the other validation sets and all held-out ``hard`` 11, 23, 24, 25 and ``default`` 11 unchanged
         (``renders/examples/tracking/hard15k_physics_layout.md``). Off: the model's rest layout alone.
-    pair_never_seen : bool
-        ``one_view_pairing`` also starts from a sighting of a marker the other view has never seen,
-        not only from acquisitions (:func:`lipgen.recon.oneview.pairable`). Validation (main ->
-        on; accepted share, accepted sightings over 3 px): ``hard`` 25 35.9 -> 48.7 %, 9 -> 11;
-        ``hard`` 7 / 8 / 10 72.2 / 83.2 / 78.6 -> 73.6 / 84.5 / 79.9 %; ``hard`` 21 53.1 -> 51.6 %,
-        25 -> 61 (its first-frame lure is no longer re-identified at frame 37); ``hard`` 9 and 22,
-        ``default`` 8 unchanged. Off by default
-        (``renders/examples/tracking/hard15l_seed25.md`` has the held-out check).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -172,7 +164,6 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
-    pair_never_seen: bool = False
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""

@@ -38,7 +38,7 @@ from lipgen.recon.firstframe import match_first_frame
 from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
-from lipgen.recon.oneview import pair_one_view, pairable
+from lipgen.recon.oneview import pair_one_view
 from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.settings import ReconstructSettings
@@ -116,7 +116,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                                                            floor=settings.min_step)
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
-    ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (walks, pairing)
+    ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
@@ -171,8 +171,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
             if settings.one_view_pairing and rest_points is not None:
-                fresh = pairable(trackers, None if pending is None else pending.since,
-                                 ever if settings.pair_never_seen else None)
+                fresh = np.stack([tr.acquired for tr in trackers])
+                fresh |= False if pending is None else pending.since >= 0
                 pair_one_view(trackers, views, cameras, rest_points, gap_limit.limit(), fresh, names=names)
             if pending is not None:
                 forgot = pending.step(trackers, cameras, gap_limit.limit())
@@ -185,11 +185,12 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             changed = recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
         if motion is not None and t > 0:
             motion.step(trackers, views, cameras, last3d, since, names, changed)
-        seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
-        if walks is not None and t > 0:
-            walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
-                       gap_limit.limit(), steps, settings.rewalk, names)
-        ever |= seen
+        if walks is not None:
+            seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
+            if t > 0:
+                walks.step(trackers, cameras, (seen & ~ever) if settings.backfill else np.zeros_like(seen),
+                           gap_limit.limit(), steps, settings.rewalk, names)
+            ever |= seen
         if progress is not None:
             progress(t)
     if not trackers:
