@@ -380,7 +380,9 @@ def test_the_floor_is_lowered_only_under_the_fixed_one():
     assert s.dots_for(0.2) is s.dots                      # 0.14 > 0.08: the fixed floor
     assert s.dots_for(0.1).min_contrast == pytest.approx(0.07)
     assert s.dots_for(np.nan) is s.dots                   # nothing known yet
-    assert TrackerSettings().dots_for(0.01) is TrackerSettings().dots
+    fixed = TrackerSettings(floor_ratio=None)
+    assert fixed.dots_for(0.01) is fixed.dots
+    assert TrackerSettings().floor_ratio == 0.7                     # on by default
     for bad in (0.0, 1.0, float("nan")):
         with pytest.raises(ValueError, match="floor_ratio"):
             TrackerSettings(floor_ratio=bad)
