@@ -343,3 +343,46 @@ def test_shift_group_moves_only_a_group_that_moved_as_one():
     dots[10:, 1] = grid[10:, 1] + [12.0, 16.0, 20.0, 16.0, 12.0]     # unevenly: no one shift
     pred, moved = shift_group(grid, dots, gate=8.0, tol=3.0, reach=24.0)
     assert not moved.any() and np.array_equal(pred, grid)
+
+
+def _faint_view(floor_ratio, seed=4, n_frames=6):
+    """One view of 12 marks whose dots are all pale (peak 0.11, their smoothed darkness about 0.09,
+    near the 0.08 floor), mark 5's paler still (0.075: under the floor) and not matched in the
+    first frame, as on ``hard`` 25's mirror. Returns the tracks and the true uv (F, P, 2)."""
+    rng = np.random.default_rng(seed)
+    grid = np.array([(x, y) for y in (-7.0, 0.0, 7.0) for x in (-10.5, -3.5, 3.5, 10.5)]) * 2.5 + [80.0, 60.0]
+    base = background(SHAPE, rng, texture=0.03)
+    init = grid.copy()
+    init[5] = np.nan
+    settings = TrackerSettings(dots=DotSettings(sigma=1.5), acquire_gate=6.0, confident_correlation=1.0,
+                               floor_ratio=floor_ratio)
+    uv = grid[None] + np.array([0.7, 0.3]) * np.arange(n_frames)[:, None, None]
+    frames = []
+    for f in range(n_frames):
+        img = draw_dots(base, np.delete(uv[f], 5, 0), depth=0.11)
+        img = draw_dots(img, uv[f, 5][None], depth=0.075) + 0.004 * rng.standard_normal(SHAPE)
+        frames.append(np.clip(np.round(img * 255), 0, 255).astype(np.uint8))
+    return track_markers(frames, init, settings, grid), uv
+
+
+def test_a_floor_from_the_views_own_dots_finds_a_dot_under_the_fixed_floor():
+    tracks, uv = _faint_view(None)
+    assert not tracks.visible[:, 5].any(), "under the fixed floor the pale dot is never acquired"
+    tracks, uv = _faint_view(0.5)
+    assert tracks.visible[3:, 5].all()
+    err = np.linalg.norm(tracks.uv - uv, axis=2)
+    assert err[tracks.visible].max() < 0.5
+    assert tracks.visible[:, np.arange(12) != 5].all(), "the other marks are all tracked"
+
+
+def test_the_floor_is_lowered_only_under_the_fixed_one():
+    s = TrackerSettings(dots=DotSettings(min_contrast=0.08), floor_ratio=0.7)
+    assert s.dots_for(0.2) is s.dots                      # 0.14 > 0.08: the fixed floor
+    assert s.dots_for(0.1).min_contrast == pytest.approx(0.07)
+    assert s.dots_for(np.nan) is s.dots                   # nothing known yet
+    fixed = TrackerSettings(floor_ratio=None)
+    assert fixed.dots_for(0.01) is fixed.dots
+    assert TrackerSettings().floor_ratio == 0.7                     # on by default
+    for bad in (0.0, 1.0, float("nan")):
+        with pytest.raises(ValueError, match="floor_ratio"):
+            TrackerSettings(floor_ratio=bad)

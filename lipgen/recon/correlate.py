@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import fftconvolve
 
-__all__ = ["normalized_correlation", "correlate_near", "patch_around"]
+__all__ = ["normalized_correlation", "correlate_near", "patch_around", "search_box"]
 
 
 def normalized_correlation(search: np.ndarray, template: np.ndarray) -> np.ndarray:
@@ -102,3 +102,27 @@ def correlate_near(gray: np.ndarray, template: np.ndarray, center: np.ndarray, r
     base = np.round(center)
     uv = np.array([base[0] - radius + j + dj, base[1] - radius + i + di])
     return uv, float(ncc[i, j])
+
+
+def search_box(points: np.ndarray, margin: float,
+               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The image region searched around some points: their bounding box grown by ``margin``.
+
+    Parameters
+    ----------
+    points : (K, 2) float
+        Pixel positions (x, y), finite.
+    margin : float
+        Pixels added on every side.
+    shape : (H, W) int
+        The image's shape; the box is clipped to it.
+
+    Returns
+    -------
+    (lo, hi) : two (2,) int, or None
+        Corners (x, y; ``hi`` exclusive); None when the box is under 8 px on a side.
+    """
+    h, w = shape
+    lo = np.maximum(np.floor(points.min(0) - margin).astype(int), 0)
+    hi = np.minimum(np.ceil(points.max(0) + margin).astype(int) + 1, [w, h])
+    return None if np.any(hi - lo < 8) else (lo, hi)

@@ -51,7 +51,7 @@ from lipgen.recon.association import (
     shift_group,
 )
 from lipgen.recon.blend import split_blobs
-from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around
+from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around, search_box
 from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
@@ -123,9 +123,10 @@ class MarkerTracker:
         if box is not None:
             a, b = box
             lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
-        peaks, strength, roundness = dot_peaks(sub, self.cfg.dots)
-        round_ = roundness >= self.cfg.dots.min_roundness
-        uv, keep = refine_peaks(sub, peaks[round_], self.cfg.dots)
+        cfg = self.cfg.dots_for(self.typical_strength(np.ones(len(self.init), dtype=bool)))
+        peaks, strength, roundness = dot_peaks(sub, cfg)
+        round_ = roundness >= cfg.min_roundness
+        uv, keep = refine_peaks(sub, peaks[round_], cfg)
         return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
 
     def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
@@ -390,30 +391,6 @@ def track_markers(frames: Iterable, initial_uv: np.ndarray,
     if not tracker._out:
         raise ValueError("track_markers got no frames")
     return tracker.tracks()
-
-
-def search_box(points: np.ndarray, margin: float,
-               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray] | None:
-    """The image region searched around some points: their bounding box grown by ``margin``.
-
-    Parameters
-    ----------
-    points : (K, 2) float
-        Pixel positions (x, y), finite.
-    margin : float
-        Pixels added on every side.
-    shape : (H, W) int
-        The image's shape; the box is clipped to it.
-
-    Returns
-    -------
-    (lo, hi) : two (2,) int, or None
-        Corners (x, y; ``hi`` exclusive); None when the box is under 8 px on a side.
-    """
-    h, w = shape
-    lo = np.maximum(np.floor(points.min(0) - margin).astype(int), 0)
-    hi = np.minimum(np.ceil(points.max(0) + margin).astype(int) + 1, [w, h])
-    return None if np.any(hi - lo < 8) else (lo, hi)
 
 
 def _darkness(old, new):
