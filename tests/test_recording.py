@@ -67,7 +67,7 @@ def test_a_dataset_without_truth_reconstructs_the_same(dataset, recon, bare):
 
     ds = Dataset(bare[0])
     assert not ds.has_truth and Dataset(dataset).has_truth
-    assert ds[0].truth == {} and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
+    assert ds[0].truth == {} == ds.truth(0) and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
     again = Reconstruction.load(bare[1])
     # the normalisation's reference frame is a training frame (the default held-out tail is 2)
     assert again.info["normalisation"]["reference_frame"] < FRAMES - 2
