@@ -61,6 +61,10 @@ def test_layout_manifest_and_reader(reference):
     np.testing.assert_allclose(fr.marks_model[:16], fr.vertices[ds.mesh.markers], atol=1e-12)
     np.testing.assert_allclose(ds.rig.project(fr.marks_world)[0], fr.uv, atol=1e-9)
     assert list(fr.views) == list(VIEWS)
+    alone = ds.truth(5)  # the truth without the image
+    assert alone.keys() == fr.truth.keys() and all(np.array_equal(alone[k], fr.truth[k]) for k in alone)
+    with pytest.raises(IndexError):
+        ds.truth(14)
     assert [f.index for f in ds] == list(range(14))
     cal = ds.calibration()
     assert len(cal) == 1 and cal[0].truth["corners_world"].shape == (54, 3)

@@ -1,5 +1,7 @@
 """The physics covariance (eq 4.5), the thesis's "full-circle link" and the combined model (§6.1)."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -106,6 +108,15 @@ def _outside_span_case(physics, noise_mm=0.0, seeds=(1, 2)):
     return U_train, U_test, truth
 
 
+@functools.cache
+def _fitted(physics, noise_mm, seeds):
+    """The case of :func:`_outside_span_case`, its 10 modes and its combined model, computed once per
+    module for the two tests that use the same case (noise 0.3 mm, seeds (1, 101))."""
+    U_train, U_test, truth = _outside_span_case(physics, noise_mm, seeds)
+    modes = ModeModel(10).fit(U_train, mesh=physics.mesh)
+    return modes, CombinedModel(modes, physics).fit(U_train), U_test, truth
+
+
 def _errors(physics, modes, combined, U_test, truth, d, noise=0.0):
     """MSE per hidden DOF against the true surface of each estimator, from ``U_test[:, d]``; the
     learned-only and physics-only columns are given the true marker-noise variance ``noise``, the
@@ -137,9 +148,7 @@ def test_combined_model_beats_both_on_motion_outside_the_training_span(physics, 
             "xy": dofs(mesh.markers, "xy")}
     ratios = {row: {"learned": [], "physics": []} for row in rows}
     for seed in range(8):
-        U_train, U_test, truth = _outside_span_case(physics, noise_mm, seeds=(seed, seed + 100))
-        modes = ModeModel(10).fit(U_train, mesh=mesh)
-        combined = CombinedModel(modes, physics).fit(U_train)
+        modes, combined, U_test, truth = _fitted(physics, noise_mm, (seed, seed + 100))
         if noise_mm == 0:
             assert combined.noise_variance_ < 1e-3  # exact markers: (almost) no noise found
         for row, d in rows.items():
@@ -157,8 +166,7 @@ def test_combined_model_estimates_the_marker_noise(physics):
     """0.3 mm marker noise: the noise variance found from the training fields is near the truth
     (0.09 mm²). Which of the three estimates wins then changes from row to row and run to run
     (the Table 5.1 report), so that is not asserted here."""
-    U_train, _, _ = _outside_span_case(physics, noise_mm=0.3, seeds=(1, 101))
-    combined = CombinedModel(ModeModel(10).fit(U_train, mesh=physics.mesh), physics).fit(U_train)
+    _, combined, _, _ = _fitted(physics, 0.3, (1, 101))
     assert 0.6 * 0.09 < combined.noise_variance_ < 1.3 * 0.09
     assert combined.selection_.log_likelihood == max(v["log_likelihood"]
                                                      for v in combined.selection_.by_kind.values())

@@ -67,7 +67,7 @@ def test_a_dataset_without_truth_reconstructs_the_same(dataset, recon, bare):
 
     ds = Dataset(bare[0])
     assert not ds.has_truth and Dataset(dataset).has_truth
-    assert ds[0].truth == {} and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
+    assert ds[0].truth == {} == ds.truth(0) and ds.missing(truth=False) == [] and len(ds.missing()) == FRAMES
     again = Reconstruction.load(bare[1])
     # the normalisation's reference frame is a training frame (the default held-out tail is 2)
     assert again.info["normalisation"]["reference_frame"] < FRAMES - 2
@@ -157,10 +157,16 @@ def _video(dataset, path, crf="12"):
     return path
 
 
-def test_a_video_and_chessboard_photos_reconstruct_like_the_png_frames(tmp_path, dataset, recon, capsys):
+@pytest.fixture(scope="module")
+def video(dataset, tmp_path_factory):
+    """The module's dataset as a video (encoded once: the tests below only read it)."""
+    return _video(dataset, tmp_path_factory.mktemp("video") / "take.mp4")
+
+
+def test_a_video_and_chessboard_photos_reconstruct_like_the_png_frames(tmp_path, dataset, recon, video,
+                                                                       capsys):
     from lipgen.dataset.layout import Dataset
 
-    video = _video(dataset, tmp_path / "take.mp4")
     rec = tmp_path / "rec"
     assert main(["recording", "init", str(video), "--calib", str(dataset / "calib"), "--out", str(rec),
                  "--no-progress"]) == 0
@@ -236,12 +242,11 @@ def test_a_frame_folder_of_mixed_sizes_is_named_and_nothing_is_written(tmp_path,
     assert sorted(p.name for p in tmp_path.iterdir()) == ["frames"], "nothing written"
 
 
-def test_bad_recording_inputs_are_named_and_nothing_is_written(tmp_path, dataset):
+def test_bad_recording_inputs_are_named_and_nothing_is_written(tmp_path, dataset, video):
     from PIL import Image
 
     from lipgen.recon.recording import init_recording
 
-    video = _video(dataset, tmp_path / "take.mp4")
     out = tmp_path / "rec"
     junk = tmp_path / "junk.mp4"
     junk.write_bytes(b"this is not a video" * 100)

@@ -48,7 +48,7 @@ def _independent(work, split: str, frames, n_modes: int, axes: str, hidden_free)
         recon = renormalize(recon, train)
     ds = Dataset(work / f"s0_{split}")
     n = mesh.n_nodes
-    true = np.stack([np.asarray(f.truth["vertices"])[:n] for f in ds]) - ds.mesh.vertices[:n]
+    true = np.stack([ds.truth(f)["vertices"][:n] for f in range(len(ds))]) - ds.mesh.vertices[:n]
     rest = mesh.vertices[mesh.markers]
     ax = ["xyz".index(a) for a in axes]
     out = {k: [] for k in priors}
@@ -174,7 +174,7 @@ def _check_defaults(work, physics):
     for split in SPLITS:
         recon, ds = recons[split], Dataset(work / f"s0_{split}")
         n = mesh.n_nodes
-        true = np.stack([np.asarray(f.truth["vertices"])[:n] for f in ds]) - ds.mesh.vertices[:n]
+        true = np.stack([ds.truth(f)["vertices"][:n] for f in range(len(ds))]) - ds.mesh.vertices[:n]
         for axes in ("xy", "yz"):
             ax = np.array(["xyz".index(a) for a in axes])
             out = {k: [] for k in priors}

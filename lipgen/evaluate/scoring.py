@@ -51,9 +51,10 @@ def load_truth(ds) -> dict:
     """Stack the per-frame truth of a :class:`lipgen.dataset.Dataset` (images are not kept)."""
     keys = ("marks_world", "marks_model", "uv", "visible", "vertices", "pose")
     out = {k: [] for k in keys}
-    for frame in ds:
+    for i in range(len(ds)):
+        truth = ds.truth(i)
         for k in keys:
-            out[k].append(np.asarray(frame.truth[k]))
+            out[k].append(np.asarray(truth[k]))
     return {k: np.stack(v) for k, v in out.items()}
 
 
