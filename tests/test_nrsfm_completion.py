@@ -193,3 +193,16 @@ def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singul
             ref[f, c, idx] = np.linalg.solve(A, rhs)
     np.testing.assert_allclose(_fill(W0, prior, mask, N, noise), ref.reshape(2 * F, P), rtol=1e-10,
                                atol=1e-12 * np.abs(W).max())
+
+
+def test_frames_to_the_nearest_sighting_match_the_direct_search():
+    from lipgen.nrsfm.completion import _frames_to_sighting
+
+    rng = np.random.default_rng(11)
+    for F, P, frac in ((200, 9, 0.1), (50, 7, 0.7), (5, 3, 0.5)):
+        mask = rng.random((F, P)) > frac
+        mask[rng.integers(F)] = True                       # every point seen at least once
+        frames = np.arange(F)
+        direct = np.stack([np.abs(frames[:, None] - np.flatnonzero(mask[:, p])[None, :]).min(1)
+                           for p in range(P)], axis=1)
+        assert np.array_equal(_frames_to_sighting(mask), direct)

@@ -225,12 +225,7 @@ def prior_variance(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
     (2F, P) float
     """
     F, P = mask.shape
-    frames = np.arange(F)
-    dist = np.zeros((F, P), dtype=int)
-    for p in range(P):
-        seen = np.flatnonzero(mask[:, p])
-        if seen.size < F:
-            dist[:, p] = np.abs(frames[:, None] - seen[None, :]).min(1)
+    dist = _frames_to_sighting(mask)
     Wf = W.reshape(F, 2, P)
     var = np.zeros((F, P))
     known: dict[int, float] = {}
@@ -246,6 +241,17 @@ def prior_variance(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
             known[m] = np.inf if last is None else known[last] * (m / last) ** 2
         var[dist == m] = known[m]
     return np.repeat(var, 2, axis=0)
+
+
+def _frames_to_sighting(mask: np.ndarray) -> np.ndarray:
+    """(F, P) int: frames from each entry to the nearest frame where its point is seen (0 where seen),
+    by a forward and a backward running extreme of the sighting frames (O(F P), not O(F^2 P))."""
+    F = mask.shape[0]
+    frames = np.arange(F)[:, None]
+    far = 2 * F                                                   # beyond any real distance
+    last = np.maximum.accumulate(np.where(mask, frames, -far), axis=0)
+    nxt = np.minimum.accumulate(np.where(mask, frames, 3 * F)[::-1], axis=0)[::-1]
+    return np.minimum(frames - last, nxt - frames)
 
 
 def _fill(W0: np.ndarray, prior: np.ndarray, mask: np.ndarray, N: np.ndarray, noise: float) -> np.ndarray:
