@@ -1,5 +1,5 @@
-"""Run by the USD tests in a separate Python process: import a USD file into Blender (the pip
-``bpy`` module) and save what Blender made of it.
+"""Run by the USD tests in the shared Blender session's process (``blender_session.py``), or as a
+script: import a USD file into Blender (the pip ``bpy`` module) and save what Blender made of it.
 
 ``python blender_usd_probe.py IN.usd OUT.npz [--widen]`` writes, for the first mesh object:
 the evaluated vertex positions (object space, from the depsgraph) at every frame of the scene

@@ -12,7 +12,7 @@ float32 rounding bound, and the largest deviation must stay below 3e-5 mm.
 """
 
 import pytest
-from blender_session import BlenderSession, bpy_available
+from blender_session import bpy_available, shared_session
 
 pytestmark = [pytest.mark.blender,
               pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module")]
@@ -23,9 +23,7 @@ MIXED_MM = 3e-5  # several float32 shape keys mixed (see the module docstring)
 
 @pytest.fixture(scope="module")
 def blender():
-    session = BlenderSession()
-    yield session
-    session.close()
+    return shared_session()
 
 
 class _Checks:

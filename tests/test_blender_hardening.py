@@ -2,7 +2,7 @@
 the checks run inside Blender (bpy_checks_hardening.py)."""
 
 import pytest
-from blender_session import BlenderSession, bpy_available
+from blender_session import bpy_available, shared_session
 
 pytestmark = [pytest.mark.blender,
               pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module")]
@@ -10,9 +10,7 @@ pytestmark = [pytest.mark.blender,
 
 @pytest.fixture(scope="module")
 def blender():
-    session = BlenderSession()
-    yield session
-    session.close()
+    return shared_session()
 
 
 def test_artist_mesh_is_checked_at_set_up(blender):

@@ -2,7 +2,7 @@
 the sequencer, undo; on LipGen's lips and on an artist's mesh with modes and markers."""
 
 import pytest
-from blender_session import BlenderSession, bpy_available
+from blender_session import bpy_available, shared_session
 
 pytestmark = [pytest.mark.blender,
               pytest.mark.skipif(not bpy_available(), reason="needs the pip bpy module")]
@@ -27,9 +27,7 @@ def speech(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def blender():
-    session = BlenderSession()
-    yield session
-    session.close()
+    return shared_session()
 
 
 def test_animate_from_audio_on_lips(blender, speech):

@@ -265,19 +265,20 @@ def test_bad_inputs_are_named_and_write_nothing(tmp_path, usd_mesh, usd_fitted):
 
 
 def _blender(tmp_path, usd_path, widen=False):
-    """What Blender (pip bpy, in its own process: it bundles its own USD) makes of a file."""
+    """What Blender (pip bpy, in the shared Blender session's process: it bundles its own USD)
+    makes of a file."""
     import importlib.util
-    import subprocess
-    import sys
     from pathlib import Path
 
     if importlib.util.find_spec("bpy") is None:  # finds without importing it here
         pytest.skip("the pip bpy module is not installed")
+    from blender_session import shared_session
+
     out = tmp_path / (Path(usd_path).stem + ".npz")
-    probe = Path(__file__).with_name("blender_usd_probe.py")
-    cmd = [sys.executable, str(probe), str(usd_path), str(out)] + (["--widen"] if widen else [])
-    run = subprocess.run(cmd, capture_output=True, text=True)
-    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    try:
+        shared_session().run("blender_usd_probe:main", str(usd_path), str(out), widen)
+    except SystemExit as e:  # the probe's own refusals (no mesh, a failed import)
+        pytest.fail(f"Blender could not import {usd_path}: {e}")
     return dict(np.load(out))
 
 
