@@ -207,7 +207,7 @@ class SubspaceCompletion:
         N, Y, cost, JtJ, g, lam = (None, None, 0.0, None, None, 0.0) if self.done else (
             self.N, self.Y, self.cost, self.JtJ, self.g, self.lam)
         steps = self.steps
-        for steps in range(self.steps + 1, max_iter + 1):
+        for steps in range(self.steps + 1, max_iter + 1):  # noqa: B007 (the count is kept after the loop)
             if self.done:
                 break
             if cost <= self.floor:
