@@ -30,8 +30,9 @@ __all__ = ["DaiScan", "scan_smooth", "scan_estimated", "ESTIMATE_STEPS", "ESTIMA
 
 log = logging.getLogger(__name__)
 
-ESTIMATE_STEPS = 10
-"""Cap on the completion's steps in :meth:`DaiScan.estimate` (the full completion takes up to 100)."""
+ESTIMATE_STEPS = (10, 30)
+"""The caps on the completion's steps of :meth:`DaiScan.estimate`'s successive estimates (the full
+completion takes up to 100)."""
 
 ESTIMATE_EXACT = 1e-3
 """Completion misfit below which an estimate's K is treated as one that may fit K shapes exactly (the
@@ -71,22 +72,39 @@ class DaiScan:
         return rotation_roughness(self._rotations[k][3])
 
     def estimate(self, k: int) -> tuple[float, bool]:
-        """An estimate of the rotation roughness at K, from ``dai``'s first stage on tracks completed
-        with at most :data:`ESTIMATE_STEPS` steps, and whether that stage may fit K shapes exactly
-        (see :meth:`may_be_exact`, with the looser misfit :data:`ESTIMATE_EXACT`). Incomplete tracks only."""
+        """An estimate of the rotation roughness at K, and whether K may fit K shapes exactly (see
+        :meth:`may_be_exact`; with the looser misfit :data:`ESTIMATE_EXACT` while the completion is
+        capped). Incomplete tracks only. First from ``dai``'s first stage on tracks completed with at most
+        ``ESTIMATE_STEPS[0]`` steps; each :meth:`refine` goes on to the next cap, then to the full first
+        stage (the estimate is then :meth:`bound`)."""
         if k not in self._estimates:
             F, P = self.tracks.mask.shape
             check_method_k(k, "dai", F, P, self.tracks.n_observed)
             self._completions[k] = SubspaceCompletion(self.tracks.W, self.tracks.mask, 3 * k)
-            stage = _dai_rotations(self.tracks, k, seed=self.options.get("seed", 0),
-                                   n_starts=self.options.get("n_starts", 4), completion_steps=ESTIMATE_STEPS,
-                                   completion=self._completions[k])
-            _, _, info, R = stage
-            if self._completions[k].done:    # converged within the cap: the first stage itself
-                self._rotations[k] = stage
-            exact = info["rank"] <= 3 * k or info["completion_misfit"] <= ESTIMATE_EXACT
-            self._estimates[k] = (rotation_roughness(R), bool(exact))
-        return self._estimates[k]
+            self._estimates[k] = (0.0, False, -1)
+            self.refine(k)
+        return self._estimates[k][:2]
+
+    def refine(self, k: int) -> bool:
+        """Make K's estimate firmer (the completion goes on from where it stopped: the same steps, bit
+        for bit); False if it is already the bound."""
+        level = self._estimates[k][2] + 1
+        if k in self._rotations or level >= len(ESTIMATE_STEPS):
+            if self._estimates[k][2] == len(ESTIMATE_STEPS):
+                return False
+            info = self.first_stage(k)[2]
+            exact = info["rank"] <= 3 * k or info["completion_misfit"] <= _EXACT_COMPLETION
+            self._estimates[k] = (self.bound(k), bool(exact), len(ESTIMATE_STEPS))
+            return True
+        stage = _dai_rotations(self.tracks, k, seed=self.options.get("seed", 0),
+                               n_starts=self.options.get("n_starts", 4), completion_steps=ESTIMATE_STEPS[level],
+                               completion=self._completions[k])
+        _, _, info, R = stage
+        if self._completions[k].done:    # converged within the cap: the first stage itself
+            self._rotations[k] = stage
+        exact = info["rank"] <= 3 * k or info["completion_misfit"] <= ESTIMATE_EXACT
+        self._estimates[k] = (rotation_roughness(R), bool(exact), level)
+        return True
 
     def first_stage(self, k: int) -> tuple:
         """``dai``'s first stage at K (:func:`lipgen.nrsfm.engine._dai_rotations`), run once: the centred
@@ -224,7 +242,10 @@ def scan_estimated(scan: DaiScan, ks: list[int], tol: float, m: int) -> tuple[li
         todo = [k for k in _used(ks, estimates, rough, scan, tol, m) if k not in rough]
         if not todo:
             break
-        for k in todo:
+        k = todo[0]     # one at a time: a firmer estimate or a finished K may push the others out of use
+        if scan.refine(k):
+            estimates[k] = scan.estimate(k)
+        else:
             rough[k] = rotation_roughness(scan.finish(k).rotations)
     log.info("k='auto' on incomplete tracks: %d of %d Ks finished", len(rough), len(ks))
     return [scan.finish(k) for k in ks if k in rough], {k: v[0] for k, v in estimates.items()}
