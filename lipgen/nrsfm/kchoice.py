@@ -194,7 +194,8 @@ def _supported(scan: DaiScan, rec: Reconstruction, k: int, threshold: float) -> 
 
 def _whole_record(record: dict, ks: list[int], bounds: dict) -> dict:
     """:func:`smooth_k`'s record over the finished Ks, widened to every candidate K: an unfinished K
-    gets its roughness bound and ``exact`` False (``finished`` says which is which)."""
+    gets its roughness bound (with points missing: its last estimate, see ``unfinished``) and ``exact``
+    False (``finished`` says which is which)."""
     done = dict(zip(record["ks"], zip(record["rotation_roughness"], record["exact"], strict=True),
                     strict=True))
     rough = [done[k][0] if k in done else bounds[k] for k in ks]
