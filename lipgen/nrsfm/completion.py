@@ -206,6 +206,8 @@ class SubspaceCompletion:
         d = self.d
         N, Y, cost, JtJ, g, lam = (None, None, 0.0, None, None, 0.0) if self.done else (
             self.N, self.Y, self.cost, self.JtJ, self.g, self.lam)
+        if JtJ is None and not self.done:   # kept small while stopped: the same values again, bit for bit
+            cost, JtJ, g = self.frames.evaluate(N, Y)
         steps = self.steps
         for steps in range(self.steps + 1, max_iter + 1):  # noqa: B007 (the count is kept after the loop)
             if self.done:
@@ -230,9 +232,9 @@ class SubspaceCompletion:
             if not accepted or gain < self.tol:
                 self.done = True
                 break
-        if not self.done:
+        if not self.done:   # stopped at the cap: the normal matrix (r d x r d) is not kept
             self.steps = max(steps, self.steps)
-            self.N, self.Y, self.cost, self.JtJ, self.g, self.lam = N, Y, cost, JtJ, g, lam
+            self.N, self.Y, self.cost, self.JtJ, self.g, self.lam = N, Y, cost, None, None, lam
         elif self.d > 0 and N is not None:
             self.steps = steps
             self.N, self.Y, self.cost = N, Y, cost

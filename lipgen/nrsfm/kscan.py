@@ -77,7 +77,7 @@ class DaiScan:
             # an estimate's completion goes on from where it stopped (the same steps, bit for bit)
             self._rotations[k] = _dai_rotations(self.tracks, k, seed=self.options.get("seed", 0),
                                                 n_starts=self.options.get("n_starts", 4),
-                                                completion=self._completions.get(k))
+                                                completion=self._completions.pop(k, None))
         return rotation_roughness(self._rotations[k][3])
 
     def estimate(self, k: int) -> tuple[float, bool]:
@@ -111,6 +111,7 @@ class DaiScan:
         _, _, info, R = stage
         if self._completions[k].done:    # converged within the cap: the first stage itself
             self._rotations[k] = stage
+            del self._completions[k]
         exact = info["rank"] <= 3 * k or info["completion_misfit"] <= ESTIMATE_EXACT
         self._estimates[k] = (rotation_roughness(R), bool(exact), level)
         return True
