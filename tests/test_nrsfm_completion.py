@@ -224,4 +224,5 @@ def test_a_stopped_completion_goes_on_bit_for_bit():
     assert info2["steps"] == info["steps"] and info2["cost"] == info["cost"]
     # a stopped completion is not the finished one, and a finished one runs no further step
     assert complete_subspace(W, mask, r, max_iter=3)[0].tobytes() != full.tobytes()
-    assert state.done and complete_subspace(W, mask, r, max_iter=200, resume=state)[2]["steps"] == info["steps"]
+    assert state.done
+    assert complete_subspace(W, mask, r, max_iter=200, resume=state)[2]["steps"] == info["steps"]
