@@ -226,24 +226,3 @@ def test_a_stopped_completion_goes_on_bit_for_bit():
     assert complete_subspace(W, mask, r, max_iter=3)[0].tobytes() != full.tobytes()
     assert state.done
     assert complete_subspace(W, mask, r, max_iter=200, resume=state)[2]["steps"] == info["steps"]
-
-
-def test_hidden_points_with_dependent_rows_of_the_basis_give_the_projected_cost():
-    # points 2 and 5 have the same row of N (the Gram matrix of a frame hiding both is singular: inv
-    # raised LinAlgError there); the cost is still each row's least-squares residual
-    rng = np.random.default_rng(8)
-    F, P, d = 6, 8, 3
-    A = rng.standard_normal((P, d))
-    A[5] = A[2]
-    N = A @ np.linalg.inv(np.linalg.cholesky(A.T @ A)).T          # orthonormal columns, rows 2 and 5 equal
-    assert N[2].tobytes() == N[5].tobytes()
-    mask = np.ones((F, P), dtype=bool)
-    mask[:3, [2, 5]] = False
-    W0 = np.where(np.repeat(mask, 2, axis=0), rng.standard_normal((2 * F, P)), 0.0)
-    cost, JtJ, g = _Frames(W0, mask, d).evaluate(N, _bases(N)[1][:, :2])
-    ref = 0.0
-    for row, seen in zip(W0, np.repeat(mask, 2, axis=0), strict=True):
-        a, NH = N.T @ row, N[~seen]
-        x = np.linalg.lstsq(NH.T, -a, rcond=None)[0] if (~seen).any() else np.zeros(0)
-        ref += 0.5 * float(np.sum((a + NH.T @ x) ** 2))
-    assert cost == pytest.approx(ref, rel=1e-10) and np.isfinite(JtJ).all() and np.isfinite(g).all()

@@ -91,7 +91,7 @@ class _Frames:
             a = rows @ N                                          # (n, 2, d)
             if h:
                 NH = N[idx]                                       # (n, h, d)
-                Ginv = _gram_inverse(NH)
+                Ginv = np.linalg.inv(NH @ NH.transpose(0, 2, 1))
                 c = np.einsum("nij,njd,nkd->nki", Ginv, NH, a)    # (n, 2, h)
                 Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH
                 res = a - np.einsum("nki,nid->nkd", c, NH)        # Pi a
@@ -117,17 +117,6 @@ class _Frames:
             return cost
         JtJ = (H + H2).reshape(r, r, d, d).transpose(0, 2, 1, 3).reshape(r * d, r * d)
         return cost, JtJ, g.ravel()
-
-
-def _gram_inverse(NH: np.ndarray) -> np.ndarray:
-    """``inv(N_H N_H^T)`` of each frame (n, h, h); its pseudo-inverse when a frame's hidden points have
-    linearly dependent rows of N (then ``N_H^T pinv(N_H N_H^T) N_H`` is still the projector onto the row
-    space of ``N_H``; ``inv`` alone raised LinAlgError there and stopped ``k="auto"``)."""
-    G = NH @ NH.transpose(0, 2, 1)
-    try:
-        return np.linalg.inv(G)
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(G, hermitian=True)
 
 
 def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
