@@ -55,8 +55,8 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
-from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
 from lipgen.recon.correlate import search_box
+from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
 from lipgen.recon.track import MarkerTracker
 from lipgen.rig.pinhole import triangulate
 

@@ -103,7 +103,7 @@ class TrackerSettings:
         median it is taken from, so without a bound a view whose dots pale over a take could
         lower its floor step by step into the skin texture (0.04-0.08: see
         :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: the lowered floor of ``hard``
-        25 is 0.067.
+        25 is about 0.067.
     """
 
     dots: DotSettings = DotSettings()
