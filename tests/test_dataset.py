@@ -65,6 +65,7 @@ def test_layout_manifest_and_reader(reference):
     assert alone.keys() == fr.truth.keys() and all(np.array_equal(alone[k], fr.truth[k]) for k in alone)
     with pytest.raises(IndexError):
         ds.truth(14)
+    assert np.array_equal(ds.truth(np.int64(-9))["uv"], fr.truth["uv"])   # numpy and negative indices
     assert [f.index for f in ds] == list(range(14))
     cal = ds.calibration()
     assert len(cal) == 1 and cal[0].truth["corners_world"].shape == (54, 3)
@@ -74,6 +75,19 @@ def test_layout_manifest_and_reader(reference):
     assert ds.board().inner_cols == 9
     with pytest.raises(IndexError):
         ds[14]
+
+
+def test_a_frames_unreadable_truth_is_named(reference, tmp_path):
+    import shutil
+
+    copy = tmp_path / "ds"
+    shutil.copytree(reference, copy)
+    ds = Dataset(copy)
+    bad = ds.file(ds.manifest["frames"][3]["truth"])
+    bad.write_bytes(b"not an npz")
+    with pytest.raises(DatasetError, match=bad.name):
+        ds.truth(3)
+    assert ds.truth(2).keys() == ds[2].truth.keys()   # the other frames still read
 
 
 def test_same_settings_same_bytes_with_two_workers(reference, tmp_path):
@@ -278,3 +292,20 @@ def test_depth_and_masks_agree_with_the_truth(reference, tmp_path):
     assert np.median(np.abs(dz)) < 0.5 and np.abs(dz).max() < 3.0
     with pytest.raises(DatasetError, match="--depth"):
         Dataset(reference).depth(0)
+
+
+def test_training_displacements_are_the_truth_and_need_it(reference, tmp_path):
+    import shutil
+
+    from lipgen.blender.training import dataset_displacements
+
+    ds = Dataset(reference)
+    n, topo = ds.mesh.n_nodes, ds.mesh.topology_id
+    X = dataset_displacements(reference, n, topo)
+    assert X.shape == (len(ds), n, 3)
+    np.testing.assert_array_equal(X[4], ds[4].truth["vertices"][:n] - ds.mesh.vertices[:n])
+    copy = tmp_path / "ds"
+    shutil.copytree(reference, copy)
+    Dataset(copy).file(ds.manifest["frames"][0]["truth"]).unlink()
+    with pytest.raises(DatasetError, match="no ground truth.*true motion"):
+        dataset_displacements(copy, n, topo)

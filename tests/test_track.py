@@ -368,8 +368,8 @@ def _faint_view(floor_ratio, seed=4, n_frames=6):
 def test_a_floor_from_the_views_own_dots_finds_a_dot_under_the_fixed_floor():
     tracks, uv = _faint_view(None)
     assert not tracks.visible[:, 5].any(), "under the fixed floor the pale dot is never acquired"
-    tracks, uv = _faint_view(0.5)
-    assert tracks.visible[3:, 5].all()
+    tracks, uv = _faint_view(TrackerSettings().floor_ratio, n_frames=8)   # the default, 0.7
+    assert tracks.visible[5:, 5].all()   # from frame 5 (at 0.5: from frame 3)
     err = np.linalg.norm(tracks.uv - uv, axis=2)
     assert err[tracks.visible].max() < 0.5
     assert tracks.visible[:, np.arange(12) != 5].all(), "the other marks are all tracked"
@@ -380,6 +380,13 @@ def test_the_floor_is_lowered_only_under_the_fixed_one():
     assert s.dots_for(0.2) is s.dots                      # 0.14 > 0.08: the fixed floor
     assert s.dots_for(0.1).min_contrast == pytest.approx(0.07)
     assert s.dots_for(np.nan) is s.dots                   # nothing known yet
+    assert s.dots_for(0.08 / 0.7).min_contrast == pytest.approx(0.08)   # the boundary
+    assert s.dots_for(0.06).min_contrast == pytest.approx(0.05)        # 0.042: held at floor_min
+    assert s.dots_for(1e-6).min_contrast == pytest.approx(0.05)
+    assert TrackerSettings(floor_min=0.0).dots_for(0.06).min_contrast == pytest.approx(0.042)
+    for bad in (-0.01, 0.09, float("nan")):
+        with pytest.raises(ValueError, match="floor_min"):
+            TrackerSettings(dots=DotSettings(min_contrast=0.08), floor_min=bad)
     fixed = TrackerSettings(floor_ratio=None)
     assert fixed.dots_for(0.01) is fixed.dots
     assert TrackerSettings().floor_ratio == 0.7                     # on by default

@@ -50,4 +50,5 @@ def dataset_displacements(path: str | os.PathLike, n_nodes: int, topology_id: st
                 f"this mesh ({n_nodes} nodes, topology {topology_id}), nor a finer procedural "
                 "lips mesh of which it is a part; train on a dataset made for this mesh")
     rest = mesh.vertices[:n_nodes]
-    return np.array([frame.truth["vertices"][:n_nodes] - rest for frame in ds])
+    ds.require_truth("training on a dataset's true motion")
+    return np.array([ds.truth(i)["vertices"][:n_nodes] - rest for i in range(len(ds))])

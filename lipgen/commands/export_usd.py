@@ -144,7 +144,8 @@ def _dataset_truth(args):
     ds = Dataset(args.dataset)
     if len(ds) == 0:
         raise ValueError(f"dataset {args.dataset} has no frames")
-    vertices = np.stack([frame.truth["vertices"] for frame in ds])
+    ds.require_truth("lipgen export-usd --dataset")
+    vertices = np.stack([ds.truth(i)["vertices"] for i in range(len(ds))])
     return ds.mesh, vertices, ds.fps
 
 

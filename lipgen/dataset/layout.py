@@ -187,7 +187,7 @@ class Dataset:
             n = sum("truth" in f and self.file(f["truth"]).is_file() for f in self.manifest["frames"])
             raise DatasetError(
                 f"{self.path} has no ground truth ({n} of {len(self)} frames have a truth file): {what} "
-                "compares with the truth, so it needs a synthetic dataset from lipgen generate. "
+                "reads the truth, so it needs a synthetic dataset from lipgen generate. "
                 "lipgen reconstruct, train, show and nrsfm work without truth")
 
     def depth(self, i: int) -> np.ndarray:
@@ -255,7 +255,17 @@ class Dataset:
 
     def truth(self, i: int) -> dict:
         """The truth of frame ``i`` alone, as ``self[i].truth`` (``{}`` when the dataset has none),
-        without decoding the frame's image (a 640x480 PNG takes a few ms)."""
+        without decoding the frame's image (a 640x480 PNG takes a few ms), so it serves where a
+        raw image is missing too. The keys and shapes are :data:`SCHEMA`'s for frames (e.g.
+        ``vertices`` (n, 3) mm, ``uv`` (2, P+1, 2) px, ``visible`` (2, P+1) bool).
+
+        Raises
+        ------
+        IndexError
+            If ``i`` is not a frame index (``-len(self) <= i < len(self)``).
+        DatasetError
+            If the frame's truth file is listed but missing or unreadable.
+        """
         f = self._entry(i)
         if f.get("truth") is None or not self.has_truth:
             return {}

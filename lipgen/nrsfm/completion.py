@@ -91,7 +91,7 @@ class _Frames:
             a = rows @ N                                          # (n, 2, d)
             if h:
                 NH = N[idx]                                       # (n, h, d)
-                Ginv = np.linalg.inv(NH @ NH.transpose(0, 2, 1))
+                Ginv = _inverse_or_pseudo(NH @ NH.transpose(0, 2, 1))
                 c = np.einsum("nij,njd,nkd->nki", Ginv, NH, a)    # (n, 2, h)
                 Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH
                 res = a - np.einsum("nki,nid->nkd", c, NH)        # Pi a
@@ -117,6 +117,17 @@ class _Frames:
             return cost
         JtJ = (H + H2).reshape(r, r, d, d).transpose(0, 2, 1, 3).reshape(r * d, r * d)
         return cost, JtJ, g.ravel()
+
+
+def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
+    """(n, h, h) inverses of the Gram matrices ``G = N_H N_H^T``; where one is singular (the hidden
+    points' rows of N are dependent: the model leaves those entries partly free, as in a long gap
+    of several points), the Moore-Penrose pseudo-inverse, which gives the same projector onto the
+    row space of N_H. The plain inverse is kept where it exists, so those answers keep their bytes."""
+    try:
+        return np.linalg.inv(G)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(G, rcond=1e-12, hermitian=True)
 
 
 def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

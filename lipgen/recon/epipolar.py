@@ -55,8 +55,9 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
+from lipgen.recon.correlate import search_box
 from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
-from lipgen.recon.track import MarkerTracker, search_box
+from lipgen.recon.track import MarkerTracker
 from lipgen.rig.pinhole import triangulate
 
 __all__ = ["recover_along_epipolar"]
@@ -141,8 +142,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         # epipolar line, at the same height in the mirror, is not this marker's).
         placed = np.flatnonzero(placed)
         nearest = placed[np.linalg.norm(peaks[:, None] - pred[placed][None], axis=2).argmin(1)]
-        known = np.isfinite(ta.strength)
-        typical = float(np.median(ta.strength[known])) if known.any() else np.nan
+        typical = ta.typical_strength(np.ones(len(ta.strength), dtype=bool))
+        faint = cfg.dots_for(typical).min_contrast   # this view's detector floor, as the tracker's
         for i, k in enumerate(want):
             near = (np.linalg.norm(peaks - pred[k], axis=1) <= reach[i]) & (nearest == k)
             own = ta.strength[k] if np.isfinite(ta.strength[k]) else typical
@@ -156,7 +157,7 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             ok = idx[gap <= gap_share * max_gap]
             # One peak on the line, and no darker than the marker's own dot has been: a dark blob
             # there (the mouth's corner on the lip corner's line) is not a pale dot.
-            if len(ok) != 1 or strength[ok[0]] >= cfg.dots.min_contrast \
+            if len(ok) != 1 or strength[ok[0]] >= faint \
                     or (np.isfinite(own) and strength[ok[0]] > max_ratio * own):
                 continue
             p = refine_centroids(gray, peaks[ok], cfg.dots.sigma, window=cfg.dots.window)[0]

@@ -98,6 +98,12 @@ class TrackerSettings:
         85.3 -> 92.8 / 86.0 / 85.1 %, none over 3 px. At 0.7 ``hard`` 7, 8, 9, 10 and ``default``
         8 are unchanged bit for bit (a view's floor is lowered only where its markers' dots are
         paler than 0.08 / 0.7 = 0.114).
+    floor_min : float
+        The lowered floor never goes under this darkness. Dots the lowered floor admits feed the
+        median it is taken from, so without a bound a view whose dots pale over a take could
+        lower its floor step by step into the skin texture (0.04-0.08: see
+        :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: the lowered floor of ``hard``
+        25 is about 0.067.
     """
 
     dots: DotSettings = DotSettings()
@@ -116,6 +122,7 @@ class TrackerSettings:
     acquire_ratio: float = 0.6
     blend: bool = True
     floor_ratio: float | None = 0.7
+    floor_min: float = 0.05
 
     def __post_init__(self):
         lo, hi = self.min_strength_ratio, self.max_strength_ratio
@@ -124,6 +131,9 @@ class TrackerSettings:
         if self.floor_ratio is not None and not 0 < self.floor_ratio < 1:   # also refuses NaN
             raise ValueError(f"floor_ratio must be None (the fixed floor) or in (0, 1), "
                              f"got {self.floor_ratio!r}")
+        if not 0 <= self.floor_min <= self.dots.min_contrast:   # also refuses NaN
+            raise ValueError(f"floor_min must be in [0, dots.min_contrast = {self.dots.min_contrast!r}], "
+                             f"got {self.floor_min!r}")
         if hi is not None and not (hi >= lo):  # also refuses NaN
             raise ValueError(f"max_strength_ratio must be None (no limit) or at least min_strength_ratio "
                              f"({lo!r}), got {hi!r}")
@@ -131,10 +141,10 @@ class TrackerSettings:
     def dots_for(self, typical: float) -> DotSettings:
         """The detector's settings in a view whose markers' dots have darkness ``typical`` (NaN:
         not known yet): ``dots`` with its contrast floor lowered to ``floor_ratio * typical``
-        where that is lower."""
+        where that is lower, but not under ``floor_min``."""
         if self.floor_ratio is None or not 0 < self.floor_ratio * typical < self.dots.min_contrast:
             return self.dots
-        return replace(self.dots, min_contrast=self.floor_ratio * typical)
+        return replace(self.dots, min_contrast=max(self.floor_ratio * typical, self.floor_min))
 
     @property
     def twins(self) -> float:
