@@ -208,6 +208,26 @@ def test_frames_to_the_nearest_sighting_match_the_direct_search():
         assert np.array_equal(_frames_to_sighting(mask), direct)
 
 
+def test_a_stopped_completion_goes_on_bit_for_bit():
+    # noisy tracks: the iterations run past the caps below (a stopped completion is resumed by k="auto")
+    F, P, r = 40, 14, 8
+    W = _low_rank(F, P, r, seed=5) + 0.3 * np.random.default_rng(6).standard_normal((2 * F, P))
+    mask = _mask(F, P, 0.2, 7)
+    full, misfit, info = complete_subspace(W, mask, r)
+    assert 8 < info["steps"] < 100
+    state = complete_subspace(W, mask, r, max_iter=3)[2]["state"]
+    assert state.steps == 3 and not state.done
+    complete_subspace(W, mask, r, max_iter=8, resume=state)
+    assert state.steps == 8
+    full2, misfit2, info2 = complete_subspace(W, mask, r, resume=state)
+    assert full2.tobytes() == full.tobytes() and misfit2 == misfit
+    assert info2["steps"] == info["steps"] and info2["cost"] == info["cost"]
+    # a stopped completion is not the finished one, and a finished one runs no further step
+    assert complete_subspace(W, mask, r, max_iter=3)[0].tobytes() != full.tobytes()
+    assert state.done
+    assert complete_subspace(W, mask, r, max_iter=200, resume=state)[2]["steps"] == info["steps"]
+
+
 def test_hidden_points_the_model_leaves_partly_free_do_not_stop_the_completion():
     """Two hidden points whose rows of N are equal: N_H N_H^T is singular (numpy's inverse refuses
     it; body 1002 with gaps met this under a 1e-14 perturbation). The cost is still the distance of

@@ -82,6 +82,25 @@ def test_a_failed_bound_finishes_every_k_on_small_tracks(monkeypatch):
     assert _same(rec, _exhaustive(W, 5)[0])
 
 
+def test_estimated_scan_uses_only_finished_ks_on_small_incomplete_tracks(monkeypatch):
+    W, visible = _small_noisy_tracks(0.9)      # the exhaustive search's runs are shared with the test above
+    rec = reconstruct_auto(W, "dai", visible, kmax=4, support=None)
+    record = rec.info["k_choice"]
+    assert record["unfinished"] == "estimate"
+    finished = {k for k, f in zip(record["ks"], record["finished"], strict=True) if f}
+    assert {rec.k, *rec.info["depth_consensus"]["ks"]} <= finished
+    ref, _ = _exhaustive(W, 4, visible)
+    assert _same(rec, ref) and rec.k == ref.k
+    # estimates below every roughness: every K is finished, and the answer is the exhaustive search's
+    monkeypatch.setattr(DaiScan, "estimate", lambda self, k: (0.0, False))
+    monkeypatch.setattr(DaiScan, "refine", lambda self, k: False)
+    rec = reconstruct_auto(W, "dai", visible, kmax=4, support=None)
+    assert all(rec.info["k_choice"]["finished"]) and _same(rec, ref)
+    # the exact bounds as estimates: the same answer
+    monkeypatch.setattr(DaiScan, "estimate", lambda self, k: (self.bound(k), self.may_be_exact(k)))
+    assert _same(reconstruct_auto(W, "dai", visible, kmax=4, support=None), ref)
+
+
 @pytest.mark.slow(cover="tests/test_nrsfm_kscan.py::test_auto_equals_the_exhaustive_search_on_small_tracks_and_skips_work")
 def test_auto_equals_the_exhaustive_search_and_skips_work():
     # a development body, short: Ks 1-6 tried, 1 and 3 skipped (Ks 7-8 added 3.4 s of dai stages to

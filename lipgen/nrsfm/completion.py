@@ -29,7 +29,7 @@ import logging
 
 import numpy as np
 
-__all__ = ["complete_subspace", "interpolate_in_time", "prior_variance"]
+__all__ = ["complete_subspace", "SubspaceCompletion", "interpolate_in_time", "prior_variance"]
 
 log = logging.getLogger(__name__)
 
@@ -138,7 +138,8 @@ def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int = 100,
-                      tol: float = 1e-9) -> tuple[np.ndarray, float, dict]:
+                      tol: float = 1e-9, resume: SubspaceCompletion | None = None
+                      ) -> tuple[np.ndarray, float, dict]:
     """Complete tracks with the best rank-``rank`` plus translation model (Levenberg-Marquardt).
 
     Parameters
@@ -154,6 +155,9 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
     tol : float
         Stop when a step lowers the cost by less than this fraction, or the cost falls below
         ``(1e-14 |W|)^2``.
+    resume : SubspaceCompletion, optional
+        The same completion (same W, mask, rank, tol) stopped at a lower cap: its steps are not run
+        again (the result is bit for bit that of one run with ``max_iter``).
 
     Returns
     -------
@@ -163,60 +167,102 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
         RMS of the model's residual on the observed entries over their RMS about each row's mean.
     info : dict
         ``steps``, ``cost`` (first, last: half the squared residual of W / ``scale``), ``scale`` (the
-        power of two W was divided by, so that any magnitude is solved alike).
+        power of two W was divided by, so that any magnitude is solved alike), ``state`` (the
+        :class:`SubspaceCompletion`, to resume with a higher cap).
     """
-    seen = np.repeat(mask, 2, axis=0)
-    W0 = np.where(seen, W, 0.0)
-    top = float(np.abs(W0).max())
-    unit = 2.0 ** np.round(np.log2(top)) if top > 0 else 1.0    # exact rescale: squares stay in range
-    full, misfit, info = _complete(W0 / unit, mask, rank, max_iter, tol)
-    return full * unit, misfit, info | {"scale": unit}
+    state = resume if resume is not None else SubspaceCompletion(W, mask, rank, tol)
+    state.run(max_iter)
+    full, misfit, info = state.result()
+    return full * state.unit, misfit, info | {"scale": state.unit, "state": state}
 
 
-def _complete(W0, mask, rank, max_iter, tol):
-    F, P = mask.shape
-    seen = np.repeat(mask, 2, axis=0)
-    prior = interpolate_in_time(W0, mask)
-    d = P - 1 - rank
-    row_mean = W0.sum(1) / seen.sum(1)
-    spread = float(np.linalg.norm(np.where(seen, W0 - row_mean[:, None], 0.0)))
-    if d <= 0:  # every row fits exactly: the model says nothing about the hidden entries
-        return prior, 0.0, {"steps": 0, "cost": [0.0, 0.0]}
-    _, _, Vt = np.linalg.svd(prior - prior.mean(1, keepdims=True), full_matrices=False)
-    N, Y = _bases(np.linalg.qr(np.column_stack([np.ones(P), Vt[:rank].T]), mode="complete")[0][:, rank + 1:])
-    frames = _Frames(W0, mask, d)
-    cost, JtJ, g = frames.evaluate(N, Y)
-    first = cost
-    floor = 0.5 * (1e-14 * float(np.linalg.norm(W0))) ** 2
-    lam = 1e-4
-    steps = 0
-    for steps in range(1, max_iter + 1):  # noqa: B007 (count reported after the loop)
-        if cost <= floor:
-            break
-        diag = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.diag(JtJ).max()), 1e-300))
-        accepted = False
-        while not accepted and lam < 1e12:
-            step = np.linalg.solve(JtJ + lam * np.diag(diag), -g)
-            Nn, Yn = _bases(np.linalg.qr(N + Y @ step.reshape(Y.shape[1], d))[0])
-            new = frames.evaluate(Nn)
-            if new < cost:
-                accepted = True
-                gain = (cost - new) / cost
-                N, Y = Nn, Yn
-                cost, JtJ, g = frames.evaluate(N, Y)
-                lam = max(lam / 10, 1e-12)
-            else:
-                lam *= 10
-        if not accepted or gain < tol:
-            break
-    hidden = (~mask).sum(1)
-    dof = 2 * int(np.maximum(d - hidden, 0).sum()) - Y.shape[1] * d
-    noise = max(2 * cost / max(dof, 1), 1e-24 * float((W0**2).mean()), 1e-300)
-    full = _fill(W0, prior, mask, N, noise)
-    misfit = float(np.sqrt(2 * max(cost, 0.0))) / max(spread, 1e-300)
-    log.debug("completion (subspace Gauss-Newton): %d hidden entries, %d steps, cost %.3e -> %.3e",
-              int((~seen).sum()), steps, first, cost)
-    return full, misfit, {"steps": steps, "cost": [first, cost]}
+class SubspaceCompletion:
+    """:func:`complete_subspace`'s iterations, which can stop at a cap and go on later.
+
+    Parameters
+    ----------
+    W : (2F, P) float
+    mask : (F, P) bool
+    rank : int
+    tol : float
+        As :func:`complete_subspace`.
+    """
+
+    def __init__(self, W: np.ndarray, mask: np.ndarray, rank: int, tol: float = 1e-9):
+        seen = np.repeat(mask, 2, axis=0)
+        W0 = np.where(seen, W, 0.0)
+        top = float(np.abs(W0).max())
+        self.unit = 2.0 ** np.round(np.log2(top)) if top > 0 else 1.0   # exact rescale: squares stay in range
+        W0 = W0 / self.unit
+        F, P = mask.shape
+        self.W0, self.mask, self.tol = W0, mask, tol
+        self.prior = interpolate_in_time(W0, mask)
+        self.d = d = P - 1 - rank
+        row_mean = W0.sum(1) / seen.sum(1)
+        self.spread = float(np.linalg.norm(np.where(seen, W0 - row_mean[:, None], 0.0)))
+        self.steps, self.done = 0, d <= 0
+        if self.done:   # every row fits exactly: the model says nothing about the hidden entries
+            return
+        _, _, Vt = np.linalg.svd(self.prior - self.prior.mean(1, keepdims=True), full_matrices=False)
+        self.N, self.Y = _bases(np.linalg.qr(np.column_stack([np.ones(P), Vt[:rank].T]),
+                                             mode="complete")[0][:, rank + 1:])
+        self.frames = _Frames(W0, mask, d)
+        self.cost, self.JtJ, self.g = self.frames.evaluate(self.N, self.Y)
+        self.first = self.cost
+        self.floor = 0.5 * (1e-14 * float(np.linalg.norm(W0))) ** 2
+        self.lam = 1e-4
+
+    def run(self, max_iter: int) -> None:
+        """Levenberg-Marquardt steps until converged or ``max_iter`` steps in all."""
+        d = self.d
+        N, Y, cost, JtJ, g, lam = (None, None, 0.0, None, None, 0.0) if self.done else (
+            self.N, self.Y, self.cost, self.JtJ, self.g, self.lam)
+        if JtJ is None and not self.done:   # kept small while stopped: the same values again, bit for bit
+            cost, JtJ, g = self.frames.evaluate(N, Y)
+        steps = self.steps
+        for steps in range(self.steps + 1, max_iter + 1):  # noqa: B007 (the count is kept after the loop)
+            if self.done:
+                break
+            if cost <= self.floor:
+                self.done = True
+                break
+            diag = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.diag(JtJ).max()), 1e-300))
+            accepted = False
+            while not accepted and lam < 1e12:
+                step = np.linalg.solve(JtJ + lam * np.diag(diag), -g)
+                Nn, Yn = _bases(np.linalg.qr(N + Y @ step.reshape(Y.shape[1], d))[0])
+                new = self.frames.evaluate(Nn)
+                if new < cost:
+                    accepted = True
+                    gain = (cost - new) / cost
+                    N, Y = Nn, Yn
+                    cost, JtJ, g = self.frames.evaluate(N, Y)
+                    lam = max(lam / 10, 1e-12)
+                else:
+                    lam *= 10
+            if not accepted or gain < self.tol:
+                self.done = True
+                break
+        if not self.done:   # stopped at the cap: the normal matrix (r d x r d) is not kept
+            self.steps = max(steps, self.steps)
+            self.N, self.Y, self.cost, self.JtJ, self.g, self.lam = N, Y, cost, None, None, lam
+        elif self.d > 0 and N is not None:
+            self.steps = steps
+            self.N, self.Y, self.cost = N, Y, cost
+
+    def result(self) -> tuple[np.ndarray, float, dict]:
+        """The completed tracks (2F, P) in units of ``unit``, the misfit and ``steps``, ``cost``."""
+        if self.d <= 0:
+            return self.prior, 0.0, {"steps": 0, "cost": [0.0, 0.0]}
+        mask, d = self.mask, self.d
+        hidden = (~mask).sum(1)
+        dof = 2 * int(np.maximum(d - hidden, 0).sum()) - self.Y.shape[1] * d
+        noise = max(2 * self.cost / max(dof, 1), 1e-24 * float((self.W0**2).mean()), 1e-300)
+        full = _fill(self.W0, self.prior, mask, self.N, noise)
+        misfit = float(np.sqrt(2 * max(self.cost, 0.0))) / max(self.spread, 1e-300)
+        log.debug("completion (subspace Gauss-Newton): %d hidden entries, %d steps, cost %.3e -> %.3e",
+                  int(2 * (~mask).sum()), self.steps, self.first, self.cost)
+        return full, misfit, {"steps": self.steps, "cost": [self.first, self.cost]}
 
 
 def prior_variance(W: np.ndarray, mask: np.ndarray) -> np.ndarray:

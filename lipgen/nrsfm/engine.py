@@ -10,6 +10,7 @@ from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_f
 from lipgen.nrsfm._tracks import check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
+from lipgen.nrsfm.completion import complete_subspace
 from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.keep import keep_refinement
@@ -119,10 +120,16 @@ def _normalise_scale(W, visible):
     return W / unit, unit
 
 
-def _centred(tracks, k: int):
-    """Completed tracks centred per frame (2F, P), their translations (F, 2), and the record."""
+def _centred(tracks, k: int, completion_steps: int = 100, completion=None):
+    """Completed tracks centred per frame (2F, P), their translations (F, 2), and the record
+    (``completion_steps``: the completion's cap on steps; ``completion``: a
+    :class:`lipgen.nrsfm.completion.SubspaceCompletion` of these tracks at rank 3K to go on with)."""
     F = tracks.n_frames
-    full, misfit = complete_tracks(tracks, 3 * k, return_residual=True)
+    if completion is None or tracks.complete:
+        full, misfit = complete_tracks(tracks, 3 * k, max_iter=completion_steps, return_residual=True)
+    else:
+        full, misfit, _ = complete_subspace(tracks.W, tracks.mask, 3 * k, max_iter=completion_steps,
+                                            resume=completion)
     t = full.mean(axis=1)
     Wc = full - t[:, None]
     rank, sv = numerical_rank(Wc)
@@ -142,11 +149,14 @@ def _bregler(tracks, k: int):
     return R, C, B, t, info
 
 
-def _dai_rotations(tracks, k: int, *, seed: int, n_starts: int):
+def _dai_rotations(tracks, k: int, *, seed: int, n_starts: int, completion_steps: int = 100,
+                   completion=None):
     """``dai``'s first stage at K: the centred tracks (2F, P), translations (F, 2), the record and the
     rotations (F, 3, 3) of the corrective triple, before their per-frame signs are resolved
-    (:func:`orient_frames` needs the shapes)."""
-    Wc, t, info = _centred(tracks, k)
+    (:func:`orient_frames` needs the shapes). ``completion_steps``: the cap on the completion's steps
+    (fewer than its default 100 only for an estimate, :meth:`lipgen.nrsfm.kscan.DaiScan.estimate`);
+    ``completion``: as :func:`_centred`."""
+    Wc, t, info = _centred(tracks, k, completion_steps, completion)
     M, _, _ = factor(Wc, min(3 * k, info["rank"]))
     g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
     R, _ = rotations_from_triple(M, g)

@@ -28,7 +28,7 @@ from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
 from lipgen.nrsfm.consensus import CONSENSUS_KS, ERROR_CORRELATION, check_rho, consensus_reconstruction
 from lipgen.nrsfm.engine import reconstruct_k
-from lipgen.nrsfm.kscan import DaiScan, scan_smooth
+from lipgen.nrsfm.kscan import DaiScan, scan_estimated, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
 from lipgen.nrsfm.reliability import shrink_depth, split_half_reliability
@@ -104,7 +104,9 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
 
     ``dai`` and ``dai-ba``: ``dai`` at every K of :func:`candidate_ks`, K by :func:`smooth_k`
     (kept in ``info["k_choice"]``): the rotations at every K, the shapes only at the Ks the choice
-    can need (:func:`lipgen.nrsfm.kscan.scan_smooth`; the exhaustive search's answer, bit for bit).
+    can need (:func:`lipgen.nrsfm.kscan.scan_smooth`; the exhaustive search's answer, bit for bit). With
+    points missing, the Ks to finish are found from estimates (:func:`lipgen.nrsfm.kscan.scan_estimated`:
+    a completion stopped after a few steps at every K, the full one only at the Ks used).
     ``dai`` then replaces the chosen K's depth by the consensus of the ``consensus`` smoothest Ks,
     shrunk by the James-Stein factor of their disagreement
     (:func:`lipgen.nrsfm.consensus.consensus_reconstruction`, kept in ``info["depth_consensus"]``;
@@ -154,10 +156,12 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
     if not ks:  # no K fits: let the engine give its message for K = 1
         return reconstruct_k(W, 1, method, visible, **options)
     scan = DaiScan(W, visible, **options)
-    runs, bounds = scan_smooth(scan, ks, SMOOTH_TOL,
-                               consensus if method == "dai" else 1)
+    # with points missing, estimates guide the scan (the full completion at every K cost 7-8x the
+    # complete tracks' time on drink); complete tracks: bounds, the exhaustive search's answer
+    scanner = scan_smooth if tracks.complete else scan_estimated
+    runs, bounds = scanner(scan, ks, SMOOTH_TOL, consensus if method == "dai" else 1)
     chosen, record = smooth_k(runs)
-    record = _whole_record(record, ks, bounds)
+    record = _whole_record(record, ks, bounds) | {"unfinished": "bound" if tracks.complete else "estimate"}
     log.info("k='auto': K = %d (%s)", chosen, record["rule"])
     if method == "dai":
         rec = consensus_reconstruction(runs, [int(r.k) for r in runs].index(chosen), consensus, rho)
@@ -190,7 +194,8 @@ def _supported(scan: DaiScan, rec: Reconstruction, k: int, threshold: float) -> 
 
 def _whole_record(record: dict, ks: list[int], bounds: dict) -> dict:
     """:func:`smooth_k`'s record over the finished Ks, widened to every candidate K: an unfinished K
-    gets its roughness bound and ``exact`` False (``finished`` says which is which)."""
+    gets its roughness bound (with points missing: its last estimate, see ``unfinished``) and ``exact``
+    False (``finished`` says which is which)."""
     done = dict(zip(record["ks"], zip(record["rotation_roughness"], record["exact"], strict=True),
                     strict=True))
     rough = [done[k][0] if k in done else bounds[k] for k in ks]
