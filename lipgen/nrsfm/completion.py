@@ -121,7 +121,7 @@ class _Frames:
 
 def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
     """(n, h, h) inverses of the Gram matrices ``G = N_H N_H^T`` (n, h, h). Where one is singular or
-    too ill-conditioned for its inverse to be trusted (``G G^-1`` more than ``1e-6`` from the
+    too ill-conditioned for its inverse to be trusted (``G G^-1`` more than ``1e-3`` from the
     identity: the hidden points' rows of N are dependent or nearly so, and the model leaves those
     entries partly free, as in a long gap of several points), that frame takes the Moore-Penrose
     pseudo-inverse (``rcond`` 1e-12), which gives the projector onto the row space of N_H. Every
@@ -137,7 +137,7 @@ def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
             out[~bad] = np.linalg.inv(G[~bad])
     else:
         bad = np.zeros(n, dtype=bool)
-    bad |= ~(np.abs(G @ out - np.eye(h)).max(axis=(1, 2)) <= 1e-6)   # also NaN from a singular one
+    bad |= ~(np.abs(G @ out - np.eye(h)).max(axis=(1, 2)) <= 1e-3)   # also NaN from a singular one
     if bad.any():
         out[bad] = np.linalg.pinv(G[bad], rcond=1e-12, hermitian=True)
     return out
