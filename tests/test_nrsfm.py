@@ -220,7 +220,10 @@ def test_cli_round_trip(tmp_path, capsys):
     plot = tmp_path / "curve.png"
     assert main(["nrsfm", str(tracks), "--k", "auto", "--kmax", "3", "--out", str(out), "--force",
                  "--plot", str(plot)]) == 0
-    assert "chosen K = 2" in capsys.readouterr().out and plot.stat().st_size > 0
+    printed = capsys.readouterr().out
+    assert "chosen K = 2" in printed and plot.stat().st_size > 0
+    row3 = next(line for line in printed.splitlines() if line.startswith("3 "))
+    assert row3.endswith("(not finished: its bound)")   # K = 3: its bound, not a roughness
     assert main(["nrsfm", str(tracks), "--k", "two", "--out", str(out), "--force"]) == 1
 
 

@@ -155,3 +155,24 @@ def test_levenberg_marquardt_gives_up_only_a_start_that_cannot_win():
     free = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([3.0]), max_iter=300)
     held = levenberg_marquardt(_two_minima, _two_minima_jac, np.array([3.0]), max_iter=300, beat=0.1)
     assert free[0].tobytes() == held[0].tobytes() and free[2] == held[2] and free[1] < 1e-20
+
+
+def test_the_estimated_scan_finishes_only_the_ks_the_choice_and_consensus_use():
+    """_used on hand-made roughness values (K -> (estimate, may be an exact fit)), tolerance 0.05,
+    a 2-K consensus: the Ks it names are the ones scan_estimated finishes; the others stay unfinished."""
+    from types import SimpleNamespace
+
+    from lipgen.nrsfm.kscan import _used
+
+    ks = [1, 2, 3, 4, 5]
+    est = {1: (1.0, False), 2: (0.5, False), 3: (0.52, False), 4: (2.0, False), 5: (0.51, False)}
+    # the smoothest (2), the smallest within 5 % of it (2), and the 2 smoothest (2, 5): not 1, 3, 4
+    assert _used(ks, est, {}, None, 0.05, 2) == [2, 5]
+    # K 3 may fit exactly: it must be finished to know (it would be chosen over 2's neighbours)
+    assert _used(ks, est | {3: (0.52, True)}, {}, None, 0.05, 2) == [2, 3, 5]
+    # K 2 finished and an exact K-shape fit: it is chosen as it is, no consensus needed
+    scan = SimpleNamespace(finish=lambda k: SimpleNamespace(info={"shapes": "rank-K fit"}))
+    assert _used(ks, est, {2: 0.5}, scan, 0.05, 2) == [2]
+    # a finished K smoother than the estimates moves the choice: 4 finished at 0.3 is alone within 5 %
+    scan = SimpleNamespace(finish=lambda k: SimpleNamespace(info={"shapes": "trace-norm"}))
+    assert _used(ks, est, {4: 0.3}, scan, 0.05, 2) == [4, 2]

@@ -149,8 +149,11 @@ def _run(args) -> int:
         seconds = time.perf_counter() - t0
         choice = rec.info["k_choice"]
         write("K   rotation roughness   exact K-shape fit\n")
-        for kk, rough, exact in zip(choice["ks"], choice["rotation_roughness"], choice["exact"], strict=True):
-            write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}\n")
+        finished = choice.get("finished", [True] * len(choice["ks"]))
+        unfinished = f"  (not finished: its {choice.get('unfinished', 'bound')})"
+        for kk, rough, exact, done in zip(choice["ks"], choice["rotation_roughness"], choice["exact"],
+                                          finished, strict=True):
+            write(f"{kk:<3d} {rough:<20.4g} {'yes' if exact else 'no'}{'' if done else unfinished}\n")
         write(f"rule: {choice['rule']}\nchosen K = {rec.k}\n")
         if "depth_support" in rec.info:
             verdict = "kept" if rec.depth_supported else "dropped: the flat answer (zero depth)"

@@ -120,14 +120,27 @@ class _Frames:
 
 
 def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
-    """(n, h, h) inverses of the Gram matrices ``G = N_H N_H^T``; where one is singular (the hidden
-    points' rows of N are dependent: the model leaves those entries partly free, as in a long gap
-    of several points), the Moore-Penrose pseudo-inverse, which gives the same projector onto the
-    row space of N_H. The plain inverse is kept where it exists, so those answers keep their bytes."""
+    """(n, h, h) inverses of the Gram matrices ``G = N_H N_H^T`` (n, h, h). Where one is singular or
+    too ill-conditioned for its inverse to be trusted (``G G^-1`` more than ``1e-3`` from the
+    identity: the hidden points' rows of N are dependent or nearly so, and the model leaves those
+    entries partly free, as in a long gap of several points), that frame takes the Moore-Penrose
+    pseudo-inverse (``rcond`` 1e-12), which gives the projector onto the row space of N_H. Every
+    other frame keeps its plain inverse, bit for bit (numpy inverts each matrix of a stack alone)."""
+    n, h, _ = G.shape
     try:
-        return np.linalg.inv(G)
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(G, rcond=1e-12, hermitian=True)
+        out = np.linalg.inv(G)
+    except np.linalg.LinAlgError:     # some matrix exactly singular: find them, invert the rest
+        w = np.linalg.eigvalsh(G)
+        bad = ~(w[:, 0] > 1e-12 * w[:, -1])
+        out = np.zeros_like(G)
+        if not bad.all():
+            out[~bad] = np.linalg.inv(G[~bad])
+    else:
+        bad = np.zeros(n, dtype=bool)
+    bad |= ~(np.abs(G @ out - np.eye(h)).max(axis=(1, 2)) <= 1e-3)   # also NaN from a singular one
+    if bad.any():
+        out[bad] = np.linalg.pinv(G[bad], rcond=1e-12, hermitian=True)
+    return out
 
 
 def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,10 +183,35 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
         power of two W was divided by, so that any magnitude is solved alike), ``state`` (the
         :class:`SubspaceCompletion`, to resume with a higher cap).
     """
-    state = resume if resume is not None else SubspaceCompletion(W, mask, rank, tol)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 0:
+        raise ValueError(f"max_iter must be an integer >= 0, got {max_iter!r}")
+    if resume is None:
+        state = SubspaceCompletion(W, mask, rank, tol)
+    else:
+        _check_resume(resume, W, mask, rank, tol, max_iter)
+        state = resume
     state.run(max_iter)
     full, misfit, info = state.result()
     return full * state.unit, misfit, info | {"scale": state.unit, "state": state}
+
+
+def _check_resume(state, W, mask, rank: int, tol: float, max_iter: int) -> None:
+    """Refuse a ``resume`` state that is not this completion's (other tracks, mask, rank or tol), or
+    that has already run past ``max_iter`` steps."""
+    if not isinstance(state, SubspaceCompletion):
+        raise TypeError(f"resume must be a SubspaceCompletion (info['state'] of an earlier call), "
+                        f"got {type(state).__name__}")
+    mask = np.asarray(mask)
+    same = (mask.shape == state.mask.shape and np.array_equal(mask, state.mask)
+            and state.d == mask.shape[1] - 1 - rank and state.tol == tol
+            and np.array_equal(np.where(np.repeat(mask, 2, axis=0), W, 0.0) / state.unit, state.W0))
+    if not same:
+        raise ValueError(f"resume is the state of another completion (its mask {state.mask.shape}, "
+                         f"rank {state.mask.shape[1] - 1 - state.d}, tol {state.tol!r}; here "
+                         f"{mask.shape}, rank {rank}, tol {tol!r}, or other tracks): resume only the "
+                         "same call with a higher max_iter")
+    if state.steps > max_iter:
+        raise ValueError(f"resume has already run {state.steps} steps, more than max_iter = {max_iter}")
 
 
 class SubspaceCompletion:

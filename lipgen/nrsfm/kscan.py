@@ -89,7 +89,8 @@ class DaiScan:
         if k not in self._estimates:
             F, P = self.tracks.mask.shape
             check_method_k(k, "dai", F, P, self.tracks.n_observed)
-            self._completions[k] = SubspaceCompletion(self.tracks.W, self.tracks.mask, 3 * k)
+            if k not in self._rotations:   # else the first stage is known: refine takes its bound
+                self._completions[k] = SubspaceCompletion(self.tracks.W, self.tracks.mask, 3 * k)
             self._estimates[k] = (0.0, False, -1)
             self.refine(k)
         return self._estimates[k][:2]
