@@ -93,7 +93,6 @@ class _Frames:
                 NH = N[idx]                                       # (n, h, d)
                 Ginv = _inverse_or_pseudo(NH @ NH.transpose(0, 2, 1))
                 c = np.einsum("nij,njd,nkd->nki", Ginv, NH, a)    # (n, 2, h)
-                Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH
                 res = a - np.einsum("nki,nid->nkd", c, NH)        # Pi a
             else:
                 res = a
@@ -108,6 +107,7 @@ class _Frames:
                 rr = np.einsum("nkj,nki->nji", res, res).reshape(n, d * d)
                 H2 += DtD.reshape(n, r * r).T @ rr
                 bb = np.einsum("nkl,nkm->nlm", beta, beta).reshape(n, r * r)
+                Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH   # (n, d, d), for the normal matrix only
                 H += bb.T @ Pi.reshape(n, d * d)
             else:
                 bb = np.einsum("nkl,nkm->lm", beta, beta).reshape(r * r, 1)
