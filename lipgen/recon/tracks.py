@@ -102,8 +102,8 @@ class TrackerSettings:
         The lowered floor never goes under this darkness. Dots the lowered floor admits feed the
         median it is taken from, so without a bound a view whose dots pale over a take could
         lower its floor step by step into the skin texture (0.04-0.08: see
-        :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: the lowered floor of ``hard``
-        25 is about 0.067.
+        :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: 0.7 x the median darkness at ``hard``
+        25's true marks (0.095) is 0.067.
     """
 
     dots: DotSettings = DotSettings()
