@@ -53,13 +53,7 @@ def _one_blas_thread_per_test_worker(request):
     more threads is tested with an explicit limit (``blas_threads(2)``, ``threadpool_limits(2)``)
     inside the test, which wins over this one.
     """
-    if request.module.__name__.rpartition(".")[2] in _OWN_THREADS:
-        yield
-        return
-    from lipgen._threads import blas_threads
-
-    with blas_threads(1, always=True):
-        yield
+    yield from _one_blas_thread(request)
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -67,6 +61,11 @@ def _one_blas_thread_for_module_fixtures(request):
     """The same limit around a module's fixtures: pytest builds wider-scoped fixtures before
     function-scoped ones, so without this a ``scope="module"`` fixture ran on two BLAS threads
     (a ``LinearNDInterpolator``'s tiny LAPACK calls made ``shaped_mesh`` 20-60x slower)."""
+    yield from _one_blas_thread(request)
+
+
+def _one_blas_thread(request):
+    """One BLAS/OpenMP thread while the fixture is active, except in the modules of :data:`_OWN_THREADS`."""
     if request.module.__name__.rpartition(".")[2] in _OWN_THREADS:
         yield
         return

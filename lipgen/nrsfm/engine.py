@@ -10,7 +10,6 @@ from lipgen.nrsfm._rotation import corrective_triple, orient_frames, rotations_f
 from lipgen.nrsfm._tracks import check_tracks, complete_tracks, factor, numerical_rank
 from lipgen.nrsfm.bmm import min_trace_norm_shapes, rank_k_shapes
 from lipgen.nrsfm.bregler import bregler_factorization
-from lipgen.nrsfm.completion import complete_subspace
 from lipgen.nrsfm.empnd import pnd_reconstruction
 from lipgen.nrsfm.emppca import em_ppca
 from lipgen.nrsfm.keep import keep_refinement
@@ -125,11 +124,8 @@ def _centred(tracks, k: int, completion_steps: int = 100, completion=None):
     (``completion_steps``: the completion's cap on steps; ``completion``: a
     :class:`lipgen.nrsfm.completion.SubspaceCompletion` of these tracks at rank 3K to go on with)."""
     F = tracks.n_frames
-    if completion is None or tracks.complete:
-        full, misfit = complete_tracks(tracks, 3 * k, max_iter=completion_steps, return_residual=True)
-    else:
-        full, misfit, _ = complete_subspace(tracks.W, tracks.mask, 3 * k, max_iter=completion_steps,
-                                            resume=completion)
+    full, misfit = complete_tracks(tracks, 3 * k, max_iter=completion_steps, return_residual=True,
+                                   resume=completion)
     t = full.mean(axis=1)
     Wc = full - t[:, None]
     rank, sv = numerical_rank(Wc)

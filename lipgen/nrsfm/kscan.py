@@ -102,9 +102,7 @@ class DaiScan:
         if k in self._rotations or level >= len(ESTIMATE_STEPS):
             if self._estimates[k][2] == len(ESTIMATE_STEPS):
                 return False
-            info = self.first_stage(k)[2]
-            exact = info["rank"] <= 3 * k or info["completion_misfit"] <= _EXACT_COMPLETION
-            self._estimates[k] = (self.bound(k), bool(exact), len(ESTIMATE_STEPS))
+            self._estimates[k] = (self.bound(k), self.may_be_exact(k), len(ESTIMATE_STEPS))
             return True
         stage = _dai_rotations(self.tracks, k, seed=self.options.get("seed", 0),
                                n_starts=self.options.get("n_starts", 4),
