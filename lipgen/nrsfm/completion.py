@@ -76,18 +76,17 @@ class _Frames:
             idx = np.nonzero(~mask[frames])[1].reshape(frames.size, h)
             rows = W0.reshape(F, 2, P)[frames]                     # (n, 2, P), zeros at hidden points
             self.groups.append((idx, rows))
+        self._last = None   # the last fit (N, cost, per-group terms): an accepted trial step's
 
-    def evaluate(self, N: np.ndarray, Y: np.ndarray | None = None):
-        """Half the squared residual; with Y (the subspace's own basis, P x r) also the Gauss-Newton
-        normal matrix (r d x r d) and gradient (r d), unknowns ordered (l, j) for ``dN = Y dX``."""
-        d = N.shape[1]
+    def _fit(self, N: np.ndarray) -> tuple[float, list]:
+        """Half the squared residual at N (P x d) and, per group, the terms the normal matrix reuses:
+        ``a`` (n, 2, d), ``NH`` (n, h, d), ``Ginv`` (n, h, h), ``c`` (n, 2, h) and ``res = Pi a``."""
+        if self._last is not None and np.array_equal(self._last[0], N):
+            return self._last[1], self._last[2]
         cost = 0.0
-        r = 0 if Y is None else Y.shape[1]
-        H = np.zeros((r * r, d * d))
-        H2 = np.zeros((r * r, d * d))
-        g = np.zeros((r, d))
+        terms = []
         for idx, rows in self.groups:
-            n, h = idx.shape
+            h = idx.shape[1]
             a = rows @ N                                          # (n, 2, d)
             if h:
                 NH = N[idx]                                       # (n, h, d)
@@ -95,10 +94,28 @@ class _Frames:
                 c = np.einsum("nij,njd,nkd->nki", Ginv, NH, a)    # (n, 2, h)
                 res = a - np.einsum("nki,nid->nkd", c, NH)        # Pi a
             else:
+                NH = Ginv = c = None
                 res = a
             cost += 0.5 * float((res * a).sum())
-            if Y is None:
-                continue
+            terms.append((NH, Ginv, c, res))
+        self._last = (N.copy(), cost, terms)
+        return cost, terms
+
+    def evaluate(self, N: np.ndarray, Y: np.ndarray | None = None):
+        """Half the squared residual; with Y (the subspace's own basis, P x r) also the Gauss-Newton
+        normal matrix (r d x r d) and gradient (r d), unknowns ordered (l, j) for ``dN = Y dX``.
+        The residual terms of the last N are kept: the normal matrix at an accepted trial step does
+        not compute them again (the same values)."""
+        d = N.shape[1]
+        cost, terms = self._fit(N)
+        if Y is None:
+            return cost
+        r = Y.shape[1]
+        H = np.zeros((r * r, d * d))
+        H2 = np.zeros((r * r, d * d))
+        g = np.zeros((r, d))
+        for (idx, rows), (NH, Ginv, c, res) in zip(self.groups, terms, strict=True):
+            n, h = idx.shape
             beta = rows @ Y                                       # (n, 2, r)
             if h:
                 YH = Y[idx]                                       # (n, h, r)
@@ -113,8 +130,6 @@ class _Frames:
                 bb = np.einsum("nkl,nkm->lm", beta, beta).reshape(r * r, 1)
                 H += bb @ np.eye(d).reshape(1, d * d)
             g += np.einsum("nkl,nkj->lj", beta, res)
-        if Y is None:
-            return cost
         JtJ = (H + H2).reshape(r, r, d, d).transpose(0, 2, 1, 3).reshape(r * d, r * d)
         return cost, JtJ, g.ravel()
 
