@@ -288,8 +288,11 @@ class SubspaceCompletion:
                 if new < cost:
                     accepted = True
                     gain = (cost - new) / cost
-                    N, Y = Nn, Yn
-                    cost, JtJ, g = self.frames.evaluate(N, Y)
+                    N, Y, cost = Nn, Yn, new
+                    if gain < self.tol or steps == max_iter or cost <= self.floor:
+                        JtJ = g = None   # the last step: its normal matrix would not be used
+                    else:
+                        JtJ, g = self.frames.evaluate(N, Y)[1:]
                     lam = max(lam / 10, 1e-12)
                 else:
                     lam *= 10
