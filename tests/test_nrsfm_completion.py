@@ -228,6 +228,49 @@ def test_a_stopped_completion_goes_on_bit_for_bit():
     assert complete_subspace(W, mask, r, max_iter=200, resume=state)[2]["steps"] == info["steps"]
 
 
+def test_a_completion_resumed_step_by_step_is_one_run():
+    """Resumed one step at a time, every step starts from a recomputed normal matrix (as every step did
+    before the last step's was skipped): the same bytes, steps and costs as one run to convergence."""
+    F, P, r = 30, 12, 5
+    W = _low_rank(F, P, r, seed=11) + 0.2 * np.random.default_rng(12).standard_normal((2 * F, P))
+    mask = _mask(F, P, 0.15, 13)
+    full, misfit, info = complete_subspace(W, mask, r)
+    assert 3 < info["steps"] < 100
+    state = complete_subspace(W, mask, r, max_iter=1)[2]["state"]
+    cap = 1
+    while not state.done:
+        cap += 1
+        full2, misfit2, info2 = complete_subspace(W, mask, r, max_iter=cap, resume=state)
+    assert full2.tobytes() == full.tobytes() and misfit2 == misfit
+    assert info2["steps"] == info["steps"] and info2["cost"] == info["cost"]
+
+
+def test_kept_residual_terms_give_the_values_of_a_fresh_evaluation():
+    """The normal matrix reuses the residual terms of the last N only when N holds the same values
+    (also after N is changed in place), and then gives a fresh evaluation's bytes."""
+    F, P, r = 25, 11, 4
+    W = _low_rank(F, P, r, seed=14) + 0.1 * np.random.default_rng(15).standard_normal((2 * F, P))
+    mask = _mask(F, P, 0.2, 16)
+    W0 = np.where(np.repeat(mask, 2, axis=0), W, 0.0)
+    d = P - 1 - r
+    rng = np.random.default_rng(17)
+    N, Y = _bases(rng.standard_normal((P, d)))
+    other = _bases(rng.standard_normal((P, d)))[0]
+
+    def fresh(N):
+        return _Frames(W0, mask, d).evaluate(N, Y)
+
+    frames = _Frames(W0, mask, d)
+    for first in (N, other):   # the same N before (terms reused), or another one (not reused)
+        cost = frames.evaluate(first)
+        assert cost == fresh(first)[0]
+        got, want = frames.evaluate(N, Y), fresh(N)
+        assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+    N[3] += 0.01                # changed in place: not the kept terms
+    got, want = frames.evaluate(N, Y), fresh(N.copy())
+    assert all(np.array_equal(a, b) for a, b in zip(got, want, strict=True))
+
+
 def test_a_resumed_completion_must_be_the_same_call():
     F, P, r = 20, 10, 4
     W = _low_rank(F, P, r, seed=8) + 0.3 * np.random.default_rng(9).standard_normal((2 * F, P))
