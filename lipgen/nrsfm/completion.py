@@ -78,11 +78,13 @@ class _Frames:
             idx = np.nonzero(~mask[frames])[1].reshape(frames.size, h)
             rows = W0.reshape(F, 2, P)[frames]                     # (n, 2, P), zeros at hidden points
             self.groups.append((idx, rows))
-        self._last = None   # the last fit (N, cost, per-group terms): an accepted trial step's
+        self._last = None   # (N, cost, terms) of the last fit: an accepted trial step's, reused
 
     def _fit(self, N: np.ndarray) -> tuple[float, list]:
         """Half the squared residual at N (P x d) and, per group, the terms the normal matrix reuses:
-        ``a`` (n, 2, d), ``NH`` (n, h, d), ``Ginv`` (n, h, h), ``c`` (n, 2, h) and ``res = Pi a``."""
+        ``NH`` (n, h, d), ``Ginv`` (n, h, h), ``c`` (n, 2, h) and ``res = Pi a`` (n, 2, d) (None for
+        the first three where h = 0). Those of the last N are kept and returned again while N holds
+        the same values."""
         if self._last is not None and np.array_equal(self._last[0], N):
             return self._last[1], self._last[2]
         cost = 0.0
