@@ -77,22 +77,32 @@ def _set(mmap_threshold: int, trim_threshold: int) -> bool:
     return True
 
 
+_depth = 0       # open reuse_freed_memory blocks in this process (only the outermost sets and restores)
+_kept = False    # keep_freed_memory() took: the whole process keeps freed memory
+
+
 def keep_freed_memory() -> bool:
     """For the rest of the process: large blocks from the heap, freed memory kept (a worker's first
     call). Returns whether the setting took (False off glibc or with the policy off)."""
-    return _set(MMAP_THRESHOLD, TRIM_THRESHOLD)
+    global _kept
+    _kept = _set(MMAP_THRESHOLD, TRIM_THRESHOLD)
+    return _kept
 
 
 @contextmanager
 def reuse_freed_memory():
     """Inside the ``with`` block, freed memory is kept for reuse (see the module docstring); at its
     end the free memory is trimmed and the limits of glibc's adaptive rule are set
-    (:data:`AFTER_MMAP_THRESHOLD`, :data:`AFTER_TRIM_THRESHOLD`)."""
-    if not _set(MMAP_THRESHOLD, TRIM_THRESHOLD):
+    (:data:`AFTER_MMAP_THRESHOLD`, :data:`AFTER_TRIM_THRESHOLD`). A block inside another (or in a
+    process that called :func:`keep_freed_memory`) leaves the outer setting as it is."""
+    global _depth
+    if _depth or _kept or not _set(MMAP_THRESHOLD, TRIM_THRESHOLD):
         yield
         return
+    _depth += 1
     try:
         yield
     finally:
+        _depth -= 1
         _set(AFTER_MMAP_THRESHOLD, AFTER_TRIM_THRESHOLD)
         _libc().malloc_trim(0)

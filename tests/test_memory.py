@@ -122,3 +122,25 @@ def test_generate_writes_the_same_bytes_with_the_policy_off(tmp_path, monkeypatc
     files = sorted(p.relative_to(on) for p in on.rglob("*") if p.is_file())
     assert files == sorted(p.relative_to(off) for p in off.rglob("*") if p.is_file())
     assert [(on / f).read_bytes() for f in files] == [(off / f).read_bytes() for f in files]
+
+
+def test_a_block_inside_another_leaves_the_outer_setting(monkeypatch):
+    """Only the outermost block sets and restores glibc's limits: an inner block's end (e.g. an NRSfM
+    completion run inside ``generate``'s block) would otherwise lower the trim threshold under the outer
+    block; and a process that keeps freed memory for good keeps it."""
+    calls = []
+    monkeypatch.setattr(_memory, "_set", lambda mmap, trim: calls.append((mmap, trim)) or True)
+    monkeypatch.setattr(_memory, "_libc", lambda: type("L", (), {"malloc_trim": staticmethod(lambda n: 1)})())
+    monkeypatch.setattr(_memory, "_kept", False)
+    monkeypatch.setattr(_memory, "_depth", 0)
+    with reuse_freed_memory():
+        with reuse_freed_memory():
+            pass
+        assert calls == [(_memory.MMAP_THRESHOLD, _memory.TRIM_THRESHOLD)]   # the inner end restored nothing
+    assert calls[-1] == (_memory.AFTER_MMAP_THRESHOLD, _memory.AFTER_TRIM_THRESHOLD) and len(calls) == 2
+    assert _memory._depth == 0
+    calls.clear()
+    keep_freed_memory()
+    with reuse_freed_memory():
+        pass
+    assert calls == [(_memory.MMAP_THRESHOLD, _memory.TRIM_THRESHOLD)]    # keep's own call; the block left it

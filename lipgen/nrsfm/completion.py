@@ -276,6 +276,7 @@ class SubspaceCompletion:
         values)."""
         with reuse_freed_memory():
             self._run(max_iter)
+        self.frames._last = None   # kept terms are reused only within a run (a resumed run recomputes)
 
     def _run(self, max_iter: int) -> None:
         d = self.d
