@@ -139,6 +139,15 @@ class ReconstructSettings:
         ``hard`` 21 69 -> 25 accepted sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted,
         the other validation sets and all held-out ``hard`` 11, 23, 24, 25 and ``default`` 11 unchanged
         (``renders/examples/tracking/hard15k_physics_layout.md``). Off: the model's rest layout alone.
+    shift_check : bool
+        With the calibrated cameras and the markers at rest: every frame, a marker whose dots read
+        better as a close neighbour's (the neighbour lost, its layout offset finding a free dot for
+        the marker) is taken back (:class:`lipgen.recon.shifted.ShiftCheck`).
+    out_of_place_k : float or None
+        With the calibrated cameras and the markers at rest: once tracking is done, every frame's
+        pairs whose 3-D point lies farther from the layout's prediction than this many robust
+        standard deviations of the frame's residuals (and 3 mm) are taken back
+        (:func:`lipgen.recon.outofplace.take_back_out_of_place`). None: off.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -164,6 +173,8 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
+    shift_check: bool = False
+    out_of_place_k: float | None = None
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
