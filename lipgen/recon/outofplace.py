@@ -30,7 +30,7 @@ from lipgen.recon.track import LOST
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["out_of_place", "take_back_out_of_place"]
+__all__ = ["out_of_place", "take_back", "take_back_out_of_place"]
 
 log = logging.getLogger(__name__)
 
@@ -101,15 +101,23 @@ def take_back_out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[Pinhole
         The pairs taken back.
     """
     taken = out_of_place(tracks, cameras, rest_points, covariance, k, floor, min_pairs)
+    if taken.any():
+        per = taken.sum(0)
+        log.info("%d sighting pair(s) out of place in the 3-D layout taken back (%s)", int(taken.sum()),
+                 ", ".join(f"{i if names is None else names[i]} {int(per[i])}" for i in np.flatnonzero(per)))
+    return take_back(tracks, taken), taken
+
+
+def take_back(tracks: tuple[Tracks, Tracks], taken) -> tuple[Tracks, Tracks]:
+    """The tracks with the sightings ``taken (F, P)`` taken back in both views: NaN, ``LOST`` and
+    marked in ``rejected`` (new tracks; the same objects when nothing is taken)."""
+    taken = np.asarray(taken, dtype=bool)
     if not taken.any():
-        return tracks, taken
+        return tracks
     new = []
     for t in tracks:
         uv, status = t.uv.copy(), t.status.copy()
         uv[taken], status[taken] = np.nan, LOST
         rejected = (np.zeros(taken.shape, dtype=bool) if t.rejected is None else t.rejected.copy()) | taken
         new.append(Tracks(uv, status != LOST, status, t.score.copy(), rejected))
-    per = taken.sum(0)
-    log.info("%d sighting pair(s) out of place in the 3-D layout taken back (%s)", int(taken.sum()),
-             ", ".join(f"{i if names is None else names[i]} {int(per[i])}" for i in np.flatnonzero(per)))
-    return (new[0], new[1]), taken
+    return new[0], new[1]

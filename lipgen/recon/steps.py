@@ -39,9 +39,9 @@ from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
 from lipgen.recon.oneview import pair_one_view
+from lipgen.recon.outofplace import take_back_out_of_place
 from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.recheck import IdentityCheck
-from lipgen.recon.outofplace import take_back_out_of_place
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.shifted import ShiftCheck
 from lipgen.recon.stereo_init import layout_dots
@@ -125,8 +125,6 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
     motion = (MotionCheck(rest_points)
               if cameras is not None and rest_points is not None and settings.motion_check else None)
-    shifts = (ShiftCheck(rest_points)
-              if cameras is not None and rest_points is not None and settings.shift_check else None)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
@@ -189,8 +187,6 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             changed = recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
         if motion is not None and t > 0:
             motion.step(trackers, views, cameras, last3d, since, names, changed)
-        if shifts is not None and t > 0:
-            shifts.step(trackers, cameras, names)
         if walks is not None:
             seen = np.stack([(tr._out[-1][1] != LOST) & ~tr.twins for tr in trackers])
             if t > 0:
@@ -202,6 +198,11 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     if not trackers:
         raise ValueError("track_raw_frames got no frames")
     tracks = trackers[0].tracks(), trackers[1].tracks()
+    if cameras is not None and rest_points is not None and settings.shift_check:
+        # Each frame's dots (None where the trackers no longer hold them: that frame is not read).
+        hist = [tr.dot_history for tr in trackers]
+        dots = [None if h0 is None or h1 is None else (h0[0], h1[0]) for h0, h1 in zip(*hist, strict=True)]
+        tracks = ShiftCheck(rest_points).take_back(tracks, dots, cameras, names)[0]
     if cameras is not None and rest_points is not None and settings.out_of_place_k is not None:
         tracks = take_back_out_of_place(tracks, cameras, rest_points, layout_covariance,
                                         k=settings.out_of_place_k, names=names)[0]
