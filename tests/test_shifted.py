@@ -21,9 +21,10 @@ from lipgen.recon.tracks import Tracks
 BAD, NB, FAR = 3, 4, 2      # lower row x = 0; its neighbours at x = +5 and x = -5 mm
 
 
-def _scene(hidden=(), lost=(), on_neighbour=False):
+def _scene(hidden=(), lost=(), on_neighbour=False, lure=None):
     """Tracks and per-frame dots. ``hidden``: (view, mark) dots not found; ``lost``: marks the tracks
-    lost; ``on_neighbour``: BAD held on NB's dot in both views (NB lost)."""
+    lost; ``on_neighbour``: BAD held on NB's dot in both views (NB lost); ``lure`` (3,): a point in
+    the marks' frame (moving with them) whose dot both views find too."""
     cams = _two_views()
     rng = np.random.default_rng(4)
     uv = np.stack([np.stack([c.project(m) for m in _marks()]) for c in cams])
@@ -31,6 +32,10 @@ def _scene(hidden=(), lost=(), on_neighbour=False):
     F, P = uv.shape[1:3]
     dots = [tuple(np.delete(uv[v, f], [i for w, i in hidden if w == v], axis=0) for v in range(2))
             for f in range(F)]
+    if lure is not None:
+        shift = _marks()[:, BAD] - _layout()[BAD]
+        extra = [c.project(lure + shift) for c in cams]
+        dots = [tuple(np.vstack([d[v], extra[v][f]]) for v in range(2)) for f, d in enumerate(dots)]
     held = uv.copy()
     status = np.full((2, F, P), TRACKED, dtype=np.int8)
     if on_neighbour:
@@ -38,8 +43,8 @@ def _scene(hidden=(), lost=(), on_neighbour=False):
         lost = (*lost, NB)
     for i in lost:
         held[:, :, i], status[:, :, i] = np.nan, LOST
-    tracks = tuple(Tracks(held[v], status[v] != LOST, status[v], np.full((F, P), np.nan), np.zeros((F, P), bool))
-                   for v in range(2))
+    tracks = tuple(Tracks(held[v], status[v] != LOST, status[v], np.full((F, P), np.nan),
+                          np.zeros((F, P), dtype=bool)) for v in range(2))
     return tracks, dots, cams, uv
 
 
@@ -64,8 +69,10 @@ def test_a_marker_on_its_neighbours_dot_is_taken_back_where_its_own_dot_is_free(
 
 def test_a_right_marker_beside_a_lost_neighbour_is_left_alone():
     check = ShiftCheck(_layout())
-    # NB lost, its dot found and free: read as BAD's, BAD's dots put NB on it.
-    tracks, dots, cams, _ = _scene(lost=(NB,))
+    # NB lost, its dot found and free: read as BAD's, BAD's dots put NB on it, even with a lure
+    # 7.5 mm the other way, where reading them as NB's would put BAD.
+    lure = _layout()[BAD] + 1.5 * (_layout()[BAD] - _layout()[NB])
+    tracks, dots, cams, _ = _scene(lost=(NB,), lure=lure)
     assert not check.take_back(tracks, dots, cams)[1].any()
     # NB's dot hidden in both views and FAR lost too: FAR's free dot lies where reading BAD's dots
     # as NB's would put BAD, but it is where the layout puts FAR.
