@@ -21,6 +21,12 @@ from lipgen.recon.tracks import Tracks
 BAD, NB, FAR = 3, 4, 2      # lower row x = 0; its neighbours at x = +5 and x = -5 mm
 
 
+def _check():
+    """The patch's row neighbours are one layout spacing apart (like the lip corners' pairs, which
+    the default reach of 0.9 spacings leaves out): checked here with a reach of 1.0."""
+    return ShiftCheck(_layout(), reach=1.0)
+
+
 def _scene(hidden=(), lost=(), on_neighbour=False, lure=None):
     """Tracks and per-frame dots. ``hidden``: (view, mark) dots not found; ``lost``: marks the tracks
     lost; ``on_neighbour``: BAD held on NB's dot in both views (NB lost); ``lure`` (3,): a point in
@@ -53,7 +59,7 @@ def test_a_marker_on_its_neighbours_dot_is_taken_back_where_its_own_dot_is_free(
     # along the row, on that free dot; read as BAD's, NB would sit 5 mm the other way, where
     # there is no free dot (FAR's dot is held).
     tracks, dots, cams, uv = _scene(hidden={(0, BAD)}, on_neighbour=True)
-    new, taken = ShiftCheck(_layout()).take_back(tracks, dots, cams)
+    new, taken = _check().take_back(tracks, dots, cams)
     expected = np.zeros(taken.shape, dtype=bool)
     expected[:, BAD] = True
     np.testing.assert_array_equal(taken, expected)
@@ -64,11 +70,13 @@ def test_a_marker_on_its_neighbours_dot_is_taken_back_where_its_own_dot_is_free(
         assert tracks[v].visible[:, BAD].all(), "the tracks given are not changed"
     # Frames whose dots are no longer held are not read.
     dots[3] = None
-    assert not ShiftCheck(_layout()).take_back(tracks, dots, cams)[1][3].any()
+    assert not _check().take_back(tracks, dots, cams)[1][3].any()
+    # At the default reach, neighbours one spacing apart are not read.
+    assert not ShiftCheck(_layout()).take_back(tracks, dots, cams)[1].any()
 
 
 def test_a_right_marker_beside_a_lost_neighbour_is_left_alone():
-    check = ShiftCheck(_layout())
+    check = _check()
     # NB lost, its dot found and free: read as BAD's, BAD's dots put NB on it, even with a lure
     # 7.5 mm the other way, where reading them as NB's would put BAD.
     lure = _layout()[BAD] + 1.5 * (_layout()[BAD] - _layout()[NB])
