@@ -32,8 +32,16 @@ def _tracks(lure_from=None, along=8.0):
             uv[1, f, BAD] = _lure_on_epipolar_line(cams, marks[f, BAD], along)
     F, P = uv.shape[1:3]
     status = np.full((F, P), TRACKED, dtype=np.int8)
-    tracks = tuple(Tracks(uv[v].copy(), np.ones((F, P), dtype=bool), status.copy(), np.full((F, P), np.nan),
-                          np.zeros((F, P), dtype=bool)) for v in range(2))
+    tracks = tuple(
+        Tracks(
+            uv[v].copy(),
+            np.ones((F, P), dtype=bool),
+            status.copy(),
+            np.full((F, P), np.nan),
+            np.zeros((F, P), dtype=bool),
+        )
+        for v in range(2)
+    )
     return tracks, cams, marks
 
 
@@ -56,7 +64,7 @@ def test_a_pair_on_the_epipolar_line_8mm_off_is_taken_back_and_nothing_else():
 def test_right_tracks_and_a_lure_within_the_floor_are_left_alone():
     tracks, cams, _ = _tracks()
     assert not out_of_place(tracks, cams, _layout()).any()
-    tracks, cams, _ = _tracks(lure_from=4, along=2.0)      # 2 mm along the ray: under the 3 mm floor
+    tracks, cams, _ = _tracks(lure_from=4, along=2.0)  # 2 mm along the ray: under the 3 mm floor
     assert not out_of_place(tracks, cams, _layout()).any()
     assert out_of_place(tracks, cams, _layout(), floor=1.0)[4:, BAD].all()
 
@@ -64,7 +72,7 @@ def test_right_tracks_and_a_lure_within_the_floor_are_left_alone():
 def test_frames_with_few_pairs_are_not_judged():
     tracks, cams, _ = _tracks(lure_from=4)
     vis = tracks[0].visible.copy()
-    vis[:, 7:] = False                                      # 7 pairs left, under min_pairs = 8
+    vis[:, 7:] = False  # 7 pairs left, under min_pairs = 8
     thin = (Tracks(tracks[0].uv, vis, tracks[0].status, tracks[0].score, tracks[0].rejected), tracks[1])
     assert not out_of_place(thin, cams, _layout()).any()
     assert out_of_place(thin, cams, _layout(), min_pairs=6)[4:, BAD].all()

@@ -18,7 +18,7 @@ from lipgen.recon.shifted import ShiftCheck
 from lipgen.recon.track import LOST, TRACKED
 from lipgen.recon.tracks import Tracks
 
-BAD, NB, FAR = 3, 4, 2      # lower row x = 0; its neighbours at x = +5 and x = -5 mm
+BAD, NB, FAR = 3, 4, 2  # lower row x = 0; its neighbours at x = +5 and x = -5 mm
 
 
 def _check():
@@ -36,8 +36,10 @@ def _scene(hidden=(), lost=(), on_neighbour=False, lure=None):
     uv = np.stack([np.stack([c.project(m) for m in _marks()]) for c in cams])
     uv = uv + 0.1 * rng.standard_normal(uv.shape)
     F, P = uv.shape[1:3]
-    dots = [tuple(np.delete(uv[v, f], [i for w, i in hidden if w == v], axis=0) for v in range(2))
-            for f in range(F)]
+    dots = [
+        tuple(np.delete(uv[v, f], [i for w, i in hidden if w == v], axis=0) for v in range(2))
+        for f in range(F)
+    ]
     if lure is not None:
         shift = _marks()[:, BAD] - _layout()[BAD]
         extra = [c.project(lure + shift) for c in cams]
@@ -49,8 +51,10 @@ def _scene(hidden=(), lost=(), on_neighbour=False, lure=None):
         lost = (*lost, NB)
     for i in lost:
         held[:, :, i], status[:, :, i] = np.nan, LOST
-    tracks = tuple(Tracks(held[v], status[v] != LOST, status[v], np.full((F, P), np.nan),
-                          np.zeros((F, P), dtype=bool)) for v in range(2))
+    tracks = tuple(
+        Tracks(held[v], status[v] != LOST, status[v], np.full((F, P), np.nan), np.zeros((F, P), dtype=bool))
+        for v in range(2)
+    )
     return tracks, dots, cams, uv
 
 

@@ -35,8 +35,15 @@ __all__ = ["out_of_place", "take_back", "take_back_out_of_place"]
 log = logging.getLogger(__name__)
 
 
-def out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[PinholeCamera, PinholeCamera], rest_points,
-                 covariance=None, k: float = 3.0, floor: float = 3.0, min_pairs: int = 8) -> np.ndarray:
+def out_of_place(
+    tracks: tuple[Tracks, Tracks],
+    cameras: tuple[PinholeCamera, PinholeCamera],
+    rest_points,
+    covariance=None,
+    k: float = 3.0,
+    floor: float = 3.0,
+    min_pairs: int = 8,
+) -> np.ndarray:
     """The sighting pairs whose 3-D point is out of place among the frame's other pairs.
 
     Parameters
@@ -64,8 +71,10 @@ def out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[PinholeCamera, Pi
     rest = as_float_array(rest_points, "rest_points", (None, 3), finite=False)
     tv, tr = tracks
     if tv.uv.shape != tr.uv.shape or tv.uv.shape[1] != len(rest):
-        raise ValueError(f"tracks must both have shape (F, {len(rest)}, 2) like rest_points (P, 3), "
-                         f"got {tv.uv.shape} and {tr.uv.shape}")
+        raise ValueError(
+            f"tracks must both have shape (F, {len(rest)}, 2) like rest_points (P, 3), "
+            f"got {tv.uv.shape} and {tr.uv.shape}"
+        )
     if not (np.isfinite(k) and k > 0 and np.isfinite(floor) and floor >= 0):
         raise ValueError(f"k must be > 0 and floor >= 0 (mm), got k={k!r}, floor={floor!r}")
     if int(min_pairs) != min_pairs or min_pairs < 6:
@@ -86,9 +95,16 @@ def out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[PinholeCamera, Pi
     return out
 
 
-def take_back_out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[PinholeCamera, PinholeCamera],
-                           rest_points, covariance=None, k: float = 3.0, floor: float = 3.0,
-                           min_pairs: int = 8, names=None) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
+def take_back_out_of_place(
+    tracks: tuple[Tracks, Tracks],
+    cameras: tuple[PinholeCamera, PinholeCamera],
+    rest_points,
+    covariance=None,
+    k: float = 3.0,
+    floor: float = 3.0,
+    min_pairs: int = 8,
+    names=None,
+) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
     """The tracks with the out-of-place pairs (:func:`out_of_place`) taken back in both views.
 
     Parameters are those of :func:`out_of_place`; ``names`` (marker names) are for the log.
@@ -103,8 +119,11 @@ def take_back_out_of_place(tracks: tuple[Tracks, Tracks], cameras: tuple[Pinhole
     taken = out_of_place(tracks, cameras, rest_points, covariance, k, floor, min_pairs)
     if taken.any():
         per = taken.sum(0)
-        log.info("%d sighting pair(s) out of place in the 3-D layout taken back (%s)", int(taken.sum()),
-                 ", ".join(f"{i if names is None else names[i]} {int(per[i])}" for i in np.flatnonzero(per)))
+        log.info(
+            "%d sighting pair(s) out of place in the 3-D layout taken back (%s)",
+            int(taken.sum()),
+            ", ".join(f"{i if names is None else names[i]} {int(per[i])}" for i in np.flatnonzero(per)),
+        )
     return take_back(tracks, taken), taken
 
 

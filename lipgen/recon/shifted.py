@@ -63,16 +63,28 @@ class ShiftCheck:
         Fewest markers seen in both views for the frame's similarity.
     """
 
-    def __init__(self, rest_points, reach: float = 0.9, stretch: float = 2.0, angle: float = 30.0,
-                 min_offset: float = 3.0, min_pairs: int = 6):
+    def __init__(
+        self,
+        rest_points,
+        reach: float = 0.9,
+        stretch: float = 2.0,
+        angle: float = 30.0,
+        min_offset: float = 3.0,
+        min_pairs: int = 6,
+    ):
         self.rest = as_float_array(rest_points, "rest_points", (None, 3), finite=False)
-        for name, value in (("reach", reach), ("stretch", stretch), ("angle", angle),
-                            ("min_offset", min_offset)):
+        for name, value in (
+            ("reach", reach),
+            ("stretch", stretch),
+            ("angle", angle),
+            ("min_offset", min_offset),
+        ):
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"ShiftCheck.{name} must be a positive number, got {value!r}")
         if stretch <= 1 or angle >= 90:
-            raise ValueError(f"ShiftCheck needs stretch > 1 and angle < 90 degrees, got {stretch!r}, "
-                             f"{angle!r}")
+            raise ValueError(
+                f"ShiftCheck needs stretch > 1 and angle < 90 degrees, got {stretch!r}, {angle!r}"
+            )
         if int(min_pairs) != min_pairs or min_pairs < 4:
             raise ValueError(f"ShiftCheck.min_pairs must be an integer >= 4, got {min_pairs!r}")
         self.has = np.all(np.isfinite(self.rest), axis=1)
@@ -125,8 +137,9 @@ class ShiftCheck:
                     break
         return out
 
-    def take_back(self, tracks: tuple[Tracks, Tracks], dots, cameras: tuple[PinholeCamera, PinholeCamera],
-                  names=None) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
+    def take_back(
+        self, tracks: tuple[Tracks, Tracks], dots, cameras: tuple[PinholeCamera, PinholeCamera], names=None
+    ) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
         """The tracks with every frame's shifted markers (:meth:`frame`) taken back in both views.
 
         Parameters
@@ -147,17 +160,24 @@ class ShiftCheck:
         """
         tv, tr = tracks
         if tv.uv.shape != tr.uv.shape or tv.uv.shape[1] != len(self.rest) or len(dots) != tv.uv.shape[0]:
-            raise ValueError(f"tracks must both have shape (F, {len(self.rest)}, 2) and dots F entries, got "
-                             f"{tv.uv.shape}, {tr.uv.shape} and {len(dots)}")
+            raise ValueError(
+                f"tracks must both have shape (F, {len(self.rest)}, 2) and dots F entries, got "
+                f"{tv.uv.shape}, {tr.uv.shape} and {len(dots)}"
+            )
         taken = np.zeros(tv.visible.shape, dtype=bool)
         for t, frame_dots in enumerate(dots):
             if frame_dots is None:
                 continue
-            for i, j in self.frame((tv.uv[t], tr.uv[t]), np.stack([tv.visible[t], tr.visible[t]]), frame_dots,
-                                   cameras):
+            for i, j in self.frame(
+                (tv.uv[t], tr.uv[t]), np.stack([tv.visible[t], tr.visible[t]]), frame_dots, cameras
+            ):
                 taken[t, i] = True
-                log.info("frame %d: %s taken back: its dots read better as %s's, whose layout offset finds "
-                         "a free dot for it", t, *(k if names is None else names[k] for k in (i, j)))
+                log.info(
+                    "frame %d: %s taken back: its dots read better as %s's, whose layout offset finds "
+                    "a free dot for it",
+                    t,
+                    *(k if names is None else names[k] for k in (i, j)),
+                )
         return take_back(tracks, taken), taken
 
     def _along(self, dots: np.ndarray, d: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -178,7 +198,7 @@ class ShiftCheck:
             if len(free[v]) == 0 or min(np.linalg.norm(p_i - d), np.linalg.norm(p_j - d)) < self.min_offset:
                 continue
             if self._along(free[v], d, p_j).any():
-                return False                            # j's own dot may be there, free
+                return False  # j's own dot may be there, free
             for e in free[v][self._along(free[v], d, p_i)]:
                 # Not where the layout puts another marker not seen in both views (its own dot).
                 if len(others):
