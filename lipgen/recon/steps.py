@@ -119,6 +119,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
     ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
+    dots_seen = []                                   # each frame's dots per view (for the shift check)
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
@@ -166,6 +167,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                              str(i) if names is None else names[i] for i in np.flatnonzero(~started)) + ")")
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
+        dots_seen.append(tuple(tr.dot_history[-1][0] for tr in trackers))
         if t == 0:
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
@@ -199,10 +201,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         raise ValueError("track_raw_frames got no frames")
     tracks = trackers[0].tracks(), trackers[1].tracks()
     if cameras is not None and rest_points is not None and settings.shift_check:
-        # Each frame's dots (None where the trackers no longer hold them: that frame is not read).
-        hist = [tr.dot_history for tr in trackers]
-        dots = [None if h0 is None or h1 is None else (h0[0], h1[0]) for h0, h1 in zip(*hist, strict=True)]
-        tracks = ShiftCheck(rest_points).take_back(tracks, dots, cameras, names)[0]
+        tracks = ShiftCheck(rest_points).take_back(tracks, dots_seen, cameras, names)[0]
     if cameras is not None and rest_points is not None and settings.out_of_place_k is not None:
         tracks = take_back_out_of_place(tracks, cameras, rest_points, layout_covariance,
                                         k=settings.out_of_place_k, names=names)[0]
