@@ -139,6 +139,11 @@ class ReconstructSettings:
         ``hard`` 21 69 -> 25 accepted sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted,
         the other validation sets and all held-out ``hard`` 11, 23, 24, 25 and ``default`` 11 unchanged
         (``renders/examples/tracking/hard15k_physics_layout.md``). Off: the model's rest layout alone.
+    identity_reference_age : int or None
+        The identity check of :func:`lipgen.recon.viewcheck.check_views` judges a sighting against
+        the marker's last accepted point; with n, a last point at least n frames old is first
+        moved to the current frame with the markers seen then and now
+        (:func:`lipgen.recon.movedref.moved_reference`). None: the last points as they are.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -164,6 +169,12 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
+    identity_reference_age: int | None = None
+
+    def __post_init__(self):
+        age = self.identity_reference_age
+        if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
+            raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""
