@@ -43,6 +43,31 @@ def _weights(points: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.exp(-0.5 * (np.linalg.norm(points - x, axis=1) / width) ** 2) + 1e-12
 
 
+def _robust_similarity(before: np.ndarray, now: np.ndarray, o: np.ndarray, floor: float = 1.0
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """The similarity from ``before[o]`` to ``now[o]`` without the markers that do not follow it.
+
+    A wrong sighting now among the markers would drag every reference near it. One marker at a
+    time, while 4 are left (a similarity from 3 can turn wild): the one whose removal fits the others best is dropped if, under the
+    fit without it, it lies more than ``floor`` mm and 3 times the others' median off.
+    Returns (4, 4) and the markers kept.
+    """
+    while len(o) >= 5:
+        best = None
+        for i in range(len(o)):
+            rest = np.delete(o, i)
+            T = _similarity_3d(before[rest], now[rest])
+            r = np.linalg.norm(now[o] - (before[o] @ T[:3, :3].T + T[:3, 3]), axis=1)
+            cost = float(np.sum(np.delete(r, i) ** 2))
+            if best is None or cost < best[0]:
+                best = (cost, i, r)
+        _, i, r = best
+        if r[i] <= max(floor, 3.0 * float(np.median(np.delete(r, i)))):
+            break
+        o = np.delete(o, i)
+    return _similarity_3d(before[o], now[o]), o
+
+
 def moved_reference(trackers: list[MarkerTracker], cameras, last3d: np.ndarray, since: np.ndarray,
                     now: np.ndarray, min_age: int = 1, min_common: int = 4) -> np.ndarray:
     """Each marker's last accepted point carried to the current image by its neighbours' motion.
@@ -96,7 +121,7 @@ def moved_reference(trackers: list[MarkerTracker], cameras, last3d: np.ndarray, 
             w = _weights(before[o], last3d[m])
             out[m] = last3d[m] + (w @ (now[o] - before[o])) / float(w.sum())
             continue
-        T = _similarity_3d(before[o], now[o])
+        T, o = _robust_similarity(before, now, o)
         moved = before[o] @ T[:3, :3].T + T[:3, 3]
         w = _weights(before[o], last3d[m])
         # Far from every neighbour (the nose) the offsets shrink towards the similarity alone.
