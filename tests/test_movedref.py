@@ -11,23 +11,35 @@ from lipgen.recon.viewcheck import check_views
 from lipgen.rig.pinhole import PinholeCamera
 
 # Marks 0 and 1 at one height (one epipolar line in both views), seven others around them, mm.
-MARKS = np.array([(-4.0, 0.0, 0.0), (4.0, 0.0, 0.0), (0.0, -6.0, 1.0), (0.0, 6.0, -1.0),
-                  (-8.0, 6.0, 0.0), (8.0, -6.0, 0.0), (-12.0, -1.0, -2.0), (12.0, 1.0, -2.0),
-                  (0.0, -12.0, 0.0)])
+MARKS = np.array(
+    [
+        (-4.0, 0.0, 0.0),
+        (4.0, 0.0, 0.0),
+        (0.0, -6.0, 1.0),
+        (0.0, 6.0, -1.0),
+        (-8.0, 6.0, 0.0),
+        (8.0, -6.0, 0.0),
+        (-12.0, -1.0, -2.0),
+        (12.0, 1.0, -2.0),
+        (0.0, -12.0, 0.0),
+    ]
+)
 
 
 def _two_views():
     K = np.array([[800.0, 0, 80], [0, 800.0, 60], [0, 0, 1]])
     a = np.deg2rad(20)
     Ry = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
-    return (PinholeCamera(K, np.eye(3), np.array([0, 0, 300.0]), 160, 120),
-            PinholeCamera(K, Ry, np.array([0, 0, 300.0]), 160, 120))
+    return (
+        PinholeCamera(K, np.eye(3), np.array([0, 0, 300.0]), 160, 120),
+        PinholeCamera(K, Ry, np.array([0, 0, 300.0]), 160, 120),
+    )
 
 
 def _tracked(cams, marks, seed=3):
     """Trackers that followed ``marks (F, P, 3)`` through rendered frames, all seen in both views."""
     rng = np.random.default_rng(seed)
-    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])      # (2, F, P, 2)
+    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])  # (2, F, P, 2)
     trackers = [MarkerTracker(uv[v, 0]) for v in range(2)]
     bases = [background((120, 160), rng) for _ in cams]
     for f in range(len(marks)):
@@ -49,13 +61,13 @@ def test_a_rigid_motion_moves_the_last_point_onto_the_point_now():
     trackers, _ = _tracked(cams, marks)
     last3d = marks[0].copy()
     now = marks[2].copy()
-    now[0] = np.nan                                   # mark 0 is not seen now: moved from the others
+    now[0] = np.nan  # mark 0 is not seen now: moved from the others
     since = np.full(len(MARKS), 2.0)
     ref = moved_reference(trackers, cams, last3d, since, now)
     assert np.linalg.norm(ref[0] - marks[2, 0]) < 0.2, "onto where mark 0 is now"
     assert np.linalg.norm(last3d[0] - marks[2, 0]) > 2.5, "the last point itself is 2.5+ mm away"
     fresh = moved_reference(trackers, cams, last3d, since, now, min_age=3)
-    np.testing.assert_array_equal(fresh, last3d)      # points younger than min_age are kept
+    np.testing.assert_array_equal(fresh, last3d)  # points younger than min_age are kept
 
 
 def test_the_moved_reference_keeps_a_right_sighting_after_a_fast_common_motion():
@@ -72,11 +84,11 @@ def test_the_moved_reference_keeps_a_right_sighting_after_a_fast_common_motion()
             trackers, uv = _tracked(cams, marks)
             for v in range(2):
                 out_uv, status, _ = trackers[v]._out[-1]
-                out_uv[1], status[1] = np.nan, LOST     # mark 1's dot hidden in both views
+                out_uv[1], status[1] = np.nan, LOST  # mark 1's dot hidden in both views
                 if case == "swapped":
                     out_uv[0] = uv[v, 3, 1]
             last3d = marks[2].copy()
-            last3d[:2] = marks[0, :2]                 # marks 0 and 1: last accepted in frame 0
+            last3d[:2] = marks[0, :2]  # marks 0 and 1: last accepted in frame 0
             since = np.ones(len(MARKS))
             since[:2] = 3
             check_views(trackers, cams, 2.0, last3d, since=since, reference_age=age)

@@ -43,13 +43,15 @@ def _weights(points: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.exp(-0.5 * (np.linalg.norm(points - x, axis=1) / width) ** 2) + 1e-12
 
 
-def _robust_similarity(before: np.ndarray, now: np.ndarray, o: np.ndarray, floor: float = 1.0
-                       ) -> tuple[np.ndarray, np.ndarray]:
+def _robust_similarity(
+    before: np.ndarray, now: np.ndarray, o: np.ndarray, floor: float = 1.0
+) -> tuple[np.ndarray, np.ndarray]:
     """The similarity from ``before[o]`` to ``now[o]`` without the markers that do not follow it.
 
     A wrong sighting now among the markers would drag every reference near it. One marker at a
-    time, while 4 are left (a similarity from 3 can turn wild): the one whose removal fits the others best is dropped if, under the
-    fit without it, it lies more than ``floor`` mm and 3 times the others' median off.
+    time, while 4 are left (a similarity from 3 can turn wild): the one whose removal fits the
+    others best is dropped if, under the fit without it, it lies more than ``floor`` mm and 3
+    times the others' median off.
     Returns (4, 4) and the markers kept.
     """
     while len(o) >= 5:
@@ -68,8 +70,15 @@ def _robust_similarity(before: np.ndarray, now: np.ndarray, o: np.ndarray, floor
     return _similarity_3d(before[o], now[o]), o
 
 
-def moved_reference(trackers: list[MarkerTracker], cameras, last3d: np.ndarray, since: np.ndarray,
-                    now: np.ndarray, min_age: int = 1, min_common: int = 4) -> np.ndarray:
+def moved_reference(
+    trackers: list[MarkerTracker],
+    cameras,
+    last3d: np.ndarray,
+    since: np.ndarray,
+    now: np.ndarray,
+    min_age: int = 1,
+    min_common: int = 4,
+) -> np.ndarray:
     """Each marker's last accepted point carried to the current image by its neighbours' motion.
 
     Parameters
@@ -100,9 +109,13 @@ def moved_reference(trackers: list[MarkerTracker], cameras, last3d: np.ndarray, 
     now = np.asarray(now, dtype=float)
     since = np.asarray(since, dtype=float)
     if now.shape != (P, 3) or since.shape != (P,):
-        raise ValueError(f"now must be ({P}, 3) and since ({P},) like last3d, got {now.shape} and {since.shape}")
+        raise ValueError(
+            f"now must be ({P}, 3) and since ({P},) like last3d, got {now.shape} and {since.shape}"
+        )
     if int(min_age) != min_age or min_age < 1 or int(min_common) != min_common or min_common < 4:
-        raise ValueError(f"min_age must be an integer >= 1 and min_common >= 4, got {min_age!r}, {min_common!r}")
+        raise ValueError(
+            f"min_age must be an integer >= 1 and min_common >= 4, got {min_age!r}, {min_common!r}"
+        )
     out = last3d.copy()
     t = len(trackers[0]._out) - 1
     seen_now = np.isfinite(now[:, 0])
@@ -117,7 +130,7 @@ def moved_reference(trackers: list[MarkerTracker], cameras, last3d: np.ndarray, 
         o = o[o != m]
         if len(o) == 0:
             continue
-        if len(o) < min_common:     # too few for a similarity: their mean step, nearer ones first
+        if len(o) < min_common:  # too few for a similarity: their mean step, nearer ones first
             w = _weights(before[o], last3d[m])
             out[m] = last3d[m] + (w @ (now[o] - before[o])) / float(w.sum())
             continue
