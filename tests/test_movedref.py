@@ -113,4 +113,4 @@ def test_bad_arguments_are_refused():
     for bad in (0, 1.5, -1, True):
         with pytest.raises(ValueError, match="identity_reference_age"):
             ReconstructSettings(identity_reference_age=bad)
-    assert ReconstructSettings().identity_reference_age is None
+    assert ReconstructSettings().identity_reference_age == 1  # the frozen default (C3)

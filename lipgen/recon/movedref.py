@@ -121,6 +121,7 @@ def moved_reference(
     seen_now = np.isfinite(now[:, 0])
     age = np.where(np.isfinite(since), since, 0).astype(int)
     frames: dict[int, np.ndarray] = {}
+    fits: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}  # lost markers share a fit
     for m in np.flatnonzero(np.isfinite(last3d[:, 0]) & (age >= min_age) & (age <= t)):
         s = t - int(age[m])
         if s not in frames:
@@ -134,7 +135,10 @@ def moved_reference(
             w = _weights(before[o], last3d[m])
             out[m] = last3d[m] + (w @ (now[o] - before[o])) / float(w.sum())
             continue
-        T, o = _robust_similarity(before, now, o)
+        key = (s, o.tobytes())
+        if key not in fits:
+            fits[key] = _robust_similarity(before, now, o)
+        T, o = fits[key]
         moved = before[o] @ T[:3, :3].T + T[:3, 3]
         w = _weights(before[o], last3d[m])
         # Far from every neighbour (the nose) the offsets shrink towards the similarity alone.

@@ -169,7 +169,7 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
-    identity_reference_age: int | None = None
+    identity_reference_age: int | None = 1
 
     def __post_init__(self):
         age = self.identity_reference_age

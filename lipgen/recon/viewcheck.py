@@ -141,8 +141,9 @@ def _reject_ambiguous(trackers: list[MarkerTracker], cameras, max_gap: float, la
     both views, both may have given j k's dot (the lip corner's neighbour on the corner's dot).
     Depth and place tell them apart: the dot, read as k's (paired with B's k, or as it is),
     lands at some distance from k's last accepted 3-D point, and, read as j's, at another from
-    j's (``last3d (P, 3)``, lab mm; NaN where never accepted). Unless j's reading is ``margin``
-    times closer, j's sighting is taken back (in A; in both views when k is lost in both).
+    j's (``last3d (P, 3)``, lab mm; NaN where never accepted; or the points moved to this image,
+    :func:`lipgen.recon.movedref.moved_reference`). Unless j's reading is ``margin`` times closer,
+    j's sighting is taken back (in A; in both views when k is lost in both).
     """
     known = np.isfinite(last3d[:, 0])
     for a in range(2):
