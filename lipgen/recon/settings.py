@@ -144,6 +144,12 @@ class ReconstructSettings:
         the marker's last accepted point; with n, a last point at least n frames old is first
         moved to the current frame with the markers seen then and now
         (:func:`lipgen.recon.movedref.moved_reference`). None: the last points as they are.
+        1 (all last points moved) was chosen on the 17 validation sets (``hard`` 7-10, 21, 22,
+        25-34, ``default`` 8; 40 frames; within 3 px - 10 x over 3 px, the rule fixed before the
+        runs): 14450 against None's 14368 (within 16338 -> 16820, over 3 px 197 -> 237); ``hard``
+        27 25.4 -> 35.4 % accepted, 26 66.2 -> 76.0 %, 33 55.1 -> 62.3 %, 34 67.2 -> 73.8 %, but
+        ``hard`` 21's first-frame lure is no longer caught (over 3 px 25 -> 53) and ``hard`` 30
+        49.1 -> 47.0 %; tracking CPU 1.19x (``renders/examples/tracking/hard15p.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
