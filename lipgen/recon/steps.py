@@ -181,7 +181,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if pending is not None:
                 forgot = pending.step(trackers, cameras, gap_limit.limit())
                 ever &= ~forgot
-            check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
+            check_views(trackers, cameras, gap_limit, last3d, steps, since, names,
+                        settings.identity_reference_age)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         changed = None
