@@ -139,6 +139,31 @@ class ReconstructSettings:
         ``hard`` 21 69 -> 25 accepted sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted,
         the other validation sets and all held-out ``hard`` 11, 23, 24, 25 and ``default`` 11 unchanged
         (``renders/examples/tracking/hard15k_physics_layout.md``). Off: the model's rest layout alone.
+    shift_check : bool
+        With the calibrated cameras and the markers at rest, once tracking is done: in every
+        frame, a marker whose dots read better as a close neighbour's (the neighbour lost, its
+        layout offset finding a free dot for the marker) is taken back
+        (:class:`lipgen.recon.shifted.ShiftCheck`). Chosen with ``out_of_place_k`` on the 17
+        validation sets (``hard`` 7-10, 21, 22, 25-34, ``default`` 8; calibrate, track,
+        triangulate, scored against the truth): accepted sightings within / over 3 px 16338 / 197
+        -> 16207 / 98; ``hard`` 31 70 -> 8 over 3 px (``renders/examples/tracking/hard15o.md``).
+    out_of_place_k : float or None
+        With the calibrated cameras and the markers at rest: once tracking is done, every frame's
+        pairs whose 3-D point lies farther from the layout's prediction than this many robust
+        standard deviations of the frame's residuals (and 3 mm) are taken back
+        (:func:`lipgen.recon.outofplace.take_back_out_of_place`). None: off. Alone, on the same
+        validation sets: 16338 / 197 -> 16225 / 162.
+    identity_reference_age : int or None
+        The identity check of :func:`lipgen.recon.viewcheck.check_views` judges a sighting against
+        the marker's last accepted point; with n, a last point at least n frames old is first
+        moved to the current frame with the markers seen then and now
+        (:func:`lipgen.recon.movedref.moved_reference`). None: the last points as they are.
+        1 (all last points moved) was chosen on the 17 validation sets (``hard`` 7-10, 21, 22,
+        25-34, ``default`` 8; 40 frames; within 3 px - 10 x over 3 px, the rule fixed before the
+        runs): 14450 against None's 14368 (within 16338 -> 16820, over 3 px 197 -> 237); ``hard``
+        27 25.4 -> 35.4 % accepted, 26 66.2 -> 76.0 %, 33 55.1 -> 62.3 %, 34 67.2 -> 73.8 %, but
+        ``hard`` 21's first-frame lure is no longer caught (over 3 px 25 -> 53) and ``hard`` 30
+        49.1 -> 47.0 %; tracking CPU 1.19x (``renders/examples/tracking/hard15p.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -164,6 +189,14 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
+    shift_check: bool = True
+    out_of_place_k: float | None = 2.0
+    identity_reference_age: int | None = 1
+
+    def __post_init__(self):
+        age = self.identity_reference_age
+        if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
+            raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""

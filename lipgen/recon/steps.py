@@ -39,9 +39,11 @@ from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
 from lipgen.recon.oneview import pair_one_view
+from lipgen.recon.outofplace import take_back_out_of_place
 from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.settings import ReconstructSettings
+from lipgen.recon.shifted import ShiftCheck
 from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import LOST, MarkerTracker, Tracks
 from lipgen.recon.twins import resolve_twins
@@ -117,6 +119,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
     ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
+    dots_seen = []                                   # each frame's dots per view (for the shift check)
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
@@ -164,6 +167,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                              str(i) if names is None else names[i] for i in np.flatnonzero(~started)) + ")")
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
+        dots_seen.append(tuple(tr.dot_history[-1][0] for tr in trackers))
         if t == 0:
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
@@ -177,7 +181,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if pending is not None:
                 forgot = pending.step(trackers, cameras, gap_limit.limit())
                 ever &= ~forgot
-            check_views(trackers, cameras, gap_limit, last3d, steps, since, names)
+            check_views(trackers, cameras, gap_limit, last3d, steps, since, names,
+                        settings.identity_reference_age)
         if cameras is not None and settings.twin_model:
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         changed = None
@@ -195,7 +200,13 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             progress(t)
     if not trackers:
         raise ValueError("track_raw_frames got no frames")
-    return trackers[0].tracks(), trackers[1].tracks()
+    tracks = trackers[0].tracks(), trackers[1].tracks()
+    if cameras is not None and rest_points is not None and settings.shift_check:
+        tracks = ShiftCheck(rest_points).take_back(tracks, dots_seen, cameras, names)[0]
+    if cameras is not None and rest_points is not None and settings.out_of_place_k is not None:
+        tracks = take_back_out_of_place(tracks, cameras, rest_points, layout_covariance,
+                                        k=settings.out_of_place_k, names=names)[0]
+    return tracks
 
 
 def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],

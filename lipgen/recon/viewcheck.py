@@ -15,6 +15,7 @@ import logging
 import numpy as np
 
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.movedref import moved_reference
 from lipgen.recon.raygap import RayGapLimit
 from lipgen.recon.track import LOST, MarkerTracker
 from lipgen.rig.pinhole import triangulate
@@ -62,7 +63,7 @@ def confirm_acquired(trackers: list[MarkerTracker], cameras, max_gap: float) -> 
 
 def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit | float,
                  last3d: np.ndarray | None = None, steps: StepLimit | None = None,
-                 since: np.ndarray | None = None, names=None) -> None:
+                 since: np.ndarray | None = None, names=None, reference_age: int | None = None) -> None:
     """Take back sightings whose two rays pass farther apart than ``gap_limit`` (a wrong dot in a view).
 
     Acquisitions of markers not seen before (:attr:`~lipgen.recon.track.MarkerTracker.acquired`)
@@ -75,7 +76,9 @@ def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit |
     point, updated in place), sightings another marker's ray explains better are taken back too
     (:func:`_reject_ambiguous`). With ``steps`` and ``since (P,)`` (frames since ``last3d``,
     updated in place), a sighting whose 3-D step is a jump (:class:`~lipgen.recon.jumps.StepLimit`)
-    is taken back in both views.
+    is taken back in both views. With ``reference_age`` n and ``since``, the identity check judges
+    against the last points at least n images old moved to this image with their neighbours
+    (:func:`lipgen.recon.movedref.moved_reference`), not against the points as they were.
 
     A sighting that continues a track (seen in the previous image) beats one just re-acquired:
     only the latter is taken back. Otherwise both are, since a lost marker is far better than a
@@ -99,7 +102,15 @@ def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit |
         trackers[0].reject(bad[~only1])
         trackers[1].reject(bad[~only0])
     if last3d is not None:
-        _reject_ambiguous(trackers, cameras, max_gap, last3d)
+        reference = last3d
+        if reference_age is not None and since is not None:
+            (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
+            seen = (st0 != LOST) & (st1 != LOST)
+            now = np.full(last3d.shape, np.nan)
+            if seen.any():
+                now[seen] = triangulate(cameras[1], uv1[seen], cameras[0], uv0[seen])[0]
+            reference = moved_reference(trackers, cameras, last3d, since, now, reference_age)
+        _reject_ambiguous(trackers, cameras, max_gap, reference)
         (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
         kept = (st0 != LOST) & (st1 != LOST)
         pts = np.full(last3d.shape, np.nan)
@@ -130,8 +141,9 @@ def _reject_ambiguous(trackers: list[MarkerTracker], cameras, max_gap: float, la
     both views, both may have given j k's dot (the lip corner's neighbour on the corner's dot).
     Depth and place tell them apart: the dot, read as k's (paired with B's k, or as it is),
     lands at some distance from k's last accepted 3-D point, and, read as j's, at another from
-    j's (``last3d (P, 3)``, lab mm; NaN where never accepted). Unless j's reading is ``margin``
-    times closer, j's sighting is taken back (in A; in both views when k is lost in both).
+    j's (``last3d (P, 3)``, lab mm; NaN where never accepted; or the points moved to this image,
+    :func:`lipgen.recon.movedref.moved_reference`). Unless j's reading is ``margin`` times closer,
+    j's sighting is taken back (in A; in both views when k is lost in both).
     """
     known = np.isfinite(last3d[:, 0])
     for a in range(2):
