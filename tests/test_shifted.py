@@ -107,3 +107,69 @@ def test_bad_arguments_are_refused():
     tracks, dots, cams, _ = _scene()
     with pytest.raises(ValueError, match=r"dots F entries, got \(10, 14, 2\), \(10, 14, 2\) and 9"):
         ShiftCheck(_layout()).take_back(tracks, dots[:9], cams)
+
+
+def _two_view_frames(n_frames=3):
+    """A raw sequence of two swaying views side by side, for track_raw_frames."""
+    from synthetic_images import frame, swaying_views
+
+    cams = _two_views()
+    rng = np.random.default_rng(4)
+    X = np.array([(-8.0, -6.0, 0.0), (8.0, -6.0, 0.0), (-8.0, 6.0, 0.0), (8.0, 6.0, 0.0), (0.0, 0.0, 1.0)])
+    uv, bases = swaying_views(cams, X, n_frames, rng)
+
+    class TwoViews:  # the raw frame is the two views side by side
+        @staticmethod
+        def split_views(raw):
+            return raw[:, :160], raw[:, 160:]
+
+    raws = [np.hstack([frame(bases[v], uv[v, f], rng) for v in range(2)]) for f in range(n_frames)]
+    return raws, TwoViews(), uv[:, 0], cams, X
+
+
+def test_track_raw_frames_runs_both_passes_once_tracking_is_done_by_default(monkeypatch):
+    import lipgen.recon.steps as steps
+    from lipgen.recon.settings import ReconstructSettings
+
+    raws, layout, expected, cams, X = _two_view_frames()
+    calls = []
+
+    class Recorded(ShiftCheck):
+        def take_back(self, tracks, dots, cameras, names=None):
+            calls.append(("shift", len(tracks[0].uv), [tuple(np.shape(d) for d in f) for f in dots]))
+            return super().take_back(tracks, dots, cameras, names)
+
+    real = steps.take_back_out_of_place
+    monkeypatch.setattr(steps, "ShiftCheck", Recorded)
+    monkeypatch.setattr(
+        steps, "take_back_out_of_place", lambda *a, **kw: calls.append(("place", kw["k"])) or real(*a, **kw)
+    )
+    steps.track_raw_frames(iter(raws), layout, expected, ReconstructSettings(), cameras=cams, rest_points=X)
+    assert [c[0] for c in calls] == ["shift", "place"] and calls[1][1] == ReconstructSettings().out_of_place_k
+    F, shapes = calls[0][1], calls[0][2]
+    assert F == len(raws) and len(shapes) == F, "every frame's dots, one entry per frame"
+    assert all(len(s) == 2 and all(len(v) == 2 and v[1] == 2 for v in s) for s in shapes), shapes
+    calls.clear()
+    off = ReconstructSettings(shift_check=False, out_of_place_k=None)
+    steps.track_raw_frames(iter(raws), layout, expected, off, cameras=cams, rest_points=X)
+    assert calls == [], "off: neither pass runs"
+
+
+@pytest.mark.parametrize("k", [0.0, -1.0, float("nan"), True, "2"])
+def test_a_bad_out_of_place_k_is_refused_before_any_frame_is_read(k):
+    import lipgen.recon.steps as steps
+    from lipgen.recon.settings import ReconstructSettings
+
+    raws, layout, expected, cams, X = _two_view_frames(1)
+    read = []
+
+    def frames():
+        for raw in raws:
+            read.append(1)
+            yield raw
+
+    with pytest.raises(ValueError, match=r"settings.out_of_place_k must be None \(off\) or a number > 0"):
+        steps.track_raw_frames(
+            frames(), layout, expected, ReconstructSettings(out_of_place_k=k), cameras=cams, rest_points=X
+        )
+    assert read == [], "refused before the work"

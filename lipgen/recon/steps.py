@@ -26,6 +26,7 @@ datasets on disk.
 from __future__ import annotations
 
 import logging
+import numbers
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -119,7 +120,14 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
     ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
-    dots_seen = []                                   # each frame's dots per view (for the shift check)
+    k_out = settings.out_of_place_k
+    if k_out is not None and (isinstance(k_out, bool) or not isinstance(k_out, numbers.Real)
+                              or not (np.isfinite(k_out) and k_out > 0)):
+        raise ValueError(f"settings.out_of_place_k must be None (off) or a number > 0 (robust standard "
+                         f"deviations), got {k_out!r}")
+    shift = (ShiftCheck(rest_points)
+             if cameras is not None and rest_points is not None and settings.shift_check else None)
+    dots_seen = []                                   # each frame's dots per view: for the shift check only
     pending = (PendingAcquisitions(exp.shape[1], settings.acquire_pending)
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
@@ -167,7 +175,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                              str(i) if names is None else names[i] for i in np.flatnonzero(~started)) + ")")
         for tracker, img in zip(trackers, views, strict=True):
             tracker.step(img)
-        dots_seen.append(tuple(tr.dot_history[-1][0] for tr in trackers))
+        if shift is not None:
+            dots_seen.append(tuple(tr.dot_history[-1][0] for tr in trackers))
         if t == 0:
             for tracker in trackers:
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
@@ -201,8 +210,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     if not trackers:
         raise ValueError("track_raw_frames got no frames")
     tracks = trackers[0].tracks(), trackers[1].tracks()
-    if cameras is not None and rest_points is not None and settings.shift_check:
-        tracks = ShiftCheck(rest_points).take_back(tracks, dots_seen, cameras, names)[0]
+    if shift is not None:
+        tracks = shift.take_back(tracks, dots_seen, cameras, names)[0]
     if cameras is not None and rest_points is not None and settings.out_of_place_k is not None:
         tracks = take_back_out_of_place(tracks, cameras, rest_points, layout_covariance,
                                         k=settings.out_of_place_k, names=names)[0]
