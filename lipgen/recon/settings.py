@@ -165,8 +165,7 @@ class ReconstructSettings:
         ``hard`` 21's first-frame lure is no longer caught (over 3 px 25 -> 53) and ``hard`` 30
         49.1 -> 47.0 %; tracking CPU 1.19x (``renders/examples/tracking/hard15p.md``).
         With ``shift_check`` and ``out_of_place_k`` (merged together): 16697 / 144, score 15257; on fresh
-        held-out ``hard`` 41-46, main 6393 / 78 -> 6474 / 55 (``renders/examples/tracking/hard15q_seed30_33.md``
-        gives the candidates that lost).
+        held-out ``hard`` 41-46, main 6393 / 78 -> 6474 / 55 (``renders/examples/tracking/merge16.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
