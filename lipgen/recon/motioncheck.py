@@ -86,7 +86,7 @@ from lipgen.recon.track import LOST, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["MotionCheck"]
+__all__ = ["MotionCheck", "frame_points"]
 
 log = logging.getLogger(__name__)
 
@@ -206,7 +206,7 @@ class MotionCheck:
         P = len(self.rest)
         k = len(trackers[0]._out) - 1
         took = np.zeros((2, P), dtype=bool)
-        pts = {t: _points(trackers, cameras, t) for t in range(k, max(k - self.max_back, 0) - 1, -1)}
+        pts = {t: frame_points(trackers, cameras, t) for t in range(k, max(k - self.max_back, 0) - 1, -1)}
         X = pts[k]
         both = np.isfinite(X[:, 0])
         resid = np.full(P, np.nan)
@@ -372,7 +372,7 @@ class MotionCheck:
             trackers[v].take(b, pa, gray, sa if np.isfinite(sa) else sb)
 
 
-def _points(trackers: list[MarkerTracker], cameras, t: int) -> np.ndarray:
+def frame_points(trackers: list[MarkerTracker], cameras, t: int) -> np.ndarray:
     """(P, 3) the markers' points in frame ``t``, NaN where a view does not see them."""
     (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[t], trackers[1]._out[t]
     both = (st0 != LOST) & (st1 != LOST)

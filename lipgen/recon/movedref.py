@@ -15,21 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from lipgen.recon.motioncheck import frame_points
 from lipgen.recon.stereo_init import _similarity_3d
-from lipgen.recon.track import LOST, MarkerTracker
-from lipgen.rig.pinhole import triangulate
+from lipgen.recon.track import MarkerTracker
 
 __all__ = ["moved_reference"]
-
-
-def _frame_points(trackers: list[MarkerTracker], cameras, t: int) -> np.ndarray:
-    """(P, 3) the markers' points in image ``t`` (lab mm), NaN where a view does not see them."""
-    (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[t], trackers[1]._out[t]
-    both = (st0 != LOST) & (st1 != LOST)
-    X = np.full((len(both), 3), np.nan)
-    if both.any():
-        X[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[0]
-    return X
 
 
 def _weights(points: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -125,7 +115,7 @@ def moved_reference(
     for m in np.flatnonzero(np.isfinite(last3d[:, 0]) & (age >= min_age) & (age <= t)):
         s = t - int(age[m])
         if s not in frames:
-            frames[s] = _frame_points(trackers, cameras, s)
+            frames[s] = frame_points(trackers, cameras, s)
         before = frames[s]
         o = np.flatnonzero(np.isfinite(before[:, 0]) & seen_now)
         o = o[o != m]
