@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen.recon.motioncheck import frame_points
+from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.stereo_init import _similarity_3d
 from lipgen.recon.track import MarkerTracker
 
@@ -27,9 +28,7 @@ def _weights(points: np.ndarray, x: np.ndarray) -> np.ndarray:
     median distance between neighbouring points (a marker spacing); one point: weight 1."""
     if len(points) < 2:
         return np.ones(len(points))
-    d = np.linalg.norm(points[:, None] - points[None], axis=2)
-    np.fill_diagonal(d, np.inf)
-    width = float(np.median(d.min(1)))
+    width = layout_spacing(points)
     return np.exp(-0.5 * (np.linalg.norm(points - x, axis=1) / width) ** 2) + 1e-12
 
 

@@ -15,6 +15,7 @@ import logging
 import numpy as np
 
 from lipgen.recon.jumps import StepLimit
+from lipgen.recon.motioncheck import frame_points
 from lipgen.recon.movedref import moved_reference
 from lipgen.recon.raygap import RayGapLimit
 from lipgen.recon.track import LOST, MarkerTracker
@@ -102,20 +103,14 @@ def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit |
         trackers[0].reject(bad[~only1])
         trackers[1].reject(bad[~only0])
     if last3d is not None:
+        now = frame_points(trackers, cameras, -1)
         reference = last3d
         if reference_age is not None and since is not None:
-            (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
-            seen = (st0 != LOST) & (st1 != LOST)
-            now = np.full(last3d.shape, np.nan)
-            if seen.any():
-                now[seen] = triangulate(cameras[1], uv1[seen], cameras[0], uv0[seen])[0]
             reference = moved_reference(trackers, cameras, last3d, since, now, reference_age)
-        _reject_ambiguous(trackers, cameras, max_gap, reference)
-        (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
+        _reject_ambiguous(trackers, cameras, max_gap, reference)   # takes back only: the kept points stand
+        (_, st0, _), (_, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
         kept = (st0 != LOST) & (st1 != LOST)
-        pts = np.full(last3d.shape, np.nan)
-        if kept.any():
-            pts[kept] = triangulate(cameras[1], uv1[kept], cameras[0], uv0[kept])[0]
+        pts = np.where(kept[:, None], now, np.nan)
         if steps is not None and since is not None:
             jump = steps.check(pts, last3d, since)
             if jump.any():
