@@ -4,6 +4,8 @@ each default beside it."""
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import dataclass, field
 
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
@@ -199,6 +201,11 @@ class ReconstructSettings:
         age = self.identity_reference_age
         if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
             raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")
+        k = self.out_of_place_k
+        if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
+                              or not (math.isfinite(k) and k > 0)):
+            raise ValueError(f"settings.out_of_place_k must be None (off) or a number > 0 (robust standard "
+                             f"deviations), got {k!r}")
 
     def ray_gap_limit(self, cameras) -> RayGapLimit:
         """A fresh :class:`~lipgen.recon.raygap.RayGapLimit` for the calibrated ``cameras``."""

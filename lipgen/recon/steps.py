@@ -26,7 +26,6 @@ datasets on disk.
 from __future__ import annotations
 
 import logging
-import numbers
 from collections.abc import Callable, Iterable
 
 import numpy as np
@@ -120,11 +119,6 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     walks = (WalkQueue(exp.shape[1], settings.walk_frames)
              if cameras is not None and (settings.backfill or settings.rewalk) else None)
     ever = np.zeros((2, exp.shape[1]), dtype=bool)   # seen in each view so far (for the walks)
-    k_out = settings.out_of_place_k
-    if k_out is not None and (isinstance(k_out, bool) or not isinstance(k_out, numbers.Real)
-                              or not (np.isfinite(k_out) and k_out > 0)):
-        raise ValueError(f"settings.out_of_place_k must be None (off) or a number > 0 (robust standard "
-                         f"deviations), got {k_out!r}")
     shift = (ShiftCheck(rest_points)
              if cameras is not None and rest_points is not None and settings.shift_check else None)
     dots_seen = []                                   # each frame's dots per view: for the shift check only
