@@ -77,7 +77,8 @@ def _frame_intact(out: Path, i: int, s: GenerateSettings) -> bool:
     return all(intact(p, k) for p, k in files)
 
 
-def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
+def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
+                    progress: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
     """Simulate the subject, check the rig sees it, and lay out the dataset folder ``out``
     (manifest, mesh, sub-folders); nothing is rendered yet.
 
@@ -93,7 +94,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False) -> tuple[_Co
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     rig = rig_for(s.size, s.conditions, default_rig)
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
-    motion = simulate_motion(s, phones)
+    motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
     rig.check_sees(marks.reshape(-1, 3), margin=2.0, what="subject's marks over the motion")
     mesh: LipMesh = motion.mesh
@@ -206,7 +207,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
 def _generate(out: Path, s: GenerateSettings, workers: int, resume: bool, progress: bool) -> Path:
     from tqdm import tqdm
 
-    ctx, jobs = prepare_dataset(out, s, resume)
+    ctx, jobs = prepare_dataset(out, s, resume, progress=progress)
     done = s.calib_frames + s.frames - len(jobs)
     bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",
                disable=not progress)

@@ -39,7 +39,7 @@ def speech_phones(s: GenerateSettings):
     return text_phones(s.speech_text), None
 
 
-def simulate_motion(s: GenerateSettings, phones=None):
+def simulate_motion(s: GenerateSettings, phones=None, progress: bool = False):
     """The subject's motion for settings ``s``.
 
     Parameters
@@ -47,6 +47,8 @@ def simulate_motion(s: GenerateSettings, phones=None):
     s : GenerateSettings
     phones : lipgen.speech.PhoneTrack, optional
         Phones that time the motion (from :func:`speech_phones`).
+    progress : bool
+        A progress bar for the nonlinear truth physics (the only slow part).
 
     Returns
     -------
@@ -77,8 +79,8 @@ def simulate_motion(s: GenerateSettings, phones=None):
 
         given = None if phones is None and not s.script else A  # else: its own speech and gestures
         return simulate_independent(subject, s.frames, np.random.default_rng([s.seed, ACT_STREAM]), head,
-                                    s.fps, activations=given, progress=s.truth_physics == "layer")
-    return motion.simulate(subject, A, head, fps=s.fps, progress=s.truth_physics == "layer")
+                                    s.fps, activations=given, progress=progress)
+    return motion.simulate(subject, A, head, fps=s.fps, progress=progress)
 
 
 def frame_truth(rig: MirrorRig, face: FaceModel, vertices: np.ndarray, pose: np.ndarray,
