@@ -95,6 +95,38 @@ def test_a_right_marker_beside_a_lost_neighbour_is_left_alone():
     assert not check.take_back(tracks, dots, cams)[1].any()
 
 
+def _lose_in_one_view(tracks, view, mark):
+    """``tracks`` with ``mark`` lost in ``view`` only (seen in the other: not seen in both views)."""
+    t = tracks[view]
+    uv, visible, status = t.uv.copy(), t.visible.copy(), t.status.copy()
+    uv[:, mark], visible[:, mark], status[:, mark] = np.nan, False, LOST
+    one = Tracks(uv, visible, status, t.score, t.rejected)
+    return (one, tracks[1]) if view == 0 else (tracks[0], one)
+
+
+def test_a_neighbour_seen_in_one_view_only():
+    check = _check()
+    # NB right in view 1, its dot not found in view 0 (so NB is not seen in both views), BAD right:
+    # NB's only dot is held, so no reading puts anyone on a free dot; BAD is left alone.
+    tracks, dots, cams, _ = _scene(hidden={(0, NB)})
+    tracks = _lose_in_one_view(tracks, 0, NB)
+    assert not check.take_back(tracks, dots, cams)[1].any()
+    # The same with NB's dot found and free in view 0: reading BAD's dots as BAD's puts NB on it.
+    tracks, dots, cams, _ = _scene()
+    tracks = _lose_in_one_view(tracks, 0, NB)
+    assert not check.take_back(tracks, dots, cams)[1].any()
+    # BAD on NB's dot in both views while NB holds that dot in view 1: BAD's own dot, free in view 1,
+    # is where reading the pair as NB's puts BAD; taken back in both views, NB's sighting kept.
+    tracks, dots, cams, uv = _scene(hidden={(0, BAD)})
+    for v in range(2):
+        tracks[v].uv[:, BAD] = uv[v, :, NB]
+    tracks = _lose_in_one_view(tracks, 0, NB)
+    new, taken = check.take_back(tracks, dots, cams)
+    assert taken[:, BAD].all() and taken.sum() == taken.shape[0]
+    np.testing.assert_array_equal(new[1].uv[:, NB], tracks[1].uv[:, NB])
+    assert new[1].visible[:, NB].all() and not new[0].visible[:, BAD].any()
+
+
 def test_bad_arguments_are_refused():
     with pytest.raises(ValueError, match="rest_points"):
         ShiftCheck(np.zeros((4, 2)))
