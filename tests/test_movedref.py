@@ -93,6 +93,11 @@ def test_the_moved_reference_keeps_a_right_sighting_after_a_fast_common_motion()
             since[:2] = 3
             check_views(trackers, cams, 2.0, last3d, since=since, reference_age=age)
             seen = [tr.tracks().visible[3] for tr in trackers]
+            kept = seen[0] & seen[1]
+            # the ages move on without the jump check too (steps=None): kept 1, others one more
+            before = np.ones(len(MARKS))
+            before[:2] = 3
+            np.testing.assert_array_equal(since, np.where(kept, 1.0, before + 1))
             assert all(s[2:].all() for s in seen), f"{case}, {age}: the other marks are kept {seen}"
             if case == "swapped" or age is None:
                 assert not seen[0][0] and not seen[1][0], f"{case}, reference_age {age}: taken back"

@@ -120,6 +120,7 @@ def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit |
                 trackers[0].reject(idx)
                 trackers[1].reject(idx)
                 kept &= ~jump
+        if since is not None:  # also without the jump check: the moved reference reads the ages
             since[kept] = 0
             since += 1
         last3d[kept] = pts[kept]
