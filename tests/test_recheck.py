@@ -49,7 +49,10 @@ def _clip(lure: bool, recheck: bool, seed: int = 2):
         if f > 0:
             check_views(trackers, cams, 1.0, last3d, steps, since)
             if check is not None:
+                kept = since == 1  # the view checks kept these this frame (their count was reset)
                 check.step(trackers, images, cams, 1.0, last3d, steps)
+                check.fired_on_kept = getattr(check, "fired_on_kept", True) and all(
+                    kept[i] for k, i, _, _ in check.changes if k == f)
     return [tr.tracks() for tr in trackers], uv, check
 
 
@@ -59,6 +62,7 @@ def test_a_contradicted_identity_is_rechecked_and_retracked_forward_and_backward
     assert np.all(err > 5.0) and wrong[1].visible[:, BAD].all(), "without it the lure is followed"
     tracks, uv, check = _clip(lure=True, recheck=True)
     assert [(k, i, vs) for k, i, vs, _ in check.changes] == [(3, BAD, (1,))], "fired once, 3 frames in"
+    assert check.fired_on_kept, "it fires on markers the view checks kept (so their age needs no reset)"
     tr = tracks[1]
     assert tr.visible[:, BAD].all(), "the frames before are re-tracked on the marker's own dot"
     err = np.linalg.norm(tr.uv[:, BAD] - uv[1, :, BAD], axis=1)

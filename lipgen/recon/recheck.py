@@ -114,6 +114,8 @@ class IdentityCheck:
                 took[v, i] = True
             pt = _point(cameras, trackers[0]._out[-1][0][i], trackers[1]._out[-1][0][i])
             if last3d is not None and np.all(np.isfinite(pt)):
+                # its frames-since count needs no reset: the check fires only on markers seen in both
+                # views after this frame's view checks, which kept them and set their count already
                 last3d[i] = pt
             filled = walk_back(trackers, cameras, i, vs, k, max_gap, limits)[0]
             dropped = [_take_back_run(trackers[v], i, k - 1 - int(filled[v])) for v in range(2)]
