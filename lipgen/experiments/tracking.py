@@ -34,7 +34,7 @@ import numpy as np
 from lipgen.errors import DatasetError
 
 __all__ = ["TrackingSettings", "TARGETS", "dataset_settings", "check_inputs", "cached_dataset", "set_figures",
-           "pooled_figures", "spread", "run_tracking", "code_version"]
+           "targets_met", "pooled_figures", "spread", "run_tracking", "code_version"]
 
 log = logging.getLogger(__name__)
 
@@ -277,7 +277,7 @@ def run_tracking(s: TrackingSettings, work, progress: bool = True) -> dict:
 
     work = Path(work)
     plan = check_inputs(s, work)
-    load = {"start": list(os.getloadavg())}
+    load, code = {"start": list(os.getloadavg())}, code_version()  # the code as it was when the run began
     t0, c0 = time.perf_counter(), time.process_time()
     bar = None
     if progress:
@@ -287,8 +287,8 @@ def run_tracking(s: TrackingSettings, work, progress: bool = True) -> dict:
     sets, errors = [], []
     for label, path, gs in plan:
         reused = None
+        work.mkdir(parents=True, exist_ok=True)  # after every check: a refused run writes nothing
         if gs is not None:
-            work.mkdir(parents=True, exist_ok=True)
             path, reused = cached_dataset(path, gs, progress=progress)
         recon = reconstruct_dataset(path, progress=progress)
         recon.save(work / f"{label}.recon.npz")
@@ -306,7 +306,7 @@ def run_tracking(s: TrackingSettings, work, progress: bool = True) -> dict:
     threads = {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS")}
     load |= {"seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "threads": threads,
              "host": platform.node(), "cpu_count": os.cpu_count()}
-    return {"settings": settings, "code": code_version(), "sets": sets, "load": load,
+    return {"settings": settings, "code": code, "sets": sets, "load": load,
             "pooled": pooled_figures(sets, errors), "spread": spread(sets), "errors": errors}
 
 
