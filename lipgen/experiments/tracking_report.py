@@ -20,6 +20,8 @@ REPORT_FILES = ("tracking.md", "tracking.json", "tracking.png")
 _TARGET_NAMES = {"rms_px": f"RMS <= {TARGETS['rms_px']} px", "accepted_share":
                  f"accepted >= {100 * TARGETS['accepted_share']:.0f} %", "over_3px": "none > 3 px"}
 
+_VIEW_NAMES = {"virtual": "mirror (virtual)", "real": "direct (real)"}
+
 
 def _pct(x: float) -> str:
     return "n/a" if not np.isfinite(x) else f"{100 * x:.1f}"
@@ -74,7 +76,7 @@ def _picture(result: dict, out: Path) -> str:
         e = np.sort(np.concatenate([np.asarray(er[view]) for er in result["errors"]]))
         if len(e):
             bx.plot(np.maximum(e, 1e-3), 100 * np.arange(1, len(e) + 1) / len(e), color=color,
-                    label=f"{view} view ({len(e)} accepted)")
+                    label=f"{_VIEW_NAMES[view]} ({len(e)} accepted)")
     for v, ls in ((TARGETS["rms_px"], ":"), (3.0, "--")):
         bx.axvline(v, color="k", ls=ls, lw=1)
     bx.set_xscale("log")
@@ -94,7 +96,8 @@ def _picture(result: dict, out: Path) -> str:
 def _spread_lines(sp: dict, n: int) -> list[str]:
     names = {"accepted_share": ("accepted share (%)", 100), "within_3px_share": ("within 3 px (%)", 100),
              "over_3px": ("accepted > 3 px (count)", 1), "rms_px": ("RMS, both views (px)", 1),
-             "rms_px_virtual": ("RMS, virtual (px)", 1), "rms_px_real": ("RMS, real (px)", 1),
+             "rms_px_virtual": ("RMS, mirror view (px)", 1),
+             "rms_px_real": ("RMS, direct view (px)", 1),
              "tracking_cpu_ms_per_frame": ("tracking CPU (ms / frame)", 1)}
     lines = [f"## Mean and spread over the {n} sets", "",
              "Each set's figure, then the mean, standard deviation (n - 1) and range over the sets.", "",
@@ -112,9 +115,9 @@ def _view_lines(result: dict) -> list[str]:
              "> 3 px | false sightings |", "|---|---|---|---|---|---|---|---|---|---|"]
     for s in result["sets"]:
         for view, t in s["per_view"].items():
-            lines.append(f"| {s['label']} | {view} | {_num(t['rms_px'])} | {_num(t['p95_px'])} | "
-                         f"{_num(t['tracked_share'], 4)} | {t['accepted']} | {t['rejected']} | {t['lost']} | "
-                         f"{t['wrong_over_3px']} | {t['false_sightings']} |")
+            lines.append(f"| {s['label']} | {_VIEW_NAMES[view]} | {_num(t['rms_px'])} | "
+                         f"{_num(t['p95_px'])} | {_num(t['tracked_share'], 4)} | {t['accepted']} | "
+                         f"{t['rejected']} | {t['lost']} | {t['wrong_over_3px']} | {t['false_sightings']} |")
     return lines + [""]
 
 
@@ -149,7 +152,7 @@ def write_tracking_report(result: dict, out, note: str | None = None) -> Path:
           "the tracking step (`lipgen.recon.pipeline`, `info['cpu_seconds']`) per frame.", "",
           f"Targets (issue 15): {', '.join(_TARGET_NAMES.values())}; the last column says met / not met "
           "in that order.", "",
-          "| set | accepted (%) | within 3 px (%) | > 3 px | RMS (px) | RMS virtual | RMS real | "
+          "| set | accepted (%) | within 3 px (%) | > 3 px | RMS (px) | RMS mirror | RMS direct | "
           "95th pct (px) | accepted / visible | rejected | lost | tracking CPU (ms / frame) | targets |",
           "|---" * 13 + "|"]
     L += [_row(s["label"], s) for s in sets]
