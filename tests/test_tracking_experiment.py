@@ -145,9 +145,11 @@ def _nothing_written(tmp_path, before):
     (["--seeds", "0", "--frames", "2"], "--frames must be a whole number >= 3, got 2"),
     (["--datasets", "{tmp}/not_a_set"], "not_a_set"),
     (["--datasets", "{tmp}", "--preset", "hard"], "--preset"),
+    (["--seeds", "0", "--work", "{tmp}/a_file"], "a_file is a file"),
 ])
 def test_bad_inputs_are_refused_before_any_work(tmp_path, capsys, argv, named):
     (tmp_path / "not_a_set").mkdir()
+    (tmp_path / "a_file").write_text("")
     before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
     argv = [a.replace("{tmp}", str(tmp_path)) for a in argv]
     status = main(["experiment", "tracking", *argv, "--out", str(tmp_path / "out"), "--no-progress"])

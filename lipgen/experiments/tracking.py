@@ -78,6 +78,8 @@ def check_inputs(s: TrackingSettings, work: Path) -> list[tuple[str, Path, objec
     from lipgen.dataset.layout import Dataset
     from lipgen.dataset.presets import get_preset
 
+    if work.exists() and not work.is_dir():
+        raise NotADirectoryError(f"--work {work} is a file, not a folder; choose a folder")
     if s.datasets:
         if s.seeds:
             raise ValueError("give --seeds (generated sets) or --datasets (existing sets), not both")
