@@ -223,3 +223,17 @@ def test_existing_datasets_are_scored_alike(run):
     for a, b in zip(first["sets"], again["sets"], strict=True):
         assert (a["visible"], a["accepted"], a["over_3px"], a["rms_px"]) == (
             b["visible"], b["accepted"], b["over_3px"], b["rms_px"])
+
+
+def test_incomplete_dataset_is_refused(run, tmp_path, capsys):
+    import shutil
+
+    root, _ = run
+    part = tmp_path / "part"
+    shutil.copytree(root / "out" / "work" / "easy_s0", part)
+    (part / "raw" / "000002.png").unlink()
+    status = main(["experiment", "tracking", "--datasets", str(part), "--out", str(tmp_path / "o"),
+                   "--no-progress"])
+    err = capsys.readouterr().err
+    assert status == 1 and "part: 1 frames are missing (e.g. frame 2)" in err
+    assert not (tmp_path / "o").exists()

@@ -91,9 +91,10 @@ def check_inputs(s: TrackingSettings, work: Path) -> list[tuple[str, Path, objec
                                    "written by lipgen generate")
             ds = Dataset(path)
             ds.require_truth("lipgen experiment tracking")
-            if ds.missing(truth=True):
-                raise DatasetError(f"--datasets {p}: {len(ds.missing(truth=True))} frames are missing; "
-                                   "finish it with lipgen generate --resume")
+            missing = ds.missing(truth=True)
+            if missing:
+                raise DatasetError(f"--datasets {p}: {len(missing)} frames are missing (e.g. frame "
+                                   f"{missing[0]}); finish it with lipgen generate --resume")
             out.append((path.name, path, None))
         names = [label for label, _, _ in out]
         twice = sorted({n for n in names if names.count(n) > 1})

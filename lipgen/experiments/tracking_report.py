@@ -152,7 +152,8 @@ def write_tracking_report(result: dict, out, note: str | None = None) -> Path:
           "(`lipgen.evaluate.scoring.sighting_errors`, `tracking_table`). Shares are of the visible "
           "sightings of both views; *within 3 px*: accepted and at most 3 px from the true projection; RMS "
           "and the 95th percentile over the accepted sightings. Tracking CPU: this process's CPU time in "
-          "the tracking step (`lipgen.recon.pipeline`, `info['cpu_seconds']`) per frame.", "",
+          "the tracking step (`lipgen.recon.pipeline`, `info['cpu_seconds']`; reading the frames included, "
+          "about 9 ms of it per hard frame) per frame.", "",
           f"Targets (issue 15): {', '.join(_TARGET_NAMES.values())}; the last column says met / not met "
           "in that order.", "",
           "| set | accepted (%) | within 3 px (%) | > 3 px | RMS (px) | RMS mirror | RMS direct | "
