@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 
 from lipgen.commands._output import add_force, check_folder_output
 
@@ -97,6 +98,43 @@ def add_parser(sub) -> None:
     pp.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_force(pp, "the report files in --out")
     pp.set_defaults(func=_pipeline)
+    tr = exp.add_parser(
+        "tracking",
+        help="the tracker against the truth over seeds: issue 15's targets (accepted share, RMS, > 3 px)",
+        description=textwrap.fill(
+        "For each seed: generate a dataset (--preset, --frames; kept in --work and reused by a second run "
+        "with the same settings, never overwritten), reconstruct it as lipgen reconstruct does "
+        "and score every sighting against the truth with lipgen evaluate's definitions. Or score existing "
+        "datasets (--datasets). Reports per set and pooled: the accepted share of the visible sightings, "
+        "the share within 3 px, the count over 3 px, RMS per view, tracking CPU per frame, issue 15's "
+        "targets (RMS <= 0.5 px, >= 97 % accepted, none > 3 px) met or not, and the mean and spread over "
+        "the sets. Writes tracking.md, tracking.json and tracking.png to --out.", 100),
+        formatter_class=argparse.RawDescriptionHelpFormatter, epilog="examples:\n"
+        "  lipgen experiment tracking --preset hard --seeds 41 42 43 --out renders/tracking_exp\n"
+        "  lipgen experiment tracking --datasets data/hard_s7 data/hard_s8 --out renders/tracking_78\n"
+        "  lipgen experiment tracking --preset easy --seeds 0 1 --frames 8 --out /tmp/quick   (minutes)",
+    )
+    tr.add_argument("--out", default="renders/tracking_exp",
+                    help="output folder (default renders/tracking_exp)")
+    tr.add_argument("--work", default=None,
+                    help="folder for the generated datasets and the reconstructions (default: WORK under "
+                    "--out)")
+    src = tr.add_mutually_exclusive_group()
+    src.add_argument("--seeds", type=int, nargs="+", default=None,
+                     help="seeds of the generated sets (default 41 42 43)")
+    src.add_argument("--datasets", nargs="+", default=None, metavar="PATH",
+                     help="existing datasets (lipgen generate) to score instead of generating")
+    tr.add_argument("--preset", default=None, help="preset of the generated sets: easy, default, hard "
+                    "(default hard)")
+    tr.add_argument("--frames", type=int, default=None, help="frames per generated set (default 40)")
+    tr.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"),
+                    help="image size of the generated sets (default 640 480)")
+    tr.add_argument("--calib-frames", type=int, default=None,
+                    help="chessboard frames of the generated sets (default: the preset's)")
+    tr.add_argument("--note", default=None, help="a paragraph put under the report's title")
+    tr.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_force(tr, "the report files in --out")
+    tr.set_defaults(func=_tracking)
     n = exp.add_parser(
         "nrsfm",
         help="non-rigid SfM on the standard sequences (drink, jaws) beside the published e3D",
@@ -229,4 +267,32 @@ def _nrsfm(args) -> int:
     settings = NrsfmBenchSettings.full(**changes) if args.full else NrsfmBenchSettings(**changes)
     run_nrsfm_benchmarks(args.out, settings)
     sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")
+    return 0
+
+
+def _tracking(args) -> int:
+    import os
+    from pathlib import Path
+
+    from lipgen.experiments.tracking import TrackingSettings, check_inputs, run_tracking
+    from lipgen.experiments.tracking_report import REPORT_FILES, write_tracking_report
+
+    if args.datasets is not None:
+        given = [f for f, v in (("--preset", args.preset), ("--frames", args.frames), ("--size", args.size),
+                                ("--calib-frames", args.calib_frames)) if v is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} describe generated sets; with --datasets the sets are "
+                             "as they were made (drop them)")
+        settings = TrackingSettings(seeds=(), datasets=tuple(args.datasets))
+    else:
+        frames = 40 if args.frames is None else args.frames
+        settings = TrackingSettings(preset=args.preset or "hard", frames=frames,
+                                    seeds=tuple(args.seeds or (41, 42, 43)),
+                                    size=None if args.size is None else tuple(args.size),
+                                    calib_frames=args.calib_frames)
+    out = check_folder_output(args.out, args.force, REPORT_FILES)
+    work = Path(os.path.join(args.out, "work") if args.work is None else args.work)
+    check_inputs(settings, work)  # before any work: nothing is written on a bad input
+    result = run_tracking(settings, work, progress=not args.no_progress)
+    sys.stdout.write(f"wrote {write_tracking_report(result, out, args.note)}\n")
     return 0

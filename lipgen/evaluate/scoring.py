@@ -25,7 +25,8 @@ from lipgen.recon.split import default_test_frames
 from lipgen.rig.camera import VIEWS
 
 __all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "accepted_sightings",
-           "ROWS", "AXES"]
+           "ROWS", "AXES",
+           "sighting_errors", "tracking_table"]
 
 log = logging.getLogger(__name__)
 
@@ -75,6 +76,47 @@ def accepted_sightings(recon) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         out[:, P:] = recon.ray_gap[:, P:] <= max_gap
     return out
+
+
+def sighting_errors(truth: dict, recon) -> dict:
+    """Per view, every sighting's tracking error against the true projection and its class.
+
+    ``truth`` is :func:`load_truth`'s (its ``uv`` (F, 2, P + 1, 2) and ``visible`` (F, 2, P + 1)).
+    Returns ``{view: {"err": (F, P + 1) px (NaN where not tracked), "truly": visible per the truth,
+    "got": found by the tracker (not lost), "accepted": :func:`accepted_sightings` (both views
+    agree, not a pose outlier; the same in both views), "ok": truly visible and accepted}}``.
+    """
+    accepted = accepted_sightings(recon)
+    out = {}
+    for v, view in enumerate(VIEWS):
+        truly = np.asarray(truth["visible"][:, v], dtype=bool)
+        out[view] = {"err": np.linalg.norm(recon.uv[v] - truth["uv"][:, v], axis=-1), "truly": truly,
+                     "got": recon.status[v] != 3, "ok": truly & accepted, "accepted": accepted}
+    return out
+
+
+def tracking_table(truth: dict, recon) -> dict:
+    """The tracking figures of ``lipgen evaluate`` per view (its report's tracking table).
+
+    Against the true projections, where the truth says the dot is visible. Only accepted
+    sightings (both views agree, not a pose outlier) count as tracked; RMS, 95th percentile and
+    > 3 px are over them. ``tracked_share`` is accepted / truly visible.
+    """
+    track = {}
+    for view, e in sighting_errors(truth, recon).items():
+        err, truly, got, ok, accepted = e["err"], e["truly"], e["got"], e["ok"], e["accepted"]
+        n_ok = int(ok.sum())
+        track[view] = {"rms_px": float(_rms(err[ok])),
+                       "per_mark_rms_px": _rms(np.where(ok, err, np.nan), 0).tolist(),
+                       "p95_px": float(np.percentile(err[ok], 95)) if ok.any() else float("nan"),
+                       "tracked_share": float(n_ok / max(truly.sum(), 1)),
+                       "accepted": n_ok, "rejected": int((truly & got & ~accepted).sum()),
+                       "lost": int((truly & ~got).sum()),
+                       "rms_all_sightings_px": float(_rms(err[truly & got])),
+                       "false_sightings": int((got & ~truly).sum()),
+                       "wrong_over_3px": int((err[ok] > 3).sum()),
+                       "wrong_over_3px_rate": float((err[ok] > 3).sum() / max(n_ok, 1))}
+    return track
 
 
 def _true_fields(truth: dict, mesh, rest: np.ndarray | None = None) -> np.ndarray:
@@ -247,27 +289,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     ref = ds.calibration()[cal.reference].truth
     A0, b0 = np.asarray(ref["A"]), np.asarray(ref["b"])
     out["calibration"] = {"rms_px": cal.rms, "vs_truth": compare_to_truth(cal.in_frame(A0, b0), ds.rig.views)}
-    # Tracking against the true projections, where the truth says the dot is visible. Only
-    # accepted sightings (both views agree, not a pose outlier) count as tracked.
-    accepted = accepted_sightings(recon)
-    track = {}
-    for v, view in enumerate(VIEWS):
-        truly = truth["visible"][:, v]
-        err = np.linalg.norm(recon.uv[v] - truth["uv"][:, v], axis=-1)
-        got = recon.status[v] != 3
-        ok = truly & accepted
-        n_ok = int(ok.sum())
-        track[view] = {"rms_px": float(_rms(err[ok])),
-                       "per_mark_rms_px": _rms(np.where(ok, err, np.nan), 0).tolist(),
-                       "p95_px": float(np.percentile(err[ok], 95)) if ok.any() else float("nan"),
-                       "tracked_share": float(n_ok / max(truly.sum(), 1)),
-                       "accepted": n_ok, "rejected": int((truly & got & ~accepted).sum()),
-                       "lost": int((truly & ~got).sum()),
-                       "rms_all_sightings_px": float(_rms(err[truly & got])),
-                       "false_sightings": int((got & ~truly).sum()),
-                       "wrong_over_3px": int((err[ok] > 3).sum()),
-                       "wrong_over_3px_rate": float((err[ok] > 3).sum() / max(n_ok, 1))}
-    out["tracking"] = track
+    out["tracking"] = tracking_table(truth, recon)
     # Triangulation: lab -> board -> world.
     lab = recon.lab_points.reshape(-1, 3)
     board = lab @ recon.lab_to_board[:3, :3].T + recon.lab_to_board[:3, 3]
