@@ -105,6 +105,21 @@ def test_the_moved_reference_keeps_a_right_sighting_after_a_fast_common_motion()
                 assert seen[0][0] and seen[1][0], f"reference_age {age}: the right sighting is kept"
 
 
+def test_a_frame_with_no_marker_in_both_views_ages_every_last_point():
+    # Every mark lost in view 0: nothing is kept, and every last point is one frame older (the
+    # early return skipped the count, so a marker lost for a while looked as fresh as before).
+    cams = _two_views()
+    trackers, _ = _tracked(cams, MARKS[None].repeat(2, 0))
+    out_uv, status, _ = trackers[0]._out[-1]
+    out_uv[:], status[:] = np.nan, LOST
+    last3d, since = MARKS.copy(), np.arange(1.0, len(MARKS) + 1)
+    check_views(trackers, cams, 2.0, last3d, since=since, reference_age=1)
+    np.testing.assert_array_equal(since, np.arange(2.0, len(MARKS) + 2))
+    np.testing.assert_array_equal(last3d, MARKS)
+    check_views(trackers, cams, 2.0, None, since=since)  # without last points nothing is counted
+    np.testing.assert_array_equal(since, np.arange(2.0, len(MARKS) + 2))
+
+
 def test_bad_arguments_are_refused():
     from lipgen.recon.steps import ReconstructSettings
 

@@ -16,11 +16,13 @@ from lipgen.recon.viewcheck import check_views
 BAD, F = 3, 10
 
 
-def _clip(lure: bool, recheck: bool, seed: int = 2):
+def _clip(lure: bool, recheck: bool, seed: int = 2, stale: float | None = None):
     """14 marks on a curved patch swaying in front of the two views. With ``lure``, view 1 also
     shows a dot 8 mm along view 0's ray through mark BAD (on the epipolar line of its view-0 dot:
     the rays meet), moving with it, and view 1's first frame is matched to it. Returns the
-    (virtual, real) tracks, the true uv (2, F, P, 2) and the IdentityCheck (or None)."""
+    (virtual, real) tracks, the true uv (2, F, P, 2) and the IdentityCheck (or None). With ``stale``,
+    every marker's frames-since count is set to it before the check (as for a twin the view checks
+    did not keep), and the counts after it are kept in ``check.ages``."""
     cams = _two_views()
     model = _layout()
     rng = np.random.default_rng(seed)
@@ -49,10 +51,10 @@ def _clip(lure: bool, recheck: bool, seed: int = 2):
         if f > 0:
             check_views(trackers, cams, 1.0, last3d, steps, since)
             if check is not None:
-                kept = since == 1  # the view checks kept these this frame (their count was reset)
-                check.step(trackers, images, cams, 1.0, last3d, steps)
-                check.fired_on_kept = getattr(check, "fired_on_kept", True) and all(
-                    kept[i] for k, i, _, _ in check.changes if k == f)
+                if stale is not None:
+                    since[:] = stale
+                check.step(trackers, images, cams, 1.0, last3d, steps, since=since)
+                check.ages = [*getattr(check, "ages", []), since.copy()]
     return [tr.tracks() for tr in trackers], uv, check
 
 
@@ -62,7 +64,6 @@ def test_a_contradicted_identity_is_rechecked_and_retracked_forward_and_backward
     assert np.all(err > 5.0) and wrong[1].visible[:, BAD].all(), "without it the lure is followed"
     tracks, uv, check = _clip(lure=True, recheck=True)
     assert [(k, i, vs) for k, i, vs, _ in check.changes] == [(3, BAD, (1,))], "fired once, 3 frames in"
-    assert check.fired_on_kept, "it fires on markers the view checks kept (so their age needs no reset)"
     tr = tracks[1]
     assert tr.visible[:, BAD].all(), "the frames before are re-tracked on the marker's own dot"
     err = np.linalg.norm(tr.uv[:, BAD] - uv[1, :, BAD], axis=1)
@@ -72,6 +73,16 @@ def test_a_contradicted_identity_is_rechecked_and_retracked_forward_and_backward
     for v in range(2):
         assert np.nanmax(np.linalg.norm(tracks[v].uv[:, others] - uv[v][:, others], axis=2)) < 0.5
 
+
+def test_a_retracked_markers_point_is_this_frames():
+    # The view checks reset the count of the markers they keep; a marker they did not keep (a twin
+    # resolved after them) still has an old one. The check re-tracks BAD 3 frames in and sets its
+    # last point: its count becomes 1, the others' stay as they were.
+    _, _, check = _clip(lure=True, recheck=True, stale=7.0)
+    assert [(k, i) for k, i, _, _ in check.changes] == [(3, BAD)]
+    ages = check.ages[2]  # frame 3 (the check runs from frame 1)
+    assert ages[BAD] == 1 and np.all(np.delete(ages, BAD) == 7)
+    assert all(np.all(a == 7) for k, a in enumerate(check.ages) if k != 2), "only where it fires"
 
 def test_a_right_clip_is_left_alone():
     plain, _, _ = _clip(lure=False, recheck=False)

@@ -66,7 +66,8 @@ class IdentityCheck:
         self.changes: list[tuple[int, int, tuple[int, ...], np.ndarray]] = []
 
     def step(self, trackers: list[MarkerTracker], views, cameras, max_gap: float,
-             last3d: np.ndarray | None = None, steps: StepLimit | None = None, names=None) -> np.ndarray:
+             last3d: np.ndarray | None = None, steps: StepLimit | None = None, names=None,
+             since: np.ndarray | None = None) -> np.ndarray:
         """Check the current frame; re-track the markers contradicted ``frames`` frames in a row.
 
         Parameters
@@ -84,6 +85,9 @@ class IdentityCheck:
             The 3-D step limits, for the walk back.
         names : sequence of str, optional
             Marker names, for the log.
+        since : (P,) float, optional
+            Frames since ``last3d`` (after this frame's view checks); a re-tracked marker's is set to 1,
+            as the view checks set a kept marker's.
 
         Returns
         -------
@@ -114,9 +118,11 @@ class IdentityCheck:
                 took[v, i] = True
             pt = _point(cameras, trackers[0]._out[-1][0][i], trackers[1]._out[-1][0][i])
             if last3d is not None and np.all(np.isfinite(pt)):
-                # its frames-since count needs no reset: the check fires only on markers seen in both
-                # views after this frame's view checks, which kept them and set their count already
                 last3d[i] = pt
+                if since is not None:
+                    # a marker the view checks did not keep (a twin they saw lost, resolved after them)
+                    # has an old count: its point is this frame's now
+                    since[i] = 1
             filled = walk_back(trackers, cameras, i, vs, k, max_gap, limits)[0]
             dropped = [_take_back_run(trackers[v], i, k - 1 - int(filled[v])) for v in range(2)]
             self.changes.append((k, int(i), vs, filled))

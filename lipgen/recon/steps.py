@@ -190,7 +190,7 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             resolve_twins(trackers, views, cameras, settings.tracker.dots.sigma / 1.7)
         changed = None
         if recheck is not None and t > 0:
-            changed = recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names)
+            changed = recheck.step(trackers, views, cameras, gap_limit.limit(), last3d, steps, names, since)
         if motion is not None and t > 0:
             motion.step(trackers, views, cameras, last3d, since, names, changed)
         if walks is not None:

@@ -92,6 +92,8 @@ def check_views(trackers: list[MarkerTracker], cameras, gap_limit: RayGapLimit |
     (uv0, st0, _), (uv1, st1, _) = trackers[0]._out[-1], trackers[1]._out[-1]
     both = (st0 != LOST) & (st1 != LOST)
     if not both.any():
+        if last3d is not None and since is not None:
+            since += 1  # no point is kept: every last point is a frame older
         return
     gap = np.full(len(both), np.nan)
     gap[both] = triangulate(cameras[1], uv1[both], cameras[0], uv0[both])[1]
