@@ -478,3 +478,16 @@ def test_read_only_work_is_refused_before_any_work(tmp_path, capsys, monkeypatch
                    str(tmp_path / "out")])
     assert status == 1 and "not writable" in capsys.readouterr().err
     assert list(ro.iterdir()) == [] and not (tmp_path / "out").exists()
+
+
+def test_existing_reconstruction_refused_from_python_too(tmp_path):
+    """run_tracking's own check (not only the command's): an existing LABEL.recon.npz needs force."""
+    from lipgen.experiments.tracking import run_tracking
+    from lipgen.experiments.tracking_inputs import TrackingSettings, check_inputs
+
+    s = TrackingSettings(preset="easy", seeds=(0,), frames=3, calib_frames=6)
+    (tmp_path / "easy_s0.recon.npz").write_bytes(b"old")
+    with pytest.raises(FileExistsError, match="easy_s0.recon.npz"):
+        run_tracking(s, tmp_path, progress=False)
+    assert (tmp_path / "easy_s0.recon.npz").read_bytes() == b"old"
+    assert [label for label, _, _ in check_inputs(s, tmp_path, force=True)] == ["easy_s0"]
