@@ -13,12 +13,12 @@ import importlib
 import logging
 import os
 import platform
-import subprocess
 import sys
 import time
 from importlib import metadata
 from pathlib import Path
 
+from lipgen._gitinfo import git_revision
 from lipgen._io import atomic_write_json
 
 __all__ = ["SUITE_MODULES", "available_suites", "machine_info", "run_benchmarks"]
@@ -64,16 +64,6 @@ def _cpu_model() -> str:
     return platform.processor() or "unknown"
 
 
-def _git_revision() -> str | None:
-    here = Path(__file__).resolve().parents[2]
-    try:
-        out = subprocess.run(["git", "-C", str(here), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=5, check=True)
-        return out.stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return None
-
-
 def machine_info() -> dict:
     """Machine, interpreter and package versions, recorded with every benchmark file."""
     versions = {}
@@ -91,7 +81,7 @@ def machine_info() -> dict:
         "cpu_count": os.cpu_count(),
         "python": sys.version.split()[0],
         "versions": versions,
-        "git_revision": _git_revision(),
+        "git_revision": git_revision(),
     }
 
 

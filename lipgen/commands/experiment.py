@@ -107,18 +107,20 @@ def add_parser(sub) -> None:
         "and score every sighting against the truth with lipgen evaluate's definitions. Or score existing "
         "datasets (--datasets). Reports per set and pooled: the accepted share of the visible sightings, "
         "the share within 3 px, the count over 3 px, RMS per view, tracking CPU per frame, issue 15's "
-        "targets (RMS <= 0.5 px, >= 97 % accepted, none > 3 px) met or not, and the mean and spread over "
-        "the sets. Writes tracking.md, tracking.json and tracking.png to --out.", 100),
+        "targets (RMS <= 0.5 px in each view, >= 97 % accepted, none > 3 px) met or not, and the mean "
+        "and spread over the sets. Writes tracking.md, tracking.json and tracking.png to --out.", 100),
         formatter_class=argparse.RawDescriptionHelpFormatter, epilog="examples:\n"
         "  lipgen experiment tracking --preset hard --seeds 41 42 43 --out renders/tracking_exp\n"
         "  lipgen experiment tracking --datasets data/hard_s7 data/hard_s8 --out renders/tracking_78\n"
-        "  lipgen experiment tracking --preset easy --seeds 0 1 --frames 8 --out /tmp/quick   (minutes)",
+        "  # a quick check (minutes):\n"
+        "  lipgen experiment tracking --preset easy --seeds 0 1 --frames 8 --out /tmp/quick",
     )
     tr.add_argument("--out", default="renders/tracking_exp",
                     help="output folder (default renders/tracking_exp)")
     tr.add_argument("--work", default=None,
-                    help="folder for the generated datasets and the reconstructions (default: WORK under "
-                    "--out)")
+                    help="folder for the generated datasets (reused by a later run with the same settings) "
+                    "and the reconstructions LABEL.recon.npz (replaced only with --force); its parent must "
+                    "exist (default: OUT/work)")
     src = tr.add_mutually_exclusive_group()
     src.add_argument("--seeds", type=int, nargs="+", default=None,
                      help="seeds of the generated sets (default 41 42 43)")
@@ -130,10 +132,15 @@ def add_parser(sub) -> None:
     tr.add_argument("--size", type=int, nargs=2, default=None, metavar=("W", "H"),
                     help="image size of the generated sets (default 640 480)")
     tr.add_argument("--calib-frames", type=int, default=None,
-                    help="chessboard frames of the generated sets (default: the preset's)")
+                    help="chessboard frames of the generated sets (default: the preset's; hard: 40, the "
+                    "last 30 of them lens frames). Given without --lens-frames it means no lens frames, "
+                    "as in lipgen generate")
+    tr.add_argument("--lens-frames", type=int, default=None,
+                    help="of --calib-frames, how many show the lens board (default: the preset's with no "
+                    "--calib-frames, else 0)")
     tr.add_argument("--note", default=None, help="a paragraph put under the report's title")
     tr.add_argument("--no-progress", action="store_true", help="no progress bars")
-    add_force(tr, "the report files in --out")
+    add_force(tr, "the report files in --out and the reconstructions in --work")
     tr.set_defaults(func=_tracking)
     n = exp.add_parser(
         "nrsfm",
@@ -271,28 +278,33 @@ def _nrsfm(args) -> int:
 
 
 def _tracking(args) -> int:
-    import os
     from pathlib import Path
 
-    from lipgen.experiments.tracking import TrackingSettings, check_inputs, run_tracking
+    from lipgen.experiments.tracking import run_tracking
+    from lipgen.experiments.tracking_inputs import DEFAULT_SEEDS, TrackingSettings, check_inputs, recon_file
     from lipgen.experiments.tracking_report import REPORT_FILES, write_tracking_report
 
     if args.datasets is not None:
         given = [f for f, v in (("--preset", args.preset), ("--frames", args.frames), ("--size", args.size),
-                                ("--calib-frames", args.calib_frames)) if v is not None]
+                                ("--calib-frames", args.calib_frames), ("--lens-frames", args.lens_frames))
+                 if v is not None]
         if given:
             raise ValueError(f"{', '.join(given)} describe generated sets; with --datasets the sets are "
                              "as they were made (drop them)")
-        settings = TrackingSettings(seeds=(), datasets=tuple(args.datasets))
+        settings = TrackingSettings(datasets=tuple(args.datasets))
     else:
         frames = 40 if args.frames is None else args.frames
         settings = TrackingSettings(preset=args.preset or "hard", frames=frames,
-                                    seeds=tuple(args.seeds or (41, 42, 43)),
+                                    seeds=tuple(args.seeds or DEFAULT_SEEDS),
                                     size=None if args.size is None else tuple(args.size),
-                                    calib_frames=args.calib_frames)
+                                    calib_frames=args.calib_frames, lens_frames=args.lens_frames)
     out = check_folder_output(args.out, args.force, REPORT_FILES)
-    work = Path(os.path.join(args.out, "work") if args.work is None else args.work)
-    check_inputs(settings, work)  # before any work: nothing is written on a bad input
-    result = run_tracking(settings, work, progress=not args.no_progress)
+    work = out / "work" if args.work is None else Path(args.work)
+    plan = check_inputs(settings, work, force=args.force)  # before any work: a refused run writes nothing
+    if args.work is not None or out.exists():  # else OUT/work is new inside a new OUT, checked above
+        recons = [recon_file(work, label).name for label, _, _ in plan]
+        check_folder_output(work, args.force, recons, "--work")
+    out.mkdir(exist_ok=True)
+    result = run_tracking(settings, work, progress=not args.no_progress, force=args.force, plan=plan)
     sys.stdout.write(f"wrote {write_tracking_report(result, out, args.note)}\n")
     return 0

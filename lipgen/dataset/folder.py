@@ -13,7 +13,7 @@ from lipgen._io import remove_stale_temporaries, stale_temporaries
 from lipgen.dataset.layout import validate_manifest
 from lipgen.errors import DatasetError
 
-__all__ = ["prepare_folder"]
+__all__ = ["prepare_folder", "manifest_differences", "SAME_DATASET_KEYS", "is_our_temporary"]
 
 log = logging.getLogger(__name__)
 
@@ -21,12 +21,26 @@ log = logging.getLogger(__name__)
 _SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks", "speech")
 
 
-def _is_our_temporary(p: Path) -> bool:
+def is_our_temporary(p: Path) -> bool:
     """A temporary manifest or mesh left by a killed first run (the folder is still ours to fill)."""
     for name in ("manifest.json", "mesh.npz"):
         if p.name.startswith(f".{name}.tmp-"):
             return p in stale_temporaries(p.parent / name)
     return False
+
+
+SAME_DATASET_KEYS = ("seed", "settings", "rig", "mesh", "frames", "calibration", "schema_version")
+"""The manifest entries two runs must share to write the same dataset."""
+
+
+def manifest_differences(old: dict, new: dict, keys=SAME_DATASET_KEYS) -> tuple[list[str], str]:
+    """The entries of ``keys`` in which manifests ``old`` and ``new`` differ, and a note naming the
+    differing settings with their old and new values ("" when the settings agree)."""
+    diffs = [k for k in keys if old.get(k) != new.get(k)]
+    was, now = old.get("settings", {}), new.get("settings", {})
+    detail = "; ".join(f"{k} was {was.get(k)!r}, now {now.get(k)!r}"
+                       for k in sorted(set(was) | set(now)) if was.get(k) != now.get(k) and k != "conditions")
+    return diffs, detail
 
 
 def _check_inside(out: Path) -> None:
@@ -45,7 +59,7 @@ def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """
     if out.exists() and not out.is_dir():
         raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
-    if out.is_dir() and any(not _is_our_temporary(p) for p in out.iterdir()):
+    if out.is_dir() and any(not is_our_temporary(p) for p in out.iterdir()):
         mf = out / "manifest.json"
         if not mf.is_file():
             raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
@@ -58,12 +72,8 @@ def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
         except (OSError, ValueError) as exc:
             raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
         validate_manifest(old, mf)
-        diffs = [k for k in ("seed", "settings", "rig", "mesh", "frames", "calibration", "schema_version")
-                 if old.get(k) != manifest.get(k)]
+        diffs, detail = manifest_differences(old, manifest)
         if diffs:
-            was, now = old.get("settings", {}), manifest["settings"]
-            detail = "; ".join(f"{k} was {was.get(k)!r}, now {now.get(k)!r}"
-                               for k in now if was.get(k) != now.get(k))
             raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
                                f"{': ' + detail if detail else ''}); resume only with the same settings, or "
                                "choose a new folder (nothing was overwritten)")

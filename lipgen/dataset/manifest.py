@@ -87,17 +87,25 @@ def build_manifest(s: GenerateSettings, rig: MirrorRig, mesh, actions: list[str]
     extra = {"mask_labels": mask_labels(mesh)} if s.masks else {}
     if subject is not None:
         extra["subject"] = subject
-    return extra | {
-        "format": FORMAT, "schema_version": SCHEMA, "lipgen_version": version, "units": "mm",
-        "convention": "opencv",
+    return extra | settings_entries(s, rig) | {
+        "format": FORMAT, "lipgen_version": version, "units": "mm", "convention": "opencv",
         "pixels": "pixel (0, 0) is the centre of the top-left pixel; uv = (column, row)",
-        "seed": s.seed, "fps": s.fps, "settings": s.to_dict(), "rig": rig.to_dict(), "views": list(VIEWS),
+        "fps": s.fps, "views": list(VIEWS),
         "mesh": {"file": "mesh.npz", "name": mesh.name, "topology_id": mesh.topology_id,
                  "resolution": s.subject_resolution, "n_nodes": mesh.n_nodes, "n_faces": mesh.n_faces,
                  "marker_names": list(mesh.marker_names), "regions": list(mesh.region_names)},
         "marks": list(mesh.marker_names) + ["nose"], "actions": list(actions),
-        "frames": [_frame_entry(s, i) for i in range(s.frames)],
         "truth": {"kind": FRAME_KIND, "schema": SCHEMA, "fields": TRUTH_FIELDS},
+    }
+
+
+def settings_entries(s: GenerateSettings, rig: MirrorRig) -> dict:
+    """The manifest entries that follow from the settings and the rig alone, without simulating
+    the subject: schema version, seed, settings, rig, frames and calibration (a cached dataset is
+    checked against them; :data:`lipgen.dataset.folder.SAME_DATASET_KEYS`)."""
+    return {
+        "schema_version": SCHEMA, "seed": s.seed, "settings": s.to_dict(), "rig": rig.to_dict(),
+        "frames": [_frame_entry(s, i) for i in range(s.frames)],
         "calibration": {
             "board": {"type": "chessboard", "inner_cols": s.board[0], "inner_rows": s.board[1],
                       "square": s.board[2], "margin_squares": 2,

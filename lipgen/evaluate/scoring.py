@@ -18,6 +18,7 @@ from collections import OrderedDict
 import numpy as np
 
 from lipgen.errors import DatasetError, TopologyMismatchError
+from lipgen.evaluate.error_stats import error_figures, share
 from lipgen.recon.calibrate import compare_to_truth
 from lipgen.recon.normalize import lip_subsets, normalize_markers
 from lipgen.recon.rest import measured_markers
@@ -100,22 +101,20 @@ def tracking_table(truth: dict, recon) -> dict:
 
     Against the true projections, where the truth says the dot is visible. Only accepted
     sightings (both views agree, not a pose outlier) count as tracked; RMS, 95th percentile and
-    > 3 px are over them. ``tracked_share`` is accepted / truly visible.
+    > 3 px are over them (:func:`~lipgen.evaluate.error_stats.error_figures`). ``tracked_share`` is
+    accepted / truly visible; it and ``wrong_over_3px_rate`` are NaN where their denominator is 0.
     """
     track = {}
     for view, e in sighting_errors(truth, recon).items():
         err, truly, got, ok, accepted = e["err"], e["truly"], e["got"], e["ok"], e["accepted"]
-        n_ok = int(ok.sum())
-        track[view] = {"rms_px": float(_rms(err[ok])),
+        n_ok, fig = int(ok.sum()), error_figures(err[ok])
+        track[view] = {"rms_px": fig["rms_px"], "p95_px": fig["p95_px"],
                        "per_mark_rms_px": _rms(np.where(ok, err, np.nan), 0).tolist(),
-                       "p95_px": float(np.percentile(err[ok], 95)) if ok.any() else float("nan"),
-                       "tracked_share": float(n_ok / max(truly.sum(), 1)),
-                       "accepted": n_ok, "rejected": int((truly & got & ~accepted).sum()),
-                       "lost": int((truly & ~got).sum()),
+                       "tracked_share": share(n_ok, int(truly.sum())), "accepted": n_ok,
+                       "rejected": int((truly & got & ~accepted).sum()), "lost": int((truly & ~got).sum()),
                        "rms_all_sightings_px": float(_rms(err[truly & got])),
                        "false_sightings": int((got & ~truly).sum()),
-                       "wrong_over_3px": int((err[ok] > 3).sum()),
-                       "wrong_over_3px_rate": float((err[ok] > 3).sum() / max(n_ok, 1))}
+                       "wrong_over_3px": fig["over_3px"], "wrong_over_3px_rate": share(fig["over_3px"], n_ok)}
     return track
 
 
