@@ -258,8 +258,8 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
 
 def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
                       cameras: tuple[PinholeCamera, PinholeCamera], max_gap: float,
-                      model_points=None, grow: bool = True, names=None, covariance=None
-                      ) -> tuple[list[np.ndarray], np.ndarray]:
+                      model_points=None, grow: bool = True, names=None, covariance=None,
+                      one_view: int | None = None) -> tuple[list[np.ndarray], np.ndarray]:
     """The first frame's matches checked between the views, against the 3-D layout, and grown.
 
     A marker matched in both views whose rays pass farther apart than ``max_gap`` is dropped in
@@ -284,6 +284,11 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         Marker names, for the log.
     covariance : (3P, 3P) float, optional
         The layout check's physics prior (:func:`~lipgen.recon.firstframe.check_layout`).
+    one_view : int or None
+        With ``model_points`` and ``grow``: when fewer than this many markers are left matched in
+        both views after the ray-gap check, the first frame is seeded from one view instead
+        (:func:`lipgen.recon.seedview.seed_from_one_view`, on the matches before the check), if
+        that gives more markers matched in both views. None: never.
 
     Returns
     -------
@@ -293,6 +298,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         The markers dropped for their ray gap.
     """
     inits = [np.array(u, dtype=float) for u in inits]
+    given = [u.copy() for u in inits]
     both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
     gap = np.full(len(both), np.nan)
     if both.any():
@@ -303,6 +309,16 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         inits[0][bad] = inits[1][bad] = np.nan
     if model_points is None:
         return inits, bad
+    if grow and one_view is not None and (both & ~bad).sum() < one_view:
+        from lipgen.recon.seedview import seed_from_one_view  # it imports this module
+
+        seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
+        paired = np.all(np.isfinite(seeded[0]), axis=1) & np.all(np.isfinite(seeded[1]), axis=1)
+        if view is not None and paired.sum() > (both & ~bad).sum():
+            log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
+                     "instead: %d", int((both & ~bad).sum()), VIEWS[view], int(paired.sum()))
+            held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)
+            inits, bad = seeded, bad & ~held     # a match kept is not a contradicted one
 
     def label(moved):
         return ", ".join(f"{VIEWS[v]} {i if names is None else names[i]}"

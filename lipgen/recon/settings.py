@@ -168,6 +168,11 @@ class ReconstructSettings:
         49.1 -> 47.0 %; tracking CPU 1.19x (``renders/examples/tracking/hard15p.md``).
         With ``shift_check`` and ``out_of_place_k`` (merged together): 16697 / 144, score 15257; on fresh
         held-out ``hard`` 41-46, main 6393 / 78 -> 6474 / 55 (``renders/examples/tracking/merge16.md``).
+    first_frame_one_view : int or None
+        With the calibrated cameras and the markers at rest: when fewer than this many markers are
+        left matched in both views of the first frame after the ray-gap check, the first frame is
+        seeded from the one view whose matches the other view's dots confirm
+        (:func:`lipgen.recon.seedview.seed_from_one_view`). None: off.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -196,11 +201,16 @@ class ReconstructSettings:
     shift_check: bool = True
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1
+    first_frame_one_view: int | None = None
 
     def __post_init__(self):
         age = self.identity_reference_age
         if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
             raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")
+        n = self.first_frame_one_view
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
+            raise ValueError(f"settings.first_frame_one_view must be None (off) or an integer >= 1 (markers "
+                             f"matched in both views), got {n!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):
