@@ -14,15 +14,18 @@ were accepted.
 
 One view's matches alone place the layout in 3-D, as a camera's pose is found from a known object
 (here the markers at rest): each marker lies on its ray, so :func:`place_on_rays` fits a rigid
-motion of the layout to the rays (orthogonal iteration, Lu, Hager and Mjolsness 2000, the scale
-kept at the layout's; trimmed). A registration on the wrong dots is not a turned lip layout: it is
-refused when the fit turns more than ``max_turn`` (as :func:`lipgen.recon.grow.place_layout_3d`
-does). The depth along the rays is the least known: the other view's dots that meet a marker's ray
-give its candidate points, and the offset from the placed layout that puts most markers near one
-of their candidates is voted (:func:`seed_from_one_view`). A marker then takes its nearest candidate
-when it is near and unambiguous; the markers so paired that agree on the layout
-(:func:`lipgen.recon.grow._consensus`) are the seeds the growth starts from. The view with more
-seeds is taken; the other keeps only the seeds' dots.
+motion of the layout to the rays (orthogonal iteration, Lu, Hager and Mjolsness 2000, with the
+translation solved in closed form for each rotation; the scale kept at the layout's; trimmed). A
+registration on the wrong dots is not a turned lip layout: it is refused when the fit turns more
+than ``max_turn`` (as :func:`lipgen.recon.grow.place_layout_3d` does). The depth along the rays is
+the least known: the other view's dots that meet a marker's ray give its candidate points, the
+offset from the placed layout that puts most markers near one of their candidates is voted
+(:func:`seed_from_one_view`), then the rigid motion of the layout to those candidates is fitted
+(twice). A marker then takes its nearest candidate when it is near and unambiguous; the markers so
+paired that agree on the layout
+(:func:`lipgen.recon.grow._consensus`) are the seeds the growth starts from. A view is taken when
+it gives more than twice the other view's seeds (lures that are real things, the teeth, can pair
+up too); the other view keeps only the seeds' dots.
 """
 
 from __future__ import annotations
@@ -76,14 +79,22 @@ def place_on_rays(camera: PinholeCamera, uv, model, iterations: int = 60, k: flo
     used = np.ones(len(X), dtype=bool)
     R, t = np.eye(3), np.zeros(3)       # the layout is given at rest in the cameras' frame
 
+    A = np.eye(3) - d[:, :, None] * d[:, None, :]     # (n, 3, 3): the part of a vector off each ray
+
     def off_ray(Y):
         return (Y - o) - d * np.sum((Y - o) * d, axis=1, keepdims=True)
 
+    def best_t(R, use):
+        """The translation that puts the turned layout nearest its rays (closed form, LHM eq. 20)."""
+        Au = A[use]
+        return np.linalg.solve(Au.sum(0), np.einsum("nij,nj->i", Au, o[use] - X[use] @ R.T))
+
     for _ in range(3):
+        t = best_t(R, used)
         for _ in range(iterations):
             Y = X @ R.T + t
-            T = _similarity_3d(X[used], (Y - off_ray(Y))[used], max_scale_change=0.0)
-            R, t = T[:3, :3], T[:3, 3]
+            R = _similarity_3d(X[used], (Y - off_ray(Y))[used], max_scale_change=0.0)[:3, :3]
+            t = best_t(R, used)
         dist = np.linalg.norm(off_ray(X @ R.T + t), axis=1)
         new = dist <= max(k * 1.4826 * float(np.median(dist[used])), floor)
         if new.sum() < 4 or np.array_equal(new, used):
@@ -137,6 +148,18 @@ def _seeds_from(a: int, out, dots, cameras, model, max_gap, near, ratio, max_tur
         if key > best_key:
             best, best_key = h, key
     pred = placed + best
+    for _ in range(2):           # then the rigid motion that fits the layout to the nearest candidates
+        near_X = np.full((P, 3), np.nan)
+        for i, (X, _) in cand.items():
+            if len(X):
+                j = int(np.linalg.norm(X - pred[i], axis=1).argmin())
+                if np.linalg.norm(X[j] - pred[i]) <= tol:
+                    near_X[i] = X[j]
+        hit = np.all(np.isfinite(near_X), axis=1)
+        if hit.sum() < 4:
+            break
+        T = _similarity_3d(model[hit], near_X[hit], max_scale_change=0.0)
+        pred = np.where(m[:, None], model @ T[:3, :3].T + T[:3, 3], np.nan)
     X3 = np.full((P, 3), np.nan)
     for i, (X, idx) in cand.items():
         if len(X) == 0:
@@ -160,7 +183,7 @@ def _seeds_from(a: int, out, dots, cameras, model, max_gap, near, ratio, max_tur
 
 def seed_from_one_view(inits, dots, cameras: tuple[PinholeCamera, PinholeCamera], model_points,
                        max_gap: float, min_seeds: int = 3, near: float = 0.8, ratio: float = 0.6,
-                       max_turn: float = 15.0, reach: float = 10.0, tol: float = 0.4
+                       max_turn: float = 15.0, reach: float = 40.0, tol: float = 0.4
                        ) -> tuple[list[np.ndarray], int | None]:
     """Seed the first frame from the view whose matches the other view's dots confirm best.
 
@@ -192,7 +215,8 @@ def seed_from_one_view(inits, dots, cameras: tuple[PinholeCamera, PinholeCamera]
     -------
     inits : (virtual, real) (P, 2) float
         Copies: the taken view keeps all its matches, the other only the seeds' dots (the seeds
-        are matched in both views). Unchanged when no view gives ``min_seeds`` seeds.
+        are matched in both views). Unchanged when no view gives ``min_seeds`` seeds and more
+        than twice the other view's.
     view : int or None
         The view taken (0 virtual, 1 real), None when none.
     """
@@ -207,9 +231,9 @@ def seed_from_one_view(inits, dots, cameras: tuple[PinholeCamera, PinholeCamera]
     found = [_seeds_from(a, out, dv, cameras, model, max_gap, near * width, ratio, max_turn, reach,
                          tol * width) for a in range(2)]
     n = [int(s.sum()) for s, _ in found]
-    if max(n) < min_seeds or n[0] == n[1]:     # nothing to go on, or no view preferred
-        return out, None
     a = int(np.argmax(n))
+    if n[a] < min_seeds or n[a] <= 2 * n[1 - a]:   # nothing to go on, or no view clearly preferred
+        return out, None
     seeds, got = found[a]
     other = np.full_like(out[1 - a], np.nan)
     other[seeds] = dv[1 - a][got[seeds]]
