@@ -43,8 +43,9 @@ import logging
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.firstframe import check_layout, checked_matches, triangulate_matched
+from lipgen.recon.firstframe import _consensus, check_layout, checked_matches, triangulate_matched
 from lipgen.recon.pointreg import layout_spacing
+from lipgen.recon.seedview import seed_from_one_view
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import PinholeCamera, triangulate
@@ -108,42 +109,6 @@ def _ray_distance(camera: PinholeCamera, uv: np.ndarray, X: np.ndarray) -> float
     o, d = o[0], d[0] / np.linalg.norm(d[0])
     w = X - o
     return float(np.linalg.norm(w - (w @ d) * d))
-
-
-def _consensus(model: np.ndarray, X: np.ndarray, seeds: np.ndarray, tol: float, share: float = 0.1
-               ) -> np.ndarray:
-    """The largest set of seeds whose mutual distances are the layout's (a compatibility clique).
-
-    Seeds ``i`` and ``j`` are compatible when their points' distance differs from their layout
-    distance by at most ``tol + share * layout distance`` mm (the subject's own lip shape, its
-    scale). A wrong pair both views matched sits along a ray, away from where its neighbours put
-    it; the largest clique of compatible seeds (ties: the smallest summed misfit) is kept.
-    Returns (P,) bool.
-    """
-    idx = np.flatnonzero(seeds)
-    n = len(idx)
-    dm = np.linalg.norm(model[idx][:, None] - model[idx][None], axis=2)
-    dx = np.linalg.norm(X[idx][:, None] - X[idx][None], axis=2)
-    misfit = np.abs(dx - dm)
-    ok = misfit <= tol + share * dm
-    best, best_key = np.zeros(1, dtype=np.int64), (1, 0.0)
-
-    def extend(clique: list[int], cand: list[int]) -> None:
-        nonlocal best, best_key
-        if len(clique) + len(cand) < best_key[0]:
-            return
-        if not cand:
-            key = (len(clique), -float(misfit[np.ix_(clique, clique)].sum()))
-            if key > best_key:
-                best, best_key = np.array(clique), key
-            return
-        for k, c in enumerate(cand):
-            extend(clique + [c], [d for d in cand[k + 1:] if ok[c, d]])
-
-    extend([], list(range(n)))
-    out = np.zeros_like(seeds)
-    out[idx[best]] = True
-    return out
 
 
 def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
@@ -310,8 +275,6 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     if model_points is None:
         return inits, bad
     if grow and one_view is not None and (both & ~bad).sum() < one_view:
-        from lipgen.recon.seedview import seed_from_one_view  # it imports this module
-
         seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
         paired = np.all(np.isfinite(seeded[0]), axis=1) & np.all(np.isfinite(seeded[1]), axis=1)
         if view is not None and paired.sum() > (both & ~bad).sum():

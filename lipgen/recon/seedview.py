@@ -23,7 +23,7 @@ offset from the placed layout that puts most markers near one of their candidate
 (:func:`seed_from_one_view`), then the rigid motion of the layout to those candidates is fitted
 (twice). A marker then takes its nearest candidate when it is near and unambiguous; the markers so
 paired that agree on the layout
-(:func:`lipgen.recon.grow._consensus`) are the seeds the growth starts from. A view is taken when
+(:func:`lipgen.recon.firstframe._consensus`) are the seeds the growth starts from. A view is taken when
 it gives more than twice the other view's seeds (lures that are real things, the teeth, can pair
 up too); the other view keeps only the seeds' dots.
 """
@@ -33,8 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.firstframe import checked_matches
-from lipgen.recon.grow import _consensus
+from lipgen.recon.firstframe import _consensus, checked_matches
 from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.stereo_init import _similarity_3d
 from lipgen.rig.pinhole import PinholeCamera, triangulate
