@@ -114,3 +114,32 @@ def test_the_setting_is_checked_and_reaches_the_first_frame(monkeypatch):
         steps.track_raw_frames(iter(raws), layout, expected, ReconstructSettings(first_frame_one_view=n),
                                cameras=cams, rest_points=X)
     assert seen == [None, 6]
+
+
+def test_a_seeding_that_moves_a_pair_whose_rays_met_is_not_taken():
+    from lipgen.recon.seedview import moves_pairs
+
+    u = [np.array([[0.0, 0.0], [10.0, 0.0], [np.nan, np.nan]]),
+         np.array([[1.0, 1.0], [11.0, 1.0], [20.0, 1.0]])]
+    pairs = np.array([True, True, False])
+    assert not moves_pairs(u, u, pairs)
+    same_plus = [np.array([[0.0, 0.0], [np.nan, np.nan], [30.0, 0.0]]), u[1]]
+    assert not moves_pairs(same_plus, u, pairs), "a pair left unmatched or a new marker moves nothing"
+    moved = [np.array([[0.0, 0.0], [12.0, 0.0], [np.nan, np.nan]]), u[1]]
+    assert moves_pairs(moved, u, pairs), "marker 1 on another dot"
+    given = [np.array([[0.0, 0.0], [np.nan, np.nan], [10.0, 0.0]]), u[1]]
+    assert moves_pairs(given, u, pairs), "marker 1's dot given to marker 2"
+    # In the first frame: view 0 registered on lures, but one wrong pair's rays met (a lure on the
+    # epipolar line of view 1's dot). The seeding from view 1 would move it: it is not taken.
+    cams, model, uv, dots, inits = _failed_registration(0)
+    k = 5
+    o, d = cams[1].rays(uv[1][k][None])  # on view 1's ray of marker k's dot, 4 mm nearer the camera
+    t = np.linalg.norm(_subject(0)[1][k] - o[0]) - 4.0
+    lure = cams[0].project((o[0] + t * d[0] / np.linalg.norm(d[0]))[None])[0]
+    inits[0][k] = lure
+    dots[0] = np.vstack([dots[0], lure[None]])
+    base = check_first_frame(inits, dots, cams, 0.5, model)
+    assert np.isfinite(base[0][0][k]).all(), "the lure's pair survives the ray-gap check"
+    out, _ = check_first_frame(inits, dots, cams, 0.5, model, one_view=3)
+    for v in range(2):
+        np.testing.assert_array_equal(out[v], base[0][v])

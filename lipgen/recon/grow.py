@@ -45,7 +45,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.firstframe import _consensus, check_layout, checked_matches, triangulate_matched
 from lipgen.recon.pointreg import layout_spacing
-from lipgen.recon.seedview import seed_from_one_view
+from lipgen.recon.seedview import moves_pairs, seed_from_one_view
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import PinholeCamera, triangulate
@@ -253,7 +253,8 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         With ``model_points`` and ``grow``: when fewer than this many markers are left matched in
         both views after the ray-gap check, the first frame is seeded from one view instead
         (:func:`lipgen.recon.seedview.seed_from_one_view`, on the matches before the check), if
-        that gives more markers matched in both views. None: never.
+        that gives more markers matched in both views and leaves the pairs the views agree on
+        where they are (:func:`lipgen.recon.seedview.moves_pairs`). None: never.
 
     Returns
     -------
@@ -277,7 +278,8 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     if grow and one_view is not None and (both & ~bad).sum() < one_view:
         seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
         paired = np.all(np.isfinite(seeded[0]), axis=1) & np.all(np.isfinite(seeded[1]), axis=1)
-        if view is not None and paired.sum() > (both & ~bad).sum():
+        if view is not None and paired.sum() > (both & ~bad).sum() \
+                and not moves_pairs(seeded, inits, both & ~bad):
             log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
                      "instead: %d", int((both & ~bad).sum()), VIEWS[view], int(paired.sum()))
             held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)

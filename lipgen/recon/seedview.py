@@ -25,7 +25,9 @@ offset from the placed layout that puts most markers near one of their candidate
 paired that agree on the layout
 (:func:`lipgen.recon.firstframe._consensus`) are the seeds the growth starts from. A view is taken when
 it gives more than twice the other view's seeds (lures that are real things, the teeth, can pair
-up too); the other view keeps only the seeds' dots.
+up too); the other view keeps only the seeds' dots. The seeding is not taken where it moves a pair
+whose rays met (:func:`moves_pairs`): on ``hard`` 7 the mirror's seeds put ``bow_peak_right`` and
+``bow_dip`` on their neighbours' dots in the direct view, one of them against a right pair.
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.stereo_init import _similarity_3d
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["place_on_rays", "seed_from_one_view"]
+__all__ = ["place_on_rays", "seed_from_one_view", "moves_pairs"]
 
 
 def place_on_rays(camera: PinholeCamera, uv, model, iterations: int = 60, k: float = 3.0,
@@ -238,3 +240,34 @@ def seed_from_one_view(inits, dots, cameras: tuple[PinholeCamera, PinholeCamera]
     other[seeds] = dv[1 - a][got[seeds]]
     out[1 - a] = other
     return out, a
+
+
+def moves_pairs(seeded, inits, pairs, tol: float = 0.5) -> bool:
+    """Whether a seeding moves a pair the two views agree on.
+
+    Parameters
+    ----------
+    seeded, inits : (virtual, real) (P, 2) float
+        The seeding's matches and the matches left after the ray-gap check.
+    pairs : (P,) bool
+        The markers matched in both views of ``inits`` (their rays met).
+    tol : float
+        Pixels within which two dots are one.
+
+    Returns
+    -------
+    bool
+        True when, in some view, the seeding matches such a marker to another dot, or gives its
+        dot to another marker.
+    """
+    for v in range(2):
+        s, u = np.asarray(seeded[v], dtype=float), np.asarray(inits[v], dtype=float)
+        for i in np.flatnonzero(pairs):
+            d = np.linalg.norm(s - u[i], axis=1)
+            d[~np.isfinite(d)] = np.inf
+            if np.all(np.isfinite(s[i])) and d[i] > tol:
+                return True
+            d[i] = np.inf
+            if (d <= tol).any():
+                return True
+    return False
