@@ -143,3 +143,46 @@ def test_a_seeding_that_moves_a_pair_whose_rays_met_is_not_taken():
     out, _ = check_first_frame(inits, dots, cams, 0.5, model, one_view=3)
     for v in range(2):
         np.testing.assert_array_equal(out[v], base[0][v])
+
+
+def test_seeds_the_growth_cannot_extend_are_not_taken():
+    """``hard`` 48: the direct view matched right, the mirror's markers' dots were not found, and 3
+    lures met the direct view's rays where a layout moved in depth puts 3 markers. The 3 wrong
+    seeds grew to nothing; right seeds grow (the test above: all 17)."""
+    cams = _two_views()
+    model, truth = _subject(0)
+    uv = _views(truth, cams)
+    o, d = cams[1].rays(uv[1])
+    d = d / np.linalg.norm(d, axis=1, keepdims=True)
+    k = [0, 1, 7]
+    lures = cams[0].project(truth[k] + 8.0 * d[k])   # on view 1's rays, 8 mm deeper
+    dots = [lures, uv[1].copy()]
+    inits = [np.full_like(uv[0], np.nan), uv[1].copy()]
+    seeded, view = seed_from_one_view(inits, dots, cams, model, 0.5)
+    assert view == 1 and np.flatnonzero(np.isfinite(seeded[0][:, 0])).tolist() == k, "3 seeds, all wrong"
+    base = check_first_frame(inits, dots, cams, 0.5, model)
+    assert np.isnan(base[0][0]).all()
+    # Taken when 3 pairs after the growth are enough (the seeding as it was before the mend) ...
+    out, _ = check_first_frame(inits, dots, cams, 0.5, model, one_view=3, confirm=3)
+    np.testing.assert_allclose(out[0][k], lures, atol=1e-9)
+    # ... refused at the default: the result is main's to the bit.
+    for n in (3, 18):
+        out, bad = check_first_frame(inits, dots, cams, 0.5, model, one_view=n)
+        np.testing.assert_array_equal(bad, base[1])
+        for v in range(2):
+            np.testing.assert_array_equal(out[v], base[0][v])
+
+
+def test_a_seeding_that_grows_no_further_than_the_pairs_left_is_not_taken():
+    """4 right pairs left: main's growth reaches every marker, the seeding (one_view=18 acts) reaches
+    no more, so main's result stands to the bit."""
+    cams, model, uv, dots, inits = _failed_registration(0)
+    right = [0, 3, 7, 10]
+    inits[0][right] = uv[0][right]
+    base = check_first_frame(inits, dots, cams, 0.5, model)
+    assert np.all(np.isfinite(base[0][0])) and np.all(np.isfinite(base[0][1]))
+    assert seed_from_one_view(inits, dots, cams, model, 0.5)[1] is not None, "the seeding has a view"
+    out, bad = check_first_frame(inits, dots, cams, 0.5, model, one_view=18)
+    np.testing.assert_array_equal(bad, base[1])
+    for v in range(2):
+        np.testing.assert_array_equal(out[v], base[0][v])

@@ -224,7 +224,7 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
 def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
                       cameras: tuple[PinholeCamera, PinholeCamera], max_gap: float,
                       model_points=None, grow: bool = True, names=None, covariance=None,
-                      one_view: int | None = None) -> tuple[list[np.ndarray], np.ndarray]:
+                      one_view: int | None = None, confirm: int = 6) -> tuple[list[np.ndarray], np.ndarray]:
     """The first frame's matches checked between the views, against the 3-D layout, and grown.
 
     A marker matched in both views whose rays pass farther apart than ``max_gap`` is dropped in
@@ -255,6 +255,12 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         (:func:`lipgen.recon.seedview.seed_from_one_view`, on the matches before the check), if
         that gives more markers matched in both views and leaves the pairs the views agree on
         where they are (:func:`lipgen.recon.seedview.moves_pairs`). None: never.
+    confirm : int
+        The seeding is taken only when, after the layout check and the growth, it leaves at least
+        this many markers matched in both views, and more than the matches from the ray-gap check
+        leave after the same steps. Right seeds place the layout where the other markers' dots are
+        and the growth finds them; seeds on wrong dots find none (``hard`` 48: 3 wrong seeds grew
+        to 3 pairs, ``hard`` 47: 3 right seeds grew to 8).
 
     Returns
     -------
@@ -277,14 +283,32 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         return inits, bad
     if grow and one_view is not None and (both & ~bad).sum() < one_view:
         seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
-        paired = np.all(np.isfinite(seeded[0]), axis=1) & np.all(np.isfinite(seeded[1]), axis=1)
+        paired = _paired(seeded)
         if view is not None and paired.sum() > (both & ~bad).sum() \
                 and not moves_pairs(seeded, inits, both & ~bad):
-            log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
-                     "instead: %d", int((both & ~bad).sum()), VIEWS[view], int(paired.sum()))
+            kept = _settle(inits, dots, cameras, model_points, max_gap, covariance, names)
             held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)
-            inits, bad = seeded, bad & ~held     # a match kept is not a contradicted one
+            tried = _settle(seeded, dots, cameras, model_points, max_gap, covariance, names)
+            n_kept, n_tried = int(_paired(kept).sum()), int(_paired(tried).sum())
+            if n_tried >= confirm and n_tried > n_kept:
+                log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
+                         "instead: %d, grown to %d (against %d)", int((both & ~bad).sum()), VIEWS[view],
+                         int(paired.sum()), n_tried, n_kept)
+                return tried, bad & ~held     # a match kept is not a contradicted one
+            log.info("first frame: the seeding from the %s view not taken: it grew to %d marker(s) matched "
+                     "in both views (needs %d and more than %d)", VIEWS[view], n_tried, confirm, n_kept)
+            return kept, bad
+    return _settle(inits, dots, cameras, model_points, max_gap, covariance, names, grow), bad
 
+
+def _paired(inits) -> np.ndarray:
+    """(P,) bool: the markers matched in both views."""
+    return np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
+
+
+def _settle(inits, dots, cameras, model_points, max_gap, covariance, names, grow: bool = True
+            ) -> list[np.ndarray]:
+    """The matches checked against the 3-D layout and, with ``grow``, grown and checked again."""
     def label(moved):
         return ", ".join(f"{VIEWS[v]} {i if names is None else names[i]}"
                          for v, i in zip(*np.nonzero(moved), strict=True))
@@ -302,4 +326,4 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
             if moved.any():
                 log.info("first frame: %d grown match(es) out of place changed or dropped (%s)",
                          int(moved.sum()), label(moved))
-    return inits, bad
+    return inits
