@@ -184,7 +184,8 @@ class ReconstructSettings:
         taken only when, after the layout check and the growth, it leaves at least 6 markers matched in
         both views and more than main's path (``check_first_frame(confirm=)``): on ``hard`` 48 its 3
         wrong seeds grew to 3. 18 chosen on 24 development sets (the 17, ``hard`` 35, 47-52; rule fixed
-        before the runs): 18441 against None's 15163, no set's over-3-px count up
+        before the runs): 18441 against None's 15163, no set's over-3-px count up; held out (``hard``
+        53-58, once) the tracks equal None's to the bit, the seeding taken nowhere
         (``renders/examples/tracking/hard17b.md``).
     """
 
