@@ -228,6 +228,42 @@ def check_layout(inits: list[np.ndarray], dots: list[np.ndarray],
     return out, changed
 
 
+def _consensus(model: np.ndarray, X: np.ndarray, seeds: np.ndarray, tol: float, share: float = 0.1
+               ) -> np.ndarray:
+    """The largest set of seeds whose mutual distances are the layout's (a compatibility clique).
+
+    Seeds ``i`` and ``j`` are compatible when their points' distance differs from their layout
+    distance by at most ``tol + share * layout distance`` mm (the subject's own lip shape, its
+    scale). A wrong pair both views matched sits along a ray, away from where its neighbours put
+    it; the largest clique of compatible seeds (ties: the smallest summed misfit) is kept.
+    Returns (P,) bool.
+    """
+    idx = np.flatnonzero(seeds)
+    n = len(idx)
+    dm = np.linalg.norm(model[idx][:, None] - model[idx][None], axis=2)
+    dx = np.linalg.norm(X[idx][:, None] - X[idx][None], axis=2)
+    misfit = np.abs(dx - dm)
+    ok = misfit <= tol + share * dm
+    best, best_key = np.zeros(1, dtype=np.int64), (1, 0.0)
+
+    def extend(clique: list[int], cand: list[int]) -> None:
+        nonlocal best, best_key
+        if len(clique) + len(cand) < best_key[0]:
+            return
+        if not cand:
+            key = (len(clique), -float(misfit[np.ix_(clique, clique)].sum()))
+            if key > best_key:
+                best, best_key = np.array(clique), key
+            return
+        for k, c in enumerate(cand):
+            extend(clique + [c], [d for d in cand[k + 1:] if ok[c, d]])
+
+    extend([], list(range(n)))
+    out = np.zeros_like(seeds)
+    out[idx[best]] = True
+    return out
+
+
 def checked_matches(model_points, inits) -> tuple[np.ndarray, list[np.ndarray]]:
     """The rest layout and a copy of each view's first-frame matches, checked.
 

@@ -43,8 +43,9 @@ import logging
 import numpy as np
 
 from lipgen._validate import as_float_array
-from lipgen.recon.firstframe import check_layout, checked_matches, triangulate_matched
+from lipgen.recon.firstframe import _consensus, check_layout, checked_matches, triangulate_matched
 from lipgen.recon.pointreg import layout_spacing
+from lipgen.recon.seedview import moves_pairs, seed_from_one_view
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import PinholeCamera, triangulate
@@ -108,42 +109,6 @@ def _ray_distance(camera: PinholeCamera, uv: np.ndarray, X: np.ndarray) -> float
     o, d = o[0], d[0] / np.linalg.norm(d[0])
     w = X - o
     return float(np.linalg.norm(w - (w @ d) * d))
-
-
-def _consensus(model: np.ndarray, X: np.ndarray, seeds: np.ndarray, tol: float, share: float = 0.1
-               ) -> np.ndarray:
-    """The largest set of seeds whose mutual distances are the layout's (a compatibility clique).
-
-    Seeds ``i`` and ``j`` are compatible when their points' distance differs from their layout
-    distance by at most ``tol + share * layout distance`` mm (the subject's own lip shape, its
-    scale). A wrong pair both views matched sits along a ray, away from where its neighbours put
-    it; the largest clique of compatible seeds (ties: the smallest summed misfit) is kept.
-    Returns (P,) bool.
-    """
-    idx = np.flatnonzero(seeds)
-    n = len(idx)
-    dm = np.linalg.norm(model[idx][:, None] - model[idx][None], axis=2)
-    dx = np.linalg.norm(X[idx][:, None] - X[idx][None], axis=2)
-    misfit = np.abs(dx - dm)
-    ok = misfit <= tol + share * dm
-    best, best_key = np.zeros(1, dtype=np.int64), (1, 0.0)
-
-    def extend(clique: list[int], cand: list[int]) -> None:
-        nonlocal best, best_key
-        if len(clique) + len(cand) < best_key[0]:
-            return
-        if not cand:
-            key = (len(clique), -float(misfit[np.ix_(clique, clique)].sum()))
-            if key > best_key:
-                best, best_key = np.array(clique), key
-            return
-        for k, c in enumerate(cand):
-            extend(clique + [c], [d for d in cand[k + 1:] if ok[c, d]])
-
-    extend([], list(range(n)))
-    out = np.zeros_like(seeds)
-    out[idx[best]] = True
-    return out
 
 
 def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
@@ -258,8 +223,8 @@ def grow_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
 
 def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
                       cameras: tuple[PinholeCamera, PinholeCamera], max_gap: float,
-                      model_points=None, grow: bool = True, names=None, covariance=None
-                      ) -> tuple[list[np.ndarray], np.ndarray]:
+                      model_points=None, grow: bool = True, names=None, covariance=None,
+                      one_view: int | None = None, confirm: int = 6) -> tuple[list[np.ndarray], np.ndarray]:
     """The first frame's matches checked between the views, against the 3-D layout, and grown.
 
     A marker matched in both views whose rays pass farther apart than ``max_gap`` is dropped in
@@ -284,6 +249,18 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         Marker names, for the log.
     covariance : (3P, 3P) float, optional
         The layout check's physics prior (:func:`~lipgen.recon.firstframe.check_layout`).
+    one_view : int or None
+        With ``model_points`` and ``grow``: when fewer than this many markers are left matched in
+        both views after the ray-gap check, the first frame is seeded from one view instead
+        (:func:`lipgen.recon.seedview.seed_from_one_view`, on the matches before the check), if
+        that gives more markers matched in both views and leaves the pairs the views agree on
+        where they are (:func:`lipgen.recon.seedview.moves_pairs`). None: never.
+    confirm : int
+        The seeding is taken only when, after the layout check and the growth, it leaves at least
+        this many markers matched in both views, and more than the matches from the ray-gap check
+        leave after the same steps. Right seeds place the layout where the other markers' dots are
+        and the growth finds them; seeds on wrong dots find none (``hard`` 48: 3 wrong seeds grew
+        to 3 pairs, ``hard`` 47: 3 right seeds grew to 8).
 
     Returns
     -------
@@ -293,6 +270,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         The markers dropped for their ray gap.
     """
     inits = [np.array(u, dtype=float) for u in inits]
+    given = [u.copy() for u in inits]
     both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
     gap = np.full(len(both), np.nan)
     if both.any():
@@ -303,7 +281,34 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         inits[0][bad] = inits[1][bad] = np.nan
     if model_points is None:
         return inits, bad
+    if grow and one_view is not None and (both & ~bad).sum() < one_view:
+        seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
+        paired = _paired(seeded)
+        if view is not None and paired.sum() > (both & ~bad).sum() \
+                and not moves_pairs(seeded, inits, both & ~bad):
+            kept = _settle(inits, dots, cameras, model_points, max_gap, covariance, names)
+            held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)
+            tried = _settle(seeded, dots, cameras, model_points, max_gap, covariance, names)
+            n_kept, n_tried = int(_paired(kept).sum()), int(_paired(tried).sum())
+            if n_tried >= confirm and n_tried > n_kept:
+                log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
+                         "instead: %d, grown to %d (against %d)", int((both & ~bad).sum()), VIEWS[view],
+                         int(paired.sum()), n_tried, n_kept)
+                return tried, bad & ~held     # a match kept is not a contradicted one
+            log.info("first frame: the seeding from the %s view not taken: it grew to %d marker(s) matched "
+                     "in both views (needs %d and more than %d)", VIEWS[view], n_tried, confirm, n_kept)
+            return kept, bad
+    return _settle(inits, dots, cameras, model_points, max_gap, covariance, names, grow), bad
 
+
+def _paired(inits) -> np.ndarray:
+    """(P,) bool: the markers matched in both views."""
+    return np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
+
+
+def _settle(inits, dots, cameras, model_points, max_gap, covariance, names, grow: bool = True
+            ) -> list[np.ndarray]:
+    """The matches checked against the 3-D layout and, with ``grow``, grown and checked again."""
     def label(moved):
         return ", ".join(f"{VIEWS[v]} {i if names is None else names[i]}"
                          for v, i in zip(*np.nonzero(moved), strict=True))
@@ -321,4 +326,4 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
             if moved.any():
                 log.info("first frame: %d grown match(es) out of place changed or dropped (%s)",
                          int(moved.sum()), label(moved))
-    return inits, bad
+    return inits

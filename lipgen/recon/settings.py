@@ -168,6 +168,25 @@ class ReconstructSettings:
         49.1 -> 47.0 %; tracking CPU 1.19x (``renders/examples/tracking/hard15p.md``).
         With ``shift_check`` and ``out_of_place_k`` (merged together): 16697 / 144, score 15257; on fresh
         held-out ``hard`` 41-46, main 6393 / 78 -> 6474 / 55 (``renders/examples/tracking/merge16.md``).
+    first_frame_one_view : int or None
+        With the calibrated cameras and the markers at rest: when fewer than this many markers are
+        left matched in both views of the first frame after the ray-gap check, the first frame is
+        seeded from the one view whose matches the other view's dots confirm
+        (:func:`lipgen.recon.seedview.seed_from_one_view`). None: off (main's behaviour). 18 (more
+        than the 17 markers: whenever the seeding gives more pairs and moves none that met) was chosen
+        on the 17 validation sets (``hard`` 7-10, 21, 22, 25-34, ``default`` 8; within 3 px - 10 x over 3 px,
+        the rule fixed before the runs, amended once): 15516 against None's 15257 (within 16697 ->
+        16926, over 3 px 144 -> 141); ``hard`` 27 35.3 -> 44.7 %, 32 87.5 -> 92.5 %, 10 78.6 ->
+        80.8 % accepted, the other 14 sets' tracks bit-identical; the diagnosis set ``hard`` 35 6.5 ->
+        75.8 % accepted, 17 -> 0 over 3 px (``renders/examples/tracking/hard17_seed35.md``). Held out
+        (``hard`` 47-52, once): score 5 -> 1781 (``hard`` 47 23.8 -> 69.1 %), but over 3 px ``hard`` 48
+        68 -> 92 and 49 128 -> 139: it failed the held-out condition. Since ``hard17b`` the seeding is
+        taken only when, after the layout check and the growth, it leaves at least 6 markers matched in
+        both views and more than main's path (``check_first_frame(confirm=)``): on ``hard`` 48 its 3
+        wrong seeds grew to 3. 18 chosen on 24 development sets (the 17, ``hard`` 35, 47-52; rule fixed
+        before the runs): 18441 against None's 15163, no set's over-3-px count up; held out (``hard``
+        53-58, once) the tracks equal None's to the bit, the seeding taken nowhere
+        (``renders/examples/tracking/hard17b.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -196,11 +215,16 @@ class ReconstructSettings:
     shift_check: bool = True
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1
+    first_frame_one_view: int | None = 18
 
     def __post_init__(self):
         age = self.identity_reference_age
         if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
             raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")
+        n = self.first_frame_one_view
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
+            raise ValueError(f"settings.first_frame_one_view must be None (off) or an integer >= 1 (markers "
+                             f"matched in both views), got {n!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):

@@ -157,7 +157,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
             if cameras is not None:
                 inits, bad = check_first_frame(inits, found, cameras, settings.max_ray_gap,
                                                rest_points if settings.first_frame_layout else None,
-                                               settings.first_frame_grow, names, layout_covariance)
+                                               settings.first_frame_grow, names, layout_covariance,
+                                               settings.first_frame_one_view)
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))
