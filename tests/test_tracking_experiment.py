@@ -15,6 +15,7 @@ import pytest
 
 from lipgen._gitinfo import code_version
 from lipgen.cli import main
+from lipgen.errors import DatasetError
 from lipgen.experiments.tracking import TARGETS, pooled_figures, spread, targets_met
 
 pytestmark = pytest.mark.render
@@ -491,3 +492,37 @@ def test_existing_reconstruction_refused_from_python_too(tmp_path):
         run_tracking(s, tmp_path, progress=False)
     assert (tmp_path / "easy_s0.recon.npz").read_bytes() == b"old"
     assert [label for label, _, _ in check_inputs(s, tmp_path, force=True)] == ["easy_s0"]
+
+
+def test_a_set_that_cannot_be_reconstructed_is_reported_not_fatal(run, monkeypatch):
+    """``hard`` 56 (a collapse: the nose never seen in both views) stopped the whole run with
+    reconstruct's error after the sets before it; now it is reported, its visible sightings count
+    as not accepted, and the other sets are scored as before."""
+    import lipgen.recon.pipeline as pipeline
+
+    root, first = run
+    work = root / "out" / "work"
+    real = pipeline.reconstruct_dataset
+
+    def fails_on_s1(path, *a, **kw):
+        if Path(path).name == "easy_s1":
+            raise DatasetError(f"{path}: the nose mark was never seen in both views; cannot normalise")
+        return real(path, *a, **kw)
+
+    monkeypatch.setattr(pipeline, "reconstruct_dataset", fails_on_s1)
+    out = root / "out_failed"
+    assert main(["experiment", "tracking", "--datasets", str(work / "easy_s0"), str(work / "easy_s1"),
+                 "--work", str(root / "work_failed"), "--out", str(out), "--no-progress"]) == 0
+    got = json.loads((out / "tracking.json").read_text())
+    s0, s1 = got["sets"]
+    assert (s0["accepted"], s0["over_3px"]) == (first["sets"][0]["accepted"], first["sets"][0]["over_3px"])
+    assert s1["not_reconstructed"]["reason"].endswith("cannot normalise")
+    assert s1["visible"] == first["sets"][1]["visible"] and s1["accepted"] == 0 and s1["accepted_share"] == 0
+    assert not s1["targets"]["accepted_share"] and not s1["targets"]["rms_px"]
+    pooled = got["pooled"]
+    assert pooled["visible"] == s0["visible"] + s1["visible"] and pooled["accepted"] == s0["accepted"]
+    assert pooled["not_reconstructed"] == ["easy_s1"]
+    assert pooled["tracking_cpu_ms_per_frame"] == pytest.approx(s0["tracking_cpu_ms_per_frame"])
+    md = (out / "tracking.md").read_text()
+    assert "easy_s1 (not reconstructed)" in md and "**Not reconstructed** (1 of 2 sets" in md
+    assert not (root / "work_failed" / "easy_s1.recon.npz").exists()

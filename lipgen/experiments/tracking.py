@@ -41,6 +41,7 @@ from lipgen.experiments.tracking_inputs import (
     generated_by,
     recon_file,
 )
+from lipgen.rig.camera import VIEWS
 
 __all__ = ["TrackingSettings", "TARGETS", "set_figures", "targets_met", "pooled_figures", "spread",
            "run_tracking"]
@@ -96,6 +97,31 @@ def set_figures(ds_path: Path, recon) -> tuple[dict, dict]:
     return fig, ok_err
 
 
+def failed_figures(ds_path: Path, reason: str) -> tuple[dict, dict]:
+    """The figures of a set ``lipgen reconstruct`` could not reconstruct (``reason``): what a user gets
+    from it is no accepted sighting, so its visible sightings (from the truth) count as not accepted
+    (``not_reconstructed``; no rejected or lost counts, no errors, no CPU figure)."""
+    from lipgen.dataset.layout import Dataset
+    from lipgen.evaluate.scoring import load_truth
+
+    ds = Dataset(ds_path)
+    ds.require_truth("lipgen experiment tracking")
+    vis = np.asarray(load_truth(ds)["visible"], dtype=bool)          # (F, 2, P + 1)
+    nan = float("nan")
+    per_view = {view: {"rms_px": nan, "p95_px": nan, "tracked_share": 0.0, "accepted": 0, "rejected": 0,
+                       "lost": 0, "wrong_over_3px": 0, "false_sightings": 0, "visible": int(vis[:, v].sum())}
+                for v, view in enumerate(VIEWS)}
+    visible, marker_vis = int(vis.sum()), int(vis[:, :, :-1].sum())   # the nose is the last mark
+    fig = {"frames": len(ds), "visible": visible, "accepted": 0, "rejected": 0, "lost": 0,
+           "false_sightings": 0, "within_3px": 0, "over_3px": 0, "rms_px": nan, "p95_px": nan,
+           "markers_only": {"visible": marker_vis, "accepted": 0, "accepted_share": share(0, marker_vis)},
+           "tracking_cpu_ms_per_frame": nan, "tracking_wall_ms_per_frame": nan, "calibration_cpu_s": nan,
+           "per_view": per_view, "not_reconstructed": {"sightings": visible, "reason": reason},
+           "accepted_share": share(0, visible), "within_3px_share": share(0, visible)}
+    fig["targets"] = targets_met(fig)
+    return fig, {view: np.zeros(0) for view in VIEWS}
+
+
 def targets_met(fig: dict) -> dict:
     """Each of :data:`TARGETS` met (True) or not by figures ``fig``; the RMS target in every view
     (a NaN figure, e.g. no accepted sighting, does not meet its target)."""
@@ -126,8 +152,11 @@ def pooled_figures(sets: list[dict], errors: list[dict]) -> dict:
     if all("markers_only" in s for s in sets):
         mv, ma = (sum(s["markers_only"][k] for s in sets) for k in ("visible", "accepted"))
         fig["markers_only"] = {"visible": mv, "accepted": ma, "accepted_share": share(ma, mv)}
-    cpu = sum(s["tracking_cpu_ms_per_frame"] * s["frames"] for s in sets)
-    fig["tracking_cpu_ms_per_frame"] = float(cpu / fig["frames"]) if fig["frames"] else float("nan")
+    timed = [s for s in sets if np.isfinite(s["tracking_cpu_ms_per_frame"])]  # not the unreconstructed
+    cpu = sum(s["tracking_cpu_ms_per_frame"] * s["frames"] for s in timed)
+    frames = sum(s["frames"] for s in timed)
+    fig["tracking_cpu_ms_per_frame"] = float(cpu / frames) if frames else float("nan")
+    fig["not_reconstructed"] = [s["label"] for s in sets if "not_reconstructed" in s]
     fig["per_view"] = per_view
     fig["targets"] = targets_met(fig)
     return fig
@@ -179,9 +208,14 @@ def run_tracking(s: TrackingSettings, work, progress: bool = True, force: bool =
         if gs is not None:
             path, reused = cached_dataset(path, gs, work, label, progress=progress)
             made_by = generated_by(work, label)
-        recon = reconstruct_dataset(path, progress=progress)
-        recon.save(recon_file(work, label))
-        fig, err = set_figures(path, recon)
+        try:
+            recon = reconstruct_dataset(path, progress=progress)
+        except (DatasetError, ValueError) as exc:  # e.g. the nose never seen in both views (a collapse)
+            log.warning("%s: not reconstructed (%s); its visible sightings count as not accepted", label, exc)
+            fig, err = failed_figures(path, str(exc))
+        else:
+            recon.save(recon_file(work, label))
+            fig, err = set_figures(path, recon)
         fig.update(label=label, dataset=str(path), reused=reused, generated_by=made_by,
                    seed=gs.seed if gs is not None else _manifest_seed(path))
         sets.append(fig)

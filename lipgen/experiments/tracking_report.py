@@ -195,8 +195,13 @@ def write_tracking_report(result: dict, out, note: str | None = None) -> Path:
           "95th pct (px) | accepted / visible | markers only: accepted (%) | rejected | lost | "
           "tracking CPU (ms / frame) | targets |",
           "|---" * 14 + "|"]
-    L += [_row(s["label"], s) for s in sets]
+    L += [_row(s["label"] + (" (not reconstructed)" if "not_reconstructed" in s else ""), s) for s in sets]
     L += [_row("**all sets pooled**", pooled), ""]
+    failed = [s for s in sets if "not_reconstructed" in s]
+    if failed:
+        L += [f"**Not reconstructed** ({len(failed)} of {len(sets)} sets; `lipgen reconstruct` stops on "
+              "them, so their visible sightings count as not accepted, with no rejected or lost counts): "
+              + "; ".join(f"{s['label']}: {s['not_reconstructed']['reason']}" for s in failed) + ".", ""]
     verdict = "met" if all(pooled["targets"].values()) else "not met"
     L += [f"**Overall**: the targets are {verdict} on the pooled sightings ({_met(pooled['targets'])}); "
           f"{met_all} of {len(sets)} sets meet all three.", ""]
