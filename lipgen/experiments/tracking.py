@@ -184,7 +184,9 @@ def run_tracking(s: TrackingSettings, work, progress: bool = True, force: bool =
 
     ``work`` is the folder of the generated datasets and the reconstructions (``LABEL.recon.npz``:
     what was measured, e.g. for ``lipgen evaluate --recon``); it is created if missing (its parent
-    must exist). An existing reconstruction is refused before any work unless ``force``.
+    must exist). An existing reconstruction is refused before any work unless ``force``. A set that
+    cannot be reconstructed (``DatasetError`` / ``ValueError``, e.g. the nose never seen in both views)
+    is reported with the reason and scored by :func:`failed_figures`; the run goes on.
     ``plan``: :func:`~lipgen.experiments.tracking_inputs.check_inputs`'s answer when the caller
     has just checked (so that nothing is checked, or decoded, twice).
     """
