@@ -118,7 +118,7 @@ def failed_figures(ds_path: Path, reason: str) -> tuple[dict, dict]:
            "tracking_cpu_ms_per_frame": nan, "tracking_wall_ms_per_frame": nan, "calibration_cpu_s": nan,
            "per_view": per_view, "not_reconstructed": {"sightings": visible, "reason": reason},
            "accepted_share": share(0, visible), "within_3px_share": share(0, visible)}
-    fig["targets"] = targets_met(fig)
+    fig["targets"] = dict.fromkeys(TARGETS, False)  # "none over 3 px" of nothing accepted is not met
     return fig, {view: np.zeros(0) for view in VIEWS}
 
 
@@ -163,7 +163,8 @@ def pooled_figures(sets: list[dict], errors: list[dict]) -> dict:
 
 
 def spread(sets: list[dict]) -> dict:
-    """Mean, standard deviation (n - 1; NaN for one set), min and max over the sets of each figure."""
+    """Mean, standard deviation (n - 1; NaN for one set), min and max over the sets of each figure
+    (over the sets that have it: an unreconstructed set has no RMS or CPU figure)."""
     def pick(s, key):
         return s["per_view"][key[1]]["rms_px"] if isinstance(key, tuple) else s[key]
 
@@ -172,6 +173,7 @@ def spread(sets: list[dict]) -> dict:
     out = {}
     for key in keys:
         x = np.array([pick(s, key) for s in sets], dtype=float)
+        x = x[np.isfinite(x)] if np.isfinite(x).any() else x
         name = f"rms_px_{key[1]}" if isinstance(key, tuple) else key
         std = float(np.std(x, ddof=1)) if len(x) > 1 else float("nan")
         out[name] = {"mean": float(np.mean(x)), "std": std, "min": float(np.min(x)), "max": float(np.max(x))}
