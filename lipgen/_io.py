@@ -17,8 +17,8 @@ import numpy as np
 
 from lipgen.errors import ModelFileError
 
-__all__ = ["atomic_path", "atomic_write_bytes", "png_bytes", "atomic_write_json", "save_npz", "load_npz",
-           "stale_temporaries", "remove_stale_temporaries"]
+__all__ = ["atomic_path", "atomic_write_bytes", "png_bytes", "atomic_write_json", "strict_json", "save_npz",
+           "load_npz", "stale_temporaries", "remove_stale_temporaries"]
 
 _TMP_TAG = ".tmp-"
 """Temporary files are ``.{name}.tmp-{pid}-{random}{suffix}`` beside their destination: the pid
@@ -134,6 +134,20 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, clean: bool = True)
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+def strict_json(obj):
+    """``obj`` with every NaN or infinity as None (null: strict JSON readers refuse NaN) and numpy
+    scalars as Python numbers; dicts, lists and tuples are walked."""
+    if isinstance(obj, dict):
+        return {k: strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, float | np.floating):
+        return float(obj) if np.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 def atomic_write_json(path: str | os.PathLike, obj) -> None:

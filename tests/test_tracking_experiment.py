@@ -322,7 +322,7 @@ def test_error_figures_and_shares_closed_form():
 
 def test_tracking_json_is_strict():
     """NaN and infinity become null (json.loads with parse_constant refusing them reads it)."""
-    from lipgen.experiments.tracking_report import _strict
+    from lipgen._io import strict_json as _strict
 
     def refuse(name):
         raise ValueError(name)

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
+from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json, strict_json
 from lipgen.campaign.store import item_dir, read_index
 
 __all__ = ["collect", "interval", "write_campaign_report", "SUBJECT_KEYS"]
@@ -160,15 +160,6 @@ def _plots(index: dict, out: Path) -> list[str]:
     return pics
 
 
-def _finite(obj):
-    """JSON without NaN (null instead), which strict JSON readers refuse."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float | np.floating):
-        return float(obj) if math.isfinite(obj) else None
-    return obj
 
 
 def write_campaign_report(root, out=None, slowest: int = 5) -> Path | str:
@@ -244,5 +235,5 @@ def write_campaign_report(root, out=None, slowest: int = 5) -> Path | str:
     atomic_write_bytes(out / "report.md", ("\n".join(L) + "\n").encode())
     summary["items"] = [{k: e[k] for k in ("name", "swept", "status", "seconds", "wall_seconds", "figures")}
                         for e in items]
-    atomic_write_json(out / "report.json", _finite(summary))
+    atomic_write_json(out / "report.json", strict_json(summary))
     return out / "report.md"

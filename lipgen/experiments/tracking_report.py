@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
+from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json, strict_json
 from lipgen.experiments.tracking import TARGETS
 
 __all__ = ["write_tracking_report", "REPORT_FILES"]
@@ -49,17 +49,6 @@ def _markers_pct(f: dict) -> str:
     return "n/a" if m is None else _pct(m["accepted_share"])
 
 
-def _strict(x):
-    """``x`` with every NaN or infinity as None (null): strict JSON."""
-    if isinstance(x, dict):
-        return {k: _strict(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_strict(v) for v in x]
-    if isinstance(x, float | np.floating):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    return x
 
 
 def _picture(result: dict, out: Path) -> str:
@@ -227,5 +216,5 @@ def write_tracking_report(result: dict, out, note: str | None = None) -> Path:
               f"--out {work}/{first['label']}.evaluate", ""]
     atomic_write_bytes(out / "tracking.md", ("\n".join(L) + "\n").encode())
     public = {k: v for k, v in result.items() if k != "errors"} | {"note": note}
-    atomic_write_json(out / "tracking.json", _strict(json.loads(json.dumps(public, default=float))))
+    atomic_write_json(out / "tracking.json", strict_json(json.loads(json.dumps(public, default=float))))
     return out / "tracking.md"
