@@ -178,3 +178,25 @@ def test_the_truth_physics_bar_follows_the_callers_progress(capsys):
     loud = simulate_motion(hard, progress=True)
     assert "truth physics" in capsys.readouterr().err
     np.testing.assert_array_equal(quiet.vertices_world, loud.vertices_world)  # the bar changes nothing else
+
+
+@pytest.mark.parametrize("content, resume, match", [
+    ({"manifest.json": "{}"}, False, "already holds a dataset"),
+    ({"notes.txt": "mine"}, False, "not a lipgen dataset"),
+    ({"manifest.json": "{not json"}, True, "not readable JSON"),
+])
+def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkeypatch, content, resume, match):
+    # the refusal must not wait for the subject's simulation (about 30 s on the hard preset)
+    import lipgen.dataset.generate as gen
+
+    def simulated(*a, **k):
+        raise AssertionError("the truth physics ran before the folder was checked")
+
+    monkeypatch.setattr(gen, "simulate_motion", simulated)
+    out = tmp_path / "d"
+    out.mkdir()
+    for name, text in content.items():
+        (out / name).write_text(text)
+    with pytest.raises(DatasetError, match=match):
+        gen.generate(out, SMALL, resume=resume, progress=False)
+    assert {p.name: p.read_text() for p in out.iterdir()} == content

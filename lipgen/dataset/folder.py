@@ -13,7 +13,7 @@ from lipgen._io import remove_stale_temporaries, stale_temporaries
 from lipgen.dataset.layout import validate_manifest
 from lipgen.errors import DatasetError
 
-__all__ = ["prepare_folder", "manifest_differences", "SAME_DATASET_KEYS", "is_our_temporary"]
+__all__ = ["check_folder", "prepare_folder", "manifest_differences", "SAME_DATASET_KEYS", "is_our_temporary"]
 
 log = logging.getLogger(__name__)
 
@@ -52,26 +52,39 @@ def _check_inside(out: Path) -> None:
         if p.is_symlink() and not p.resolve().is_relative_to(root):
             raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
                                "through it (nothing was written). Replace it with a real folder")
+def check_folder(out: Path, resume: bool) -> dict | None:
+    """The checks of ``out`` that need nothing simulated, made before the truth physics runs: a file, a
+    folder holding something else, another dataset without ``resume``, an unreadable manifest.
+
+    Returns the existing manifest (None for a new or empty folder).
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
+    if not (out.is_dir() and any(not is_our_temporary(p) for p in out.iterdir())):
+        return None
+    mf = out / "manifest.json"
+    if not mf.is_file():
+        raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
+                           "nothing was written. Choose a new or empty folder")
+    if not resume:
+        raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
+                           "another folder (nothing was overwritten)")
+    try:
+        old = json.loads(mf.read_text())
+    except (OSError, ValueError) as exc:
+        raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
+    validate_manifest(old, mf)
+    return old
+
+
 def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
 
     Returns whether ``out`` already held this dataset.
     """
-    if out.exists() and not out.is_dir():
-        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
-    if out.is_dir() and any(not is_our_temporary(p) for p in out.iterdir()):
-        mf = out / "manifest.json"
-        if not mf.is_file():
-            raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
-                               "nothing was written. Choose a new or empty folder")
-        if not resume:
-            raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
-                               "another folder (nothing was overwritten)")
-        try:
-            old = json.loads(mf.read_text())
-        except (OSError, ValueError) as exc:
-            raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
-        validate_manifest(old, mf)
+    old = check_folder(out, resume)
+    if old is not None:
         diffs, detail = manifest_differences(old, manifest)
         if diffs:
             raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"

@@ -25,7 +25,7 @@ from lipgen import __version__
 from lipgen._io import atomic_write_json
 from lipgen._memory import reuse_freed_memory
 from lipgen.dataset.film import lighting_record, realize, rig_for
-from lipgen.dataset.folder import prepare_folder
+from lipgen.dataset.folder import check_folder, prepare_folder
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -92,6 +92,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
 
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
+    check_folder(out, resume)  # another dataset or a foreign folder: refused before the truth physics runs
     rig = rig_for(s.size, s.conditions, default_rig)
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
