@@ -201,7 +201,7 @@ def test_experiment_reports_validation_beside_the_flat_baseline(tmp_path):
     # CPU), and the report's layout does not depend on the length
     settings = NrsfmBenchSettings(methods=("dai",), sequences=(), validation_seeds=(104,),
                                   validation_ks=(2,), validation_frames=16, check_seeds=(300,),
-                                  check_frames=(12,))
+                                  check_frames=(12,), mocap_clips=())
     result = run_nrsfm_benchmarks(tmp_path, settings)
     (entry,) = result["validation"]
     assert [r["auto"] for r in entry["runs"]] == [False, True]

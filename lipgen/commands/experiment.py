@@ -149,7 +149,8 @@ def add_parser(sub) -> None:
         "else $LIPGEN_NRSFM_DATA, else benchmarks/nrsfm in or beside the source tree) at the published Ks "
         "and at the K chosen from the "
         "reprojection curve ('em-ppca', whose K counts modes beyond the mean shape, at its own Ks), "
-        "and on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation), beside "
+        "on the held-out validation set of synthetic human bodies (lipgen.nrsfm.validation) and on six "
+        "held-out CMU motion-capture clips filmed twice each (lipgen.nrsfm.mocap), beside "
         "the flat zero-depth baseline; write benchmarks.md, benchmarks.json and the "
         "curves to --out. Takes minutes (two development bodies at 80 frames; the check of dai's "
         "automatic K against the flat baseline on fresh seeds 1400-1419, --check-seeds); --full runs eight "
@@ -173,6 +174,9 @@ def add_parser(sub) -> None:
     n.add_argument("--check-seeds", nargs="*", type=int, default=None, metavar="SEED",
                    help="seeds of the check of dai's automatic K against the flat baseline (80-frame "
                    "bodies; default 1400-1419, --full: 300-310 and 400-410; none: skip it)")
+    n.add_argument("--mocap-clips", nargs="*", default=None, metavar="CLIP",
+                   help="held-out CMU motion-capture clips to run every method on (lipgen.nrsfm.mocap; "
+                   "default: all six; none: skip them)")
     add_force(n, "the report files in --out")
     n.set_defaults(func=_nrsfm)
     ls = exp.add_parser(
@@ -271,6 +275,13 @@ def _nrsfm(args) -> int:
         changes["sequences"] = tuple(args.sequences)
     if args.check_seeds is not None:
         changes["check_seeds"] = tuple(args.check_seeds)
+    if args.mocap_clips is not None:
+        from lipgen.nrsfm.mocap import CLIPS
+
+        unknown = [c for c in args.mocap_clips if c not in CLIPS]
+        if unknown:
+            raise ValueError(f"unknown --mocap-clips {unknown}; the clips are {', '.join(CLIPS)}")
+        changes["mocap_clips"] = tuple(args.mocap_clips)
     settings = NrsfmBenchSettings.full(**changes) if args.full else NrsfmBenchSettings(**changes)
     run_nrsfm_benchmarks(args.out, settings)
     sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")

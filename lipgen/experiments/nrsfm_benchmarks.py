@@ -68,6 +68,7 @@ class NrsfmBenchSettings:
     validation_ks: tuple[int, ...] = (4, 8)
     validation_frames: int = 80
     check_seeds: tuple[int, ...] = tuple(range(1400, 1420))
+    mocap_clips: tuple[str, ...] = ("run0901", "walk0701", "basket0603", "soccer1006", "s16t57", "s20t06")
     check_frames: tuple[int, ...] = (80,)
     kmax: int = 13
     rtol: float = 0.01
@@ -220,6 +221,24 @@ def _curve(cache: _DaiRuns, ks, rtol: float):
     chosen, rule = choose_k(ks, rms / scale, rtol=rtol)
     return KCurve(ks=ks, rms=rms, relative=rms / scale, chosen=chosen, rule=rule, method="dai")
 
+def _score_sequence(seq, settings: NrsfmBenchSettings) -> dict:
+    """Every method of ``settings`` on one filmed sequence, at the validation Ks and at its own K, and
+    the flat baseline."""
+    from lipgen.nrsfm import MEAN_PLUS_MODES
+
+    cache = _DaiRuns(seq.W)
+    entry = {"name": seq.name, "points": seq.W.shape[1], "frames": seq.W.shape[0] // 2,
+             "degrees_per_frame": seq.degrees_per_frame, "flat_e3d": flat_e3d(seq.W, seq.S), "runs": []}
+    for m in settings.methods:  # each K as the number of basis shapes (em-ppca: K - 1 modes + mean)
+        for k in (*settings.validation_ks, "auto"):
+            kk = k - 1 if (m in MEAN_PLUS_MODES and k != "auto") else k
+            r = _run_one(seq.W, seq.S, kk, m, cache)
+            r["auto"] = k == "auto"
+            entry["runs"].append(r)
+            log.info("%s %s K=%s e3D %.4f (flat %.4f)", seq.name, m, r["k"], r["e3d"], entry["flat_e3d"])
+    return entry
+
+
 
 @single_threaded  # tracks of tens of points: BLAS threads only wait (lipgen._threads)
 def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings()) -> dict:
@@ -261,18 +280,13 @@ def run_nrsfm_benchmarks(out, settings: NrsfmBenchSettings = NrsfmBenchSettings(
                       "chosen": curve.chosen, "rule": curve.rule}}
     result["missing"] = _missing_runs(settings)
     for seed in settings.validation_seeds:
-        seq = human_sequence(seed, settings.validation_frames)
-        cache = _DaiRuns(seq.W)
-        entry = {"name": seq.name, "points": seq.W.shape[1], "degrees_per_frame": seq.degrees_per_frame,
-                 "flat_e3d": flat_e3d(seq.W, seq.S), "runs": []}
-        for m in settings.methods:  # each K as the number of basis shapes (em-ppca: K - 1 modes + mean)
-            for k in (*settings.validation_ks, "auto"):
-                kk = k - 1 if (m in MEAN_PLUS_MODES and k != "auto") else k
-                r = _run_one(seq.W, seq.S, kk, m, cache)
-                r["auto"] = k == "auto"
-                entry["runs"].append(r)
-                log.info("%s %s K=%s e3D %.4f (flat %.4f)", seq.name, m, r["k"], r["e3d"], entry["flat_e3d"])
-        result["validation"].append(entry)
+        body = human_sequence(seed, settings.validation_frames)
+        result["validation"].append(_score_sequence(body, settings))
+    # public motion capture, held out: every method at the validation Ks and its own
+    if settings.mocap_clips:
+        from lipgen.nrsfm.mocap import mocap_set
+
+        result["mocap"] = [_score_sequence(seq, settings) for seq in mocap_set(clips=settings.mocap_clips)]
     # fresh seeds, never looked at while choosing the rule: dai's automatic K against the flat baseline
     result["check"] = []
     for seed in settings.check_seeds:

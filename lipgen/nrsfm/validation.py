@@ -17,7 +17,7 @@ import numpy as np
 
 from ._rotation import expm_so3
 
-__all__ = ["HumanSequence", "human_sequence", "validation_set", "MOTIONS"]
+__all__ = ["HumanSequence", "human_sequence", "film_orthographic", "validation_set", "MOTIONS"]
 
 MOTIONS = ("walk", "pickup", "dance", "stretch")
 """The kinds of motion of the validation bodies (sequence ``seed`` gets ``MOTIONS[seed % 4]``)."""
@@ -130,17 +130,48 @@ def human_sequence(seed: int, n_frames: int = 300, motion: str | None = None) ->
         seg = pos[:, p] + along[m] * (pos[:, b] - pos[:, p])
         pts.append(seg + radius[m] * (frames[:, p] @ off[m]))
     X = np.stack(pts, axis=1)                                              # (F, P, 3) world, y up
+    W, shapes, R, degrees = film_orthographic(X, rng, t)
+    return HumanSequence(name=f"human-{motion}-{seed}", W=W, S=shapes,
+                         R=R, motion=motion, degrees_per_frame=degrees, seed=seed)
+
+
+def film_orthographic(X: np.ndarray, rng: np.random.Generator, t: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Film world points orthographically as the validation bodies are filmed: the body turns about
+    the vertical at a rate drawn from ``rng`` (0.5-6 degrees per frame) while the camera nods a
+    little, and each frame's image is shifted at random.
+
+    Parameters
+    ----------
+    X : (F, P, 3) float
+        World points, y up.
+    rng : numpy Generator
+        Draws, in order: the rate, the start angle, the nod's offset and frequency, the shifts.
+    t : (F,) float
+        Frame times in seconds (the nod's clock).
+
+    Returns
+    -------
+    W : (2F, P) float
+        Tracks (rows u1, v1, u2, ...).
+    S : (3F, P) float
+        The truth in the camera frame, each frame centred.
+    R : (F, 3, 3) float
+        Camera rotations.
+    degrees : float
+        The turn per frame.
+    """
+    F, P = X.shape[:2]
     degrees = float(rng.uniform(0.5, 6.0))
-    yaw = np.radians(degrees) * np.arange(n_frames) + rng.uniform(0, 2 * np.pi)
+    yaw = np.radians(degrees) * np.arange(F) + rng.uniform(0, 2 * np.pi)
     pitch = rng.uniform(-0.3, 0.3) + 0.15 * np.sin(2 * np.pi * rng.uniform(0.05, 0.3) * t)
-    zeros = np.zeros(n_frames)
+    zeros = np.zeros(F)
     flip = np.diag([1.0, -1.0, -1.0])        # y up (world) to y down (image), camera looking along +z
     R = flip @ expm_so3(np.stack([pitch, zeros, zeros], -1)) @ expm_so3(np.stack([zeros, yaw, zeros], -1))
     shapes = np.einsum("fij,fpj->fip", R, X)
     shapes -= shapes.mean(axis=2, keepdims=True)
-    W = (shapes[:, :2] + rng.uniform(-50, 50, (n_frames, 2, 1))).reshape(2 * n_frames, n_markers)
-    return HumanSequence(name=f"human-{motion}-{seed}", W=W, S=shapes.reshape(3 * n_frames, n_markers),
-                         R=R, motion=motion, degrees_per_frame=degrees, seed=seed)
+    W = (shapes[:, :2] + rng.uniform(-50, 50, (F, 2, 1))).reshape(2 * F, P)
+    return W, shapes.reshape(3 * F, P), R, degrees
 
 
 def validation_set(seeds=range(100, 108), n_frames: int = 300) -> list[HumanSequence]:
