@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lipgen.commands._output import add_force, check_folder_output
+from lipgen.commands._output import add_force, check_folder_output, check_not_input
 
 _EPILOG = """\
 REPORT/report.md gets the calibration against the true rig, the tracking error per mark (px), the
@@ -46,13 +46,15 @@ def add_parser(sub) -> None:
 
 def _run(args) -> int:
     from lipgen.dataset.layout import Dataset
-    from lipgen.evaluate.report import nrsfm_section, write_report
+    from lipgen.evaluate.report import REPORT_FILES, nrsfm_section, write_report
     from lipgen.evaluate.scoring import score
     from lipgen.modes.model import ModeModel
     from lipgen.recon.pipeline import Reconstruction, model_mesh, reconstruct_dataset
 
-    products = ("report.md", "report.json") + (() if args.recon else ("recon.npz",))
+    products = REPORT_FILES + (() if args.recon else ("recon.npz",))
     out = check_folder_output(args.out, args.force, products)
+    for name in products:
+        check_not_input(out / name, (args.dataset, args.model, args.recon, args.rest_from))
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
     ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
