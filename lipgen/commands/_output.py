@@ -18,7 +18,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["check_file_output", "check_folder_output", "check_not_input", "add_force"]
+__all__ = ["check_file_output", "check_folder_output", "check_not_input", "check_picture_output", "add_force"]
 
 
 def add_force(parser, what: str = "--out") -> None:
@@ -102,3 +102,17 @@ def check_not_input(path, inputs: Iterable, flag: str = "--out") -> None:
             raise ValueError(f"{flag} {path} is a file of the input {given} ({dest.relative_to(src)}); "
                              "writing it would change the input (even with --force); choose a path "
                              "outside it (nothing was written)")
+
+
+def check_picture_output(path, force, flag: str = "--out") -> Path:
+    """:func:`check_file_output` for a picture, whose extension must name a format matplotlib writes
+    (checked before the drawing, not by ``savefig`` after the work)."""
+    dest = check_file_output(path, force, flag)
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if dest.suffix.lower().lstrip(".") not in formats:
+        raise ValueError(f"{flag} {dest}: a picture's name must end in one of "
+                         f"{', '.join('.' + f for f in sorted(formats))}; "
+                         f"got {dest.suffix or 'no extension'!r}")
+    return dest

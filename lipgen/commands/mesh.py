@@ -47,7 +47,7 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from pathlib import Path
 
-    from lipgen.commands._output import check_file_output
+    from lipgen.commands._output import check_file_output, check_not_input, check_picture_output
     from lipgen.mesh.io import read_mesh, sidecar_path, write_mesh
     from lipgen.mesh.procedural import lip_mesh
 
@@ -55,7 +55,12 @@ def _run(args) -> int:
     if args.out:
         targets += [Path(args.out)] + ([] if args.out.lower().endswith(".npz") else [sidecar_path(args.out)])
     for path in targets:
-        check_file_output(path, args.force, "--plot" if args.plot and path == Path(args.plot) else "--out")
+        if args.plot and path == Path(args.plot):
+            check_picture_output(path, args.force, "--plot")
+        else:
+            check_file_output(path, args.force, "--out")
+        check_not_input(path, (args.source,) + ((sidecar_path(args.source),) if args.source else ()),
+                        "--plot" if args.plot and path == Path(args.plot) else "--out")
     if args.source:
         mesh = read_mesh(args.source)
     else:

@@ -101,7 +101,8 @@ def _frames(text: str) -> list[int]:
         try:
             lo, hi = int(a), int(b or a)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', got {text!r}") from None
+            raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', "
+                                             f"got {text!r}") from None
         if hi < lo:
             raise argparse.ArgumentTypeError(f"frame range {part.strip()!r} is empty ({hi} < {lo}); write "
                                              f"'{hi}-{lo}'")

@@ -97,6 +97,9 @@ def _blend_shape_plan(mesh, model, weights, weight_range):
         if W.ndim != 2 or W.shape[1] != k:
             raise ValueError(f"weights must have shape (F, {k}): one column per mode of the model, "
                              f"which has {k} modes; got shape {W.shape}")
+        if len(W) == 0:  # an empty file, not the bare modes (weights=None)
+            raise ValueError(f"weights has no frames (shape {W.shape}); give at least one frame, or no "
+                             "weights for the bare modes")
         check_finite(W, "weights")
     rest = mesh.vertices + mean
     if weight_range == "signed":
