@@ -270,3 +270,44 @@ def test_evaluate_names_a_reconstruction_off_its_mesh():
     recon.fields = recon.fields[:, :100]   # was: 'operands could not be broadcast together'
     with pytest.raises(ValueError, match=r"\(4, 100, 3\) have 100 nodes but its mesh lip_mesh\(0\) has 201"):
         check_recon_mesh(recon, mesh, "r.npz")
+
+
+# ---- experiments: every report file needs --force; settings checked before any folder --------
+
+@pytest.mark.parametrize("argv, picture", [
+    (["experiment", "table51", "--noise-mm", "0"], "modes.png"),
+    (["experiment", "table51"], "error_vs_modes_noise0.3.png"),   # two noises: suffixed pictures
+    (["experiment", "nrsfm", "--no-synthetic"], "drink_curve.png"),
+    (["experiment", "lipsync", "--max-sentences", "1"], "list1.png"),   # had no output check at all
+])
+def test_experiment_pictures_are_kept_without_force(tmp_path, capsys, argv, picture):
+    (tmp_path / picture).write_bytes(b"my picture")
+    assert main([*argv, "--out", str(tmp_path)]) == 1
+    assert f"already holds {picture}" in _err(capsys)
+    assert (tmp_path / picture).read_bytes() == b"my picture"
+
+
+@pytest.mark.parametrize("opts, match", [
+    (["--max-sentences", "0"], "max_sentences must be at least 1"),   # 0 ran every sentence
+    (["--snr", "nan"], r"snr_db must be .* got \(nan,\)"),              # nan ran as clean speech
+])
+def test_lipsync_experiment_settings_are_named(tmp_path, capsys, opts, match):
+    import re
+
+    assert main(["experiment", "lipsync", *opts, "--out", str(tmp_path / "x")]) == 1
+    assert re.search(match, _err(capsys)) and not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("opts, match", [
+    (["--size", "0", "0"], "size must be W x H"),          # was checked after OUT/work was made
+    (["--workers", "0"], "workers must be a whole number"),
+    (["--splits", "{t}/bad.json"], "bad.json is not JSON"),
+    (["--work", "{t}/no/w"], "does not exist"),            # was created, with its parents
+])
+def test_pipeline_experiment_refuses_before_any_folder(tmp_path, capsys, opts, match):
+    (tmp_path / "bad.json").write_text("{bad")
+    argv = ["experiment", "table51-pipeline", "--seeds", "0", "1", "--frames", "20", "--test-frames", "30",
+            *[o.format(t=tmp_path) for o in opts], "--out", str(tmp_path / "xp")]
+    assert main(argv) == 1
+    assert match in _err(capsys)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
