@@ -311,3 +311,44 @@ def test_pipeline_experiment_refuses_before_any_folder(tmp_path, capsys, opts, m
     assert main(argv) == 1
     assert match in _err(capsys)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.json"]
+
+
+# ---- campaign: options checked before the index is written; the report needs --force -----------
+
+_PLAN = """[campaign]
+name = "tiny"
+stages = ["generate"]
+[base]
+frames = 3
+size = "160x120"
+calib_frames = 1
+[grid]
+seed = [0]
+"""
+
+
+@pytest.mark.parametrize("opts, match", [
+    (["--workers", "0"], "got 0"),             # was: all cores
+    (["--workers", "100000"], "got 100000"),   # was: refused after campaign.json was written
+    (["--address", "auto"], "--address needs the ray executor"),
+])
+def test_campaign_options_are_checked_before_the_folder(tmp_path, capsys, opts, match):
+    (tmp_path / "plan.toml").write_text(_PLAN)
+    out = tmp_path / "camp"
+    assert main(["campaign", str(tmp_path / "plan.toml"), "--out", str(out), "--executor", "local",
+                 "--no-progress", *opts]) == 1
+    assert match in _err(capsys) and not out.exists()
+
+
+def test_campaign_folders_are_not_made_on_the_way_and_reports_kept(tmp_path, capsys):
+    (tmp_path / "plan.toml").write_text(_PLAN)
+    assert main(["campaign", str(tmp_path / "plan.toml"), "--out", str(tmp_path / "a" / "camp"),
+                 "--executor", "local"]) == 1
+    assert "does not exist" in _err(capsys) and not (tmp_path / "a").exists()
+    assert main(["campaign", "report", str(tmp_path), "--report-out", str(tmp_path / "b" / "r")]) == 1
+    assert "does not exist" in _err(capsys) and not (tmp_path / "b").exists()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "report.md").write_text("my notes")
+    assert main(["campaign", "report", str(tmp_path), "--report-out", str(mine)]) == 1
+    assert "--force" in _err(capsys) and (mine / "report.md").read_text() == "my notes"
