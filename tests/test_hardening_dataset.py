@@ -200,3 +200,16 @@ def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkey
     with pytest.raises(DatasetError, match=match):
         gen.generate(out, SMALL, resume=resume, progress=False)
     assert {p.name: p.read_text() for p in out.iterdir()} == content
+
+
+def test_a_frame_of_another_size_is_named_with_its_file(small, tmp_path):
+    """It was met in the tracking as 'raw frame must have shape (120, 160) ..., got (80, 100, 3)',
+    naming no file (harden20)."""
+    from PIL import Image
+
+    ds = _copy(small, tmp_path / "ds")
+    Image.new("RGB", (100, 80)).save(ds / "raw" / "000001.png")
+    d = Dataset(ds)
+    d[0]
+    with pytest.raises(DatasetError, match=r"000001.png is 100x80 but the dataset's frames are 160x120"):
+        d[1]
