@@ -352,3 +352,10 @@ def test_campaign_folders_are_not_made_on_the_way_and_reports_kept(tmp_path, cap
     (mine / "report.md").write_text("my notes")
     assert main(["campaign", "report", str(tmp_path), "--report-out", str(mine)]) == 1
     assert "--force" in _err(capsys) and (mine / "report.md").read_text() == "my notes"
+
+
+def test_mesh_views_are_checked_before_the_mesh_is_written(tmp_path, capsys):
+    assert main(["mesh", "--out", str(tmp_path / "lips.obj"), "--plot", str(tmp_path / "lips.png"),
+                 "--views", "front,nope"]) == 1
+    assert "unknown view(s) ['nope']" in _err(capsys)
+    assert list(tmp_path.iterdir()) == []   # lips.obj and its sidecar were written before the refusal

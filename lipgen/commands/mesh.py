@@ -61,6 +61,14 @@ def _run(args) -> int:
             check_file_output(path, args.force, "--out")
         check_not_input(path, (args.source,) + ((sidecar_path(args.source),) if args.source else ()),
                         "--plot" if args.plot and path == Path(args.plot) else "--out")
+    views = ()
+    if args.plot:  # before anything is written: a bad view name used to come after --out was
+        from lipgen.mesh.plot import VIEWS
+
+        views = tuple(v.strip() for v in args.views.split(",") if v.strip())
+        bad = [v for v in views if v not in VIEWS]
+        if bad or not views:
+            raise ValueError(f"unknown view(s) {bad} in --views {args.views!r}; use {sorted(VIEWS)}")
     if args.source:
         mesh = read_mesh(args.source)
     else:
@@ -77,12 +85,8 @@ def _run(args) -> int:
         for path in write_mesh(mesh, args.out, overwrite=args.force):
             out.write(f"wrote {path}\n")
     if args.plot:
-        from lipgen.mesh.plot import VIEWS, plot_mesh
+        from lipgen.mesh.plot import plot_mesh
 
-        views = tuple(v.strip() for v in args.views.split(",") if v.strip())
-        bad = [v for v in views if v not in VIEWS]
-        if bad or not views:
-            raise ValueError(f"unknown view(s) {bad} in --views {args.views!r}; use {sorted(VIEWS)}")
         plot_mesh(mesh, args.plot, views=views)
         out.write(f"wrote {args.plot}\n")
     return 0
