@@ -359,3 +359,15 @@ def test_mesh_views_are_checked_before_the_mesh_is_written(tmp_path, capsys):
                  "--views", "front,nope"]) == 1
     assert "unknown view(s) ['nope']" in _err(capsys)
     assert list(tmp_path.iterdir()) == []   # lips.obj and its sidecar were written before the refusal
+
+
+@pytest.mark.parametrize("opts, match", [
+    (["--frames", "0"], "frames must be a whole number"),    # was: after the physics pictures (3 s)
+    (["--workers", "0"], "workers must be a whole number"),
+    (["--physics-only", "--out", "{t}/no/out"], "does not exist"),   # was: created with its parents
+])
+def test_demo_refuses_before_the_physics_pictures(tmp_path, capsys, opts, match):
+    opts = [o.format(t=tmp_path) for o in opts]
+    out = [] if "--out" in opts else ["--out", str(tmp_path / "d")]
+    assert main(["demo", "--no-progress", *opts, *out]) == 1
+    assert match in _err(capsys) and list(tmp_path.iterdir()) == []
