@@ -371,3 +371,19 @@ def test_demo_refuses_before_the_physics_pictures(tmp_path, capsys, opts, match)
     out = [] if "--out" in opts else ["--out", str(tmp_path / "d")]
     assert main(["demo", "--no-progress", *opts, *out]) == 1
     assert match in _err(capsys) and list(tmp_path.iterdir()) == []
+
+
+def test_export_usd_fps_is_bounded_before_the_simulation(tmp_path, capsys):
+    import numpy as np
+
+    from lipgen import Physics
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.modes.model import ModeModel
+
+    rng = np.random.default_rng(0)
+    ModeModel(3).fit_from_markers(Physics(lip_mesh(0)), rng.normal(size=(8, 16, 3))).save(tmp_path / "m.npz")
+    # --fps 1e9 simulated 3e8 frames of a 0.3 s script: 22 s, then out of memory
+    assert main(["export-usd", "--model", str(tmp_path / "m.npz"), "--script", "AA:0.3", "--fps", "1e9",
+                 "--out", str(tmp_path / "s.usda")]) == 1
+    assert "--fps must be in [1, 1000], got 1000000000.0" in _err(capsys)
+    assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]

@@ -155,6 +155,8 @@ def _run(args) -> int:
 
     check_file_output(args.out, args.force)
     _check_extension(args.out)
+    if args.fps is not None and not 1 <= args.fps <= 1000:  # as generate and lipsync; NaN fails too
+        raise ValueError(f"--fps must be in [1, 1000], got {args.fps}")  # 1e9 simulated 3e8 frames
     if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
                          "bare modes), --points, or --dataset")
