@@ -387,3 +387,13 @@ def test_export_usd_fps_is_bounded_before_the_simulation(tmp_path, capsys):
                  "--out", str(tmp_path / "s.usda")]) == 1
     assert "--fps must be in [1, 1000], got 1000000000.0" in _err(capsys)
     assert [p.name for p in tmp_path.iterdir()] == ["m.npz"]
+
+
+@pytest.mark.parametrize("kw, match", [({"dot_diameter": -1.0}, "dot_diameter must be in"),
+                                       ({"mesh_source": "lip_mesh(9)"}, "resolution must be in")])
+def test_recording_options_are_named_before_the_footage_is_read(tmp_path, kw, match):
+    from lipgen.recon.recording import init_recording
+
+    # were checked after reading the footage and calibrating the rig (seconds on real footage)
+    with pytest.raises(ValueError, match=match):
+        init_recording(tmp_path / "no_footage", tmp_path / "no_boards", tmp_path / "rec", **kw)

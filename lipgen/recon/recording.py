@@ -148,6 +148,9 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
         raise ValueError(f"mirror_side must be 'auto', 'left' or 'right', got {mirror_side!r}")
     if fps is not None and not 1 <= float(fps) <= 1000:
         raise ValueError(f"fps must be in [1, 1000], got {fps}")
+    if not 0.2 <= float(dot_diameter) <= 10:  # as RecordingSettings, but before the calibration
+        raise ValueError(f"dot_diameter must be in [0.2, 10] mm, got {dot_diameter}")
+    mesh = model_mesh(mesh_source)  # a bad --mesh: named before the calibration, not after
     info = source_info(video, fps)
     size = info["size"]
     files, photos = calibration_photos(calib, size)
@@ -172,7 +175,6 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
     for d in cal.dropped:
         log.warning("calibration photo %s: %s view left out (%.2f px RMS)", files[d["image"]].name, d["view"],
                     d["rms_px"])
-    mesh = model_mesh(mesh_source)
     settings = RecordingSettings(frames=info["frames"] or 1, size=size, fps=info["fps"],
                                  calib_frames=len(photos),
                                  board=(chess.inner_cols, chess.inner_rows, chess.square),
