@@ -397,3 +397,14 @@ def test_recording_options_are_named_before_the_footage_is_read(tmp_path, kw, ma
     # were checked after reading the footage and calibrating the rig (seconds on real footage)
     with pytest.raises(ValueError, match=match):
         init_recording(tmp_path / "no_footage", tmp_path / "no_boards", tmp_path / "rec", **kw)
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["table51-splits", "--noise-px", "nan"], "marker_noise_px must be a finite number >= 0, got nan"),  # ran
+    (["table51-splits", "--noise-mm", "nan"], "marker_noise_mm must be a finite number >= 0, got nan"),
+    (["table51", "--noise-mm", "0", "nan"], "got nan"),   # was: after the first noise's run (8 s)
+    (["table51", "--seed", "-1"], "seed must be a whole number >= 0, got -1"),
+])
+def test_table51_settings_are_named_before_any_run(tmp_path, capsys, argv, match):
+    assert main(["experiment", *argv, "--out", str(tmp_path / "x")]) == 1
+    assert match in _err(capsys) and not (tmp_path / "x").exists()

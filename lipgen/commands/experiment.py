@@ -210,13 +210,11 @@ def _table51(args) -> int:
     from lipgen.experiments.table51_report import report_files, write_report
 
     check_folder_output(args.out, args.force, report_files(args.noise_mm))
-    runs = []
-    for noise in args.noise_mm:
-        settings = Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes,
-                                   seed=args.seed, truth_resolution=args.truth_resolution,
-                                   marker_noise_mm=noise, head=not args.no_head, preset=args.preset,
-                                   subject_seed=args.subject_seed)
-        runs.append(run_table51(settings))
+    every = [Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes, seed=args.seed,
+                             truth_resolution=args.truth_resolution, marker_noise_mm=noise,
+                             head=not args.no_head, preset=args.preset, subject_seed=args.subject_seed)
+             for noise in args.noise_mm]  # all checked before the first run
+    runs = [run_table51(settings) for settings in every]
     report = write_report(runs, args.out)
     sys.stdout.write(f"wrote {report}\n")
     return 0
