@@ -408,3 +408,11 @@ def test_recording_options_are_named_before_the_footage_is_read(tmp_path, kw, ma
 def test_table51_settings_are_named_before_any_run(tmp_path, capsys, argv, match):
     assert main(["experiment", *argv, "--out", str(tmp_path / "x")]) == 1
     assert match in _err(capsys) and not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("opts", [["--speech-text", ""], ["--speech", "{t}/s.wav", "--text", ""]])
+def test_generate_an_empty_transcript_is_named(tmp_path, capsys, opts):
+    # '' was taken as not given: random gestures instead of speech, or recognition instead of alignment
+    assert main(["generate", "--frames", "2", *[o.format(t=tmp_path) for o in opts],
+                 "--out", str(tmp_path / "ds")]) == 1
+    assert "is empty; give the words spoken" in _err(capsys) and not (tmp_path / "ds").exists()
