@@ -416,3 +416,21 @@ def test_generate_an_empty_transcript_is_named(tmp_path, capsys, opts):
     assert main(["generate", "--frames", "2", *[o.format(t=tmp_path) for o in opts],
                  "--out", str(tmp_path / "ds")]) == 1
     assert "is empty; give the words spoken" in _err(capsys) and not (tmp_path / "ds").exists()
+
+
+def test_evaluate_checks_the_model_mesh_before_reconstructing(tmp_path, capsys):
+    import numpy as np
+
+    from lipgen.dataset.generate import generate
+    from lipgen.dataset.layout import GenerateSettings
+    from lipgen.mesh.procedural import lip_mesh
+    from lipgen.modes.model import ModeModel
+
+    generate(tmp_path / "ds", GenerateSettings(frames=3, size=(160, 120), calib_frames=1), progress=False)
+    fine = lip_mesh(1)
+    fields = np.random.default_rng(0).normal(size=(5, fine.n_nodes, 3))
+    ModeModel(2).fit(fields, mesh=fine).save(tmp_path / "m.npz")
+    # was found after the reconstruction (minutes on real data), with OUT/recon.npz written
+    assert main(["evaluate", str(tmp_path / "ds"), "--model", str(tmp_path / "m.npz"),
+                 "--out", str(tmp_path / "rep")]) == 1
+    assert "has 750 nodes but mesh 'lips_r0' has 201" in _err(capsys) and not (tmp_path / "rep").exists()

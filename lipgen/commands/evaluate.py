@@ -79,6 +79,7 @@ def _run(args) -> int:
             check_rest_from(Reconstruction.load(args.rest_from), model_mesh(), args.rest_from)
         if rest == "recording":  # too few training frames: refused before the report folder is made
             rest_frames(len(ds), args.test_frames)
+        model.check_mesh(model_mesh())  # a model of another mesh: before the reconstruction, not after
         out.mkdir(parents=True, exist_ok=True)
         recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=rest,
                                     rest_from=args.rest_from)
