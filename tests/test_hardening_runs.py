@@ -175,3 +175,15 @@ def test_evaluate_checks_the_model_mesh_before_reconstructing(tmp_path, capsys):
     assert main(["evaluate", str(tmp_path / "ds"), "--model", str(tmp_path / "m.npz"),
                  "--out", str(tmp_path / "rep")]) == 1
     assert "has 750 nodes but mesh 'lips_r0' has 201" in _err(capsys) and not (tmp_path / "rep").exists()
+
+
+@pytest.mark.parametrize("argv", [["lipsync", "--text", "hello"], ["export-usd", "--points", "{t}/p.npy"]])
+def test_a_start_time_code_beyond_doubles_is_refused(tmp_path, capsys, argv):
+    import numpy as np
+
+    np.save(tmp_path / "p.npy", np.zeros((3, 201, 3)))
+    # at 1e20 every frame fell on one time code (start == end), written with exit 0
+    assert main([*[a.format(t=tmp_path) for a in argv], "--start", str(10**20),
+                 "--out", str(tmp_path / "s.usda")]) == 1
+    assert "start time code 100000000000000000000 is beyond" in _err(capsys)
+    assert not (tmp_path / "s.usda").exists()

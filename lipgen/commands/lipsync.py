@@ -75,6 +75,9 @@ def _run(args) -> int:
 
     out = check_output(args.out, args.force)  # before any work
     check_not_input(out, (args.speech, args.model, args.text_file))
+    from lipgen.usd.export import check_start
+
+    check_start(args.start)
     text = _text(args)
     if args.speech is None and text is None:
         raise ValueError("give a speech recording (SPEECH.wav), a transcript (--text / --text-file), or both")
