@@ -185,7 +185,8 @@ def test_the_truth_physics_bar_follows_the_callers_progress(capsys):
     ({"notes.txt": "mine"}, False, "not a lipgen dataset"),
     ({"manifest.json": "{not json"}, True, "not readable JSON"),
 ])
-def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkeypatch, content, resume, match):
+def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkeypatch, content, resume,
+                                                                 match):
     # the refusal must not wait for the subject's simulation (about 30 s on the hard preset)
     import lipgen.dataset.generate as gen
 
@@ -213,3 +214,21 @@ def test_a_frame_of_another_size_is_named_with_its_file(small, tmp_path):
     d[0]
     with pytest.raises(DatasetError, match=r"000001.png is 100x80 but the dataset's frames are 160x120"):
         d[1]
+
+
+def test_resuming_with_other_settings_is_refused_before_the_truth_physics(small, tmp_path, monkeypatch):
+    """--resume with another seed was refused only after the subject's simulation (about 30 s on
+    the hard preset): the settings are compared before it now (harden20)."""
+    from dataclasses import replace
+
+    import lipgen.dataset.generate as gen
+
+    def simulated(*a, **k):
+        raise AssertionError("the truth physics ran before the settings were compared")
+
+    ds = _copy(small, tmp_path / "ds")
+    monkeypatch.setattr(gen, "simulate_motion", simulated)
+    with pytest.raises(DatasetError, match="different settings .*seed was 5, now 6"):
+        gen.generate(ds, replace(SMALL, seed=6), resume=True, progress=False)
+    with pytest.raises(AssertionError, match="truth physics ran"):  # the same settings go on to simulate
+        gen.generate(ds, SMALL, resume=True, progress=False)

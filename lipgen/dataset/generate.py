@@ -11,6 +11,7 @@ settings write the same bytes.
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import multiprocessing
 import os
@@ -25,7 +26,7 @@ from lipgen import __version__
 from lipgen._io import atomic_write_json
 from lipgen._memory import reuse_freed_memory
 from lipgen.dataset.film import lighting_record, realize, rig_for
-from lipgen.dataset.folder import check_folder, prepare_folder
+from lipgen.dataset.folder import check_folder, check_same_dataset, prepare_folder
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -87,13 +88,16 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
     way between processes or machines (:func:`render_jobs`), writes the same bytes.
     """
     from lipgen.dataset.layout import build_manifest
+    from lipgen.dataset.manifest import settings_entries
     from lipgen.mesh.lipmesh import LipMesh
     from lipgen.rig.backends import check_renderer
 
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
-    check_folder(out, resume)  # another dataset or a foreign folder: refused before the truth physics runs
+    old = check_folder(out, resume)  # another dataset, a foreign folder: refused before the truth physics
     rig = rig_for(s.size, s.conditions, default_rig)
+    if old is not None:  # --resume with other settings: refused now too, not after the physics
+        check_same_dataset(out, old, json.loads(json.dumps(settings_entries(s, rig))))
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
