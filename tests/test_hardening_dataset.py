@@ -232,3 +232,17 @@ def test_resuming_with_other_settings_is_refused_before_the_truth_physics(small,
         gen.generate(ds, replace(SMALL, seed=6), resume=True, progress=False)
     with pytest.raises(AssertionError, match="truth physics ran"):  # the same settings go on to simulate
         gen.generate(ds, SMALL, resume=True, progress=False)
+
+
+def test_a_board_that_cannot_be_placed_is_refused_before_the_truth_physics(tmp_path, monkeypatch):
+    """A --size too small for the chessboard was found after the subject's simulation (harden20)."""
+    import lipgen.dataset.generate as gen
+
+    def simulated(*a, **k):
+        raise AssertionError("the truth physics ran before the board was placed")
+
+    monkeypatch.setattr(gen, "simulate_motion", simulated)
+    with pytest.raises(ValueError, match="board poses that both views see whole"):
+        gen.generate(tmp_path / "d", GenerateSettings(frames=2, size=(32, 24), calib_frames=1),
+                     progress=False)
+    assert not (tmp_path / "d").exists()
