@@ -187,3 +187,18 @@ def test_a_start_time_code_beyond_doubles_is_refused(tmp_path, capsys, argv):
                  "--out", str(tmp_path / "s.usda")]) == 1
     assert "start time code 100000000000000000000 is beyond" in _err(capsys)
     assert not (tmp_path / "s.usda").exists()
+
+
+def test_reconstruct_recording_and_out_the_same_path_is_refused_first(tmp_path, capsys, monkeypatch):
+    import lipgen.recon.recording as recording
+
+    def made(*a, **k):
+        raise AssertionError("the recording was made, then the reconstruction could not be saved")
+
+    monkeypatch.setattr(recording, "init_recording", made)
+    (tmp_path / "frames").mkdir()
+    (tmp_path / "boards").mkdir()
+    out = str(tmp_path / "r.npz")
+    assert main(["reconstruct", str(tmp_path / "frames"), "--calib", str(tmp_path / "boards"), "--out", out,
+                 "--recording", out]) == 1
+    assert "--recording" in _err(capsys) and not (tmp_path / "r.npz").exists()
