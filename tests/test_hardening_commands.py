@@ -270,3 +270,13 @@ def test_evaluate_names_a_reconstruction_off_its_mesh():
     recon.fields = recon.fields[:, :100]   # was: 'operands could not be broadcast together'
     with pytest.raises(ValueError, match=r"\(4, 100, 3\) have 100 nodes but its mesh lip_mesh\(0\) has 201"):
         check_recon_mesh(recon, mesh, "r.npz")
+
+
+def test_nrsfm_plot_and_out_the_same_file_is_refused(tmp_path, capsys):
+    import numpy as np
+
+    np.savez(tmp_path / "t.npz", W=np.random.default_rng(0).normal(size=(20, 8)))
+    out = str(tmp_path / "c.png")
+    # the shapes (an npz) were written over the curve's picture, exit 0
+    assert main(["nrsfm", str(tmp_path / "t.npz"), "--k", "2", "--out", out, "--plot", out]) == 1
+    assert "is --out too" in _err(capsys) and not (tmp_path / "c.png").exists()

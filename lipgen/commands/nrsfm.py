@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from lipgen.commands._output import check_file_output
 
@@ -146,6 +147,8 @@ def _run(args) -> int:
                          if k == "auto" and args.method != "em-pnd" else None)  # em-pnd: a printed table
     if plot:
         check_picture_output(plot, args.force, "--plot")
+        if Path(plot).resolve() == out.resolve():  # the shapes were written over the curve
+            raise ValueError(f"--plot {plot} is --out too; give the picture and the shapes two names")
         check_not_input(plot, (args.tracks,), "--plot")
     rec = None
     if k == "auto" and args.method in SMOOTH_METHODS:
