@@ -280,3 +280,13 @@ def test_nrsfm_plot_and_out_the_same_file_is_refused(tmp_path, capsys):
     # the shapes (an npz) were written over the curve's picture, exit 0
     assert main(["nrsfm", str(tmp_path / "t.npz"), "--k", "2", "--out", out, "--plot", out]) == 1
     assert "is --out too" in _err(capsys) and not (tmp_path / "c.png").exists()
+
+
+def test_recording_in_a_read_only_folder_is_refused_first(tmp_path, monkeypatch):
+    import lipgen.recon.recording as recording
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    monkeypatch.setattr(recording.os, "access", lambda p, mode: Path(p) != ro)  # root writes anywhere
+    with pytest.raises(PermissionError, match="is not writable"):  # was: after reading and calibrating
+        recording.init_recording(tmp_path / "frames", tmp_path / "boards", ro / "rec")

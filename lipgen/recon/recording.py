@@ -114,6 +114,8 @@ def check_recording_out(out: Path, video, calib, force: bool) -> None:
     if not out.parent.is_dir():
         raise FileNotFoundError(f"--out {out}: folder {out.parent} does not exist; create it first or choose "
                                 "another path (nothing was written)")
+    if not os.access(out.parent, os.W_OK | os.X_OK):  # the recording is built beside it: before calibrating
+        raise PermissionError(f"--out {out}: folder {out.parent} is not writable; choose another path")
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"--out {out} is a file, not a folder; choose a folder")
     if out.is_dir() and any(out.iterdir()):
