@@ -290,3 +290,17 @@ def test_recording_in_a_read_only_folder_is_refused_first(tmp_path, monkeypatch)
     monkeypatch.setattr(recording.os, "access", lambda p, mode: Path(p) != ro)  # root writes anywhere
     with pytest.raises(PermissionError, match="is not writable"):  # was: after reading and calibrating
         recording.init_recording(tmp_path / "frames", tmp_path / "boards", ro / "rec")
+
+
+def test_lipsync_out_a_folder_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    import importlib
+
+    lipsync = importlib.import_module("lipgen.speech.lipsync")  # the module, not the function
+
+    def worked(*a, **k):
+        raise AssertionError("the lip sync ran before --out was checked")
+
+    monkeypatch.setattr(lipsync, "lipsync", worked)
+    (tmp_path / "d.npz").mkdir()
+    assert main(["lipsync", "--text", "hello", "--out", str(tmp_path / "d.npz"), "--force"]) == 1
+    assert "is a folder" in _err(capsys)
