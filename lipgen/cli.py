@@ -115,6 +115,12 @@ def main(argv: list[str] | None = None) -> int:
             raise
         sys.stderr.write(f"lipgen {args.command}: error: {exc}\n")
         return 1
+    except MemoryError as exc:  # a size the machine cannot hold: say which, not a traceback
+        if args.verbose >= 2:
+            raise
+        sys.stderr.write(f"lipgen {args.command}: error: out of memory ({exc or 'no detail'}); give smaller "
+                         "sizes (fewer frames, a smaller image, a coarser mesh)\n")
+        return 1
 
 
 if __name__ == "__main__":

@@ -185,7 +185,8 @@ def test_the_truth_physics_bar_follows_the_callers_progress(capsys):
     ({"notes.txt": "mine"}, False, "not a lipgen dataset"),
     ({"manifest.json": "{not json"}, True, "not readable JSON"),
 ])
-def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkeypatch, content, resume, match):
+def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkeypatch, content, resume,
+                                                                 match):
     # the refusal must not wait for the subject's simulation (about 30 s on the hard preset)
     import lipgen.dataset.generate as gen
 
@@ -200,3 +201,48 @@ def test_an_occupied_folder_is_refused_before_the_truth_physics(tmp_path, monkey
     with pytest.raises(DatasetError, match=match):
         gen.generate(out, SMALL, resume=resume, progress=False)
     assert {p.name: p.read_text() for p in out.iterdir()} == content
+
+
+def test_a_frame_of_another_size_is_named_with_its_file(small, tmp_path):
+    """It was met in the tracking as 'raw frame must have shape (120, 160) ..., got (80, 100, 3)',
+    naming no file (harden20)."""
+    from PIL import Image
+
+    ds = _copy(small, tmp_path / "ds")
+    Image.new("RGB", (100, 80)).save(ds / "raw" / "000001.png")
+    d = Dataset(ds)
+    d[0]
+    with pytest.raises(DatasetError, match=r"000001.png is 100x80 but the dataset's frames are 160x120"):
+        d[1]
+
+
+def test_resuming_with_other_settings_is_refused_before_the_truth_physics(small, tmp_path, monkeypatch):
+    """--resume with another seed was refused only after the subject's simulation (about 30 s on
+    the hard preset): the settings are compared before it now (harden20)."""
+    from dataclasses import replace
+
+    import lipgen.dataset.generate as gen
+
+    def simulated(*a, **k):
+        raise AssertionError("the truth physics ran before the settings were compared")
+
+    ds = _copy(small, tmp_path / "ds")
+    monkeypatch.setattr(gen, "simulate_motion", simulated)
+    with pytest.raises(DatasetError, match="different settings .*seed was 5, now 6"):
+        gen.generate(ds, replace(SMALL, seed=6), resume=True, progress=False)
+    with pytest.raises(AssertionError, match="truth physics ran"):  # the same settings go on to simulate
+        gen.generate(ds, SMALL, resume=True, progress=False)
+
+
+def test_a_board_that_cannot_be_placed_is_refused_before_the_truth_physics(tmp_path, monkeypatch):
+    """A --size too small for the chessboard was found after the subject's simulation (harden20)."""
+    import lipgen.dataset.generate as gen
+
+    def simulated(*a, **k):
+        raise AssertionError("the truth physics ran before the board was placed")
+
+    monkeypatch.setattr(gen, "simulate_motion", simulated)
+    with pytest.raises(ValueError, match="board poses that both views see whole"):
+        gen.generate(tmp_path / "d", GenerateSettings(frames=2, size=(32, 24), calib_frames=1),
+                     progress=False)
+    assert not (tmp_path / "d").exists()

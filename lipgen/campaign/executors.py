@@ -18,7 +18,7 @@ import time
 from lipgen.campaign.local import LocalExecutor
 from lipgen.errors import LipgenError
 
-__all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "make_executor"]
+__all__ = ["ClusterError", "RayExecutor", "LocalExecutor", "check_address", "check_executor", "make_executor"]
 
 log = logging.getLogger(__name__)
 
@@ -207,6 +207,17 @@ class RayExecutor:
     def shutdown(self) -> None:
         """Disconnect (and stop the embedded Ray)."""
         self.ray.shutdown()
+
+
+def check_executor(kind: str, address: str | None, workers: int | None) -> None:
+    """The checks of :func:`make_executor`'s arguments, made before a campaign writes anything."""
+    if kind not in ("ray", "local"):
+        raise ValueError(f"executor must be 'ray' or 'local', got {kind!r}")
+    if kind == "local" and address is not None:
+        raise ValueError("--address needs the ray executor, not --executor local")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or not 1 <= workers <= 256):
+        raise ValueError(f"workers must be a whole number in [1, 256], got {workers!r}")
 
 
 def make_executor(kind: str = "ray", address: str | None = None, workers: int | None = None, retries: int = 2,

@@ -17,7 +17,7 @@ import time
 import traceback
 
 from lipgen import __version__
-from lipgen.campaign.executors import check_address, make_executor
+from lipgen.campaign.executors import check_address, check_executor, make_executor
 from lipgen.campaign.places import place_of
 from lipgen.campaign.plan import CampaignPlan
 from lipgen.campaign.stages import chunks
@@ -101,6 +101,8 @@ def run_campaign(plan: CampaignPlan, out, executor: str = "ray", address: str | 
                             "s3://, gs:// ...")
     if address is not None:
         check_address(address)  # before anything is written
+    if isinstance(executor, str):
+        check_executor(executor, address, workers)  # --workers 0 or 10^5: not after the index is written
     place.check(plan.fingerprint(), resume)
     place.create()
     with place.lock():

@@ -7,7 +7,9 @@ Rules, the same for every command:
 - a file destination must not be a folder, and its folder must exist and be writable (nothing is
   created on the way: a mistyped path fails instead of making folders elsewhere);
 - a folder destination (reports) may be new (its parent must exist); an existing folder that
-  already holds any of the files the command writes needs ``--force``.
+  already holds any of the files the command writes needs ``--force``;
+- an input is never replaced, not even with ``--force`` (which replaces outputs): neither an input
+  file nor an existing file inside an input folder (a dataset's frames, its mesh).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-__all__ = ["check_file_output", "check_folder_output", "add_force"]
+__all__ = ["check_file_output", "check_folder_output", "check_not_input", "check_picture_output", "add_force"]
 
 
 def add_force(parser, what: str = "--out") -> None:
@@ -76,4 +78,41 @@ def check_folder_output(path, force: bool, products: Iterable[str] = (), flag: s
         raise FileExistsError(f"{flag} {dest} already holds {', '.join(clash)}; choose another folder or "
                               "pass --force to replace them")
     _writable_folder(dest, dest, flag)
+    return dest
+
+
+def check_not_input(path, inputs: Iterable, flag: str = "--out") -> None:
+    """Refuse output ``path`` when writing it would replace an input: one of the files ``inputs``
+    (paths; None skipped) or an existing file inside one of its folders. Symlinks and '..' are resolved.
+
+    Raises
+    ------
+    ValueError
+        Naming the input that would be replaced.
+    """
+    dest = Path(path).resolve()
+    for given in inputs:
+        if given is None or not str(given).strip():
+            continue
+        src = Path(given).resolve()
+        if dest == src:
+            raise ValueError(f"{flag} {path} is the input {given}; writing it would replace the input "
+                             "(even with --force); choose another path (nothing was written)")
+        if src.is_dir() and dest.is_relative_to(src) and (dest.exists() or dest.is_symlink()):
+            raise ValueError(f"{flag} {path} is a file of the input {given} ({dest.relative_to(src)}); "
+                             "writing it would change the input (even with --force); choose a path "
+                             "outside it (nothing was written)")
+
+
+def check_picture_output(path, force, flag: str = "--out") -> Path:
+    """:func:`check_file_output` for a picture, whose extension must name a format matplotlib writes
+    (checked before the drawing, not by ``savefig`` after the work)."""
+    dest = check_file_output(path, force, flag)
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if dest.suffix.lower().lstrip(".") not in formats:
+        raise ValueError(f"{flag} {dest}: a picture's name must end in one of "
+                         f"{', '.join('.' + f for f in sorted(formats))}; "
+                         f"got {dest.suffix or 'no extension'!r}")
     return dest

@@ -62,16 +62,23 @@ def add_parser(sub) -> None:
                    help="ray (default) or local processes, without Ray")
     p.add_argument("--dashboard", action="store_true", help="start Ray's dashboard (embedded Ray)")
     p.add_argument("--report-out", help="with 'report': report folder (default DIR/report)")
+    p.add_argument("--force", action="store_true",
+                   help="with 'report' and --report-out: replace the report files there")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
 
 def _run(args) -> int:
+    from lipgen.campaign.remote import is_uri
+    from lipgen.commands._output import check_folder_output
+
     if args.plan == "report":
         from lipgen.campaign.aggregate import write_campaign_report
 
         if not args.dir:
             raise ValueError("lipgen campaign report needs the campaign folder: lipgen campaign report DIR")
+        if args.report_out is not None and not is_uri(args.report_out):  # DIR/report is the campaign's own
+            check_folder_output(args.report_out, args.force, ("report.md", "report.json"), "--report-out")
         path = write_campaign_report(args.dir, args.report_out)
         sys.stdout.write(f"report: {path}\n")
         return 0
@@ -81,6 +88,8 @@ def _run(args) -> int:
         raise ValueError(f"unexpected argument {args.dir!r}; the campaign folder is given with --out")
     if not args.out:
         raise ValueError("--out DIR is required: the campaign folder")
+    if not is_uri(args.out):
+        check_folder_output(args.out, True, (), "--out")  # a new folder's parent exists: none made on the way
     plan = load_plan(args.plan)
     index = run_campaign(plan, args.out, executor=args.executor, address=args.address, workers=args.workers,
                          resume=args.resume, progress=not args.no_progress, dashboard=args.dashboard)

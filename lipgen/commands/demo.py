@@ -194,10 +194,14 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
     """Run every demo step; returns the files written (the report last)."""
     import os
 
-    from lipgen.dataset.layout import Dataset
+    from lipgen.dataset.layout import Dataset, GenerateSettings
     from lipgen.evaluate.report import nrsfm_section, write_report
     from lipgen.evaluate.scoring import score
 
+    if not physics_only:  # bad --frames/--seed/--workers: refused before the physics pictures, not after
+        GenerateSettings(frames=frames, seed=seed)
+        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
+            raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
     t0 = time.perf_counter()
     out = Path(out_dir) / "demo"
     out.mkdir(parents=True, exist_ok=True)
@@ -269,6 +273,9 @@ def add_parser(sub) -> None:
 
 
 def _run(args) -> int:
+    from lipgen.commands._output import check_folder_output
+
+    check_folder_output(args.out, True)  # OUT/demo is the demo's own; OUT's parent must exist
     written = run(args.out, args.resolution, args.frames, args.seed, args.workers, args.physics_only,
                   not args.no_progress)
     for path in written:

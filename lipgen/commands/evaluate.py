@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lipgen.commands._output import add_force, check_folder_output
+from lipgen.commands._output import add_force, check_folder_output, check_not_input
 
 _EPILOG = """\
 REPORT/report.md gets the calibration against the true rig, the tracking error per mark (px), the
@@ -46,13 +46,15 @@ def add_parser(sub) -> None:
 
 def _run(args) -> int:
     from lipgen.dataset.layout import Dataset
-    from lipgen.evaluate.report import nrsfm_section, write_report
+    from lipgen.evaluate.report import REPORT_FILES, nrsfm_section, write_report
     from lipgen.evaluate.scoring import score
     from lipgen.modes.model import ModeModel
     from lipgen.recon.pipeline import Reconstruction, model_mesh, reconstruct_dataset
 
-    products = ("report.md", "report.json") + (() if args.recon else ("recon.npz",))
+    products = REPORT_FILES + (() if args.recon else ("recon.npz",))
     out = check_folder_output(args.out, args.force, products)
+    for name in products:
+        check_not_input(out / name, (args.dataset, args.model, args.recon, args.rest_from))
     model = ModeModel.load(args.model)
     ds = Dataset(args.dataset)
     ds.require_truth("lipgen evaluate")       # before any work: nothing is written without truth
@@ -77,14 +79,26 @@ def _run(args) -> int:
             check_rest_from(Reconstruction.load(args.rest_from), model_mesh(), args.rest_from)
         if rest == "recording":  # too few training frames: refused before the report folder is made
             rest_frames(len(ds), args.test_frames)
+        model.check_mesh(model_mesh())  # a model of another mesh: before the reconstruction, not after
         out.mkdir(parents=True, exist_ok=True)
         recon = reconstruct_dataset(args.dataset, test_frames=args.test_frames, rest=rest,
                                     rest_from=args.rest_from)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
+    check_recon_mesh(recon, mesh, args.recon)
     s = score(ds, model, recon, args.test_frames, mesh)
     extra = {"Non-rigid SfM on one view": nrsfm_section(ds, recon)}
     path = write_report(out, s, ds, model, recon, mesh, extra)
     sys.stdout.write(f"3-D markers {s['triangulation']['rms_mm']:.3f} mm RMS, normalisation "
                      f"{s['normalisation']['rms_mm']:.3f} mm RMS; report: {path}\n")
     return 0
+
+
+def check_recon_mesh(recon, mesh, path) -> None:
+    """Refuse a reconstruction whose fields (F, n, 3) are not on its own mesh (an altered file):
+    named here, not by a broadcasting error in the scoring."""
+    if recon.fields.shape[1] != mesh.n_nodes:
+        n = recon.fields.shape[1]
+        raise ValueError(f"--recon {path}: its fields {recon.fields.shape} have {n} nodes "
+                         f"but its mesh {recon.info.get('mesh_source')} has {mesh.n_nodes}; the file was "
+                         "altered: reconstruct again")

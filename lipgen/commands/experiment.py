@@ -194,6 +194,7 @@ def add_parser(sub) -> None:
     ls.add_argument("--snr", type=float, nargs="+", default=[float("inf"), 20.0, 10.0],
                     help="signal-to-noise ratios in dB (inf: clean)")
     ls.add_argument("--max-sentences", type=int, default=None, help="stop after this many sentences")
+    add_force(ls, "the report files in --out")
     ls.set_defaults(func=_lipsync)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -203,22 +204,21 @@ def _lipsync(args) -> int:
 
     settings = LipsyncSettings(lists=tuple(args.lists), snr_db=tuple(args.snr),
                                max_sentences=args.max_sentences)
+    check_folder_output(args.out, args.force, settings.report_files())
     sys.stdout.write(f"wrote {run_lipsync_experiment(args.out, settings)}\n")
     return 0
 
 
 def _table51(args) -> int:
     from lipgen.experiments.table51 import Table51Settings, run_table51
-    from lipgen.experiments.table51_report import write_report
+    from lipgen.experiments.table51_report import report_files, write_report
 
-    check_folder_output(args.out, args.force, ("report.md", "table51.json"))
-    runs = []
-    for noise in args.noise_mm:
-        settings = Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes,
-                                   seed=args.seed, truth_resolution=args.truth_resolution,
-                                   marker_noise_mm=noise, head=not args.no_head, preset=args.preset,
-                                   subject_seed=args.subject_seed)
-        runs.append(run_table51(settings))
+    check_folder_output(args.out, args.force, report_files(args.noise_mm))
+    every = [Table51Settings(n_frames=args.frames, n_train=args.train, n_modes=args.modes, seed=args.seed,
+                             truth_resolution=args.truth_resolution, marker_noise_mm=noise,
+                             head=not args.no_head, preset=args.preset, subject_seed=args.subject_seed)
+             for noise in args.noise_mm]  # all checked before the first run
+    runs = [run_table51(settings) for settings in every]
     report = write_report(runs, args.out)
     sys.stdout.write(f"wrote {report}\n")
     return 0
@@ -247,9 +247,15 @@ def _pipeline(args) -> int:
     if args.splits is not None:
         if not os.path.isfile(args.splits):
             raise FileNotFoundError(f"--splits {args.splits} is not a file (splits.json of table51-splits)")
-        with open(args.splits) as f:
-            splits = json.load(f)
+        try:
+            with open(args.splits) as f:
+                splits = json.load(f)
+        except (UnicodeDecodeError, ValueError) as exc:
+            raise ValueError(f"--splits {args.splits} is not JSON ({exc}); give splits.json of "
+                             "table51-splits") from exc
     check_folder_output(args.out, args.force, ("pipeline.md", "pipeline.json"))
+    if args.work is not None:  # a cache of datasets (resumed): may exist, but no folders made on the way
+        check_folder_output(args.work, True, (), "--work")
     work = os.path.join(args.out, "work") if args.work is None else args.work
     result = run_pipeline(settings, work, progress=not args.no_progress)
     sys.stdout.write(f"wrote {write_pipeline_report(result, args.out, splits)}\n")
@@ -263,7 +269,6 @@ def _nrsfm(args) -> int:
     unknown = [m for m in args.methods if m not in METHODS]
     if unknown:
         raise ValueError(f"unknown method(s) {unknown}; choose from {sorted(METHODS)}")
-    check_folder_output(args.out, args.force, ("benchmarks.md", "benchmarks.json"))
     if args.data is not None:
         import os
 
@@ -283,6 +288,8 @@ def _nrsfm(args) -> int:
             raise ValueError(f"unknown --mocap-clips {unknown}; the clips are {', '.join(CLIPS)}")
         changes["mocap_clips"] = tuple(args.mocap_clips)
     settings = NrsfmBenchSettings.full(**changes) if args.full else NrsfmBenchSettings(**changes)
+    curves = tuple(f"{name}_curve.png" for name in settings.sequences)
+    check_folder_output(args.out, args.force, ("benchmarks.md", "benchmarks.json", *curves))
     run_nrsfm_benchmarks(args.out, settings)
     sys.stdout.write(f"wrote {args.out}/benchmarks.md\n")
     return 0

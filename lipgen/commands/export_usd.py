@@ -151,10 +151,13 @@ def _dataset_truth(args):
 
 def _run(args) -> int:
     from lipgen.modes.model import ModeModel
-    from lipgen.usd.export import _check_extension, export_usd, validate
+    from lipgen.usd.export import _check_extension, check_start, export_usd, validate
 
     check_file_output(args.out, args.force)
     _check_extension(args.out)
+    check_start(args.start)
+    if args.fps is not None and not 1 <= args.fps <= 1000:  # as generate and lipsync; NaN fails too
+        raise ValueError(f"--fps must be in [1, 1000], got {args.fps}")  # 1e9 simulated 3e8 frames
     if not (args.model or args.points or args.dataset):
         raise ValueError("nothing to export: give --model (with --weights or --script, or alone for the "
                          "bare modes), --points, or --dataset")

@@ -117,9 +117,14 @@ def _frames(args) -> int:
 def _run(args) -> int:
     from dataclasses import replace
 
+    from lipgen.commands._output import check_folder_output
     from lipgen.dataset.generate import generate
     from lipgen.dataset.layout import GenerateSettings
 
+    check_folder_output(args.out, force=True)  # a new folder's parent exists: no folders made on the way
+    for flag, words in (("--text", args.text), ("--speech-text", args.speech_text)):
+        if words is not None and not words.strip():  # '' was taken as not given: random motion, recognition
+            raise ValueError(f"{flag} is empty; give the words spoken")
     if args.text and not args.speech:
         raise ValueError("--text is the transcript of --speech; for text alone use --speech-text")
     if args.text and args.speech_text:

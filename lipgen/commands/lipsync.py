@@ -68,11 +68,17 @@ def _text(args) -> str | None:
 
 
 def _run(args) -> int:
+    from lipgen.commands._output import check_file_output, check_not_input
     from lipgen.speech.audio import read_wav
     from lipgen.speech.lipsync import lipsync, model_mesh, model_resolution
     from lipgen.speech.outputs import check_output, write_lipsync
 
     out = check_output(args.out, args.force)  # before any work
+    check_file_output(out, args.force)  # and, as every command: not a folder, a writable folder
+    check_not_input(out, (args.speech, args.model, args.text_file))
+    from lipgen.usd.export import check_start
+
+    check_start(args.start)
     text = _text(args)
     if args.speech is None and text is None:
         raise ValueError("give a speech recording (SPEECH.wav), a transcript (--text / --text-file), or both")

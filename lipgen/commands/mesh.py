@@ -47,7 +47,7 @@ def add_parser(sub) -> None:
 def _run(args) -> int:
     from pathlib import Path
 
-    from lipgen.commands._output import check_file_output
+    from lipgen.commands._output import check_file_output, check_not_input, check_picture_output
     from lipgen.mesh.io import read_mesh, sidecar_path, write_mesh
     from lipgen.mesh.procedural import lip_mesh
 
@@ -55,7 +55,20 @@ def _run(args) -> int:
     if args.out:
         targets += [Path(args.out)] + ([] if args.out.lower().endswith(".npz") else [sidecar_path(args.out)])
     for path in targets:
-        check_file_output(path, args.force, "--plot" if args.plot and path == Path(args.plot) else "--out")
+        if args.plot and path == Path(args.plot):
+            check_picture_output(path, args.force, "--plot")
+        else:
+            check_file_output(path, args.force, "--out")
+        check_not_input(path, (args.source,) + ((sidecar_path(args.source),) if args.source else ()),
+                        "--plot" if args.plot and path == Path(args.plot) else "--out")
+    views = ()
+    if args.plot:  # before anything is written: a bad view name used to come after --out was
+        from lipgen.mesh.plot import VIEWS
+
+        views = tuple(v.strip() for v in args.views.split(",") if v.strip())
+        bad = [v for v in views if v not in VIEWS]
+        if bad or not views:
+            raise ValueError(f"unknown view(s) {bad} in --views {args.views!r}; use {sorted(VIEWS)}")
     if args.source:
         mesh = read_mesh(args.source)
     else:
@@ -72,12 +85,8 @@ def _run(args) -> int:
         for path in write_mesh(mesh, args.out, overwrite=args.force):
             out.write(f"wrote {path}\n")
     if args.plot:
-        from lipgen.mesh.plot import VIEWS, plot_mesh
+        from lipgen.mesh.plot import plot_mesh
 
-        views = tuple(v.strip() for v in args.views.split(",") if v.strip())
-        bad = [v for v in views if v not in VIEWS]
-        if bad or not views:
-            raise ValueError(f"unknown view(s) {bad} in --views {args.views!r}; use {sorted(VIEWS)}")
         plot_mesh(mesh, args.plot, views=views)
         out.write(f"wrote {args.plot}\n")
     return 0

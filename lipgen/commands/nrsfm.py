@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from lipgen.commands._output import check_file_output
 
@@ -114,6 +115,7 @@ def _recon_tracks(path, view, write) -> dict | None:
 
 def _run(args) -> int:
     from lipgen._threads import blas_threads
+    from lipgen.commands._output import check_not_input, check_picture_output
     from lipgen.nrsfm import (
         MEAN_PLUS_MODES,
         e3d,
@@ -128,7 +130,10 @@ def _run(args) -> int:
     from lipgen.nrsfm.pndk import reconstruct_pnd_auto
 
     out = check_file_output(args.out, args.force)
+    check_not_input(out, (args.tracks,))
     k = _parse_k(args.k)
+    if args.seed < 0:
+        raise ValueError(f"--seed must be a whole number >= 0, got {args.seed}")
     if args.kmax is not None and args.kmax < 1:
         raise ValueError(f"--kmax must be at least 1, got {args.kmax}")
     if not (0 < args.rtol < 1):  # also refuses nan
@@ -141,7 +146,10 @@ def _run(args) -> int:
     plot = args.plot or (str(out.with_name(out.stem + "_curve.png"))
                          if k == "auto" and args.method != "em-pnd" else None)  # em-pnd: a printed table
     if plot:
-        check_file_output(plot, args.force, "--plot")
+        check_picture_output(plot, args.force, "--plot")
+        if Path(plot).resolve() == out.resolve():  # the shapes were written over the curve
+            raise ValueError(f"--plot {plot} is --out too; give the picture and the shapes two names")
+        check_not_input(plot, (args.tracks,), "--plot")
     rec = None
     if k == "auto" and args.method in SMOOTH_METHODS:
         t0 = time.perf_counter()

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from lipgen.commands._output import check_file_output
+from lipgen.commands._output import check_file_output, check_not_input
 from lipgen.commands.recording import add_footage_options, report_recording
 
 REST_CHOICES, DEFAULT_REST = ("model", "recording", "auto"), "model"
@@ -90,14 +90,25 @@ def add_parser(sub) -> None:
     p.set_defaults(func=_run)
 
 
+MAX_LISTED_FRAMES = 10**6
+"""The most frames a frame list may name (as many as lipgen generate makes)."""
+
+
 def _frames(text: str) -> list[int]:
     out: list[int] = []
-    try:
-        for part in text.split(","):
-            a, _, b = part.strip().partition("-")
-            out += list(range(int(a), int(b) + 1)) if b else [int(a)]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', got {text!r}") from None
+    for part in text.split(","):
+        a, _, b = part.strip().partition("-")
+        try:
+            lo, hi = int(a), int(b or a)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"frames must look like '0-20' or '3,7,12', "
+                                             f"got {text!r}") from None
+        if hi < lo:
+            raise argparse.ArgumentTypeError(f"frame range {part.strip()!r} is empty ({hi} < {lo}); write "
+                                             f"'{hi}-{lo}'")
+        if len(out) + hi - lo + 1 > MAX_LISTED_FRAMES:
+            raise argparse.ArgumentTypeError(f"frames {text!r} name more than {MAX_LISTED_FRAMES} frames")
+        out += range(lo, hi + 1)
     return out
 
 
@@ -122,6 +133,8 @@ def _dataset_or_recording(args, out: Path) -> Path:
     rec = Path(args.recording) if args.recording else out.with_name(out.stem + "_recording")
     if rec.resolve() == src.resolve():
         raise ValueError(f"--recording {rec} is the footage itself; choose another folder")
+    if rec.resolve() == out.resolve():  # the recording would be made, reconstructed, then not saved
+        raise ValueError(f"--recording {rec} is --out itself; the recording is a folder and --out a file")
     if rec.exists() and (not rec.is_dir() or any(rec.iterdir())) and not args.force:
         raise FileExistsError(f"--recording {rec} exists and is not empty; choose another folder or pass "
                               "--force")
@@ -140,6 +153,8 @@ def _run(args) -> int:
     from lipgen.recon.restsource import check_rest_options, rest_line
 
     out = check_file_output(args.out, args.force)
+    mesh_file = None if args.mesh.startswith("lip_mesh(") else args.mesh
+    check_not_input(out, (args.dataset, mesh_file, args.rest_from, args.calib))
     check_rest_options(args.rest, args.rest_from)
     if args.rest_from is not None and not Path(args.rest_from).is_file():
         raise FileNotFoundError(f"--rest-from {args.rest_from}: no such file (a reconstruction written by "

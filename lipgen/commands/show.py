@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lipgen.commands._output import add_force, check_file_output
+from lipgen.commands._output import add_force, check_not_input, check_picture_output
 
 _EPILOG = """\
 A dataset without truth (a recording made with lipgen recording init) shows the raw frame alone;
@@ -39,7 +39,8 @@ def _run(args) -> int:
     from lipgen.dataset.layout import Dataset, save_annotated
     from lipgen.errors import DatasetError
 
-    check_file_output(args.out, args.force)
+    check_picture_output(args.out, args.force)
+    check_not_input(args.out, (args.dataset, args.recon, args.beside))
     ds = Dataset(args.dataset)
     if args.beside is not None:
         from lipgen.dataset.pictures import save_side_by_side

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lipgen.commands._output import check_file_output
+from lipgen.commands._output import check_file_output, check_not_input
 
 _EPILOG = """\
 The last --test-frames frames (default: 10, or a fifth of short sequences, as the thesis's
@@ -39,6 +39,7 @@ def _run(args) -> int:
     from lipgen.recon.pipeline import Reconstruction, model_mesh
 
     out = check_file_output(args.out, args.force)
+    check_not_input(out, (args.recon,))
     recon = Reconstruction.load(args.recon)
     F = len(recon.fields)
     T = default_test_frames(F) if args.test_frames is None else args.test_frames

@@ -13,7 +13,8 @@ from lipgen._io import remove_stale_temporaries, stale_temporaries
 from lipgen.dataset.layout import validate_manifest
 from lipgen.errors import DatasetError
 
-__all__ = ["check_folder", "prepare_folder", "manifest_differences", "SAME_DATASET_KEYS", "is_our_temporary"]
+__all__ = ["check_folder", "check_same_dataset", "prepare_folder", "manifest_differences",
+           "SAME_DATASET_KEYS", "is_our_temporary"]
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +79,16 @@ def check_folder(out: Path, resume: bool) -> dict | None:
     return old
 
 
+def check_same_dataset(out: Path, old: dict, new: dict) -> None:
+    """Refuse to resume dataset ``out`` (manifest ``old``) as manifest ``new``, or as the entries of
+    it given (:func:`lipgen.dataset.manifest.settings_entries`: known before the truth physics runs)."""
+    diffs, detail = manifest_differences(old, new, [k for k in SAME_DATASET_KEYS if k in new])
+    if diffs:
+        raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
+                           f"{': ' + detail if detail else ''}); resume only with the same settings, or "
+                           "choose a new folder (nothing was overwritten)")
+
+
 def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """Create ``out`` or check that it is this very dataset (``resume``); never overwrite another.
 
@@ -85,11 +96,7 @@ def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:
     """
     old = check_folder(out, resume)
     if old is not None:
-        diffs, detail = manifest_differences(old, manifest)
-        if diffs:
-            raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
-                               f"{': ' + detail if detail else ''}); resume only with the same settings, or "
-                               "choose a new folder (nothing was overwritten)")
+        check_same_dataset(out, old, manifest)
         _check_inside(out)
         for sub in ("", *_SUBFOLDERS):  # temporary files of writes cut short by a kill
             if (out / sub).is_dir():

@@ -11,6 +11,7 @@ settings write the same bytes.
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import multiprocessing
 import os
@@ -25,7 +26,7 @@ from lipgen import __version__
 from lipgen._io import atomic_write_json
 from lipgen._memory import reuse_freed_memory
 from lipgen.dataset.film import lighting_record, realize, rig_for
-from lipgen.dataset.folder import check_folder, prepare_folder
+from lipgen.dataset.folder import check_folder, check_same_dataset, prepare_folder
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -87,13 +88,26 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
     way between processes or machines (:func:`render_jobs`), writes the same bytes.
     """
     from lipgen.dataset.layout import build_manifest
+    from lipgen.dataset.manifest import settings_entries
     from lipgen.mesh.lipmesh import LipMesh
     from lipgen.rig.backends import check_renderer
 
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
-    check_folder(out, resume)  # another dataset or a foreign folder: refused before the truth physics runs
+    old = check_folder(out, resume)  # another dataset, a foreign folder: refused before the truth physics
     rig = rig_for(s.size, s.conditions, default_rig)
+    if old is not None:  # --resume with other settings: refused now too, not after the physics
+        check_same_dataset(out, old, json.loads(json.dumps(settings_entries(s, rig))))
+    if s.conditions.video_codec:
+        from lipgen.dataset.video import check_video_codec
+
+        check_video_codec(s.conditions.video_codec)  # the encoder: before the truth physics and any write
+    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): before the truth physics
+        from lipgen.rig.target import Chessboard, calibration_targets
+
+        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
+        calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames, s.lens_frames, rng,
+                            s.conditions.mirror_extent_mm)
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
@@ -122,18 +136,9 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
         manifest["lighting"] = lighting_record(realize(s.conditions, s.seed))
         manifest["scene"] = look_record(face_look(s), len(mesh.markers) + 1)
     if s.conditions.video_codec:
-        from lipgen.dataset.video import check_video_codec
-
-        check_video_codec(s.conditions.video_codec)  # before anything is written
         manifest["video"] = {"file": VIDEO_FILE, "codec": s.conditions.video_codec, "fps": s.fps,
                              "crf": s.conditions.video_crf, "frames": s.frames,
                              "content": "the raw frames in order, H.264 (yuv420p)"}
-    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): fail before any write
-        from lipgen.rig.target import Chessboard, calibration_targets
-
-        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames, s.lens_frames, rng,
-                            s.conditions.mirror_extent_mm)
     if not prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):

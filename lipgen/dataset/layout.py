@@ -234,6 +234,10 @@ class Dataset:
         except (OSError, SyntaxError, ValueError) as exc:  # PIL: truncated or not a PNG
             raise DatasetError(f"{png} is not a readable image ({exc}); redo it with lipgen generate "
                                "--resume (same settings)") from exc
+        W, H = self.rig.camera.width, self.rig.camera.height
+        if image.shape[:2] != (H, W):  # named here, not as a bare shape deep in the tracking
+            raise DatasetError(f"{png} is {image.shape[1]}x{image.shape[0]} but the dataset's frames are "
+                               f"{W}x{H} (manifest.json): a frame of another size; restore the frame")
         return image, {} if npz is None else self._load_truth(npz, kind)
 
     def _load_truth(self, npz: Path, kind: str) -> dict:

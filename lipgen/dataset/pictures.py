@@ -36,6 +36,7 @@ def save_side_by_side(datasets: list[Dataset], index: int, out, zoom: bool = Tru
     for ds in datasets:
         if not 0 <= index < len(ds):
             raise ValueError(f"frame {index} is out of range: {ds.path} has frames 0..{len(ds) - 1}")
+        ds.require_truth("lipgen show --beside (it draws the truth marks)")
     rows = 2 if zoom else 1
     fig, axes = plt.subplots(rows, len(datasets), figsize=(6.4 * len(datasets), 4.8 * rows), squeeze=False)
     for j, ds in enumerate(datasets):

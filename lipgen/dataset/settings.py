@@ -8,8 +8,10 @@ import numpy as np
 
 from lipgen.rig.conditions import ImageConditions
 
-__all__ = ["GenerateSettings", "PRESET_CALIB_FRAMES", "PRESET_LENS_FRAMES"]
+__all__ = ["GenerateSettings", "PRESET_CALIB_FRAMES", "PRESET_LENS_FRAMES", "MAX_WIDTH"]
 
+MAX_WIDTH = 8192
+"""The widest image ``lipgen generate`` renders, pixels (OpenGL's framebuffer limit, with room)."""
 PRESET_CALIB_FRAMES = 40
 """Calibration frames of a preset with a distorted lens (``default``, ``hard``) ..."""
 PRESET_LENS_FRAMES = 30
@@ -133,6 +135,9 @@ class GenerateSettings:
         if w < 16 or h < 12 or w * 3 != h * 4:
             raise ValueError(f"size must be W x H with a 4:3 aspect (the default rig), e.g. 640x480; "
                              f"got {w}x{h}")
+        if w > MAX_WIDTH:  # OpenGL draws both views side by side (about 1.07 W wide); its limit is 16384
+            raise ValueError(f"size {w}x{h} is wider than the renderer can draw; at most "
+                             f"{MAX_WIDTH}x{MAX_WIDTH * 3 // 4}")
         object.__setattr__(self, "size", (w, h))
         for name, lo, hi in (("fps", 1, 1000), ("head_rotation_deg", 0, 30), ("head_translation_mm", 0, 50),
                              ("noise", 0, 50), ("dot_diameter", 0.2, 10)):

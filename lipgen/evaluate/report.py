@@ -15,9 +15,13 @@ from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
 from lipgen.evaluate.scoring import ROWS
 from lipgen.rig.camera import VIEWS
 
-__all__ = ["write_report", "nrsfm_section"]
+__all__ = ["write_report", "nrsfm_section", "REPORT_FILES"]
 
 log = logging.getLogger(__name__)
+
+REPORT_FILES = ("report.md", "report.json", "modes.png", "frame.png", "overlay.png", "variance.png",
+                "conditions.png")
+"""Every file :func:`write_report` may write into its folder."""
 
 
 def _plt():

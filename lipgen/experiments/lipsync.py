@@ -42,6 +42,21 @@ class LipsyncSettings:
     pictures: bool = True
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        if not self.lists or any(isinstance(k, bool) or not isinstance(k, int) for k in self.lists):
+            raise ValueError(f"lists must be one or more Harvard list numbers, got {self.lists!r}")
+        if not self.snr_db or any(np.isnan(s) or s < -30 for s in self.snr_db):
+            raise ValueError(f"snr_db must be one or more ratios in dB >= -30 (inf: clean), "
+                             f"got {self.snr_db!r}")
+        n = self.max_sentences
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+            raise ValueError(f"max_sentences must be at least 1 (or None: all), got {self.max_sentences!r}")
+
+    def report_files(self) -> tuple[str, ...]:
+        """The files :func:`run_lipsync_experiment` writes into its folder."""
+        pictures = tuple(f"list{k}.png" for k in self.lists) if self.pictures else ()
+        return ("report.md", "lipsync.json", *pictures)
+
 
 def _pct(x, q) -> float:
     return float(np.percentile(x, q)) if len(x) else float("nan")
@@ -138,7 +153,7 @@ def run_lipsync_experiment(out: str | os.PathLike, settings: LipsyncSettings = L
         if not 1 <= k <= len(espeak.HARVARD):
             raise ValueError(f"Harvard list {k} is not stored; choose from 1..{len(espeak.HARVARD)}")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)  # its parent exists (the command checks it): no folders made on the way
     jobs = [(k, i, s) for k in settings.lists for i, s in enumerate(espeak.HARVARD[k - 1])]
     jobs = jobs[:settings.max_sentences] if settings.max_sentences else jobs
     results = {str(snr): [] for snr in settings.snr_db}

@@ -145,6 +145,9 @@ class PipelineSettings:
                              f"n_test {self.n_test}, window {self.window}")
         if not 1 <= self.n_modes < self.n_train:
             raise ValueError(f"need 1 <= n_modes < n_train, got {self.n_modes}, {self.n_train}")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or not 1 <= self.workers <= 64:
+            raise ValueError(f"workers must be a whole number in [1, 64], got {self.workers!r}")
+        dataset_settings(self, self.seeds[0])  # their checks (size) before any folder
 
     @property
     def n_windows(self) -> int:

@@ -73,10 +73,12 @@ class Table51Settings:
                              f"{self.n_train}, {self.n_frames}")
         if self.oos_realisations < 1:
             raise ValueError(f"oos_realisations must be >= 1, got {self.oos_realisations}")
-        if self.marker_noise_mm < 0:
-            raise ValueError(f"marker_noise_mm must be >= 0, got {self.marker_noise_mm}")
-        if self.marker_noise_px < 0:
-            raise ValueError(f"marker_noise_px must be >= 0, got {self.marker_noise_px}")
+        for name in ("marker_noise_mm", "marker_noise_px"):
+            v = getattr(self, name)
+            if not 0 <= v < float("inf"):  # NaN ran to the end (px) or failed late unnamed (mm)
+                raise ValueError(f"{name} must be a finite number >= 0, got {v}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int | np.integer) or self.seed < 0:
+            raise ValueError(f"seed must be a whole number >= 0, got {self.seed!r}")
         for name in self.held_out_test:
             if name not in ACTIONS:
                 raise ValueError(f"unknown action {name!r}; the known actions are {', '.join(ACTIONS)}")

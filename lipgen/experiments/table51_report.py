@@ -10,7 +10,7 @@ import numpy as np
 from lipgen._io import atomic_path, atomic_write_bytes, atomic_write_json
 from lipgen.experiments.table51_protocol import COLUMNS, SHARES
 
-__all__ = ["write_report", "THESIS_TABLE"]
+__all__ = ["write_report", "report_files", "THESIS_TABLE"]
 
 THESIS_TABLE = {"xyz (8 points)": (1.10e-3, 7.80e-4), "yz (16 points)": (7.13e-4, 4.38e-4),
                 "xy (16 points)": (6.70e-3, 7.50e-3)}
@@ -284,6 +284,18 @@ def _plot_outside(result: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def _suffix(noise_mm: float, n_runs: int) -> str:
+    return f"_noise{noise_mm:g}" if n_runs > 1 else ""
+
+
+def report_files(noise_mm) -> tuple[str, ...]:
+    """The files :func:`write_report` writes for runs of marker noises ``noise_mm`` (one run each)."""
+    noise_mm = list(noise_mm)
+    pics = [f"{name}{_suffix(n, len(noise_mm))}.png" for n in noise_mm
+            for name in ("modes", "error_vs_modes", "outside_span")]
+    return ("report.md", "table51.json", *pics)
+
+
 def write_report(results: dict | list[dict], out_dir: str | os.PathLike) -> Path:
     """Write ``report.md``, ``table51.json`` and the pictures of one or more runs to ``out_dir``.
 
@@ -299,7 +311,7 @@ def write_report(results: dict | list[dict], out_dir: str | os.PathLike) -> Path
                       [{k: v for k, v in r.items() if not k.startswith("_")} for r in runs])
     sections = []
     for r in runs:
-        suffix = f"_noise{r['settings']['marker_noise_mm']:g}" if len(runs) > 1 else ""
+        suffix = _suffix(r["settings"]["marker_noise_mm"], len(runs))
         _plot_modes(r, out / f"modes{suffix}.png")
         _plot_curves(r, out / f"error_vs_modes{suffix}.png")
         _plot_outside(r, out / f"outside_span{suffix}.png")

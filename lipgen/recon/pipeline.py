@@ -120,6 +120,9 @@ class Reconstruction:
         names = ("fields", "markers", "visible", "lab_points", "ray_gap", "uv", "status", "score",
                  "frame_index", "lab_to_board", "similarity", "rotations", "info")
         d = load_npz(path, _KIND, _SCHEMA, required=names)
+        from lipgen.recon.reconfile import check_recon_arrays
+
+        check_recon_arrays(path, d)
         info = _paths_resolved_from(json.loads(str(d.pop("info"))), path)
         return cls(**{k: d[k] for k in names if k != "info"}, info=info)
 

@@ -26,8 +26,11 @@ def training_candidates(n_frames: int, test_frames: int | None = None, reference
     F = int(n_frames)
     if reference_frames is not None:
         idx = np.unique(np.asarray(list(reference_frames), dtype=np.int64))
-        if len(idx) == 0 or idx.min() < 0 or idx.max() >= F:
-            raise ValueError(f"reference frames must be frames in [0, {F}), got {list(reference_frames)}")
+        bad = idx[(idx < 0) | (idx >= F)]
+        if len(idx) == 0 or len(bad):
+            raise ValueError(f"reference frames must be frames in [0, {F}), got "
+                             + (f"{len(bad)} of {len(idx)} outside it (e.g. {int(bad[0])})" if len(bad) else
+                                "none"))
         return idx
     T = default_test_frames(F) if test_frames is None else int(test_frames)
     if not 1 <= T < F:

@@ -159,6 +159,8 @@ def lipsync(audio: Audio | None = None, text: str | None = None, model=None, fps
     fps = float(fps)
     if not np.isfinite(fps) or not 1.0 <= fps <= 1000.0:
         raise ValueError(f"fps must be between 1 and 1000, got {fps}")
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
+        raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
     model = default_model() if model is None else model
     r = model_resolution(model)
     phones = phones_from_audio(audio, text) if audio is not None else text_phones(text, rate)

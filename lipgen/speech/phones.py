@@ -265,13 +265,13 @@ def text_phones(text: str, rate: float = 1.0, lexicon: dict | None = None) -> Ph
     text : str
         English text; clauses split at punctuation get a pause between them.
     rate : float
-        Speaking-rate factor: durations are divided by it (1 = Klatt's rate).
+        Speaking-rate factor in [0.1, 10]: durations are divided by it (1 = Klatt's rate).
     lexicon : dict, optional
         Word -> phones; by default the dictionary shipped with pocketsphinx.
     """
     rate = float(rate)
-    if not np.isfinite(rate) or rate <= 0:
-        raise ValueError(f"rate must be a positive factor, got {rate}")
+    if not 0.1 <= rate <= 10:  # 1e-9 asked for 10^10 frames; NaN fails too
+        raise ValueError(f"rate must be a speaking-rate factor in [0.1, 10], got {rate}")
     lexicon = pronunciations() if lexicon is None else lexicon
     clauses = words_of(text)
     check_words([w for c in clauses for w in c], lexicon)

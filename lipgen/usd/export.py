@@ -44,7 +44,7 @@ from lipgen.usd.author import BAKED_POINTS, BLEND_SHAPES, ENCODING_SET, Plan, au
 from lipgen.usd.read import UsdAnimation, ValidationIssue, read_animation, validate
 
 __all__ = ["export_usd", "read_animation", "validate", "UsdAnimation", "ValidationIssue",
-           "EXTENSIONS", "ENCODING_SET", "BLEND_SHAPES", "BAKED_POINTS"]
+           "EXTENSIONS", "ENCODING_SET", "BLEND_SHAPES", "BAKED_POINTS", "check_start", "MAX_START"]
 
 log = logging.getLogger(__name__)
 
@@ -86,6 +86,19 @@ def _mode_arrays(mesh, model):
     return mean, comps.reshape(len(comps), n, 3), std
 
 
+MAX_START = 10**9
+"""Largest |start| time code: time codes are doubles, and at 1e20 every frame fell on the same one."""
+
+
+def check_start(start) -> None:
+    """Refuse a first time code that is not a whole number in [-:data:`MAX_START`, :data:`MAX_START`]."""
+    if isinstance(start, bool) or not isinstance(start, int | np.integer):
+        raise TypeError(f"start must be an integer time code, got {start!r}")
+    if abs(int(start)) > MAX_START:
+        raise ValueError(f"start time code {start} is beyond +-{MAX_START:.0e}: the frames' time codes "
+                         "(doubles) would fall together; give a smaller --start")
+
+
 def _blend_shape_plan(mesh, model, weights, weight_range):
     """Rest points, shape names, offsets (float32) and per-frame shape weights (float32)."""
     mean, comps, std = _mode_arrays(mesh, model)
@@ -97,6 +110,9 @@ def _blend_shape_plan(mesh, model, weights, weight_range):
         if W.ndim != 2 or W.shape[1] != k:
             raise ValueError(f"weights must have shape (F, {k}): one column per mode of the model, "
                              f"which has {k} modes; got shape {W.shape}")
+        if len(W) == 0:  # an empty file, not the bare modes (weights=None)
+            raise ValueError(f"weights has no frames (shape {W.shape}); give at least one frame, or no "
+                             "weights for the bare modes")
         check_finite(W, "weights")
     rest = mesh.vertices + mean
     if weight_range == "signed":
@@ -246,8 +262,7 @@ def export_usd(path: str | os.PathLike, mesh, model=None, weights=None, points=N
         raise ValueError(f"default_encoding must be {BLEND_SHAPES!r} or {BAKED_POINTS!r}, "
                          f"got {default_encoding!r}")
     require("pxr", "USD export")  # fails early, with the install hint
-    if isinstance(start, bool) or not isinstance(start, int | np.integer):
-        raise TypeError(f"start must be an integer time code, got {start!r}")
+    check_start(start)
     plan = _build_plan(mesh, model, weights, points, weight_range, root, markers, regions, float(start))
     from pxr import Sdf, Usd, UsdGeom
 
