@@ -55,6 +55,7 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
+from lipgen.recon.blobs import blob_peaks
 from lipgen.recon.correlate import search_box
 from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
 from lipgen.recon.track import MarkerTracker
@@ -65,7 +66,7 @@ __all__ = ["recover_along_epipolar"]
 
 def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_gap: float,
                            gap_share: float = 0.5, strength_ratio: float = 0.3,
-                           floor: float = 0.03, max_ratio: float = 1.5) -> np.ndarray:
+                           floor: float = 0.03, max_ratio: float = 1.5, blobs: bool = False) -> np.ndarray:
     """Find markers lost in one view on the epipolar line of the other view's sighting (in place).
 
     Call after both trackers' :meth:`~lipgen.recon.track.MarkerTracker.step` on one image pair
@@ -87,6 +88,11 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         median of this view's markers' dots when the marker's own is not known).
     floor : float
         Least darkness at all (0..1 of full scale), under the detector's ``min_contrast``.
+    blobs : bool
+        Also offer dots the top-hat does not resolve (no peak of their own on a darker
+        structure's flank in the defocused mirror; :func:`lipgen.recon.blobs.blob_peaks`): such a
+        blob need not be faint, only within ``strength_ratio`` to ``max_ratio`` of the marker's
+        own dot, and is taken by the same rules otherwise. False: top-hat peaks only.
     max_ratio : float
         Greatest darkness of the peak, as a share of the same reference.
 
@@ -131,13 +137,19 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         sub = gray[lo[1]:hi[1], lo[0]:hi[0]]
         peaks, strength, roundness = dot_peaks(sub, replace(cfg.dots, min_contrast=floor))
         keep = roundness >= cfg.dots.min_roundness
-        peaks, strength = peaks[keep] + lo, strength[keep]
+        peaks, strength = peaks[keep], strength[keep]
+        resolved = np.ones(len(peaks), dtype=bool)
+        if blobs:
+            b_uv, b_strength = blob_peaks(sub, replace(cfg.dots, min_contrast=floor), exclude=peaks)
+            peaks, strength = np.vstack([peaks, b_uv]), np.concatenate([strength, b_strength])
+            resolved = np.concatenate([resolved, np.zeros(len(b_uv), dtype=bool)])
+        peaks = peaks + lo
         if len(peaks) == 0:
             continue
         held = uv_a[seen_a]
         if len(held):
             free = np.linalg.norm(peaks[:, None] - held[None], axis=2).min(1) >= cfg.dots.separation
-            peaks, strength = peaks[free], strength[free]
+            peaks, strength, resolved = peaks[free], strength[free], resolved[free]
         # Each peak belongs to the marker predicted nearest to it (a neighbour's dot on the same
         # epipolar line, at the same height in the mirror, is not this marker's).
         placed = np.flatnonzero(placed)
@@ -156,8 +168,11 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             gap = triangulate(cameras[1 - a], ray_b, cameras[a], peaks[idx])[1]
             ok = idx[gap <= gap_share * max_gap]
             # One peak on the line, and no darker than the marker's own dot has been: a dark blob
-            # there (the mouth's corner on the lip corner's line) is not a pale dot.
-            if len(ok) != 1 or strength[ok[0]] >= faint \
+            # there (the mouth's corner on the lip corner's line) is not a pale dot. A resolved
+            # peak over the floor was the tracker's to take; an unresolved blob is measured
+            # against the marker's dot only (it sits on a darker structure's flank).
+            if len(ok) != 1 or (resolved[ok[0]] and strength[ok[0]] >= faint) \
+                    or (not resolved[ok[0]] and not np.isfinite(own)) \
                     or (np.isfinite(own) and strength[ok[0]] > max_ratio * own):
                 continue
             p = refine_centroids(gray, peaks[ok], cfg.dots.sigma, window=cfg.dots.window)[0]

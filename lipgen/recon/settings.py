@@ -65,6 +65,9 @@ class ReconstructSettings:
         where a faint dot (under the detector's contrast floor: the defocused mirror view of
         ``hard``) may be taken (:func:`lipgen.recon.epipolar.recover_along_epipolar`); it then
         passes the same view checks as any re-acquired sighting.
+    epipolar_blobs : bool
+        The recovery also offers dots the top-hat does not resolve in the defocused mirror (a dot
+        on a darker structure's flank: :mod:`lipgen.recon.blobs`). False: the old recovery.
     first_frame_layout : bool
         Check the first frame's matches of both views jointly in 3-D against the model's marker
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
@@ -201,6 +204,7 @@ class ReconstructSettings:
     step_k: float | None = 4.0
     min_step: float = 1.0
     epipolar_recovery: bool = True
+    epipolar_blobs: bool = False
     first_frame_layout: bool = True
     first_frame_grow: bool = True
     first_frame_dark: float | None = 0.4
@@ -218,6 +222,8 @@ class ReconstructSettings:
     first_frame_one_view: int | None = 18
 
     def __post_init__(self):
+        if not isinstance(self.epipolar_blobs, bool):
+            raise ValueError(f"settings.epipolar_blobs must be True or False, got {self.epipolar_blobs!r}")
         age = self.identity_reference_age
         if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
             raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")

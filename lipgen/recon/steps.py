@@ -177,7 +177,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 tracker._rejected[0] |= bad     # the first-frame matches the other view contradicted
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
-                recover_along_epipolar(trackers, views, cameras, gap_limit.limit())
+                recover_along_epipolar(trackers, views, cameras, gap_limit.limit(),
+                                       blobs=settings.epipolar_blobs)
             if settings.one_view_pairing and rest_points is not None:
                 fresh = np.stack([tr.acquired for tr in trackers])
                 fresh |= False if pending is None else pending.since >= 0

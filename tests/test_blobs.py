@@ -1,0 +1,83 @@
+"""Blob peaks of the Laplacian (lipgen.recon.blobs) and the epipolar recovery that offers them."""
+
+import numpy as np
+import pytest
+from synthetic_images import background, draw_dots, frame
+from test_raygap import _two_views
+
+from lipgen.recon.blobs import blob_peaks
+from lipgen.recon.dots import DotSettings, dot_peaks
+from lipgen.recon.epipolar import recover_along_epipolar
+from lipgen.recon.raygap import RayGapLimit, px_per_mm
+from lipgen.recon.track import MarkerTracker, TrackerSettings
+from lipgen.recon.viewcheck import check_views
+
+
+def _dot_by_a_line(gap: float, line_width: float = 2.5) -> np.ndarray:
+    """(41, 61): a dot (sigma 1.5, relative depth 0.25) at (30 - gap, 20) beside a dark vertical line
+    (relative depth 0.5, Gaussian profile of ``line_width``) along column 30, on a 0.7 background."""
+    y, x = np.mgrid[:41, :61].astype(float)
+    line = np.exp(-((x - 30) ** 2) / (2 * line_width ** 2))
+    dot = np.exp(-((x - (30 - gap)) ** 2 + (y - 20) ** 2) / (2 * 1.5 ** 2))
+    return 0.7 * (1 - 0.5 * line) * (1 - 0.25 * dot)
+
+
+@pytest.mark.parametrize("gap", [5.0, 6.0])
+def test_a_dot_on_a_dark_lines_flank_is_a_blob_but_no_top_hat_peak(gap):
+    img = _dot_by_a_line(gap)
+    uv, _, _ = dot_peaks(img, DotSettings(sigma=1.5, min_contrast=0.005, noise_k=0.0))
+    assert len(uv) == 0 or np.linalg.norm(uv - [30 - gap, 20], axis=1).min() > 1.5
+    b, strength = blob_peaks(img, DotSettings(sigma=1.5))
+    assert len(b) == 1 and np.linalg.norm(b[0] - [30 - gap, 20]) <= 1.0
+    assert 0.05 < strength[0] < 0.7 * 0.5        # the top-hat there: dark, not the line's depth
+
+
+def test_blobs_by_a_peak_already_found_are_left_out():
+    img = _dot_by_a_line(6.0)
+    assert len(blob_peaks(img, DotSettings(sigma=1.5), exclude=np.array([[25.0, 21.0]]))[0]) == 0
+    assert len(blob_peaks(img, DotSettings(sigma=1.5), exclude=np.array([[10.0, 10.0]]))[0]) == 1
+
+
+def _run(blobs: bool, seed: int = 3, n_frames: int = 14):
+    """Six marks in two views; from frame 5 a dark vertical line runs 5 px right of mark 0 in view
+    0, so its dot has no top-hat peak there. Returns (view 0 tracks, true uv (2, F, P, 2))."""
+    cams = _two_views()
+    rng = np.random.default_rng(seed)
+    grid = np.array([(x, y, 0.0) for y in (-6.0, 6.0) for x in (-8.0, 0.0, 8.0)])
+    t = np.arange(n_frames)[:, None, None]
+    marks = grid[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
+    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])
+    bases = [background((120, 160), rng, texture=0.03) for _ in cams]
+    settings = TrackerSettings(dots=DotSettings(sigma=1.5), confident_correlation=1.0)
+    trackers = [MarkerTracker(uv[v, 0], settings) for v in range(2)]
+    limit = RayGapLimit(2.0, k=8.0, floor=1.0 / px_per_mm(cams), min_samples=30)
+    cols = np.arange(160)[None, :]
+    for f in range(n_frames):
+        images = []
+        for v in range(2):
+            img = draw_dots(bases[v].copy(), uv[v, f], depth=0.2)
+            if v == 0 and f >= 5:
+                img = img - 0.35 * np.exp(-((cols - uv[0, f, 0, 0] - 5.0) ** 2) / (2 * 2.5 ** 2))
+            images.append(frame(img, np.zeros((0, 2)), rng, noise=0.003))
+        for v in range(2):
+            trackers[v].step(images[v])
+        if f > 0:
+            recover_along_epipolar(trackers, images, cams, limit.limit(), blobs=blobs)
+            check_views(trackers, cams, limit)
+    return trackers[0].tracks(), uv
+
+
+def test_a_dot_merged_into_a_dark_line_is_recovered_only_with_blobs():
+    off, uv = _run(blobs=False)
+    on, _ = _run(blobs=True)
+    err_on = np.linalg.norm(on.uv[5:, 0] - uv[0, 5:, 0], axis=1)
+    assert on.visible[5:, 0].sum() > off.visible[5:, 0].sum()
+    assert on.visible[5:, 0].mean() > 0.5
+    assert np.nanmax(err_on[on.visible[5:, 0]]) < 1.0
+
+
+def test_the_setting_must_be_a_bool():
+    from lipgen.recon.settings import ReconstructSettings
+    with pytest.raises(ValueError, match="epipolar_blobs must be True or False"):
+        ReconstructSettings(epipolar_blobs=1)
+    assert ReconstructSettings().epipolar_blobs is False      # the old recovery by default
