@@ -38,7 +38,7 @@ def test_blobs_by_a_peak_already_found_are_left_out():
     assert len(blob_peaks(img, DotSettings(sigma=1.5), exclude=np.array([[10.0, 10.0]]))[0]) == 1
 
 
-def _run(blobs: bool, seed: int = 3, n_frames: int = 14):
+def _run(blobs: bool, seed: int = 3, n_frames: int = 14, blob_share: float = 1.0):
     """Six marks in two views; from frame 5 a dark vertical line runs 5 px right of mark 0 in view
     0, so its dot has no top-hat peak there. Returns (view 0 tracks, true uv (2, F, P, 2))."""
     cams = _two_views()
@@ -62,7 +62,7 @@ def _run(blobs: bool, seed: int = 3, n_frames: int = 14):
         for v in range(2):
             trackers[v].step(images[v])
         if f > 0:
-            recover_along_epipolar(trackers, images, cams, limit.limit(), blobs=blobs)
+            recover_along_epipolar(trackers, images, cams, limit.limit(), blobs=blobs, blob_share=blob_share)
             check_views(trackers, cams, limit)
     return trackers[0].tracks(), uv
 
@@ -74,10 +74,15 @@ def test_a_dot_merged_into_a_dark_line_is_recovered_only_with_blobs():
     assert on.visible[5:, 0].sum() > off.visible[5:, 0].sum()
     assert on.visible[5:, 0].mean() > 0.5
     assert np.nanmax(err_on[on.visible[5:, 0]]) < 1.0
+    # a blob held to half the reach and band is still taken where it is the marker's dot
+    half, _ = _run(blobs=True, blob_share=0.5)
+    assert half.visible[5:, 0].mean() > 0.5
 
 
 def test_the_setting_must_be_a_bool():
     from lipgen.recon.settings import ReconstructSettings
     with pytest.raises(ValueError, match="epipolar_blobs must be True or False"):
         ReconstructSettings(epipolar_blobs=1)
+    with pytest.raises(ValueError, match="epipolar_blob_share must be in"):
+        ReconstructSettings(epipolar_blob_share=0.0)
     assert ReconstructSettings().epipolar_blobs is False      # the old recovery by default

@@ -66,7 +66,8 @@ __all__ = ["recover_along_epipolar"]
 
 def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_gap: float,
                            gap_share: float = 0.5, strength_ratio: float = 0.3,
-                           floor: float = 0.03, max_ratio: float = 1.5, blobs: bool = False) -> np.ndarray:
+                           floor: float = 0.03, max_ratio: float = 1.5, blobs: bool = False,
+                           blob_share: float = 1.0) -> np.ndarray:
     """Find markers lost in one view on the epipolar line of the other view's sighting (in place).
 
     Call after both trackers' :meth:`~lipgen.recon.track.MarkerTracker.step` on one image pair
@@ -93,6 +94,9 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         structure's flank in the defocused mirror; :func:`lipgen.recon.blobs.blob_peaks`): such a
         blob need not be faint, only within ``strength_ratio`` to ``max_ratio`` of the marker's
         own dot, and is taken by the same rules otherwise. False: top-hat peaks only.
+    blob_share : float
+        An unresolved blob must lie within this share of the reach and of the epipolar band
+        (1: the same as a peak; smaller: held closer, as a blob is more often a wrong one).
     max_ratio : float
         Greatest darkness of the peak, as a share of the same reference.
 
@@ -102,6 +106,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         The markers found, per view; their status is ``RECOVERED``.
     """
     found = np.zeros((2, len(trackers[0].init)), dtype=bool)
+    if not 0 < blob_share <= 1:
+        raise ValueError(f"blob_share must be in (0, 1], got {blob_share!r}")
     if not 0 < gap_share <= 1 or not 0 < strength_ratio <= 1 or not 0 < floor < 1:
         raise ValueError(f"gap_share, strength_ratio must be in (0, 1] and floor in (0, 1), got "
                          f"{gap_share!r}, {strength_ratio!r}, {floor!r}")
@@ -157,7 +163,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         typical = ta.typical_strength(np.ones(len(ta.strength), dtype=bool))
         faint = cfg.dots_for(typical).min_contrast   # this view's detector floor, as the tracker's
         for i, k in enumerate(want):
-            near = (np.linalg.norm(peaks - pred[k], axis=1) <= reach[i]) & (nearest == k)
+            share = np.where(resolved, 1.0, blob_share)
+            near = (np.linalg.norm(peaks - pred[k], axis=1) <= share * reach[i]) & (nearest == k)
             own = ta.strength[k] if np.isfinite(ta.strength[k]) else typical
             if np.isfinite(own):
                 near &= strength >= strength_ratio * own
@@ -166,7 +173,7 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
                 continue
             ray_b = np.repeat(uv_b[k][None], len(idx), 0)
             gap = triangulate(cameras[1 - a], ray_b, cameras[a], peaks[idx])[1]
-            ok = idx[gap <= gap_share * max_gap]
+            ok = idx[gap <= share[idx] * gap_share * max_gap]
             # One peak on the line, and no darker than the marker's own dot has been: a dark blob
             # there (the mouth's corner on the lip corner's line) is not a pale dot. A resolved
             # peak over the floor was the tracker's to take; an unresolved blob is measured
@@ -177,7 +184,7 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
                 continue
             p = refine_centroids(gray, peaks[ok], cfg.dots.sigma, window=cfg.dots.window)[0]
             g = triangulate(cameras[1 - a], uv_b[k][None], cameras[a], p[None])[1][0]
-            if not (np.linalg.norm(p - peaks[ok[0]]) <= cfg.gate and g <= gap_share * max_gap):
+            if not (np.linalg.norm(p - peaks[ok[0]]) <= cfg.gate and g <= share[ok[0]] * gap_share * max_gap):
                 continue
             ta.take(k, p, gray, float(strength[ok[0]]))
             found[a, k] = True

@@ -68,6 +68,8 @@ class ReconstructSettings:
     epipolar_blobs : bool
         The recovery also offers dots the top-hat does not resolve in the defocused mirror (a dot
         on a darker structure's flank: :mod:`lipgen.recon.blobs`). False: the old recovery.
+    epipolar_blob_share : float
+        Such a blob must lie within this share (0, 1] of the recovery's reach and epipolar band.
     first_frame_layout : bool
         Check the first frame's matches of both views jointly in 3-D against the model's marker
         layout (:func:`lipgen.recon.firstframe.check_layout`): a match whose triangulated point is
@@ -205,6 +207,7 @@ class ReconstructSettings:
     min_step: float = 1.0
     epipolar_recovery: bool = True
     epipolar_blobs: bool = False
+    epipolar_blob_share: float = 1.0
     first_frame_layout: bool = True
     first_frame_grow: bool = True
     first_frame_dark: float | None = 0.4
@@ -224,6 +227,9 @@ class ReconstructSettings:
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
             raise ValueError(f"settings.epipolar_blobs must be True or False, got {self.epipolar_blobs!r}")
+        if not (isinstance(self.epipolar_blob_share, numbers.Real) and 0 < self.epipolar_blob_share <= 1):
+            raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "
+                             f"got {self.epipolar_blob_share!r}")
         age = self.identity_reference_age
         if age is not None and (isinstance(age, bool) or int(age) != age or age < 1):
             raise ValueError(f"identity_reference_age must be None or an integer >= 1 (frames), got {age!r}")

@@ -178,7 +178,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         if cameras is not None and t > 0:
             if settings.epipolar_recovery:
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit(),
-                                       blobs=settings.epipolar_blobs)
+                                       blobs=settings.epipolar_blobs,
+                                       blob_share=settings.epipolar_blob_share)
             if settings.one_view_pairing and rest_points is not None:
                 fresh = np.stack([tr.acquired for tr in trackers])
                 fresh |= False if pending is None else pending.since >= 0
