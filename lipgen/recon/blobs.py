@@ -32,7 +32,7 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
     gray : (h, w) float
     settings : DotSettings
         ``sigma``, ``noise_k`` (the robust noise floor of the Laplacian, as :func:`dot_peaks`
-        uses it for the top-hat), ``min_roundness``, ``separation``, ``relative``.
+        uses it for the top-hat), ``min_roundness``, ``separation``.
     exclude : (m, 2) float, optional
         Peaks already found (column, row): blobs within ``separation`` of one are left out.
 
@@ -60,7 +60,7 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
     if exclude is not None and len(exclude) and len(uv):
         far = np.linalg.norm(uv[:, None] - np.asarray(exclude)[None], axis=2).min(1) >= settings.separation
         uv, rows, cols = uv[far], rows[far], cols[far]
-    response = ndimage.gaussian_filter(darkness(gray, s, settings.relative), settings.smoothing * s,
+    response = ndimage.gaussian_filter(darkness(gray, s), settings.smoothing * s,
                                        mode="nearest")
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
