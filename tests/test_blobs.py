@@ -85,4 +85,8 @@ def test_the_setting_must_be_a_bool():
         ReconstructSettings(epipolar_blobs=1)
     with pytest.raises(ValueError, match="epipolar_blob_share must be in"):
         ReconstructSettings(epipolar_blob_share=0.0)
-    assert ReconstructSettings().epipolar_blobs is False      # the old recovery by default
+    with pytest.raises(ValueError, match="epipolar_blob_share must be in"):
+        ReconstructSettings(epipolar_blob_share=True)
+    default = ReconstructSettings()
+    assert default.epipolar_blobs is True and default.epipolar_blob_share == 0.5   # hard18's E2
+    assert ReconstructSettings(epipolar_blobs=False).epipolar_blobs is False       # the old recovery

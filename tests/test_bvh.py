@@ -25,7 +25,7 @@ MOTION
 Frames: 2
 Frame Time: .0083333
 0 0 0 0 0 0 0 0 0
-10 0 -1 90 0 0 30 20 -40
+10 0 -1 90 25 -15 30 20 -40
 """
 
 
@@ -38,7 +38,7 @@ def test_a_chain_places_its_joints_by_the_listed_euler_order():
     # frame 0: offsets only
     np.testing.assert_allclose(X[0], [[1, 2, 3], [1, -2, 3], [1, -2, 5]])
     # frame 1, independently: intrinsic 'ZYX' Euler angles are Rz @ Ry @ Rx
-    R0 = Rotation.from_euler("ZYX", [90, 0, 0], degrees=True).as_matrix()
+    R0 = Rotation.from_euler("ZYX", [90, 25, -15], degrees=True).as_matrix()
     R1 = R0 @ Rotation.from_euler("ZYX", [30, 20, -40], degrees=True).as_matrix()
     hips = np.array([1 + 10, 2 + 0, 3 - 1])
     knee = hips + R0 @ [0, -4, 0]
@@ -64,6 +64,13 @@ def test_bone_lengths_stay_fixed_whatever_the_angles():
     (lambda t: t.split("MOTION")[0], "no MOTION"),
     (lambda t: t.replace("\t\t}\n\t}\n}", "\t\t}\n\t}"), "incomplete"),
     (lambda t: t.replace("10 0 -1", "nan 0 -1"), "NaN or inf"),
+    (lambda t: t.replace("Frame Time: .0083333", "Frame Time: 0"), "Frame Time must be a positive"),
+    (lambda t: t.replace("HIERARCHY\n", "HIERARCHY\nEnd Site\n"), "line 2: End Site outside any joint"),
+    (lambda t: t.replace("ROOT Hips\n{\n", "OFFSET 1 2 3\nROOT Hips\n{\n"), "OFFSET outside its joint"),
+    (lambda t: t.replace("CHANNELS 3 Zrotation Yrotation Xrotation\n\t\tEnd", "CHANNELS\n\t\tEnd"),
+     "bad CHANNELS"),
+    (lambda t: t.replace("CHANNELS 3 Zrotation Yrotation Xrotation\n\t\tEnd",
+                         "CHANNELS x Zrotation Yrotation Xrotation\n\t\tEnd"), "bad CHANNELS"),
 ])
 def test_a_malformed_file_is_refused_with_where(edit, match):
     with pytest.raises(ValueError, match=match):

@@ -55,6 +55,33 @@ def test_force_never_replaces_an_input(tmp_path, ds, capsys, argv):
     assert _tree(tmp_path) == before
 
 
+def test_force_replaces_a_commands_own_output_inside_a_dataset(tmp_path, ds, capsys):
+    # DATASET/recon.npz is not part of the dataset: a second run with --force may replace it,
+    # while the dataset's own files stay protected (above)
+    from lipgen.commands._output import check_not_input
+
+    (ds / "recon.npz").write_bytes(b"an earlier reconstruction")
+    check_not_input(ds / "recon.npz", (ds,))
+    check_not_input(ds / "report" / "frame.png", (ds,))
+    for part in ("manifest.json", "mesh.npz", "raw/000000.png"):
+        with pytest.raises(ValueError, match="is a file of the input"):
+            check_not_input(ds / part, (ds,))
+    photos = tmp_path / "photos"                       # not a dataset: every file is the input
+    photos.mkdir()
+    (photos / "board.png").write_bytes(b"a photo")
+    with pytest.raises(ValueError, match="is a file of the input"):
+        check_not_input(photos / "board.png", (photos,))
+
+
+def test_a_picture_without_an_extension_is_a_png(tmp_path):
+    import numpy as np
+
+    np.savez(tmp_path / "t.npz", W=np.random.default_rng(0).normal(size=(20, 8)))
+    assert main(["nrsfm", str(tmp_path / "t.npz"), "--k", "2", "--out", str(tmp_path / "s.npz"),
+                 "--plot", str(tmp_path / "curve")]) == 0
+    assert (tmp_path / "curve").read_bytes()[:4] == b"\x89PNG"
+
+
 def test_evaluate_keeps_every_report_file_without_force(tmp_path, capsys):
     from lipgen.evaluate.report import REPORT_FILES
 
@@ -140,8 +167,7 @@ def test_reference_frames_refuse_a_huge_or_empty_range():
 
 @pytest.mark.parametrize("argv", [
     ["show", "{t}/ds", "--out", "{t}/frame.txt"],
-    ["show", "{t}/ds", "--out", "{t}/frame"],  # written as 'frame' before
-    ["nrsfm", "{t}/t.npz", "--k", "2", "--out", "{t}/s.npz", "--plot", "{t}/curve"],
+    ["nrsfm", "{t}/t.npz", "--k", "2", "--out", "{t}/s.npz", "--plot", "{t}/curve.txt"],
     ["mesh", "--out", "{t}/lips.obj", "--plot", "{t}/lips.txt"],  # lips.obj was written first
 ])
 def test_a_picture_without_a_picture_format_is_refused_first(tmp_path, capsys, argv):
@@ -304,3 +330,14 @@ def test_lipsync_out_a_folder_is_refused_before_the_work(tmp_path, capsys, monke
     (tmp_path / "d.npz").mkdir()
     assert main(["lipsync", "--text", "hello", "--out", str(tmp_path / "d.npz"), "--force"]) == 1
     assert "is a folder" in _err(capsys)
+
+
+def test_the_recording_folder_is_named_by_the_callers_flag(tmp_path):
+    # reconstruct builds the recording in --recording (or OUT_recording): its messages say so
+    from lipgen.recon.recording import check_recording_out
+
+    video, calib = tmp_path / "clip.mp4", tmp_path / "photos"
+    with pytest.raises(FileNotFoundError, match=r"^--recording .*missing.* does not exist"):
+        check_recording_out(tmp_path / "missing" / "rec", video, calib, False, "--recording")
+    with pytest.raises(ValueError, match=r"^--out .* overlaps --calib"):
+        check_recording_out(calib, video, calib, True)

@@ -81,9 +81,34 @@ def check_folder_output(path, force: bool, products: Iterable[str] = (), flag: s
     return dest
 
 
+_DATASET_PARTS = ("manifest.json", "mesh.npz", "raw", "truth", "calib", "depth", "masks", "speech")
+"""What a dataset or recording folder is made of (a command's own earlier output beside them is not)."""
+
+
+def _input_part(folder: Path, rel: Path) -> bool:
+    """Whether the existing file ``folder / rel`` is part of input ``folder``: of a dataset or a
+    recording (a ``manifest.json``), its manifest, mesh, video and data subfolders; of any other
+    folder (chessboard photos, footage), every file."""
+    manifest = folder / "manifest.json"
+    if not manifest.is_file():
+        return True
+    parts = set(_DATASET_PARTS)
+    try:
+        import json
+
+        video = json.loads(manifest.read_text()).get("video") or {}
+        parts.add(str(video.get("file", "")))
+    except (OSError, ValueError, AttributeError):
+        pass
+    return rel.parts[0] in parts
+
+
 def check_not_input(path, inputs: Iterable, flag: str = "--out") -> None:
     """Refuse output ``path`` when writing it would replace an input: one of the files ``inputs``
-    (paths; None skipped) or an existing file inside one of its folders. Symlinks and '..' are resolved.
+    (paths; None skipped) or an existing file an input folder is made of (:func:`_input_part`: a
+    dataset's frames, truth, mesh, manifest; any file of another folder). A command's own earlier
+    output inside a dataset (``DATASET/recon.npz``) may be replaced with ``--force``. Symlinks and
+    '..' are resolved.
 
     Raises
     ------
@@ -98,7 +123,8 @@ def check_not_input(path, inputs: Iterable, flag: str = "--out") -> None:
         if dest == src:
             raise ValueError(f"{flag} {path} is the input {given}; writing it would replace the input "
                              "(even with --force); choose another path (nothing was written)")
-        if src.is_dir() and dest.is_relative_to(src) and (dest.exists() or dest.is_symlink()):
+        if (src.is_dir() and dest.is_relative_to(src) and (dest.exists() or dest.is_symlink())
+                and _input_part(src, dest.relative_to(src))):
             raise ValueError(f"{flag} {path} is a file of the input {given} ({dest.relative_to(src)}); "
                              "writing it would change the input (even with --force); choose a path "
                              "outside it (nothing was written)")
@@ -106,12 +132,12 @@ def check_not_input(path, inputs: Iterable, flag: str = "--out") -> None:
 
 def check_picture_output(path, force, flag: str = "--out") -> Path:
     """:func:`check_file_output` for a picture, whose extension must name a format matplotlib writes
-    (checked before the drawing, not by ``savefig`` after the work)."""
+    (checked before the drawing, not by ``savefig`` after the work); a name without one is a PNG."""
     dest = check_file_output(path, force, flag)
     from matplotlib.backend_bases import FigureCanvasBase
 
     formats = FigureCanvasBase.get_supported_filetypes()
-    if dest.suffix.lower().lstrip(".") not in formats:
+    if dest.suffix and dest.suffix.lower().lstrip(".") not in formats:  # no extension: PNG, as before
         raise ValueError(f"{flag} {dest}: a picture's name must end in one of "
                          f"{', '.join('.' + f for f in sorted(formats))}; "
                          f"got {dest.suffix or 'no extension'!r}")

@@ -142,7 +142,8 @@ def _dataset_or_recording(args, out: Path) -> Path:
 
     summary = init_recording(src, args.calib, rec, mirror_side=args.mirror_side, split=args.split,
                              board=args.board, dot_diameter=args.dot_diameter, mesh_source=args.mesh,
-                             force=args.force, progress=not args.no_progress, fps=args.fps)
+                             force=args.force, progress=not args.no_progress, fps=args.fps,
+                             out_flag="--recording")
     report_recording(summary, rec, sys.stdout.write)
     return rec
 

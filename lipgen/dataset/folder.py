@@ -53,6 +53,8 @@ def _check_inside(out: Path) -> None:
         if p.is_symlink() and not p.resolve().is_relative_to(root):
             raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
                                "through it (nothing was written). Replace it with a real folder")
+
+
 def check_folder(out: Path, resume: bool) -> dict | None:
     """The checks of ``out`` that need nothing simulated, made before the truth physics runs: a file, a
     folder holding something else, another dataset without ``resume``, an unreadable manifest.

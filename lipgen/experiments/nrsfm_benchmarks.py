@@ -221,6 +221,7 @@ def _curve(cache: _DaiRuns, ks, rtol: float):
     chosen, rule = choose_k(ks, rms / scale, rtol=rtol)
     return KCurve(ks=ks, rms=rms, relative=rms / scale, chosen=chosen, rule=rule, method="dai")
 
+
 def _score_sequence(seq, settings: NrsfmBenchSettings) -> dict:
     """Every method of ``settings`` on one filmed sequence, at the validation Ks and at its own K, and
     the flat baseline."""
@@ -237,7 +238,6 @@ def _score_sequence(seq, settings: NrsfmBenchSettings) -> dict:
             entry["runs"].append(r)
             log.info("%s %s K=%s e3D %.4f (flat %.4f)", seq.name, m, r["k"], r["e3d"], entry["flat_e3d"])
     return entry
-
 
 
 @single_threaded  # tracks of tens of points: BLAS threads only wait (lipgen._threads)

@@ -77,9 +77,11 @@ def parse_bvh(text: str) -> BvhSkeleton:
         if not tok or tok[0] == "HIERARCHY":
             continue
         if tok[0] in ("ROOT", "JOINT") or tok[:2] == ["End", "Site"]:
-            name = tok[1] if tok[0] != "End" else f"{names[stack[-1]]}_end"
             if tok[0] != "ROOT" and not stack:
-                raise ValueError(f"BVH line {i}: {tok[0]} outside any joint")
+                raise ValueError(f"BVH line {i}: {' '.join(tok)} outside any joint")
+            if len(tok) < 2:
+                raise ValueError(f"BVH line {i}: {tok[0]} without a name")
+            name = tok[1] if tok[0] != "End" else f"{names[stack[-1]]}_end"
             names.append(name)
             parents.append(stack[-1] if stack else -1)
             offsets.append(None)
@@ -90,6 +92,8 @@ def parse_bvh(text: str) -> BvhSkeleton:
             if not stack:
                 raise ValueError(f"BVH line {i}: unbalanced '}}'")
             stack.pop()
+        elif tok[0] in ("OFFSET", "CHANNELS") and (not stack or stack[-1] != len(names) - 1):
+            raise ValueError(f"BVH line {i}: {tok[0]} outside its joint's braces")
         elif tok[0] == "OFFSET":
             if len(tok) != 4:
                 raise ValueError(f"BVH line {i}: OFFSET needs 3 values, got {len(tok) - 1}")
@@ -97,7 +101,7 @@ def parse_bvh(text: str) -> BvhSkeleton:
         elif tok[0] == "CHANNELS":
             chans = tok[2:]
             bad = [c for c in chans if c not in _AXES and c not in _MOVES]
-            if bad or int(tok[1]) != len(chans):
+            if bad or len(tok) < 2 or not tok[1].isdigit() or int(tok[1]) != len(chans):
                 raise ValueError(f"BVH line {i}: bad CHANNELS {' '.join(tok[1:])!r}")
             channels[stack[-1]] = chans
         else:
@@ -122,6 +126,8 @@ def parse_bvh(text: str) -> BvhSkeleton:
         rows.append(_floats(tok, f"line {j}"))
     if not rows:
         raise ValueError("BVH has no frames")
+    if not (np.isfinite(frame_time) and frame_time > 0):
+        raise ValueError(f"BVH Frame Time must be a positive number of seconds, got {frame_time!r}")
     motion = np.asarray(rows, float)
     if not np.isfinite(motion).all():
         raise ValueError("BVH frames hold NaN or inf values")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,7 +152,8 @@ def _figure(path, title: str, xlabel: str, ylabel: str):
         ax.legend(fontsize=8)
         fig.tight_layout()
         with atomic_path(path) as tmp:
-            fig.savefig(tmp)
+            # the temporary's name has no suffix: the format from the destination's (no suffix: PNG)
+            fig.savefig(tmp, format=(os.path.splitext(str(path))[1].lstrip(".") or "png"))
     finally:
         plt.close(fig)
 

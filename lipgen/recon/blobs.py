@@ -50,7 +50,8 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
     med = np.median(lap)
     mad = 1.4826 * np.median(np.abs(lap - med))
     size = 2 * int(np.floor(settings.separation / 2)) + 1
-    peaks = (lap == ndimage.maximum_filter(lap, size=size, mode="nearest")) & (lap > med + settings.noise_k * mad)
+    peaks = lap == ndimage.maximum_filter(lap, size=size, mode="nearest")
+    peaks &= lap > med + settings.noise_k * mad
     edge = int(np.ceil(2.0 * s))
     peaks[:edge], peaks[-edge:], peaks[:, :edge], peaks[:, -edge:] = False, False, False, False
     rows, cols = np.nonzero(peaks)

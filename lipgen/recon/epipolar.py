@@ -162,8 +162,8 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
         nearest = placed[np.linalg.norm(peaks[:, None] - pred[placed][None], axis=2).argmin(1)]
         typical = ta.typical_strength(np.ones(len(ta.strength), dtype=bool))
         faint = cfg.dots_for(typical).min_contrast   # this view's detector floor, as the tracker's
+        share = np.where(resolved, 1.0, blob_share)
         for i, k in enumerate(want):
-            share = np.where(resolved, 1.0, blob_share)
             near = (np.linalg.norm(peaks - pred[k], axis=1) <= share * reach[i]) & (nearest == k)
             own = ta.strength[k] if np.isfinite(ta.strength[k]) else typical
             if np.isfinite(own):

@@ -100,36 +100,39 @@ def detect_mirror_side(images, split: int, min_contrast: float = 0.03) -> tuple[
     return ("left" if left < right else "right"), float(ratio)
 
 
-def check_recording_out(out: Path, video, calib, force: bool) -> None:
+def check_recording_out(out: Path, video, calib, force: bool, flag: str = "--out") -> None:
     """Refuse recording folder ``out`` before any work when it may not be (re)placed: its parent is
     missing, it holds (or lies inside) the footage or the photos, or it is a non-empty folder that
     is not a dataset (``force`` replaces a dataset or recording only: never a folder of other files)."""
     dest = out.resolve()
-    for flag, src in (("the footage", video), ("--calib", calib)):
+    for what, src in (("the footage", video), ("--calib", calib)):
         src = Path(src).resolve()
         if dest == src or src.is_relative_to(dest) or dest.is_relative_to(src):
-            raise ValueError(f"--out {out} overlaps {flag} {src} (the same folder, inside it or holding it); "
-                             "the recording would replace its own input; choose another folder (nothing "
-                             "was written)")
+            raise ValueError(f"{flag} {out} overlaps {what} {src} (the same folder, inside it or holding "
+                             "it); the recording would replace its own input; choose another folder "
+                             "(nothing was written)")
     if not out.parent.is_dir():
-        raise FileNotFoundError(f"--out {out}: folder {out.parent} does not exist; create it first or choose "
-                                "another path (nothing was written)")
+        raise FileNotFoundError(f"{flag} {out}: folder {out.parent} does not exist; create it first or "
+                                "choose another path (nothing was written)")
     if not os.access(out.parent, os.W_OK | os.X_OK):  # the recording is built beside it: before calibrating
-        raise PermissionError(f"--out {out}: folder {out.parent} is not writable; choose another path")
+        raise PermissionError(f"{flag} {out}: folder {out.parent} is not writable; choose another path "
+                              "(nothing was written)")
     if out.exists() and not out.is_dir():
-        raise NotADirectoryError(f"--out {out} is a file, not a folder; choose a folder")
+        raise NotADirectoryError(f"{flag} {out} is a file, not a folder; choose a folder")
     if out.is_dir() and any(out.iterdir()):
         if not (out / "manifest.json").is_file():
-            raise FileExistsError(f"--out {out} holds other files (no manifest.json: not a dataset); "
+            raise FileExistsError(f"{flag} {out} holds other files (no manifest.json: not a dataset); "
                                   "--force replaces a recording only; choose a new or empty folder")
         if not force:
-            raise FileExistsError(f"{out} exists and is not empty; choose another --out or pass --force")
+            raise FileExistsError(f"{out} exists and is not empty; choose another {flag} or pass --force")
 
 
 def init_recording(video, calib, out, mirror_side: str = "auto", split: int | str = "auto",
                    board=(9, 6, 8.0), dot_diameter: float = 2.0, mesh_source: str = "lip_mesh(0)",
-                   force: bool = False, progress: bool = False, fps: float | None = None) -> dict:
-    """Build a recording folder ``out`` from ``video`` and the chessboard photos in ``calib``.
+                   force: bool = False, progress: bool = False, fps: float | None = None,
+                   out_flag: str = "--out") -> dict:
+    """Build a recording folder ``out`` from ``video`` and the chessboard photos in ``calib``
+    (``out_flag``: how the caller's user named ``out``, for the messages).
 
     ``video`` is a video file or a folder of frame images (name order; ``fps``, default 30, is
     then their frame rate; for a video it overrides the file's).
@@ -145,7 +148,7 @@ def init_recording(video, calib, out, mirror_side: str = "auto", split: int | st
     from lipgen.rig.target import Chessboard
 
     out = Path(out)
-    check_recording_out(out, video, calib, force)
+    check_recording_out(out, video, calib, force, out_flag)
     if mirror_side not in ("auto", "left", "right"):
         raise ValueError(f"mirror_side must be 'auto', 'left' or 'right', got {mirror_side!r}")
     if fps is not None and not 1 <= float(fps) <= 1000:

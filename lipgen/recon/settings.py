@@ -231,7 +231,8 @@ class ReconstructSettings:
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
             raise ValueError(f"settings.epipolar_blobs must be True or False, got {self.epipolar_blobs!r}")
-        if not (isinstance(self.epipolar_blob_share, numbers.Real) and 0 < self.epipolar_blob_share <= 1):
+        share = self.epipolar_blob_share
+        if isinstance(share, bool) or not (isinstance(share, numbers.Real) and 0 < share <= 1):
             raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "
                              f"got {self.epipolar_blob_share!r}")
         age = self.identity_reference_age
