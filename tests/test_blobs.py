@@ -2,14 +2,12 @@
 
 import numpy as np
 import pytest
-from synthetic_images import background, draw_dots, frame
-from test_raygap import _two_views
+from synthetic_images import draw_dots, frame
+from test_epipolar import six_marks
 
 from lipgen.recon.blobs import blob_peaks
 from lipgen.recon.dots import DotSettings, dot_peaks
 from lipgen.recon.epipolar import recover_along_epipolar
-from lipgen.recon.raygap import RayGapLimit, px_per_mm
-from lipgen.recon.track import MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
 
 
@@ -41,16 +39,7 @@ def test_blobs_by_a_peak_already_found_are_left_out():
 def _run(blobs: bool, seed: int = 3, n_frames: int = 14, blob_share: float = 1.0):
     """Six marks in two views; from frame 5 a dark vertical line runs 5 px right of mark 0 in view
     0, so its dot has no top-hat peak there. Returns (view 0 tracks, true uv (2, F, P, 2))."""
-    cams = _two_views()
-    rng = np.random.default_rng(seed)
-    grid = np.array([(x, y, 0.0) for y in (-6.0, 6.0) for x in (-8.0, 0.0, 8.0)])
-    t = np.arange(n_frames)[:, None, None]
-    marks = grid[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
-    uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])
-    bases = [background((120, 160), rng, texture=0.03) for _ in cams]
-    settings = TrackerSettings(dots=DotSettings(sigma=1.5), confident_correlation=1.0)
-    trackers = [MarkerTracker(uv[v, 0], settings) for v in range(2)]
-    limit = RayGapLimit(2.0, k=8.0, floor=1.0 / px_per_mm(cams), min_samples=30)
+    cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
     cols = np.arange(160)[None, :]
     for f in range(n_frames):
         images = []

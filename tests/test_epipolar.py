@@ -14,10 +14,9 @@ from lipgen.recon.viewcheck import check_views
 FAINT = 0.07    # depth of mark 0's dot in view 0 once it pales (the others: 0.2): under the contrast floor
 
 
-def _run(recover: bool, lure: bool, seed: int = 3, n_frames: int = 16):
-    """Track 6 marks in two views; from frame 5 mark 0's dot in view 0 is faint (under the
-    detector's contrast floor), and with ``lure`` a second faint blob sits 7 px beside it on the
-    epipolar line (which runs along the rows). Returns (tracks per view, true uv (2, F, P, 2))."""
+def six_marks(seed: int, n_frames: int):
+    """Two views of six marks moving a little: (cameras, true uv (2, F, 6, 2), each view's textured
+    background, the trackers started on frame 0, a ray-gap limit, the generator for the frames' noise)."""
     cams = _two_views()
     rng = np.random.default_rng(seed)
     grid = np.array([(x, y, 0.0) for y in (-6.0, 6.0) for x in (-8.0, 0.0, 8.0)])
@@ -25,10 +24,18 @@ def _run(recover: bool, lure: bool, seed: int = 3, n_frames: int = 16):
     marks = grid[None] + np.array([1.5, 1.0, 2.0]) * np.sin(0.3 * t)
     uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])
     bases = [background((120, 160), rng, texture=0.03) for _ in cams]
-    # No correlation-only sightings: the faint dot must be found as a dot or not at all.
+    # No correlation-only sightings: a dot must be found as a dot or not at all.
     settings = TrackerSettings(dots=DotSettings(sigma=1.5), confident_correlation=1.0)
     trackers = [MarkerTracker(uv[v, 0], settings) for v in range(2)]
     limit = RayGapLimit(2.0, k=8.0, floor=1.0 / px_per_mm(cams), min_samples=30)
+    return cams, uv, bases, trackers, limit, rng
+
+
+def _run(recover: bool, lure: bool, seed: int = 3, n_frames: int = 16):
+    """Track 6 marks in two views; from frame 5 mark 0's dot in view 0 is faint (under the
+    detector's contrast floor), and with ``lure`` a second faint blob sits 7 px beside it on the
+    epipolar line (which runs along the rows). Returns (tracks per view, true uv (2, F, P, 2))."""
+    cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
     for f in range(n_frames):
         images = []
         for v in range(2):
