@@ -101,17 +101,20 @@ def _recording(tmp_path, out, force=True):
     init_recording(tmp_path / "frames", tmp_path / "boards", out, force=force)
 
 
-@pytest.mark.parametrize("case", ["the photos", "holds the footage", "foreign folder", "missing parent"])
+@pytest.mark.parametrize("case", ["the photos", "holds the footage", "foreign folder", "missing parent",
+                                  "generated dataset"])
 def test_recording_out_is_checked_before_anything_is_replaced(tmp_path, case):
-    for name in ("frames", "boards", "mine"):
+    for name in ("frames", "boards", "mine", "generated"):
         (tmp_path / name).mkdir()
         (tmp_path / name / "a.png").write_bytes(name.encode())
+    (tmp_path / "generated" / "manifest.json").write_text('{"source": "synthetic"}')   # it has truth
     before = _tree(tmp_path)
     out, error, match = {
         "the photos": (tmp_path / "boards", ValueError, "overlaps --calib"),
         "holds the footage": (tmp_path, ValueError, "overlaps the footage"),
         "foreign folder": (tmp_path / "mine", FileExistsError, "holds other files"),
         "missing parent": (tmp_path / "no" / "rec", FileNotFoundError, "does not exist"),
+        "generated dataset": (tmp_path / "generated", FileExistsError, "not a recording.*'synthetic'"),
     }[case]
     with pytest.raises(error, match=match):
         _recording(tmp_path, out)

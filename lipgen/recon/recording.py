@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lipgen.dataset.footage import IMAGE_SUFFIXES
+from lipgen.dataset.footage import IMAGE_SUFFIXES, RECORDING
 from lipgen.errors import DatasetError
 
 __all__ = ["IMAGE_SUFFIXES", "init_recording", "detect_split", "detect_mirror_side", "calibration_photos"]
@@ -125,6 +125,14 @@ def check_recording_out(out: Path, video, calib, force: bool, flag: str = "--out
                                   "--force replaces a recording only; choose a new or empty folder")
         if not force:
             raise FileExistsError(f"{out} exists and is not empty; choose another {flag} or pass --force")
+        try:
+            source = json.loads((out / "manifest.json").read_text()).get("source")
+        except (OSError, ValueError, AttributeError):
+            source = None
+        if source != RECORDING:  # a generated dataset holds truth that --force must not delete
+            raise FileExistsError(f"{flag} {out} holds a dataset that is not a recording (manifest source "
+                                  f"{source!r}); --force replaces a recording only; choose another folder "
+                                  "(nothing was written)")
 
 
 def init_recording(video, calib, out, mirror_side: str = "auto", split: int | str = "auto",
