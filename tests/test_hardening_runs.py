@@ -202,3 +202,15 @@ def test_reconstruct_recording_and_out_the_same_path_is_refused_first(tmp_path, 
     assert main(["reconstruct", str(tmp_path / "frames"), "--calib", str(tmp_path / "boards"), "--out", out,
                  "--recording", out]) == 1
     assert "--recording" in _err(capsys) and not (tmp_path / "r.npz").exists()
+
+
+def test_lipsync_refuses_a_rate_with_a_recording(tmp_path, capsys):
+    # --rate paces text alone; with audio it was silently ignored
+    import numpy as np
+    from scipy.io import wavfile
+
+    wav = tmp_path / "s.wav"
+    wavfile.write(wav, 16000, np.zeros(1600, np.int16))
+    out = tmp_path / "o.usda"
+    assert main(["lipsync", str(wav), "--text", "hello", "--rate", "1.5", "--out", str(out)]) == 1
+    assert "--rate 1.5 sets the pace of text alone" in _err(capsys) and not out.exists()
