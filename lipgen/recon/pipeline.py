@@ -40,7 +40,7 @@ from lipgen.recon.steps import (
     expected_projections,
     reach_fields,
     track_raw_frames,
-    triangulate_tracks,
+    triangulate_within_limit,
 )
 from lipgen.rig.camera import VIEWS
 
@@ -294,11 +294,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         bar.close()
     t_track, c_track = time.perf_counter(), time.process_time()
     # The views disagree beyond a limit measured from this sequence's own ray gaps (recon.raygap).
-    gap_limit = settings.ray_gap_limit(lab.views)
-    _, gap_all, _ = triangulate_tracks(lab.views, tracks)
-    gap_limit.add(gap_all[gap_all <= settings.max_ray_gap])
-    max_gap = gap_limit.limit()
-    points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
+    points, gap, vis, max_gap = triangulate_within_limit(lab.views, tracks, settings)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
     nose_seen = vis[:, P]

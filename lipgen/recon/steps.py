@@ -51,7 +51,7 @@ from lipgen.recon.viewcheck import check_views
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["track_raw_frames", "triangulate_tracks", "reach_fields",
+__all__ = ["track_raw_frames", "triangulate_tracks", "triangulate_within_limit", "reach_fields",
            "expected_projections"]
 
 log = logging.getLogger(__name__)
@@ -244,13 +244,37 @@ def triangulate_tracks(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple
     if both.any():
         p, g = triangulate(views[1], tr.uv[both], views[0], tv.uv[both])
         points[both], gap[both] = p, g
-    visible = both & (gap <= max_ray_gap)
-    rejected = int((both & ~visible).sum())
+    return _within(points, gap, max_ray_gap)
+
+
+def _within(points: np.ndarray, gap: np.ndarray, max_ray_gap: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Keep the pairs whose rays pass within ``max_ray_gap`` (NaN gap: a view lost the marker)."""
+    visible = gap <= max_ray_gap
+    rejected = int((np.isfinite(gap) & ~visible).sum())
     if rejected:
         log.warning("%d marker sighting(s) rejected: their rays pass more than %.2f mm apart", rejected,
                     max_ray_gap)
-    points[~visible] = np.nan
-    return points, gap, visible
+    return np.where(visible[..., None], points, np.nan), gap, visible
+
+
+def triangulate_within_limit(views: tuple[PinholeCamera, PinholeCamera], tracks: tuple[Tracks, Tracks],
+                             settings) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """:func:`triangulate_tracks` with the limit measured from this sequence's own ray gaps
+    (``settings.ray_gap_limit``, :mod:`lipgen.recon.raygap`), triangulating once.
+
+    Returns
+    -------
+    points, gap, visible
+        As :func:`triangulate_tracks`.
+    max_gap : float
+        The limit, mm.
+    """
+    points, gap, _ = triangulate_tracks(views, tracks)
+    limit = settings.ray_gap_limit(views)
+    limit.add(gap[gap <= settings.max_ray_gap])
+    max_gap = limit.limit()
+    return (*_within(points, gap, max_gap), max_gap)
 
 
 def reach_fields(physics, goals, visible, marker_nodes, min_visible: int = 4) -> np.ndarray:
