@@ -17,8 +17,8 @@ import numpy as np
 
 from lipgen.errors import ModelFileError
 
-__all__ = ["atomic_path", "atomic_write_bytes", "png_bytes", "atomic_write_json", "strict_json", "save_npz",
-           "load_npz", "stale_temporaries", "remove_stale_temporaries"]
+__all__ = ["atomic_path", "atomic_write_bytes", "atomic_savefig", "png_bytes", "atomic_write_json",
+           "strict_json", "save_npz", "load_npz", "stale_temporaries", "remove_stale_temporaries"]
 
 _TMP_TAG = ".tmp-"
 """Temporary files are ``.{name}.tmp-{pid}-{random}{suffix}`` beside their destination: the pid
@@ -134,6 +134,13 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes, clean: bool = True)
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+
+
+def atomic_savefig(fig, path: str | os.PathLike, **kwargs) -> None:
+    """``fig.savefig`` to ``path`` atomically, in the format its suffix names (none: PNG): the
+    temporary's own name has no picture suffix for matplotlib to go by."""
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=Path(path).suffix.lstrip(".") or "png", **kwargs)
 
 
 def strict_json(obj):

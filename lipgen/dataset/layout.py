@@ -323,7 +323,7 @@ def save_annotated(ds: Dataset, index: int, out, tracked=None) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lipgen._io import atomic_path
+    from lipgen._io import atomic_savefig
 
     frame = ds[index]
     h, w = frame.image.shape[:2]
@@ -363,7 +363,6 @@ def save_annotated(ds: Dataset, index: int, out, tracked=None) -> Path:
     fig.suptitle(f"{ds.path.name}  frame {frame.index}  t = {frame.time:.3f} s   (mirror half: "
                  f"{ds.rig.mirror_side}; {legend})", fontsize=9)
     out = Path(out)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
+    atomic_savefig(fig, out, dpi=100)
     plt.close(fig)
     return out

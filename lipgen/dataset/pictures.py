@@ -114,11 +114,10 @@ def _save(fig, out) -> Path:
     """Write ``fig`` to ``out`` atomically (format from the suffix, png by default) and close it."""
     import matplotlib.pyplot as plt
 
-    from lipgen._io import atomic_path
+    from lipgen._io import atomic_savefig
 
     fig.tight_layout()
     out = Path(out)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=100, format=(out.suffix.lstrip(".") or "png"))
+    atomic_savefig(fig, out, dpi=100)
     plt.close(fig)
     return out

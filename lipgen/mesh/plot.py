@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lipgen._io import atomic_path
+from lipgen._io import atomic_savefig
 from lipgen._validate import as_float_array
 from lipgen.mesh.lipmesh import LipMesh
 
@@ -159,8 +159,7 @@ def plot_mesh(mesh: LipMesh, path: str | os.PathLike | None = None, views=("fron
     fig.suptitle(title or f"{mesh.name}: {mesh.n_nodes} nodes, {mesh.n_faces} faces ({marked})",
                  fontsize=10)
     if path is not None:
-        with atomic_path(path, suffix=Path(path).suffix or ".png") as tmp:
-            fig.savefig(tmp, format=(Path(path).suffix.lstrip(".") or "png"))
+        atomic_savefig(fig, path)
     return fig
 
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -140,7 +139,7 @@ def _figure(path, title: str, xlabel: str, ylabel: str):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lipgen._io import atomic_path
+    from lipgen._io import atomic_savefig
 
     fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
     try:
@@ -151,9 +150,7 @@ def _figure(path, title: str, xlabel: str, ylabel: str):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
         fig.tight_layout()
-        with atomic_path(path) as tmp:
-            # the temporary's name has no suffix: the format from the destination's (no suffix: PNG)
-            fig.savefig(tmp, format=(os.path.splitext(str(path))[1].lstrip(".") or "png"))
+        atomic_savefig(fig, path)
     finally:
         plt.close(fig)
 
