@@ -70,7 +70,7 @@ def _runs_table(entries: list[dict], settings) -> list[str]:
     for entry in entries:
         cells = [f"{r['e3d']:.3f} ({r['cpu_seconds']:.1f})" + (f" K={r['k']}" if r["auto"] else "")
                  for r in entry["runs"]]
-        lines.append(f"| {entry['name']} | {entry.get('frames', '')} | {entry['points']} | "
+        lines.append(f"| {entry['name']} | {entry['frames']} | {entry['points']} | "
                      f"{entry['degrees_per_frame']:.1f} | {entry['flat_e3d']:.3f} | {' | '.join(cells)} |")
     worse = [(e["name"], r["method"], r["k"]) for e in entries for r in e["runs"]
              if worse_than_flat(r["e3d"], e["flat_e3d"])]
@@ -160,13 +160,17 @@ def markdown(result: dict, settings) -> str:
                   "reprojection curve). These seeds were used to choose the automatic-K rule.", "",
                   *_runs_table(result["validation"], settings)]
     if result.get("mocap"):
+        from lipgen.nrsfm.mocap import CLIPS, SEEDS, STEP
+
         entries = result["mocap"]
+        clips = settings.mocap_clips or tuple(CLIPS)
+        seeds = " and ".join(f"{s} + i" for s in SEEDS)
         lines += ["## Held out: public motion capture (CMU clips, `lipgen.nrsfm.mocap`)", "",
-                  "Other clips of the CMU library than the standard sequences' (run, walk, basketball, "
-                  "soccer, two more trials), never used to choose any rule: the skeleton's joints and end "
-                  "sites "
-                  f"({entries[0]['points']} points), every second frame (60 Hz), each filmed twice "
-                  "orthographically as the bodies above (seeds 2000 + i and 2100 + i). Columns as above.", "",
+                  "Other clips of the CMU library than the standard sequences' ("
+                  f"{', '.join(f'{c}: {CLIPS[c][1]}' for c in clips)}), never used to choose any rule: the "
+                  f"skeleton's joints and end sites ({entries[0]['points']} points), one frame in {STEP}, "
+                  f"each filmed {len(SEEDS)} times orthographically as the bodies above (seeds {seeds} for "
+                  f"clip i of `CLIPS`). Columns as above.", "",
                   *_runs_table(entries, settings)]
         auto = [(e, r) for e in entries for r in e["runs"] if r["method"] == "dai" and r["auto"]]
         if auto:

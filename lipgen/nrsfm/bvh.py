@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from lipgen._rotation import rotation_matrix
+
 __all__ = ["BvhSkeleton", "parse_bvh", "joint_positions"]
 
 _AXES = {"Xrotation": 0, "Yrotation": 1, "Zrotation": 2}
@@ -121,7 +123,7 @@ def parse_bvh(text: str) -> BvhSkeleton:
         if tok[:2] == ["Frame", "Time:"]:
             frame_time = _floats(tok[2:3], f"line {j}")[0]
             continue
-        if len(tok) != n:
+        if len(tok) != n:  # n: the hierarchy's channel count (BvhSkeleton.n_channels)
             raise ValueError(f"BVH line {j}: {len(tok)} values, the hierarchy has {n} channels")
         rows.append(_floats(tok, f"line {j}"))
     if not rows:
@@ -133,20 +135,6 @@ def parse_bvh(text: str) -> BvhSkeleton:
         raise ValueError("BVH frames hold NaN or inf values")
     return BvhSkeleton(names, np.asarray(parents, int), np.asarray(offsets, float), channels, motion,
                        float(frame_time))
-
-
-def _axis_rotations(axis: int, degrees: np.ndarray) -> np.ndarray:
-    """(F, 3, 3) rotations by ``degrees`` about coordinate axis ``axis``."""
-    a = np.radians(degrees)
-    c, s = np.cos(a), np.sin(a)
-    R = np.zeros((len(a), 3, 3))
-    j, k = [(1, 2), (2, 0), (0, 1)][axis]
-    R[:, axis, axis] = 1.0
-    R[:, j, j] = c
-    R[:, k, k] = c
-    R[:, j, k] = -s
-    R[:, k, j] = s
-    return R
 
 
 def joint_positions(skeleton: BvhSkeleton) -> np.ndarray:
@@ -168,7 +156,7 @@ def joint_positions(skeleton: BvhSkeleton) -> np.ndarray:
             values = skeleton.motion[:, col]
             col += 1
             if name in _AXES:
-                local = local @ _axis_rotations(_AXES[name], values)
+                local = local @ rotation_matrix(np.radians(values)[:, None] * np.eye(3)[_AXES[name]])
             else:
                 move[:, _MOVES[name]] = values
         p = skeleton.parents[j]
