@@ -96,16 +96,17 @@ def sighting_errors(truth: dict, recon) -> dict:
     return out
 
 
-def tracking_table(truth: dict, recon) -> dict:
+def tracking_table(truth: dict, recon, errors: dict | None = None) -> dict:
     """The tracking figures of ``lipgen evaluate`` per view (its report's tracking table).
 
     Against the true projections, where the truth says the dot is visible. Only accepted
     sightings (both views agree, not a pose outlier) count as tracked; RMS, 95th percentile and
     > 3 px are over them (:func:`~lipgen.evaluate.error_stats.error_figures`). ``tracked_share`` is
     accepted / truly visible; it and ``wrong_over_3px_rate`` are NaN where their denominator is 0.
+    ``errors``: :func:`sighting_errors` of the same truth and reconstruction, when the caller has them.
     """
     track = {}
-    for view, e in sighting_errors(truth, recon).items():
+    for view, e in (sighting_errors(truth, recon) if errors is None else errors).items():
         err, truly, got, ok, accepted = e["err"], e["truly"], e["got"], e["ok"], e["accepted"]
         n_ok, fig = int(ok.sum()), error_figures(err[ok])
         track[view] = {"rms_px": fig["rms_px"], "p95_px": fig["p95_px"],

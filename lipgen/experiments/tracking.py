@@ -67,8 +67,8 @@ def set_figures(ds_path: Path, recon) -> tuple[dict, dict]:
     if len(recon.uv[0]) != len(ds):
         raise DatasetError(f"the reconstruction has {len(recon.uv[0])} frames but {ds_path} {len(ds)}")
     truth = load_truth(ds)
-    per_view = tracking_table(truth, recon)
     errs = sighting_errors(truth, recon)
+    per_view = tracking_table(truth, recon, errs)
     ok_err = {v: e["err"][e["ok"]] for v, e in errs.items()}
     visible = int(sum(e["truly"].sum() for e in errs.values()))
     acc = np.concatenate(list(ok_err.values()))
