@@ -223,10 +223,7 @@ def check_executor(kind: str, address: str | None, workers: int | None) -> None:
 def make_executor(kind: str = "ray", address: str | None = None, workers: int | None = None, retries: int = 2,
                   dashboard: bool = False):
     """A :class:`RayExecutor` (``kind="ray"``) or a :class:`LocalExecutor` (``kind="local"``)."""
+    check_executor(kind, address, workers)
     if kind == "ray":
         return RayExecutor(address, workers, retries, dashboard)
-    if kind == "local":
-        if address is not None:
-            raise ValueError("--address needs the ray executor, not --executor local")
-        return LocalExecutor(workers or os.cpu_count() or 1, retries)
-    raise ValueError(f"executor must be 'ray' or 'local', got {kind!r}")
+    return LocalExecutor(workers or os.cpu_count() or 1, retries)

@@ -81,10 +81,6 @@ def check_folder_output(path, force: bool, products: Iterable[str] = (), flag: s
     return dest
 
 
-_DATASET_PARTS = ("manifest.json", "mesh.npz", "raw", "truth", "calib", "depth", "masks", "speech")
-"""What a dataset or recording folder is made of (a command's own earlier output beside them is not)."""
-
-
 def _input_part(folder: Path, rel: Path) -> bool:
     """Whether the existing file ``folder / rel`` is part of input ``folder``: of a dataset or a
     recording (a ``manifest.json``), its manifest, mesh, video and data subfolders; of any other
@@ -92,7 +88,9 @@ def _input_part(folder: Path, rel: Path) -> bool:
     manifest = folder / "manifest.json"
     if not manifest.is_file():
         return True
-    parts = set(_DATASET_PARTS)
+    from lipgen.dataset.folder import DATASET_PARTS
+
+    parts = set(DATASET_PARTS)
     try:
         import json
 

@@ -13,13 +13,15 @@ from lipgen._io import remove_stale_temporaries, stale_temporaries
 from lipgen.dataset.layout import validate_manifest
 from lipgen.errors import DatasetError
 
-__all__ = ["check_folder", "check_same_dataset", "prepare_folder", "manifest_differences",
+__all__ = ["DATASET_PARTS", "check_folder", "check_same_dataset", "prepare_folder", "manifest_differences",
            "SAME_DATASET_KEYS", "is_our_temporary"]
 
 log = logging.getLogger(__name__)
 
 
 _SUBFOLDERS = ("raw", "truth", "calib", "depth", "masks", "speech")
+DATASET_PARTS = ("manifest.json", "mesh.npz", *_SUBFOLDERS)
+"""What a dataset or recording folder is made of, beside the video its manifest names."""
 
 
 def is_our_temporary(p: Path) -> bool:
@@ -48,7 +50,7 @@ def _check_inside(out: Path) -> None:
     """Refuse a dataset whose subfolders or files are symlinks leading out of it: a resume must
     neither write nor delete anything elsewhere."""
     root = out.resolve()
-    for name in ("manifest.json", "mesh.npz", *_SUBFOLDERS):
+    for name in DATASET_PARTS:
         p = out / name
         if p.is_symlink() and not p.resolve().is_relative_to(root):
             raise DatasetError(f"{p} is a symlink to {p.resolve()}, outside the dataset; refusing to write "
