@@ -214,3 +214,13 @@ def test_lipsync_refuses_a_rate_with_a_recording(tmp_path, capsys):
     out = tmp_path / "o.usda"
     assert main(["lipsync", str(wav), "--text", "hello", "--rate", "1.5", "--out", str(out)]) == 1
     assert "--rate 1.5 sets the pace of text alone" in _err(capsys) and not out.exists()
+
+
+def test_lipsync_api_refuses_a_rate_with_audio():
+    import numpy as np
+
+    from lipgen.speech.audio import Audio
+    from lipgen.speech.lipsync import lipsync
+
+    with pytest.raises(ValueError, match="rate 1.5 sets the pace of text alone"):
+        lipsync(Audio(np.zeros(1600), 16000), "hello", rate=1.5)

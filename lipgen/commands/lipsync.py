@@ -82,7 +82,7 @@ def _run(args) -> int:
     text = _text(args)
     if args.speech is None and text is None:
         raise ValueError("give a speech recording (SPEECH.wav), a transcript (--text / --text-file), or both")
-    if args.speech is not None and args.rate != 1.0:  # the recording sets its own pace
+    if args.speech is not None and args.rate != 1.0:  # as lipsync() does, before the audio is read
         raise ValueError(f"--rate {args.rate} sets the pace of text alone; with a speech recording the "
                          "timing comes from the audio: drop --rate (or the recording)")
     model = None

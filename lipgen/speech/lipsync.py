@@ -161,6 +161,9 @@ def lipsync(audio: Audio | None = None, text: str | None = None, model=None, fps
         raise ValueError(f"fps must be between 1 and 1000, got {fps}")
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
         raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
+    if audio is not None and rate != 1.0:  # the recording sets its own pace
+        raise ValueError(f"rate {rate} sets the pace of text alone; with audio the timing comes from the "
+                         "recording: drop the rate (or the audio)")
     model = default_model() if model is None else model
     r = model_resolution(model)
     phones = phones_from_audio(audio, text) if audio is not None else text_phones(text, rate)
