@@ -271,7 +271,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     """
     inits = [np.array(u, dtype=float) for u in inits]
     given = [u.copy() for u in inits]
-    both = np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
+    both = _paired(inits)
     gap = np.full(len(both), np.nan)
     if both.any():
         gap[both] = triangulate(cameras[1], inits[1][both], cameras[0], inits[0][both])[1]
@@ -281,18 +281,18 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
         inits[0][bad] = inits[1][bad] = np.nan
     if model_points is None:
         return inits, bad
-    if grow and one_view is not None and (both & ~bad).sum() < one_view:
+    pairs = both & ~bad
+    if grow and one_view is not None and pairs.sum() < one_view:
         seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
         paired = _paired(seeded)
-        if view is not None and paired.sum() > (both & ~bad).sum() \
-                and not moves_pairs(seeded, inits, both & ~bad):
+        if view is not None and paired.sum() > pairs.sum() and not moves_pairs(seeded, inits, pairs):
             kept = _settle(inits, dots, cameras, model_points, max_gap, covariance, names)
             held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)
             tried = _settle(seeded, dots, cameras, model_points, max_gap, covariance, names)
             n_kept, n_tried = int(_paired(kept).sum()), int(_paired(tried).sum())
             if n_tried >= confirm and n_tried > n_kept:
                 log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
-                         "instead: %d, grown to %d (against %d)", int((both & ~bad).sum()), VIEWS[view],
+                         "instead: %d, grown to %d (against %d)", int(pairs.sum()), VIEWS[view],
                          int(paired.sum()), n_tried, n_kept)
                 return tried, bad & ~held     # a match kept is not a contradicted one
             log.info("first frame: the seeding from the %s view not taken: it grew to %d marker(s) matched "
