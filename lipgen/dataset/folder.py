@@ -57,40 +57,42 @@ def _check_inside(out: Path) -> None:
                                "through it (nothing was written). Replace it with a real folder")
 
 
-def check_folder(out: Path, resume: bool) -> dict | None:
+def check_folder(out: Path, resume: bool, option: str = "--out") -> dict | None:
     """The checks of ``out`` that need nothing simulated, made before the truth physics runs: a file, a
     folder holding something else, another dataset without ``resume``, an unreadable manifest.
+    ``option`` is the command-line option that named ``out``, for the messages.
 
     Returns the existing manifest (None for a new or empty folder).
     """
     out = Path(out)
     if out.exists() and not out.is_dir():
-        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another --out")
+        raise DatasetError(f"{out} exists and is a file, not a dataset folder; choose another {option}")
     if not (out.is_dir() and any(not is_our_temporary(p) for p in out.iterdir())):
         return None
     mf = out / "manifest.json"
     if not mf.is_file():
         raise DatasetError(f"{out} exists, is not empty and is not a lipgen dataset (no manifest.json); "
-                           "nothing was written. Choose a new or empty folder")
+                           f"nothing was written. Choose a new or empty folder for {option}")
     if not resume:
         raise DatasetError(f"{out} already holds a dataset; pass --resume to continue it, or choose "
                            "another folder (nothing was overwritten)")
     try:
         old = json.loads(mf.read_text())
     except (OSError, ValueError) as exc:
-        raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder") from exc
+        raise DatasetError(f"{mf} is not readable JSON ({exc}); cannot resume this folder: remove it or "
+                           f"choose another {option}") from exc
     validate_manifest(old, mf)
     return old
 
 
-def check_same_dataset(out: Path, old: dict, new: dict) -> None:
+def check_same_dataset(out: Path, old: dict, new: dict, option: str = "--out") -> None:
     """Refuse to resume dataset ``out`` (manifest ``old``) as manifest ``new``, or as the entries of
     it given (:func:`lipgen.dataset.manifest.settings_entries`: known before the truth physics runs)."""
     diffs, detail = manifest_differences(old, new, [k for k in SAME_DATASET_KEYS if k in new])
     if diffs:
         raise DatasetError(f"{out} was generated with different settings ({', '.join(diffs)}"
-                           f"{': ' + detail if detail else ''}); resume only with the same settings, or "
-                           "choose a new folder (nothing was overwritten)")
+                           f"{': ' + detail if detail else ''}); it is never overwritten: resume only with "
+                           f"the same settings, or choose another {option}")
 
 
 def prepare_folder(out: Path, manifest: dict, resume: bool) -> bool:

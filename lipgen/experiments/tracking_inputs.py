@@ -162,31 +162,16 @@ def _check_cache(path: Path, gs) -> bool:
     else, or a dataset whose settings, seed, rig, frames, calibration or schema differ:
     :class:`DatasetError`, nothing touched."""
     from lipgen.dataset.film import rig_for
-    from lipgen.dataset.folder import is_our_temporary, manifest_differences
+    from lipgen.dataset.folder import check_folder, check_same_dataset
     from lipgen.dataset.manifest import settings_entries
     from lipgen.rig.camera import default_rig
 
-    if path.exists() and not path.is_dir():
-        raise DatasetError(f"work folder entry {path} is a file, not a dataset folder; remove it or choose "
-                           "another --work")
-    if not path.is_dir() or all(is_our_temporary(p) for p in path.iterdir()):
+    old = check_folder(path, resume=True, option="--work")
+    if old is None:
         return False
-    mf = path / "manifest.json"
-    if not mf.is_file():
-        raise DatasetError(f"{path} is not empty and holds no dataset (no manifest.json); remove it or "
-                           "choose another --work (nothing was overwritten)")
-    try:
-        old = json.loads(mf.read_text())
-    except (OSError, ValueError) as exc:
-        raise DatasetError(f"{mf} is not readable JSON ({exc}); remove {path} or choose another "
-                           "--work") from exc
     # the mesh entry needs the simulated subject; it follows from the settings and seed compared here
     new = json.loads(json.dumps(settings_entries(gs, rig_for(gs.size, gs.conditions, default_rig))))
-    diffs, detail = manifest_differences(old, new, keys=tuple(new))
-    if diffs:
-        raise DatasetError(f"{path} holds a dataset made with other settings ({', '.join(diffs)}"
-                           f"{': ' + detail if detail else ''}); it is never overwritten: remove it, or "
-                           "choose another --work")
+    check_same_dataset(path, old, new, option="--work")
     return True
 
 
