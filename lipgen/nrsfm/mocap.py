@@ -97,7 +97,10 @@ def clip_points(skeleton: BvhSkeleton, step: int = STEP) -> np.ndarray:
 
 def mocap_sequence(name: str, seed: int, folder: Path | None = None) -> HumanSequence:
     """Clip ``name`` filmed orthographically with ``seed`` (:func:`film_orthographic`)."""
-    skeleton = load_clip(name, folder)
+    return _filmed(name, load_clip(name, folder), seed)
+
+
+def _filmed(name: str, skeleton: BvhSkeleton, seed: int) -> HumanSequence:
     X = clip_points(skeleton)
     rng = np.random.default_rng(seed)
     t = np.arange(len(X)) * STEP * skeleton.frame_time
@@ -114,4 +117,5 @@ def mocap_set(clips=None, folder: Path | None = None) -> list[HumanSequence]:
     if unknown:
         raise ValueError(f"unknown clip(s) {unknown}; the clips are {', '.join(CLIPS)}")
     index = {n: i for i, n in enumerate(CLIPS)}
-    return [mocap_sequence(n, base + index[n], folder) for base in SEEDS for n in names]
+    skeletons = {n: load_clip(n, folder) for n in names}  # each file parsed once, filmed twice
+    return [_filmed(n, skeletons[n], base + index[n]) for base in SEEDS for n in names]
