@@ -344,3 +344,23 @@ def test_the_recording_folder_is_named_by_the_callers_flag(tmp_path):
         check_recording_out(tmp_path / "missing" / "rec", video, calib, False, "--recording")
     with pytest.raises(ValueError, match=r"^--out .* overlaps --calib"):
         check_recording_out(calib, video, calib, True)
+
+
+@pytest.mark.parametrize("case", ["footage", "not empty"])
+def test_reconstruct_refuses_its_recording_folder_before_any_work(tmp_path, capsys, case):
+    # the command leaves these checks to init_recording, which makes them before reading anything
+    frames, boards = tmp_path / "frames", tmp_path / "boards"
+    for folder in (frames, boards):
+        folder.mkdir()
+        (folder / "0.png").write_bytes(b"not read")
+    rec = frames if case == "footage" else tmp_path / "rec"
+    if case == "not empty":
+        rec.mkdir()
+        (rec / "keep.txt").write_text("mine")
+    before = sorted((p, p.read_bytes()) for p in tmp_path.rglob("*") if p.is_file())
+    status = main(["reconstruct", str(frames), "--calib", str(boards), "--recording", str(rec),
+                   "--out", str(tmp_path / "r.npz"), "--no-progress"])
+    err = _err(capsys)
+    assert status == 1 and "--recording" in err
+    assert ("overlaps the footage" if case == "footage" else "holds other files") in err
+    assert sorted((p, p.read_bytes()) for p in tmp_path.rglob("*") if p.is_file()) == before

@@ -131,13 +131,9 @@ def _dataset_or_recording(args, out: Path) -> Path:
         raise DatasetError(f"{src} is already a dataset folder; drop --calib (it is calibrated from its "
                            "calib/ folder)")
     rec = Path(args.recording) if args.recording else out.with_name(out.stem + "_recording")
-    if rec.resolve() == src.resolve():
-        raise ValueError(f"--recording {rec} is the footage itself; choose another folder")
     if rec.resolve() == out.resolve():  # the recording would be made, reconstructed, then not saved
         raise ValueError(f"--recording {rec} is --out itself; the recording is a folder and --out a file")
-    if rec.exists() and (not rec.is_dir() or any(rec.iterdir())) and not args.force:
-        raise FileExistsError(f"--recording {rec} exists and is not empty; choose another folder or pass "
-                              "--force")
+    # init_recording checks the rest of --recording (overlaps with the footage, a non-empty folder) first
     from lipgen.recon.recording import init_recording
 
     summary = init_recording(src, args.calib, rec, mirror_side=args.mirror_side, split=args.split,

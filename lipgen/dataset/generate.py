@@ -139,6 +139,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
         manifest["video"] = {"file": VIDEO_FILE, "codec": s.conditions.video_codec, "fps": s.fps,
                              "crf": s.conditions.video_crf, "frames": s.frames,
                              "content": "the raw frames in order, H.264 (yuv420p)"}
+    # checked again, not reused from check_folder: another run may have written here during the physics
     if not prepare_folder(out, manifest, resume):
         atomic_write_json(out / "manifest.json", manifest)  # first, so the folder is known as ours
     for sub in ("raw", "truth", "calib") + (("depth",) if s.depth else ()) + (("masks",) if s.masks else ()):
