@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["as_float_array", "as_index_array", "check_finite"]
+__all__ = ["as_float_array", "as_index_array", "check_finite", "check_workers", "MAX_WORKERS"]
 
 
 def _shape_ok(shape: tuple[int, ...], want: Sequence[int | None]) -> bool:
@@ -76,3 +76,15 @@ def as_index_array(value, name: str, upper: int, unique: bool = False,
         if (counts > 1).any():
             raise ValueError(f"{name} repeats index(es) {vals[counts > 1][:5].tolist()}")
     return arr
+
+
+MAX_WORKERS = 64
+"""The most local processes a command starts."""
+
+
+def check_workers(workers) -> int:
+    """``workers`` as a whole number in [1, :data:`MAX_WORKERS`]; ``ValueError`` naming it otherwise."""
+    whole = isinstance(workers, int | np.integer) and not isinstance(workers, bool)
+    if not whole or not 1 <= workers <= MAX_WORKERS:
+        raise ValueError(f"workers must be a whole number in [1, {MAX_WORKERS}], got {workers!r}")
+    return int(workers)

@@ -1,6 +1,7 @@
 """The shared plumbing: atomic writes, versioned files, argument checks, the CLI."""
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -77,3 +78,18 @@ def test_cli_bench_writes_machine_info(tmp_path):
     run_benchmarks(out, suites=[])
     data = json.loads(Path(out).read_text())
     assert data["machine"]["python"] and "numpy" in data["machine"]["versions"]
+
+
+@pytest.mark.parametrize("bad", [0, 65, -1, True, 2.0, "2", None])
+def test_check_workers_names_the_bad_value(bad):
+    from lipgen._validate import check_workers
+
+    want = r"workers must be a whole number in \[1, 64\], got " + re.escape(repr(bad))
+    with pytest.raises(ValueError, match=want):
+        check_workers(bad)
+
+
+def test_check_workers_keeps_whole_numbers():
+    from lipgen._validate import check_workers
+
+    assert [check_workers(n) for n in (1, 64, np.int64(3))] == [1, 64, 3]

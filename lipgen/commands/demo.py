@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from lipgen._validate import check_workers
+
 log = logging.getLogger(__name__)
 
 # Named forces: (marker names, direction) pairs, each pulling the markers' nodes one way.
@@ -200,8 +202,7 @@ def run(out_dir: str | Path, resolution: int = 0, frames: int = 150, seed: int =
 
     if not physics_only:  # bad --frames/--seed/--workers: refused before the physics pictures, not after
         GenerateSettings(frames=frames, seed=seed)
-        if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= 64:
-            raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
+        check_workers(workers)
     t0 = time.perf_counter()
     out = Path(out_dir) / "demo"
     out.mkdir(parents=True, exist_ok=True)

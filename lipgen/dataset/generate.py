@@ -25,6 +25,7 @@ import numpy as np
 from lipgen import __version__
 from lipgen._io import atomic_write_json
 from lipgen._memory import reuse_freed_memory
+from lipgen._validate import check_workers
 from lipgen.dataset.film import lighting_record, realize, rig_for
 from lipgen.dataset.folder import check_folder, check_same_dataset, prepare_folder
 from lipgen.dataset.layout import (
@@ -204,8 +205,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     ValueError
         Bad settings (unknown viseme in the script, a rig that does not see the face, ...).
     """
-    if isinstance(workers, bool) or int(workers) != workers or not 1 <= workers <= 64:
-        raise ValueError(f"workers must be a whole number in [1, 64], got {workers!r}")
+    workers = check_workers(workers)
     s = GenerateSettings() if settings is None else settings
     with reuse_freed_memory():  # each frame's large arrays reuse the last frame's memory: no page faults
         return _generate(Path(out), s, workers, resume, progress)

@@ -53,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
+from lipgen._validate import check_workers
 from lipgen.experiments.table51_splits import SPLITS, _mean_tables, aggregate, split_section_lines
 
 __all__ = ["PipelineSettings", "run_pipeline", "write_pipeline_report", "dataset_settings", "score_window",
@@ -145,8 +146,7 @@ class PipelineSettings:
                              f"n_test {self.n_test}, window {self.window}")
         if not 1 <= self.n_modes < self.n_train:
             raise ValueError(f"need 1 <= n_modes < n_train, got {self.n_modes}, {self.n_train}")
-        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or not 1 <= self.workers <= 64:
-            raise ValueError(f"workers must be a whole number in [1, 64], got {self.workers!r}")
+        check_workers(self.workers)
         dataset_settings(self, self.seeds[0])  # their checks (size) before any folder
 
     @property
