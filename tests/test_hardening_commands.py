@@ -290,15 +290,15 @@ def test_evaluate_names_a_reconstruction_off_its_mesh():
 
     import numpy as np
 
-    from lipgen.commands.evaluate import check_recon_mesh
+    from lipgen.evaluate.scoring import check_recon_mesh
     from lipgen.mesh.procedural import lip_mesh
 
     mesh = lip_mesh(0)
     recon = SimpleNamespace(fields=np.zeros((4, mesh.n_nodes, 3)), info={"mesh_source": "lip_mesh(0)"})
-    check_recon_mesh(recon, mesh, "r.npz")
+    check_recon_mesh(recon, mesh)
     recon.fields = recon.fields[:, :100]   # was: 'operands could not be broadcast together'
     with pytest.raises(ValueError, match=r"\(4, 100, 3\) have 100 nodes but its mesh lip_mesh\(0\) has 201"):
-        check_recon_mesh(recon, mesh, "r.npz")
+        check_recon_mesh(recon, mesh)
 
 
 def test_nrsfm_plot_and_out_the_same_file_is_refused(tmp_path, capsys):

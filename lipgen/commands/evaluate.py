@@ -85,20 +85,9 @@ def _run(args) -> int:
                                     rest_from=args.rest_from)
         recon.save(out / "recon.npz")
     mesh = model_mesh(recon.info["mesh_source"])
-    check_recon_mesh(recon, mesh, args.recon)
     s = score(ds, model, recon, args.test_frames, mesh)
     extra = {"Non-rigid SfM on one view": nrsfm_section(ds, recon)}
     path = write_report(out, s, ds, model, recon, mesh, extra)
     sys.stdout.write(f"3-D markers {s['triangulation']['rms_mm']:.3f} mm RMS, normalisation "
                      f"{s['normalisation']['rms_mm']:.3f} mm RMS; report: {path}\n")
     return 0
-
-
-def check_recon_mesh(recon, mesh, path) -> None:
-    """Refuse a reconstruction whose fields (F, n, 3) are not on its own mesh (an altered file):
-    named here, not by a broadcasting error in the scoring."""
-    if recon.fields.shape[1] != mesh.n_nodes:
-        n = recon.fields.shape[1]
-        raise ValueError(f"--recon {path}: its fields {recon.fields.shape} have {n} nodes "
-                         f"but its mesh {recon.info.get('mesh_source')} has {mesh.n_nodes}; the file was "
-                         "altered: reconstruct again")

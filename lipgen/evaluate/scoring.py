@@ -25,9 +25,8 @@ from lipgen.recon.rest import measured_markers
 from lipgen.recon.split import default_test_frames
 from lipgen.rig.camera import VIEWS
 
-__all__ = ["default_test_frames", "split_frames", "load_truth", "score", "table51", "accepted_sightings",
-           "ROWS", "AXES",
-           "sighting_errors", "tracking_table"]
+__all__ = ["check_recon_mesh", "default_test_frames", "split_frames", "load_truth", "score", "table51",
+           "accepted_sightings", "ROWS", "AXES", "sighting_errors", "tracking_table"]
 
 log = logging.getLogger(__name__)
 
@@ -265,6 +264,16 @@ def _check_provenance(model, dataset_path, test) -> None:
                          "has not seen: use the --test-frames given to lipgen train, or another dataset")
 
 
+def check_recon_mesh(recon, mesh) -> None:
+    """Refuse a reconstruction whose fields (F, n, 3) are not on its own mesh (an altered file):
+    named here, not by a broadcasting error in the scoring."""
+    if recon.fields.shape[1] != mesh.n_nodes:
+        n = recon.fields.shape[1]
+        raise ValueError(f"the reconstruction's fields {recon.fields.shape} have {n} nodes but its mesh "
+                         f"{recon.info.get('mesh_source')} has {mesh.n_nodes}; the file was altered: "
+                         "reconstruct again")
+
+
 def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
     """Every figure of the report, from a dataset, a trained model and its reconstruction."""
     from lipgen.fem import Physics
@@ -281,6 +290,7 @@ def score(ds, model, recon, test_frames: int | None = None, mesh=None) -> dict:
             f"the reconstruction was made on mesh topology {recon.info['topology_id']}, "
             f"not {mesh.topology_id}")
     model.check_mesh(mesh)
+    check_recon_mesh(recon, mesh)
     truth = load_truth(ds)
     P = len(mesh.markers)
     out: dict = {"frames": F, "markers": P}
