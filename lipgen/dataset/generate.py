@@ -28,6 +28,7 @@ from lipgen._memory import reuse_freed_memory
 from lipgen._validate import check_workers
 from lipgen.dataset.film import lighting_record, realize, rig_for
 from lipgen.dataset.folder import check_folder, check_same_dataset, prepare_folder
+from lipgen.dataset.footprint import check_motion_memory
 from lipgen.dataset.layout import (
     CALIB_KIND,
     DEPTH_KIND,
@@ -79,8 +80,8 @@ def _frame_intact(out: Path, i: int, s: GenerateSettings) -> bool:
     return all(intact(p, k) for p, k in files)
 
 
-def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
-                    progress: bool = False) -> tuple[_Context, list[tuple[str, int]]]:
+def prepare_dataset(out, s: GenerateSettings, resume: bool = False, progress: bool = False,
+                    workers: int = 1) -> tuple[_Context, list[tuple[str, int]]]:
     """Simulate the subject, check the rig sees it, and lay out the dataset folder ``out``
     (manifest, mesh, sub-folders); nothing is rendered yet.
 
@@ -96,6 +97,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False,
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     old = check_folder(out, resume)  # another dataset, a foreign folder: refused before the truth physics
+    check_motion_memory(s.frames, s.subject_resolution, workers)  # before the physics, not killed after it
     rig = rig_for(s.size, s.conditions, default_rig)
     if old is not None:  # --resume with other settings: refused now too, not after the physics
         check_same_dataset(out, old, json.loads(json.dumps(settings_entries(s, rig))))
@@ -214,7 +216,7 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
 def _generate(out: Path, s: GenerateSettings, workers: int, resume: bool, progress: bool) -> Path:
     from tqdm import tqdm
 
-    ctx, jobs = prepare_dataset(out, s, resume, progress=progress)
+    ctx, jobs = prepare_dataset(out, s, resume, progress=progress, workers=workers)
     done = s.calib_frames + s.frames - len(jobs)
     bar = tqdm(total=s.calib_frames + s.frames, initial=done, desc="lipgen generate", unit="frame",
                disable=not progress)
