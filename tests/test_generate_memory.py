@@ -41,8 +41,9 @@ def test_simulated_motion_stays_under_the_estimate():
 
 
 def test_refused_with_the_need_the_free_and_the_fix():
-    with pytest.raises(DatasetError, match=r"--frames 100000 at subject resolution 4 \(44976 vertices\) needs "
-                                           r"about .* GB .* 1\.0 GB is free; generate at most about \d+ frames"):
+    want = (r"--frames 100000 at subject resolution 4 \(44976 vertices\) needs about .* GB .* 1\.0 GB is "
+            r"free; generate at most about \d+ frames")
+    with pytest.raises(DatasetError, match=want):
         check_motion_memory(100000, 4, available=1 << 30)
     assert check_motion_memory(10, 1, available=1 << 30) == motion_peak_bytes(10, 750)
 
