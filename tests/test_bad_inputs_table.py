@@ -143,6 +143,12 @@ def _cycles(tmp: Path, case: str):
                  progress=False)
 
 
+def _memory():
+    from lipgen.dataset.footprint import check_motion_memory
+
+    check_motion_memory(100000, 4, available=4 << 30)
+
+
 def _frame(i: int, key: str, value):
     return lambda m: m["frames"][i].__setitem__(key, value)
 
@@ -174,6 +180,7 @@ CASES = [
     ("mesh", "a crack: a duplicated vertex used by faces", _cracked),
     ("physics", "unknown reach objective", _reach_objective),
     ("generate", "`--renderer cycles` without the pip `bpy`", lambda t: _cycles(t, "no bpy")),
+    ("generate", "`--frames 100000 --subject-resolution 4` on a machine with 4 GB free", lambda t: _memory()),
     ("reconstruct", "`--rest model` with `--rest-from`", lambda t: _rest("model", "train.npz")),
     ("reconstruct", "`--rest recording` with 8 frames (6 training frames)", lambda t: _rest_frames(8)),
 ]
