@@ -196,6 +196,14 @@ class ReconstructSettings:
         before the runs): 18441 against None's 15163, no set's over-3-px count up; held out (``hard``
         53-58, once) the tracks equal None's to the bit, the seeding taken nowhere
         (``renders/examples/tracking/hard17b.md``).
+    first_frame_floor : float or None
+        Where a view's first-frame matches are paler than the detector's fixed floor allows for, the
+        view's first frame is detected again with its floor lowered to this share of their median
+        darkness, never under ``tracker.floor_min`` (:func:`lipgen.recon.firstframe.first_frame_dots`;
+        the tracker's ``floor_ratio`` rule, which acts from the second image on). None: the fixed
+        floor (main's behaviour). On ``hard`` 35, 56, 58 and 64 frame 0 the mirror's marks are
+        missed because they are faint, not because they are blurred wide
+        (``renders/examples/tracking/collapse19_first_frame.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -227,6 +235,7 @@ class ReconstructSettings:
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1
     first_frame_one_view: int | None = 18
+    first_frame_floor: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
@@ -242,6 +251,10 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_one_view must be None (off) or an integer >= 1 (markers "
                              f"matched in both views), got {n!r}")
+        r = self.first_frame_floor
+        if r is not None and (isinstance(r, bool) or not isinstance(r, numbers.Real) or not 0 < r < 1):
+            raise ValueError(f"settings.first_frame_floor must be None (the fixed floor) or in (0, 1) (a share "
+                             f"of the matched dots' median darkness, e.g. 0.7), got {r!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):

@@ -32,9 +32,8 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.recon.backfill import WalkQueue
-from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
-from lipgen.recon.firstframe import match_first_frame
+from lipgen.recon.firstframe import first_frame_dots, match_first_frame
 from lipgen.recon.grow import check_first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
@@ -132,7 +131,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
         views = layout.split_views(np.asarray(raw))
         if t == 0:
             inits, n_dots = [], []
-            detected = [detect_dots(img, settings.tracker.dots) for img in views]
+            detected = first_frame_dots(views, settings.tracker.dots, exp, settings.init_gate,
+                                        settings.robust_first_frame, settings.first_frame_dark,
+                                        settings.first_frame_floor, settings.tracker.floor_min)
             found = [d[0] for d in detected]
             keep = [np.ones(len(d), dtype=bool) for d in found]
             if cameras is not None and rest_points is not None and settings.first_frame_lures:
