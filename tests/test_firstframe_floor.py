@@ -99,6 +99,7 @@ def test_the_setting_is_checked(bad):
 
 def test_the_setting_reaches_the_first_frame(monkeypatch):
     """track_raw_frames hands first_frame_floor and the tracker's floor_min to first_frame_dots."""
+    import lipgen.recon.firstpose as firstpose
     import lipgen.recon.steps as steps
     seen = {}
 
@@ -106,7 +107,7 @@ def test_the_setting_reaches_the_first_frame(monkeypatch):
         seen.update(ratio=ratio, least=least)
         raise RuntimeError("stop")
 
-    monkeypatch.setattr(steps, "first_frame_dots", spy)
+    monkeypatch.setattr(firstpose, "first_frame_dots", spy)
 
     class Layout:
         def split_views(self, raw):

@@ -38,7 +38,8 @@ from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["match_first_frame", "pale_floor", "first_frame_dots", "predict_layout", "check_layout", "checked_matches", "triangulate_matched"]
+__all__ = ["match_first_frame", "pale_floor", "first_frame_dots", "predict_layout", "check_layout",
+           "checked_matches", "triangulate_matched"]
 
 
 def match_first_frame(dots, strength, expected, gate: float, robust: bool = False,

@@ -204,6 +204,12 @@ class ReconstructSettings:
         floor (main's behaviour). On ``hard`` 35, 56, 58 and 64 frame 0 the mirror's marks are
         missed because they are faint, not because they are blurred wide
         (``renders/examples/tracking/collapse19_first_frame.md``).
+    first_frame_repose : int or None
+        With the calibrated cameras and the markers at rest: where the first frame leaves fewer than
+        this many markers matched in both views, the paler view is detected again at
+        ``tracker.floor_min``, the layout is moved to where the two views' dot pairs place it, and the
+        first frame is matched again from it; kept where it leaves more markers matched in both
+        views (:func:`lipgen.recon.firstpose.first_frame`). None: off (main's behaviour).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -236,6 +242,7 @@ class ReconstructSettings:
     identity_reference_age: int | None = 1
     first_frame_one_view: int | None = 18
     first_frame_floor: float | None = None
+    first_frame_repose: int | None = None
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
@@ -255,6 +262,10 @@ class ReconstructSettings:
         if r is not None and (isinstance(r, bool) or not isinstance(r, numbers.Real) or not 0 < r < 1):
             raise ValueError(f"settings.first_frame_floor must be None (the fixed floor) or in (0, 1) (a share "
                              f"of the matched dots' median darkness, e.g. 0.7), got {r!r}")
+        n = self.first_frame_repose
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
+            raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
+                             f"matched in both views under which the layout is re-posed), got {n!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):
