@@ -116,8 +116,8 @@ def first_frame(views, exp, settings, cameras=None, rest_points=None, names=None
             best = (n2, pale, got, [d[0] for d in retry])
     n2, pale, (inits2, bad2), found2 = best
     if n2 <= n:
-        log.info("first frame: the re-posed layout not taken (%d marker(s) matched in both views, against %d)",
-                 n2, n)
+        log.info("first frame: the re-posed layout not taken (%d marker(s) matched in both views, "
+                 "against %d)", n2, n)
         return inits, bad, found
     log.info("first frame: %d marker(s) matched in both views; from the re-posed layout, with the %s view's "
              "floor at %.3f: %d", n, VIEWS[pale], settings.tracker.floor_min, n2)
