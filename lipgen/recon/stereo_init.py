@@ -29,7 +29,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["stereo_candidates", "layout_dots"]
+__all__ = ["stereo_candidates", "layout_dots", "repose_layout"]
 
 
 def stereo_candidates(dots_v: np.ndarray, dots_r: np.ndarray, cameras: tuple[PinholeCamera, PinholeCamera],
@@ -114,14 +114,7 @@ then by the similarity that fits them to their nearest points (twice).
     X, pairs = stereo_candidates(dots_v, dots_r, cameras, max_gap)
     if len(X) < 4 or len(M) < 4:
         return keep_v, keep_r
-    moved = M + _best_translation(X, M, near, reach)
-    for _ in range(2):  # then the similarity of the markers to their nearest candidates (the head turns)
-        d = np.linalg.norm(moved[:, None] - X[None], axis=2)
-        hit = d.min(1) <= near
-        if hit.sum() < 4:
-            break
-        T = _similarity_3d(M[hit], X[d[hit].argmin(1)])
-        moved = M @ T[:3, :3].T + T[:3, 3]
+    moved = _place(X, M, near, reach)
     close = np.linalg.norm(X[:, None] - moved[None], axis=2).min(1) <= near
     if np.count_nonzero(np.linalg.norm(moved[:, None] - X[close][None], axis=2).min(1) <= near) < 4:
         return keep_v, keep_r
@@ -129,3 +122,41 @@ then by the similarity that fits them to their nearest points (twice).
     keep_v[pairs[close, 0]] = True
     keep_r[pairs[close, 1]] = True
     return keep_v, keep_r
+
+
+def _place(X: np.ndarray, M: np.ndarray, near: float, reach: float) -> np.ndarray:
+    """The layout ``M (P, 3)`` moved to the candidates ``X (c, 3)``: the translation (up to ``reach``)
+    that brings the most markers within ``near`` of one, then the similarity of the markers to their
+    nearest candidates, twice (the head turns)."""
+    moved = M + _best_translation(X, M, near, reach)
+    for _ in range(2):
+        d = np.linalg.norm(moved[:, None] - X[None], axis=2)
+        hit = d.min(1) <= near
+        if hit.sum() < 4:
+            break
+        T = _similarity_3d(M[hit], X[d[hit].argmin(1)])
+        moved = M @ T[:3, :3].T + T[:3, 3]
+    return moved
+
+
+def repose_layout(dots_v, dots_r, cameras: tuple[PinholeCamera, PinholeCamera], model_points,
+                  max_gap: float = 1.0, near: float = 4.0, reach: float = 40.0, least: int = 6
+                  ) -> np.ndarray | None:
+    """The layout ``model_points (P, 3)`` moved to where the two views' dot pairs place it, or None.
+
+    As :func:`layout_dots` places it (pairs of dots whose rays meet within ``max_gap`` mm, a
+    translation of up to ``reach`` mm, then a similarity), for a first frame whose pose is far from
+    the layout's (``hard`` 58: 30-50 px). None where fewer than ``least`` markers end within ``near``
+    mm of a pair's point (nothing is known then). Rows of ``model_points`` that are not finite stay NaN.
+    """
+    M0 = as_float_array(model_points, "model_points", (None, 3), finite=False)
+    ok = np.all(np.isfinite(M0), axis=1)
+    X, _ = stereo_candidates(dots_v, dots_r, cameras, max_gap)
+    if len(X) < 4 or ok.sum() < 4:
+        return None
+    moved = _place(X, M0[ok], near, reach)
+    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[None], axis=2).min(1) <= near) < least:
+        return None
+    out = np.full(M0.shape, np.nan)
+    out[ok] = moved
+    return out
