@@ -59,3 +59,97 @@ def test_nothing_is_placed_from_too_few_pairs():
 def test_the_setting_is_checked(bad):
     with pytest.raises(ValueError, match="first_frame_repose"):
         ReconstructSettings(first_frame_repose=bad)
+
+
+def test_a_tracker_started_on_dots_under_its_floor_steps_through_frame_0():
+    """Frame 0 matched at a lowered floor (first_frame_floor, first_frame_repose) leaves the tracker's own
+    fixed-floor detection empty there: the step keeps the markers and does not fail (it did: argmin of
+    an empty sequence)."""
+    from dataclasses import replace
+
+    from lipgen.recon.dots import DotSettings, detect_dots
+    from lipgen.recon.track import LOST, MarkerTracker
+    from lipgen.recon.tracks import TrackerSettings
+
+    rows, cols = np.mgrid[0:100, 0:100].astype(float)
+    img = np.full((100, 100), 0.8)
+    for u, v in [(30.3, 40.6), (50.3, 40.6), (70.3, 40.6)]:
+        img -= 0.09 * np.exp(-((cols - u) ** 2 + (rows - v) ** 2) / (2 * 1.3 ** 2))
+    s = TrackerSettings(dots=DotSettings(sigma=1.3))
+    assert len(detect_dots(img, s.dots)[0]) == 0
+    low = detect_dots(img, replace(s.dots, min_contrast=0.05))[0]
+    assert len(low) == 3
+    uv, status, _ = MarkerTracker(low, s).step(img)
+    assert np.all(status != LOST) and np.allclose(uv, low, atol=0.5)
+
+
+class _Calls:
+    """Stand-ins for first_frame's steps: the first pass pairs ``first`` markers, the retry ``retry``."""
+
+    def __init__(self, monkeypatch, first, retry, P=8):
+        import lipgen.recon.firstpose as firstpose
+
+        self.reposed, self.P = 0, P
+        det = [(np.zeros((3, 2)), np.ones(3)), (np.zeros((3, 2)), np.ones(3))]
+        monkeypatch.setattr(firstpose, "first_frame_dots", lambda *a: det)
+        monkeypatch.setattr(firstpose, "detect_dots", lambda img, dots: (np.ones((5, 2)), np.ones(5)))
+
+        def match(detected, exp, *a):
+            n = first if exp is self.exp else retry
+            inits = [np.full((P, 2), np.nan), np.full((P, 2), np.nan)]
+            inits[0][:n] = inits[1][:n] = 1.0
+            return inits, np.zeros(P, dtype=bool)
+
+        def repose(*a):
+            self.reposed += 1
+            return np.zeros((P, 3))
+
+        monkeypatch.setattr(firstpose, "match_first_frame_views", match)
+        monkeypatch.setattr(firstpose, "repose_layout", repose)
+        self.exp = np.zeros((2, P, 2))
+
+    def run(self, repose):
+        from lipgen.recon.firstpose import first_frame
+
+        class Cam:
+            def project(self, X):
+                return np.zeros((len(X), 2))
+
+        settings = ReconstructSettings(first_frame_repose=repose)
+        return first_frame([None, None], self.exp, settings, (Cam(), Cam()), np.zeros((self.P, 3)))
+
+
+@pytest.mark.parametrize("repose, first, retry, tried, kept", [
+    (None, 2, 7, False, 2),   # off: the first pass, no retry
+    (6, 6, 8, False, 6),      # enough markers paired: no retry
+    (6, 2, 7, True, 7),       # too few, the retry pairs more: taken
+    (6, 2, 2, True, 2),       # the retry pairs no more: the first pass kept
+])
+def test_the_retry_is_tried_and_kept_only_where_it_should_be(monkeypatch, repose, first, retry, tried, kept):
+    calls = _Calls(monkeypatch, first, retry)
+    inits, bad, found = calls.run(repose)
+    assert calls.reposed == (1 if tried else 0)
+    assert int(np.all(np.isfinite(inits[0]), axis=1).sum()) == kept
+    taken = tried and retry > first
+    assert max(len(f) for f in found) == (5 if taken else 3)   # one view's dots at the least floor
+
+
+def test_the_repose_setting_reaches_the_first_frame(monkeypatch):
+    """track_raw_frames hands first_frame_repose to lipgen.recon.firstpose.first_frame."""
+    import lipgen.recon.steps as steps
+    seen = {}
+
+    def spy(views, exp, settings, *a, **k):
+        seen["repose"] = settings.first_frame_repose
+        raise RuntimeError("stop")
+
+    monkeypatch.setattr(steps, "first_frame", spy)
+
+    class Layout:
+        def split_views(self, raw):
+            return raw, raw
+
+    with pytest.raises(RuntimeError, match="stop"):
+        steps.track_raw_frames(iter([np.zeros((20, 20))]), Layout(), np.zeros((2, 3, 2)),
+                               ReconstructSettings(first_frame_repose=5))
+    assert seen == {"repose": 5}

@@ -26,7 +26,7 @@ import numpy as np
 
 from lipgen.recon.dots import detect_dots
 from lipgen.recon.firstframe import first_frame_dots, match_first_frame
-from lipgen.recon.grow import _paired, check_first_frame
+from lipgen.recon.grow import check_first_frame, paired_markers
 from lipgen.recon.stereo_init import layout_dots, repose_layout
 from lipgen.rig.camera import VIEWS
 
@@ -77,9 +77,10 @@ def first_frame(views, exp, settings, cameras=None, rest_points=None, names=None
 
     Parameters
     ----------
-    views : (virtual, real) images
+    views : (virtual, real) (H, W) or (H, W, 3) images
     exp : (2, P, 2) float
-        The layout at rest in each view.
+        The layout at rest in each view, px (NaN: not projected). The trackers keep it as their
+        reference even where the match was made from the re-posed layout.
     settings : ReconstructSettings
     cameras, rest_points, names, covariance
         As :func:`lipgen.recon.steps.track_raw_frames`.
@@ -98,20 +99,22 @@ def first_frame(views, exp, settings, cameras=None, rest_points=None, names=None
     inits, bad = match_first_frame_views(detected, exp, settings, cameras, rest_points, names,
                                          covariance)
     found = [d[0] for d in detected]
-    n = int(_paired(inits).sum())
-    if (settings.first_frame_repose is None or cameras is None or rest_points is None
-            or n >= settings.first_frame_repose):
+    if settings.first_frame_repose is None or cameras is None or rest_points is None:
+        return inits, bad, found
+    n = int(paired_markers(inits).sum())
+    if n >= settings.first_frame_repose:
         return inits, bad, found
     low = [detect_dots(img, replace(dots, min_contrast=settings.tracker.floor_min)) for img in views]
     moved = repose_layout(low[0][0], low[1][0], cameras, rest_points)
     if moved is None:
         return inits, bad, found
     exp2 = np.stack([cam.project(moved) for cam in cameras])
+    exp2[~np.isfinite(exp)] = np.nan  # a marker the caller does not project stays unmatched
     best = None
     for pale in range(2):   # which view is the pale one is not known: the one that pairs more markers
         retry = [low[v] if v == pale else detected[v] for v in range(2)]
         got = match_first_frame_views(retry, exp2, settings, cameras, rest_points, names, covariance)
-        n2 = int(_paired(got[0]).sum())
+        n2 = int(paired_markers(got[0]).sum())
         if best is None or n2 > best[0]:
             best = (n2, pale, got, [d[0] for d in retry])
     n2, pale, (inits2, bad2), found2 = best

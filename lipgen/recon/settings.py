@@ -209,9 +209,10 @@ class ReconstructSettings:
         1954, ``hard`` 70 over 3 px 16 -> 24: failed; so off.
     first_frame_repose : int or None
         With the calibrated cameras and the markers at rest: where the first frame leaves fewer than
-        this many markers matched in both views, the paler view is detected again at
-        ``tracker.floor_min``, the layout is moved to where the two views' dot pairs place it, and the
-        first frame is matched again from it; kept where it leaves more markers matched in both
+        this many markers matched in both views, both views are detected again at
+        ``tracker.floor_min``, the layout is moved to where their dot pairs place it, and the first
+        frame is matched again from it with one view's dots at that floor (the view that pairs more
+        markers); kept where it leaves more markers matched in both
         views (:func:`lipgen.recon.firstpose.first_frame`). None: off (main's behaviour). At 6, on
         the 20 development sets it acts on ``hard`` 48, 56 and 64 only (the others bit-identical):
         accepted 21.0 -> 52.9 %, 13.7 -> 31.5 %, 0 -> 62.7 %; over 3 px 68 -> 2, 77 -> 10, 0 -> 17;

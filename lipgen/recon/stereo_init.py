@@ -148,6 +148,22 @@ def repose_layout(dots_v, dots_r, cameras: tuple[PinholeCamera, PinholeCamera], 
     translation of up to ``reach`` mm, then a similarity), for a first frame whose pose is far from
     the layout's (``hard`` 58: 30-50 px). None where fewer than ``least`` markers end within ``near``
     mm of a pair's point (nothing is known then). Rows of ``model_points`` that are not finite stay NaN.
+
+    Parameters
+    ----------
+    dots_v, dots_r : (m, 2), (n, 2) float
+        The virtual and the real view's dots, px.
+    cameras : (virtual, real) PinholeCamera
+    model_points : (P, 3) float
+        The layout at rest in the cameras' frame, mm.
+    max_gap, near, reach : float
+        mm; ``max_gap`` is this placement's own ray-gap limit (as :func:`layout_dots`'s), not the
+        tracker's ``max_ray_gap``.
+
+    Returns
+    -------
+    (P, 3) float or None
+        The moved layout, mm.
     """
     M0 = as_float_array(model_points, "model_points", (None, 3), finite=False)
     ok = np.all(np.isfinite(M0), axis=1)

@@ -278,7 +278,7 @@ class MarkerTracker:
         self.gap[visible] = 0
         self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
         got = visible & (status != CORRELATION_ONLY)
-        if got.any():
+        if got.any() and len(dots):  # a frame-0 match made at a lowered floor may leave no dot here
             near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
             mine = strength[near.argmin(1)]
             self.strength[got] = _darkness(self.strength[got], mine)
