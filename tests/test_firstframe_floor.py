@@ -97,10 +97,21 @@ def test_the_setting_is_checked(bad):
         ReconstructSettings(first_frame_floor=bad)
 
 
+def run_to_the_first_frame(settings):
+    """track_raw_frames on one blank image, up to a spy that raises RuntimeError("stop")."""
+    import lipgen.recon.steps as steps
+
+    class Layout:
+        def split_views(self, raw):
+            return raw, raw
+
+    with pytest.raises(RuntimeError, match="stop"):
+        steps.track_raw_frames(iter([np.zeros((20, 20))]), Layout(), np.zeros((2, 3, 2)), settings)
+
+
 def test_the_setting_reaches_the_first_frame(monkeypatch):
     """track_raw_frames hands first_frame_floor and the tracker's floor_min to first_frame_dots."""
     import lipgen.recon.firstpose as firstpose
-    import lipgen.recon.steps as steps
     seen = {}
 
     def spy(views, dots, expected, gate, robust, dark, ratio, least):
@@ -108,12 +119,5 @@ def test_the_setting_reaches_the_first_frame(monkeypatch):
         raise RuntimeError("stop")
 
     monkeypatch.setattr(firstpose, "first_frame_dots", spy)
-
-    class Layout:
-        def split_views(self, raw):
-            return raw, raw
-
-    with pytest.raises(RuntimeError, match="stop"):
-        steps.track_raw_frames(iter([np.zeros((20, 20))]), Layout(), np.zeros((2, 3, 2)),
-                               ReconstructSettings(first_frame_floor=0.6))
+    run_to_the_first_frame(ReconstructSettings(first_frame_floor=0.6))
     assert seen == {"ratio": 0.6, "least": ReconstructSettings().tracker.floor_min}

@@ -3,6 +3,7 @@ a layout far from the subject's pose is moved to where the two views' dots place
 
 import numpy as np
 import pytest
+from test_firstframe_floor import run_to_the_first_frame
 from test_raygap import _two_views
 
 from lipgen.recon.settings import ReconstructSettings
@@ -144,12 +145,5 @@ def test_the_repose_setting_reaches_the_first_frame(monkeypatch):
         raise RuntimeError("stop")
 
     monkeypatch.setattr(steps, "first_frame", spy)
-
-    class Layout:
-        def split_views(self, raw):
-            return raw, raw
-
-    with pytest.raises(RuntimeError, match="stop"):
-        steps.track_raw_frames(iter([np.zeros((20, 20))]), Layout(), np.zeros((2, 3, 2)),
-                               ReconstructSettings(first_frame_repose=5))
+    run_to_the_first_frame(ReconstructSettings(first_frame_repose=5))
     assert seen == {"repose": 5}
