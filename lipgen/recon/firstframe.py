@@ -36,6 +36,7 @@ from lipgen.recon.dots import DotSettings, detect_dots
 from lipgen.recon.layoutprior import predict_layout_physics
 from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
+from lipgen.recon.tracks import lowered_floor
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
 __all__ = ["match_first_frame", "pale_floor", "first_frame_dots", "predict_layout", "check_layout",
@@ -95,12 +96,7 @@ def pale_floor(strength, min_contrast: float, ratio: float, least: float) -> flo
     ``ratio`` x the median is not under ``min_contrast``.
     """
     s = np.asarray(strength, dtype=float)
-    if s.size == 0:
-        return None
-    lowered = ratio * float(np.median(s))
-    if not 0 < lowered < min_contrast:
-        return None
-    return max(lowered, least)
+    return None if s.size == 0 else lowered_floor(float(np.median(s)), ratio, min_contrast, least)
 
 
 def first_frame_dots(views, dots: DotSettings, expected, gate: float, robust: bool, dark: float | None,

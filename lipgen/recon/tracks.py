@@ -14,7 +14,17 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import DotSettings
 
-__all__ = ["TrackerSettings", "Tracks", "twin_partners"]
+__all__ = ["TrackerSettings", "Tracks", "twin_partners", "lowered_floor"]
+
+
+def lowered_floor(typical: float, ratio: float, min_contrast: float, least: float) -> float | None:
+    """The contrast floor of a pale view: ``ratio`` x the darkness ``typical`` of its markers' dots
+    where that is under ``min_contrast`` (else None: the fixed floor stays; NaN ``typical``, not
+    known yet, too), never under ``least``."""
+    lowered = ratio * typical
+    if not 0 < lowered < min_contrast:
+        return None
+    return max(lowered, least)
 
 
 @dataclass(frozen=True)
@@ -142,9 +152,9 @@ class TrackerSettings:
         """The detector's settings in a view whose markers' dots have darkness ``typical`` (NaN:
         not known yet): ``dots`` with its contrast floor lowered to ``floor_ratio * typical``
         where that is lower, but not under ``floor_min``."""
-        if self.floor_ratio is None or not 0 < self.floor_ratio * typical < self.dots.min_contrast:
-            return self.dots
-        return replace(self.dots, min_contrast=max(self.floor_ratio * typical, self.floor_min))
+        floor = (None if self.floor_ratio is None
+                 else lowered_floor(typical, self.floor_ratio, self.dots.min_contrast, self.floor_min))
+        return self.dots if floor is None else replace(self.dots, min_contrast=floor)
 
     @property
     def twins(self) -> float:
