@@ -8,7 +8,7 @@ from test_epipolar import six_marks
 from lipgen.recon.blobs import blob_peaks
 from lipgen.recon.dots import DotSettings, dot_peaks
 from lipgen.recon.epipolar import recover_along_epipolar
-from lipgen.recon.track import MarkerTracker, TrackerSettings
+from lipgen.recon.track import RECOVERED, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
 
 
@@ -141,3 +141,27 @@ def test_the_tracker_settings_refuse_bad_blob_values():
     for bad in (0.0, 1.5, float("nan")):
         with pytest.raises(ValueError, match="blob_share must be in"):
             TrackerSettings(blob_share=bad)
+
+
+def test_a_held_dot_is_held_on_blobs_by_the_correlation_alone():
+    # blob_prediction=False: a blob is taken only where the template found it, frame after frame.
+    # The line darkens over frames 5-8 (a sudden one drops the correlation under its floor).
+    from dataclasses import replace
+    runs = {}
+    for on in (False, True):
+        cams, uv, bases, trackers, limit, rng = six_marks(3, 14)
+        tracker = MarkerTracker(uv[0, 0], replace(trackers[0].cfg, blobs=on, blob_prediction=False))
+        cols = np.arange(160)[None, :]
+        for f in range(14):
+            img = draw_dots(bases[0].copy(), uv[0, f], depth=0.2)
+            depth = 0.35 * np.clip((f - 4) / 4, 0, 1)
+            img = img - depth * np.exp(-((cols - uv[0, f, 0, 0] - 5.0) ** 2) / (2 * 2.5 ** 2))
+            tracker.step(frame(img, np.zeros((0, 2)), rng, noise=0.003))
+        runs[on] = tracker.tracks()
+    assert runs[False].visible[8:, 0].mean() < 0.2
+    assert runs[True].visible[5:, [0, 3]].all()
+    err = np.linalg.norm(runs[True].uv[5:, [0, 3]] - uv[0, 5:, [0, 3]].transpose(1, 0, 2), axis=-1)
+    assert err.max() < 1.0
+    assert not np.isin(runs[True].status[5:, [0, 3]], [RECOVERED]).any()   # never re-acquired on a blob
+    with pytest.raises(ValueError, match="blob_prediction must be True or False"):
+        TrackerSettings(blob_prediction=0)

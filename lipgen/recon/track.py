@@ -156,8 +156,9 @@ class MarkerTracker:
 
     def _with_blobs(self, gray, dots, strength, round_, allowed, e_peaks, need, cand, guess, gates, reach):
         """The candidates with unresolved blobs near the ``need`` markers' predictions appended
-        (:func:`lipgen.recon.blobs.blob_candidates`): round, takeable only as
-        :func:`~lipgen.recon.blobs.blob_allowed` says. Returns (dots, strength, round_, allowed)."""
+        (:func:`lipgen.recon.blobs.blob_candidates`), takeable only as
+        :func:`~lipgen.recon.blobs.blob_allowed` says, and by the prediction route only with
+        ``blob_prediction`` (else as elongated dots). Returns (dots, strength, round_, allowed)."""
         cfg, share = self.cfg, self.cfg.blob_share
         lo, sub, response = self._region
         near = np.maximum(reach, gates)[need] * share
@@ -166,7 +167,7 @@ class MarkerTracker:
         ok = blob_allowed(b_uv, b_str, guess, cand, share * reach, share * gates, need & ~self.twins,
                           self.strength, (cfg.min_strength_ratio, cfg.max_strength_ratio or np.inf))
         return (np.vstack([dots, b_uv]), np.concatenate([strength, b_str]),
-                np.r_[round_, np.ones(len(b_uv), dtype=bool)], np.hstack([allowed, ok]))
+                np.r_[round_, np.full(len(b_uv), cfg.blob_prediction)], np.hstack([allowed, ok]))
 
     def _acquire(self, uv: np.ndarray, status: np.ndarray, dots: np.ndarray, strength: np.ndarray) -> None:
         """Take dots for markers not seen yet where the layout, registered to this image's sightings,

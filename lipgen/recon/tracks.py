@@ -113,6 +113,11 @@ class TrackerSettings:
         any other marker's. False: the top-hat's dots only (the old step).
     blob_share : float
         Such a blob must lie within this share (0, 1] of the ``gate`` / recovery reach.
+    blob_prediction : bool
+        A blob may also be taken by the motion prediction (a marker coming back, or whose
+        correlation failed). False: only where the marker's correlation found it in the frame
+        after a sighting (held through, never re-acquired on a blob), as an elongated dot is;
+        it still counts as a rival in the prediction's unambiguity test.
     """
 
     dots: DotSettings = DotSettings()
@@ -134,6 +139,7 @@ class TrackerSettings:
     floor_min: float = 0.05
     blobs: bool = False
     blob_share: float = 1.0
+    blob_prediction: bool = True
 
     def __post_init__(self):
         lo, hi = self.min_strength_ratio, self.max_strength_ratio
@@ -147,6 +153,8 @@ class TrackerSettings:
                              f"got {self.floor_min!r}")
         if not isinstance(self.blobs, bool):
             raise ValueError(f"blobs must be True or False, got {self.blobs!r}")
+        if not isinstance(self.blob_prediction, bool):
+            raise ValueError(f"blob_prediction must be True or False, got {self.blob_prediction!r}")
         if not 0 < self.blob_share <= 1:   # also refuses NaN
             raise ValueError(f"blob_share must be in (0, 1] (1: as far as a dot), got {self.blob_share!r}")
         if hi is not None and not (hi >= lo):  # also refuses NaN
