@@ -114,6 +114,20 @@ class TrackerSettings:
         lower its floor step by step into the skin texture (0.04-0.08: see
         :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: 0.7 x the median darkness at ``hard``
         25's true marks (0.095) is 0.067.
+    blobs : bool
+        A marker with no round dot within ``gate`` of where it is looked for may take a dot the
+        top-hat cannot resolve (a Laplacian-of-Gaussian blob on a darker structure's flank in
+        the defocused mirror, :mod:`lipgen.recon.blobs`): by the same two routes and
+        unambiguity tests as a dot, if it is ``min_strength_ratio`` to ``max_strength_ratio``
+        as dark as the marker's own dot (which must be known) and nearer its prediction than
+        any other marker's. False: the top-hat's dots only (the old step).
+    blob_share : float
+        Such a blob must lie within this share (0, 1] of the ``gate`` / recovery reach.
+    blob_prediction : bool
+        A blob may also be taken by the motion prediction (a marker coming back, or whose
+        correlation failed). False: only where the marker's correlation found it in the frame
+        after a sighting (held through, never re-acquired on a blob), as an elongated dot is;
+        it still counts as a rival in the prediction's unambiguity test.
     """
 
     dots: DotSettings = DotSettings()
@@ -133,6 +147,9 @@ class TrackerSettings:
     blend: bool = True
     floor_ratio: float | None = 0.7
     floor_min: float = 0.05
+    blobs: bool = False
+    blob_share: float = 1.0
+    blob_prediction: bool = True
 
     def __post_init__(self):
         lo, hi = self.min_strength_ratio, self.max_strength_ratio
@@ -144,6 +161,12 @@ class TrackerSettings:
         if not 0 <= self.floor_min <= self.dots.min_contrast:   # also refuses NaN
             raise ValueError(f"floor_min must be in [0, dots.min_contrast = {self.dots.min_contrast!r}], "
                              f"got {self.floor_min!r}")
+        if not isinstance(self.blobs, bool):
+            raise ValueError(f"blobs must be True or False, got {self.blobs!r}")
+        if not isinstance(self.blob_prediction, bool):
+            raise ValueError(f"blob_prediction must be True or False, got {self.blob_prediction!r}")
+        if not 0 < self.blob_share <= 1:   # also refuses NaN
+            raise ValueError(f"blob_share must be in (0, 1] (1: as far as a dot), got {self.blob_share!r}")
         if hi is not None and not (hi >= lo):  # also refuses NaN
             raise ValueError(f"max_strength_ratio must be None (no limit) or at least min_strength_ratio "
                              f"({lo!r}), got {hi!r}")
