@@ -147,3 +147,15 @@ def test_the_repose_setting_reaches_the_first_frame(monkeypatch):
     monkeypatch.setattr(steps, "first_frame", spy)
     run_to_the_first_frame(ReconstructSettings(first_frame_repose=5))
     assert seen == {"repose": 5}
+
+
+def test_the_lure_filter_keeps_every_dot_when_no_pair_is_near_the_layout():
+    """layout_dots with every pair of dots beyond the reach of the layout: nothing is known, every dot kept
+    (it failed: the minimum over no close point)."""
+    from lipgen.recon.stereo_init import layout_dots
+
+    cams = _two_views()
+    model = _layout()
+    far = [cam.project(model + [75.0, 0, 0]) for cam in cams]
+    keep_v, keep_r = layout_dots(far[0], far[1], cams, model)
+    assert keep_v.all() and keep_r.all() and len(keep_v) == len(model)

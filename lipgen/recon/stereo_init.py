@@ -111,13 +111,11 @@ then by the similarity that fits them to their nearest points (twice).
     M = as_float_array(model_points, "model_points", (None, 3), finite=False)
     M = M[np.all(np.isfinite(M), axis=1)]
     keep_v, keep_r = np.ones(len(dots_v), dtype=bool), np.ones(len(dots_r), dtype=bool)
-    X, pairs = stereo_candidates(dots_v, dots_r, cameras, max_gap)
-    if len(X) < 4 or len(M) < 4:
+    placed = _placed(dots_v, dots_r, cameras, M, max_gap, near, reach, least=4)
+    if placed is None:
         return keep_v, keep_r
-    moved = _place(X, M, near, reach)
+    moved, X, pairs = placed
     close = np.linalg.norm(X[:, None] - moved[None], axis=2).min(1) <= near
-    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[close][None], axis=2).min(1) <= near) < 4:
-        return keep_v, keep_r
     keep_v[:], keep_r[:] = False, False
     keep_v[pairs[close, 0]] = True
     keep_r[pairs[close, 1]] = True
@@ -167,12 +165,22 @@ def repose_layout(dots_v, dots_r, cameras: tuple[PinholeCamera, PinholeCamera], 
     """
     M0 = as_float_array(model_points, "model_points", (None, 3), finite=False)
     ok = np.all(np.isfinite(M0), axis=1)
-    X, _ = stereo_candidates(dots_v, dots_r, cameras, max_gap)
-    if len(X) < 4 or ok.sum() < 4:
-        return None
-    moved = _place(X, M0[ok], near, reach)
-    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[None], axis=2).min(1) <= near) < least:
+    placed = _placed(dots_v, dots_r, cameras, M0[ok], max_gap, near, reach, least)
+    if placed is None:
         return None
     out = np.full(M0.shape, np.nan)
-    out[ok] = moved
+    out[ok] = placed[0]
     return out
+
+
+def _placed(dots_v, dots_r, cameras, M, max_gap, near, reach, least):
+    """The finite layout ``M (P, 3)`` moved onto the views' dot pairs (:func:`_place`), with the pairs'
+    points ``X (c, 3)`` and dot indices ``pairs (c, 2)``; None where fewer than 4 pairs or markers, or
+    fewer than ``least`` markers end within ``near`` mm of a point."""
+    X, pairs = stereo_candidates(dots_v, dots_r, cameras, max_gap)
+    if len(X) < 4 or len(M) < 4:
+        return None
+    moved = _place(X, M, near, reach)
+    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[None], axis=2).min(1) <= near) < least:
+        return None
+    return moved, X, pairs
