@@ -139,7 +139,7 @@ def test_the_tracker_settings_refuse_bad_blob_values():
     with pytest.raises(ValueError, match="blobs must be True or False"):
         TrackerSettings(blobs=1)
     for bad in (0.0, 1.5, float("nan")):
-        with pytest.raises(ValueError, match="blob_share must be in"):
+        with pytest.raises(ValueError, match="blob_share must be a number in"):
             TrackerSettings(blob_share=bad)
 
 
@@ -165,3 +165,30 @@ def test_a_held_dot_is_held_on_blobs_by_the_correlation_alone():
     assert not np.isin(runs[True].status[5:, [0, 3]], [RECOVERED]).any()   # never re-acquired on a blob
     with pytest.raises(ValueError, match="blob_prediction must be True or False"):
         TrackerSettings(blob_prediction=0)
+
+
+@pytest.mark.parametrize("bad", [0, 1.5, float("nan"), True, "0.5", None])
+def test_blob_share_is_refused_with_its_range(bad):
+    from lipgen.recon.tracks import TrackerSettings
+
+    with pytest.raises(ValueError, match=r"blob_share must be a number in \(0, 1\]"):
+        TrackerSettings(blob_share=bad)
+
+
+def test_the_response_passed_in_gives_the_same_peaks():
+    """dot_peaks and blob_peaks with the tracker's response passed in find what they find on their own."""
+    from lipgen.recon.blobs import blob_peaks
+    from lipgen.recon.dots import DotSettings, dot_peaks, dot_response
+
+    rng = np.random.default_rng(4)
+    g = 0.7 + 0.02 * rng.normal(size=(60, 80))
+    rows, cols = np.mgrid[0:60, 0:80].astype(float)
+    for u, v in [(20.3, 15.7), (50.1, 30.2), (33.6, 44.4)]:
+        g -= 0.15 * np.exp(-((cols - u) ** 2 + (rows - v) ** 2) / (2 * 1.3 ** 2))
+    s = DotSettings(sigma=1.3)
+    r = dot_response(g, s)
+    for a, b in zip(dot_peaks(g, s), dot_peaks(g, s, None, r), strict=True):
+        assert np.array_equal(a, b)
+    for a, b in zip(blob_peaks(g, s), blob_peaks(g, s, None, r), strict=True):
+        assert np.array_equal(a, b)
+    assert len(dot_peaks(g, s)[0]) >= 3

@@ -110,6 +110,9 @@ class MarkerTracker:
         # None for images more than history_frames back.
         self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
         self.history_frames = 300
+        # this image's search region (lo (2,) int, ink grey (h, w), detector response (h, w)), set
+        # by _dots and read by _with_blobs in the same step
+        self._region: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -164,8 +167,9 @@ class MarkerTracker:
         near = np.maximum(reach, gates)[need] * share
         b_uv, b_str = blob_candidates(sub, response, lo, cfg.dots, np.vstack([guess[need], cand[need]]),
                                       np.concatenate([near, near]), np.vstack([dots, e_peaks]), gray)
+        most = np.inf if cfg.max_strength_ratio is None else cfg.max_strength_ratio
         ok = blob_allowed(b_uv, b_str, guess, cand, share * reach, share * gates, need & ~self.twins,
-                          self.strength, (cfg.min_strength_ratio, cfg.max_strength_ratio or np.inf))
+                          self.strength, (cfg.min_strength_ratio, most))
         return (np.vstack([dots, b_uv]), np.concatenate([strength, b_str]),
                 np.r_[round_, np.full(len(b_uv), cfg.blob_prediction)], np.hstack([allowed, ok]))
 
@@ -211,7 +215,8 @@ class MarkerTracker:
         status = np.full(P, LOST, dtype=np.int8)
         score = np.full(P, np.nan)
         first = not self._out
-        shifted, by_blob = np.zeros(P, dtype=bool), np.zeros(P, dtype=bool)
+        shifted = np.zeros(P, dtype=bool)
+        n_top = len(dots)   # dots from here on are blobs (cfg.blobs)
         if first:
             seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
@@ -273,7 +278,6 @@ class MarkerTracker:
             snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
                                                 dark_enough, round_dots=round_)
             got = snap >= 0
-            by_blob = got & (snap >= n_top)
             uv[got] = dots[snap[got]]
             status[got & via_corr] = TRACKED
             status[got & ~via_corr] = RECOVERED
@@ -299,11 +303,12 @@ class MarkerTracker:
         self.last[visible] = uv[visible]
         self.gap[visible] = 0
         self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
-        got = visible & (status != CORRELATION_ONLY) & ~by_blob   # a blob's darkness is its flank's
-        if got.any() and len(dots):  # a frame-0 match made at a lowered floor may leave no dot here
-            near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
-            mine = strength[near.argmin(1)]
-            self.strength[got] = _darkness(self.strength[got], mine)
+        got = np.flatnonzero(visible & (status != CORRELATION_ONLY))
+        if len(got) and len(dots):  # a frame-0 match made at a lowered floor may leave no dot here
+            idx = np.linalg.norm(uv[got][:, None] - dots[None], axis=2).argmin(1)
+            # a blob's darkness is its flank's, not learnt (looked up after fix_order's swaps)
+            got, idx = got[idx < n_top], idx[idx < n_top]
+            self.strength[got] = _darkness(self.strength[got], strength[idx])
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score

@@ -126,8 +126,9 @@ class TrackerSettings:
     blob_prediction : bool
         A blob may also be taken by the motion prediction (a marker coming back, or whose
         correlation failed). False: only where the marker's correlation found it in the frame
-        after a sighting (held through, never re-acquired on a blob), as an elongated dot is;
-        it still counts as a rival in the prediction's unambiguity test.
+        after a sighting (held through, never re-acquired on a blob by the tracker's step; the
+        epipolar recovery, ``ReconstructSettings.epipolar_blobs``, still may), as an elongated dot
+        is; it still counts as a rival in the prediction's unambiguity test.
     """
 
     dots: DotSettings = DotSettings()
@@ -165,8 +166,9 @@ class TrackerSettings:
             raise ValueError(f"blobs must be True or False, got {self.blobs!r}")
         if not isinstance(self.blob_prediction, bool):
             raise ValueError(f"blob_prediction must be True or False, got {self.blob_prediction!r}")
-        if not 0 < self.blob_share <= 1:   # also refuses NaN
-            raise ValueError(f"blob_share must be in (0, 1] (1: as far as a dot), got {self.blob_share!r}")
+        share = self.blob_share
+        if isinstance(share, bool) or not isinstance(share, int | float | np.floating) or not 0 < share <= 1:
+            raise ValueError(f"blob_share must be a number in (0, 1] (1: as far as a dot), got {share!r}")
         if hi is not None and not (hi >= lo):  # also refuses NaN
             raise ValueError(f"max_strength_ratio must be None (no limit) or at least min_strength_ratio "
                              f"({lo!r}), got {hi!r}")
