@@ -213,11 +213,13 @@ class ReconstructSettings:
         ``tracker.floor_min``, the layout is moved to where their dot pairs place it, and the first
         frame is matched again from it with one view's dots at that floor (the view that pairs more
         markers); kept where it leaves more markers matched in both
-        views (:func:`lipgen.recon.firstpose.first_frame`). None: off (main's behaviour). At 6, on
-        the 20 development sets it acts on ``hard`` 48, 56 and 64 only (the others bit-identical):
+        views (:func:`lipgen.recon.firstpose.first_frame`). None: off. The default 6: on the 20
+        development sets it acts on ``hard`` 48, 56 and 64 only (the others bit-identical):
         accepted 21.0 -> 52.9 %, 13.7 -> 31.5 %, 0 -> 62.7 %; over 3 px 68 -> 2, 77 -> 10, 0 -> 17;
-        score 11025 -> 13829. Not eligible by its rule (``hard`` 64's over-3-px count up by more
-        than 5) and not run held out.
+        score 11025 -> 13829. On fresh held-out ``hard`` 71-76 (pre-registered, run once) it never
+        acted: identical to off (a pass by a tie); on the already opened ``hard`` 66 and 69, where it
+        acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2
+        (``renders/examples/tracking/c3_fresh_71_76.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -250,7 +252,7 @@ class ReconstructSettings:
     identity_reference_age: int | None = 1
     first_frame_one_view: int | None = 18
     first_frame_floor: float | None = None
-    first_frame_repose: int | None = None
+    first_frame_repose: int | None = 6
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
