@@ -8,6 +8,7 @@ from test_epipolar import six_marks
 from lipgen.recon.blobs import blob_peaks
 from lipgen.recon.dots import DotSettings, dot_peaks
 from lipgen.recon.epipolar import recover_along_epipolar
+from lipgen.recon.track import RECOVERED, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
 
 
@@ -79,3 +80,115 @@ def test_the_setting_must_be_a_bool():
     default = ReconstructSettings()
     assert default.epipolar_blobs is True and default.epipolar_blob_share == 0.5   # hard18's E2
     assert ReconstructSettings(epipolar_blobs=False).epipolar_blobs is False       # the old recovery
+
+
+def _one_view(blobs: bool, n_frames: int = 14, blob_share: float = 1.0, line_px: float = 5.0, seed: int = 3):
+    """One view of ``_run``'s six marks (its view 0), the same dark line ``line_px`` right of mark 0
+    from frame 5, tracked by the tracker's own step alone (no other view, no recovery).
+    Returns (tracks, true uv (F, P, 2))."""
+    from dataclasses import replace
+    cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
+    tracker = MarkerTracker(uv[0, 0], replace(trackers[0].cfg, blobs=blobs, blob_share=blob_share))
+    cols = np.arange(160)[None, :]
+    for f in range(n_frames):
+        img = draw_dots(bases[0].copy(), uv[0, f], depth=0.2)
+        if f >= 5:
+            img = img - 0.35 * np.exp(-((cols - uv[0, f, 0, 0] - line_px) ** 2) / (2 * 2.5 ** 2))
+        tracker.step(frame(img, np.zeros((0, 2)), rng, noise=0.003))
+    return tracker.tracks(), uv[0]
+
+
+def test_the_tracker_holds_a_dot_on_a_dark_lines_flank_only_with_blobs():
+    off, uv = _one_view(blobs=False)
+    on, _ = _one_view(blobs=True)
+    # marks 0 and 3 (the column the line runs beside; grid x = -8)
+    assert off.visible[5:, 0].mean() < 0.2                 # lost: the top-hat has no dot there
+    assert on.visible[5:, [0, 3]].all()                     # held through every frame
+    err = np.linalg.norm(on.uv[5:, [0, 3]] - uv[5:, [0, 3]], axis=-1)
+    assert err.max() < 1.0
+    # the marks away from the line are untouched by the candidates
+    far = [1, 2, 4, 5]
+    assert np.array_equal(on.visible[:, far], off.visible[:, far])
+    assert np.allclose(on.uv[:, far], off.uv[:, far], equal_nan=True)
+
+
+def test_blobs_off_is_the_old_step_bit_for_bit():
+    a, _ = _one_view(blobs=False)
+    _, uv, _, trackers, _, _ = six_marks(3, 14)
+    assert trackers[0].cfg.blobs is False                   # the default
+    b, _ = _one_view(blobs=False, blob_share=0.5)           # the share alone changes nothing
+    assert np.array_equal(a.uv, b.uv, equal_nan=True) and np.array_equal(a.status, b.status)
+
+
+def test_a_blob_darker_than_the_markers_own_dot_allows_is_not_taken():
+    from lipgen.recon.blobs import blob_allowed
+    guess = np.array([[10.0, 10.0], [30.0, 10.0]])
+    blobs = np.array([[12.0, 10.0], [13.0, 10.0], [27.0, 10.0]])
+    own = np.array([0.1, np.nan])
+    need = np.array([True, True])
+    ok = blob_allowed(blobs, np.array([0.08, 0.3, 0.1]), guess, guess, np.full(2, 8.0), np.full(2, 3.0),
+                      need, own, (0.5, 2.0))
+    # blob 0: as dark as marker 0's dot, near it; blob 1: 3x its dot; blob 2: marker 1's, whose dot is unknown
+    assert ok.tolist() == [[True, False, False], [False, False, False]]
+    ok = blob_allowed(blobs, np.full(3, 0.1), guess, guess, np.full(2, 8.0), np.full(2, 3.0),
+                      np.array([False, True]), np.array([0.1, 0.1]), (0.5, 2.0))
+    assert ok.tolist() == [[False, False, False], [False, False, True]]   # only a marker that needs one
+
+
+def test_the_tracker_settings_refuse_bad_blob_values():
+    with pytest.raises(ValueError, match="blobs must be True or False"):
+        TrackerSettings(blobs=1)
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="blob_share must be a number in"):
+            TrackerSettings(blob_share=bad)
+
+
+def test_a_held_dot_is_held_on_blobs_by_the_correlation_alone():
+    # blob_prediction=False: a blob is taken only where the template found it, frame after frame.
+    # The line darkens over frames 5-8 (a sudden one drops the correlation under its floor).
+    from dataclasses import replace
+    runs = {}
+    for on in (False, True):
+        cams, uv, bases, trackers, limit, rng = six_marks(3, 14)
+        tracker = MarkerTracker(uv[0, 0], replace(trackers[0].cfg, blobs=on, blob_prediction=False))
+        cols = np.arange(160)[None, :]
+        for f in range(14):
+            img = draw_dots(bases[0].copy(), uv[0, f], depth=0.2)
+            depth = 0.35 * np.clip((f - 4) / 4, 0, 1)
+            img = img - depth * np.exp(-((cols - uv[0, f, 0, 0] - 5.0) ** 2) / (2 * 2.5 ** 2))
+            tracker.step(frame(img, np.zeros((0, 2)), rng, noise=0.003))
+        runs[on] = tracker.tracks()
+    assert runs[False].visible[8:, 0].mean() < 0.2
+    assert runs[True].visible[5:, [0, 3]].all()
+    err = np.linalg.norm(runs[True].uv[5:, [0, 3]] - uv[0, 5:, [0, 3]].transpose(1, 0, 2), axis=-1)
+    assert err.max() < 1.0
+    assert not np.isin(runs[True].status[5:, [0, 3]], [RECOVERED]).any()   # never re-acquired on a blob
+    with pytest.raises(ValueError, match="blob_prediction must be True or False"):
+        TrackerSettings(blob_prediction=0)
+
+
+@pytest.mark.parametrize("bad", [0, 1.5, float("nan"), True, "0.5", None])
+def test_blob_share_is_refused_with_its_range(bad):
+    from lipgen.recon.tracks import TrackerSettings
+
+    with pytest.raises(ValueError, match=r"blob_share must be a number in \(0, 1\]"):
+        TrackerSettings(blob_share=bad)
+
+
+def test_the_response_passed_in_gives_the_same_peaks():
+    """dot_peaks and blob_peaks with the tracker's response passed in find what they find on their own."""
+    from lipgen.recon.blobs import blob_peaks
+    from lipgen.recon.dots import DotSettings, dot_peaks, dot_response
+
+    rng = np.random.default_rng(4)
+    g = 0.7 + 0.02 * rng.normal(size=(60, 80))
+    rows, cols = np.mgrid[0:60, 0:80].astype(float)
+    for u, v in [(20.3, 15.7), (50.1, 30.2), (33.6, 44.4)]:
+        g -= 0.15 * np.exp(-((cols - u) ** 2 + (rows - v) ** 2) / (2 * 1.3 ** 2))
+    s = DotSettings(sigma=1.3)
+    r = dot_response(g, s)
+    for a, b in zip(dot_peaks(g, s), dot_peaks(g, s, None, r), strict=True):
+        assert np.array_equal(a, b)
+    for a, b in zip(blob_peaks(g, s), blob_peaks(g, s, None, r), strict=True):
+        assert np.array_equal(a, b)
+    assert len(dot_peaks(g, s)[0]) >= 3

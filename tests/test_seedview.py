@@ -100,6 +100,7 @@ def test_a_registration_turned_beyond_max_turn_is_not_a_seed_view():
 def test_the_setting_is_checked_and_reaches_the_first_frame(monkeypatch):
     from test_shifted import _two_view_frames
 
+    import lipgen.recon.firstpose as firstpose
     import lipgen.recon.steps as steps
     from lipgen.recon.settings import ReconstructSettings
 
@@ -108,8 +109,8 @@ def test_the_setting_is_checked_and_reaches_the_first_frame(monkeypatch):
             ReconstructSettings(first_frame_one_view=bad)
     raws, layout, expected, cams, X = _two_view_frames(1)
     seen = []
-    real = steps.check_first_frame
-    monkeypatch.setattr(steps, "check_first_frame", lambda *a: seen.append(a[-1]) or real(*a))
+    real = firstpose.check_first_frame      # called for track_raw_frames by lipgen.recon.firstpose
+    monkeypatch.setattr(firstpose, "check_first_frame", lambda *a: seen.append(a[-1]) or real(*a))
     for n in (None, 6):
         steps.track_raw_frames(iter(raws), layout, expected, ReconstructSettings(first_frame_one_view=n),
                                cameras=cams, rest_points=X)

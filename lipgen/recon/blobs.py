@@ -9,8 +9,10 @@ sees as a local maximum. On the development set ``hard`` 53 (main's tracks, trut
 with no floor at all, though 99 of them are seen in the direct view; the Laplacian at ``sigma``
 has a peak within 1.5 px for 90 of the 105 (and for 421 of the 428 accepted ones). It also has
 about five times the top-hat's peaks away from any marker (skin, teeth, shading), so these peaks
-are offered only where the tracker already knows where to look
-(:func:`lipgen.recon.epipolar.recover_along_epipolar`).
+are offered only where the tracker already knows where to look: along the other view's epipolar
+line (:func:`lipgen.recon.epipolar.recover_along_epipolar`) and, with
+``TrackerSettings.blobs``, near the prediction of a marker that has no round dot there
+(:func:`blob_candidates`, :class:`lipgen.recon.track.MarkerTracker`).
 """
 
 from __future__ import annotations
@@ -18,13 +20,13 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from lipgen.recon.dots import DotSettings, darkness
+from lipgen.recon.dots import DotSettings, dot_response, local_maxima, peak_roundness, refine_centroids
 
-__all__ = ["blob_peaks"]
+__all__ = ["blob_peaks", "blob_candidates", "blob_allowed"]
 
 
-def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | None = None,
+               response: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Round dark blobs by the Laplacian of Gaussian at ``settings.sigma``, strongest first.
 
     Parameters
@@ -35,6 +37,9 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
         uses it for the top-hat), ``min_roundness``, ``separation``.
     exclude : (m, 2) float, optional
         Peaks already found (column, row): blobs within ``separation`` of one are left out.
+    response : (h, w) float, optional
+        The detector's response of ``gray`` (:func:`lipgen.recon.dots.dot_response`) if the
+        caller has it (the tracker does): not computed again.
 
     Returns
     -------
@@ -47,34 +52,81 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
     s = settings.sigma
     # A dark blob is a minimum of the image: its Laplacian is positive; s^2 normalises the scale.
     lap = s * s * ndimage.gaussian_laplace(gray, s, mode="nearest")
-    med = np.median(lap)
-    mad = 1.4826 * np.median(np.abs(lap - med))
-    size = 2 * int(np.floor(settings.separation / 2)) + 1
-    peaks = lap == ndimage.maximum_filter(lap, size=size, mode="nearest")
-    peaks &= lap > med + settings.noise_k * mad
-    edge = int(np.ceil(2.0 * s))
-    peaks[:edge], peaks[-edge:], peaks[:, :edge], peaks[:, -edge:] = False, False, False, False
-    rows, cols = np.nonzero(peaks)
-    keep = _roundness(lap, rows, cols) >= settings.min_roundness
+    rows, cols = np.nonzero(local_maxima(lap, settings, -np.inf))    # the noise floor only
+    keep = peak_roundness(lap, rows, cols)[0] >= settings.min_roundness
     rows, cols = rows[keep], cols[keep]
     uv = np.column_stack([cols, rows]).astype(np.float64)
     if exclude is not None and len(exclude) and len(uv):
         far = np.linalg.norm(uv[:, None] - np.asarray(exclude)[None], axis=2).min(1) >= settings.separation
         uv, rows, cols = uv[far], rows[far], cols[far]
-    response = ndimage.gaussian_filter(darkness(gray, s), settings.smoothing * s,
-                                       mode="nearest")
+    if response is None:
+        response = dot_response(gray, settings)
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
     return uv[order], strength[order]
 
 
-def _roundness(resp: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """(k,) ratio of the weaker to the stronger principal curvature of ``resp`` at maxima (1 round,
-    0 a line), as :func:`lipgen.recon.dots.dot_peaks` measures it."""
-    ryy = resp[rows + 1, cols] + resp[rows - 1, cols] - 2 * resp[rows, cols]
-    rxx = resp[rows, cols + 1] + resp[rows, cols - 1] - 2 * resp[rows, cols]
-    rxy = 0.25 * (resp[rows + 1, cols + 1] + resp[rows - 1, cols - 1]
-                  - resp[rows + 1, cols - 1] - resp[rows - 1, cols + 1])
-    half_trace, det_root = 0.5 * (rxx + ryy), np.sqrt(0.25 * (rxx - ryy) ** 2 + rxy ** 2)
-    weak, strong = half_trace + det_root, half_trace - det_root
-    return np.where(strong < 0, np.clip(weak / np.minimum(strong, -1e-300), 0.0, 1.0), 0.0)
+def blob_candidates(gray: np.ndarray, response: np.ndarray, lo: np.ndarray, settings: DotSettings,
+                    centres: np.ndarray, radii: np.ndarray, exclude: np.ndarray, full: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Unresolved dots near ``centres``: blob peaks of the search region, sub-pixel.
+
+    Parameters
+    ----------
+    gray, response : (h, w) float
+        The tracker's search region (ink grey) and its detector response.
+    lo : (2,) int
+        The region's top-left pixel in the image (column, row).
+    settings : DotSettings
+    centres : (n, 2) float, radii : (n,) float
+        Only blobs within ``radii`` of a centre (image pixels) are kept.
+    exclude : (m, 2) float
+        What the top-hat found (image pixels): blobs within ``separation`` are left out.
+    full : (H, W) float
+        The whole ink image, for the sub-pixel fit.
+
+    Returns
+    -------
+    uv : (k, 2) float
+        Image pixels; a fit that moves more than half a separation from its peak (pulled onto
+        the darker structure beside it) keeps the peak.
+    strength : (k,) float
+        Top-hat darkness at the peak.
+    """
+    if len(centres) == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    uv, strength = blob_peaks(gray, settings, np.asarray(exclude) - lo, response)
+    uv = uv + lo
+    if len(uv):
+        near = (np.linalg.norm(uv[:, None] - centres[None], axis=2) <= radii[None]).any(1)
+        uv, strength = uv[near], strength[near]
+    if len(uv) == 0:
+        return uv, strength
+    fit = refine_centroids(full, uv, settings.sigma, window=settings.window)
+    moved = np.linalg.norm(fit - uv, axis=1) > settings.separation / 2
+    return np.where(moved[:, None], uv, fit), strength
+
+
+def blob_allowed(blobs: np.ndarray, strength: np.ndarray, guess: np.ndarray, cand: np.ndarray,
+                 reach: np.ndarray, gates: np.ndarray, need: np.ndarray, own: np.ndarray,
+                 ratios: tuple[float, float]) -> np.ndarray:
+    """(P, k) bool: which marker may take which blob.
+
+    Marker i may take blob j when it ``need`` s one (no round dot at its prediction), its own
+    dot's darkness ``own[i]`` is known and ``strength[j]`` is within ``ratios`` (least, most)
+    of it, blob j is within ``reach[i]`` of its ``guess[i]`` or ``gates[i]`` of its ``cand[i]``
+    (all (P, 2) / (P,)), and no other placed marker's guess is nearer to the blob (it is not a
+    neighbour's unresolved dot).
+    """
+    P, k = len(guess), len(blobs)
+    if k == 0:
+        return np.zeros((P, 0), dtype=bool)
+    placed = np.all(np.isfinite(guess), axis=1)
+    d_guess = np.where(placed[:, None], np.linalg.norm(guess[:, None] - blobs[None], axis=2), np.inf)
+    d_cand = np.where(placed[:, None], np.linalg.norm(cand[:, None] - blobs[None], axis=2), np.inf)
+    ok = (d_guess <= reach[:, None]) | (d_cand <= gates[:, None])
+    ok &= d_guess == d_guess.min(0, keepdims=True)
+    ok &= (need & np.isfinite(own))[:, None]
+    with np.errstate(invalid="ignore"):
+        ok &= (strength[None] >= ratios[0] * own[:, None]) & (strength[None] <= ratios[1] * own[:, None])
+    return ok

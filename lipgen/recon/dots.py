@@ -22,8 +22,8 @@ from scipy import ndimage
 from lipgen._threads import single_threaded
 from lipgen._validate import as_float_array
 
-__all__ = ["DotSettings", "as_gray", "ink_gray", "darkness", "detect_dots", "dot_peaks", "refine_peaks",
-           "refine_centroids"]
+__all__ = ["DotSettings", "as_gray", "ink_gray", "darkness", "dot_response", "detect_dots", "dot_peaks",
+           "local_maxima", "peak_roundness", "refine_peaks", "refine_centroids"]
 
 
 @dataclass(frozen=True)
@@ -175,8 +175,8 @@ def detect_dots(image, settings: DotSettings = DotSettings(), mask: np.ndarray |
     return uv, strength[round_][keep]
 
 
-def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.ndarray | None = None,
+              response: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Whole-pixel peaks of the dot response, round ones and elongated ones (not refined).
 
     Parameters
@@ -184,6 +184,8 @@ def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.
     gray : (h, w) float
     settings : DotSettings
     mask : (h, w) bool, optional
+    response : (h, w) float, optional
+        :func:`dot_response` of ``gray`` if the caller has it already (it is not recomputed).
 
     Returns
     -------
@@ -196,24 +198,50 @@ def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.
         (1 round, 0 a line); all are at least ``settings.min_foreshortened_roundness`` (or
         ``min_roundness`` if lower). :func:`detect_dots` keeps those of ``min_roundness`` or more.
     """
-    dark = darkness(gray, settings.sigma)
-    response = ndimage.gaussian_filter(dark, settings.smoothing * settings.sigma, mode="nearest")
-    # A robust noise floor: most pixels are not dots, so the median absolute deviation of the
-    # response measures the texture and noise that a dot must stand out from.
-    med = np.median(response)
-    mad = 1.4826 * np.median(np.abs(response - med))
-    threshold = max(settings.min_contrast, med + settings.noise_k * mad)
-    size = 2 * int(np.floor(settings.separation / 2)) + 1
-    peaks = (response == ndimage.maximum_filter(response, size=size, mode="nearest")) & (response > threshold)
-    # The closing is unreliable within a dot radius of the border (it cannot see past it).
-    edge = int(np.ceil(2.0 * settings.sigma))
-    peaks[:edge], peaks[-edge:], peaks[:, :edge], peaks[:, -edge:] = False, False, False, False
+    if response is None:
+        response = dot_response(gray, settings)
+    peaks = local_maxima(response, settings, settings.min_contrast)
     if mask is not None:
         m = np.asarray(mask, dtype=bool)
         if m.shape != gray.shape:
             raise ValueError(f"mask must have the image's shape {gray.shape}, got {m.shape}")
         peaks &= m
     rows, cols = np.nonzero(peaks)
+    roundness, strong = peak_roundness(response, rows, cols)
+    ok = (strong < 0) & (roundness >= min(settings.min_foreshortened_roundness, settings.min_roundness))
+    rows, cols, roundness = rows[ok], cols[ok], roundness[ok]
+    strength = response[rows, cols]
+    order = np.argsort(-strength, kind="stable")
+    uv = np.column_stack([cols[order], rows[order]]).astype(np.float64)
+    return uv, strength[order], roundness[order]
+
+
+def dot_response(gray: np.ndarray, settings: DotSettings) -> np.ndarray:
+    """(h, w) the detector's response: the top-hat :func:`darkness` smoothed by
+    ``settings.smoothing * sigma`` (a matched filter)."""
+    dark = darkness(gray, settings.sigma)
+    return ndimage.gaussian_filter(dark, settings.smoothing * settings.sigma, mode="nearest")
+
+
+def local_maxima(response: np.ndarray, settings: DotSettings, floor: float) -> np.ndarray:
+    """(h, w) bool: maxima of ``response`` over a ``settings.separation`` window, above ``floor``
+    and the robust noise floor (median + ``noise_k`` MADs), not within 2 sigma of the border."""
+    # A robust noise floor: most pixels are not dots, so the median absolute deviation of the
+    # response measures the texture and noise that a dot must stand out from.
+    med = np.median(response)
+    mad = 1.4826 * np.median(np.abs(response - med))
+    threshold = max(floor, med + settings.noise_k * mad)
+    size = 2 * int(np.floor(settings.separation / 2)) + 1
+    peaks = (response == ndimage.maximum_filter(response, size=size, mode="nearest")) & (response > threshold)
+    # The closing is unreliable within a dot radius of the border (it cannot see past it).
+    edge = int(np.ceil(2.0 * settings.sigma))
+    peaks[:edge], peaks[-edge:], peaks[:, :edge], peaks[:, -edge:] = False, False, False, False
+    return peaks
+
+
+def peak_roundness(response: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """At maxima (rows, cols) (k,): roundness, the weaker over the stronger principal curvature
+    of ``response`` in [0, 1] (1 round, 0 a line; 0 where not a maximum), and the stronger (k,)."""
     # Round blobs: at a dot both principal curvatures of the response are strongly negative;
     # along a dark line or slit (the mouth opening, a crease) one of them is near 0. A dot seen
     # obliquely (foreshortened) lies in between.
@@ -224,12 +252,7 @@ def dot_peaks(gray: np.ndarray, settings: DotSettings = DotSettings(), mask: np.
     half_trace, det_root = 0.5 * (rxx + ryy), np.sqrt(0.25 * (rxx - ryy) ** 2 + rxy ** 2)
     weak, strong = half_trace + det_root, half_trace - det_root      # eigenvalues, weak >= strong
     roundness = np.where(strong < 0, np.clip(weak / np.minimum(strong, -1e-300), 0.0, 1.0), 0.0)
-    ok = (strong < 0) & (roundness >= min(settings.min_foreshortened_roundness, settings.min_roundness))
-    rows, cols, roundness = rows[ok], cols[ok], roundness[ok]
-    strength = response[rows, cols]
-    order = np.argsort(-strength, kind="stable")
-    uv = np.column_stack([cols[order], rows[order]]).astype(np.float64)
-    return uv, strength[order], roundness[order]
+    return roundness, strong
 
 
 def refine_peaks(gray: np.ndarray, peaks: np.ndarray, settings: DotSettings) -> tuple[np.ndarray, np.ndarray]:

@@ -57,7 +57,7 @@ import numpy as np
 from lipgen.recon.association import LOST, RECOVERED, TRACKED, carry_lost_markers
 from lipgen.recon.blobs import blob_peaks
 from lipgen.recon.correlate import search_box
-from lipgen.recon.dots import dot_peaks, ink_gray, refine_centroids
+from lipgen.recon.dots import dot_peaks, dot_response, ink_gray, refine_centroids
 from lipgen.recon.track import MarkerTracker
 from lipgen.rig.pinhole import triangulate
 
@@ -141,12 +141,13 @@ def recover_along_epipolar(trackers: list[MarkerTracker], views, cameras, max_ga
             continue
         lo, hi = box
         sub = gray[lo[1]:hi[1], lo[0]:hi[0]]
-        peaks, strength, roundness = dot_peaks(sub, replace(cfg.dots, min_contrast=floor))
+        response = dot_response(sub, cfg.dots)          # computed once, for the peaks and the blobs
+        peaks, strength, roundness = dot_peaks(sub, replace(cfg.dots, min_contrast=floor), response=response)
         keep = roundness >= cfg.dots.min_roundness
         peaks, strength = peaks[keep], strength[keep]
         resolved = np.ones(len(peaks), dtype=bool)
         if blobs:
-            b_uv, b_strength = blob_peaks(sub, replace(cfg.dots, min_contrast=floor), exclude=peaks)
+            b_uv, b_strength = blob_peaks(sub, cfg.dots, exclude=peaks, response=response)
             peaks, strength = np.vstack([peaks, b_uv]), np.concatenate([strength, b_strength])
             resolved = np.concatenate([resolved, np.zeros(len(b_uv), dtype=bool)])
         peaks = peaks + lo

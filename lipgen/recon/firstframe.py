@@ -27,15 +27,20 @@ rigid or smoothly deforming template):
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.dots import DotSettings, detect_dots
 from lipgen.recon.layoutprior import predict_layout_physics
 from lipgen.recon.pointreg import layout_spacing, match_to_expected
 from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
+from lipgen.recon.tracks import lowered_floor
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["match_first_frame", "predict_layout", "check_layout", "checked_matches", "triangulate_matched"]
+__all__ = ["match_first_frame", "pale_floor", "first_frame_dots", "predict_layout", "check_layout",
+           "checked_matches", "triangulate_matched"]
 
 
 def match_first_frame(dots, strength, expected, gate: float, robust: bool = False,
@@ -79,6 +84,67 @@ def match_first_frame(dots, strength, expected, gate: float, robust: bool = Fals
         return match
     sub = match_to_expected(dots[keep], expected, gate, robust=robust)
     return np.where(sub >= 0, keep[np.maximum(sub, 0)], -1)
+
+
+def pale_floor(strength, min_contrast: float, ratio: float, least: float) -> float | None:
+    """The first frame's contrast floor for a view whose matched dots have darkness ``strength (m,)``.
+
+    The tracker lowers a pale view's floor from the second image on
+    (:meth:`lipgen.recon.tracks.TrackerSettings.dots_for`: ``ratio`` x the median darkness of its
+    markers' dots, never under ``least``); this is the same rule on the first frame's own matches,
+    where no marker's darkness is known yet. Returns None where the floor stays: no matches, or
+    ``ratio`` x the median is not under ``min_contrast``.
+    """
+    s = np.asarray(strength, dtype=float)
+    return None if s.size == 0 else lowered_floor(float(np.median(s)), ratio, min_contrast, least)
+
+
+def first_frame_dots(views, dots: DotSettings, expected, gate: float, robust: bool, dark: float | None,
+                     ratio: float | None, least: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each view's first-frame dots, found again at a lowered floor where the view is pale.
+
+    The mirror of the ``hard`` preset (reflectance 0.85, defocus, ghost) halves the markers'
+    darkness: on ``hard`` 35, 56, 58 and 64 frame 0 most of the mirror's marks that are missed
+    have a round response peak within 1.5 px, but under the fixed floor 0.08 (0.03-0.078),
+    where the direct view's reach 0.08-0.33. A wider detector scale finds fewer of them
+    (``renders/examples/tracking/collapse19_first_frame.md``). So each view is matched once at
+    the fixed floor (:func:`match_first_frame`), and where :func:`pale_floor` lowers the floor
+    from its matched dots the view is detected again with it.
+
+    Parameters
+    ----------
+    views : (virtual, real) images
+    dots : DotSettings
+        The detector at its fixed floor.
+    expected : (2, P, 2) float
+        The layout in each view (NaN rows: not projected).
+    gate, robust, dark
+        As :func:`match_first_frame`.
+    ratio : float or None
+        Share of the matched dots' median darkness the floor is lowered to; None: never lowered.
+    least : float
+        The lowered floor's least value.
+
+    Returns
+    -------
+    list of (uv (k, 2), strength (k,)) per view, as :func:`lipgen.recon.dots.detect_dots`.
+    """
+    found = []
+    for img, exp in zip(views, expected, strict=True):
+        uv, strength = detect_dots(img, dots)
+        floor = None if ratio is None else _view_floor(uv, strength, exp, gate, robust, dark, ratio,
+                                                       least, dots.min_contrast)
+        found.append((uv, strength) if floor is None else detect_dots(img, replace(dots, min_contrast=floor)))
+    return found
+
+
+def _view_floor(uv, strength, expected, gate, robust, dark, ratio, least, min_contrast) -> float | None:
+    """:func:`pale_floor` of the dots one view's first-frame match takes (see :func:`first_frame_dots`)."""
+    ok = np.all(np.isfinite(expected), axis=1)
+    if not ok.any() or len(uv) == 0:
+        return None
+    match = match_first_frame(uv, strength, expected[ok], gate, robust, dark)
+    return pale_floor(strength[match[match >= 0]], min_contrast, ratio, least)
 
 
 def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width: float,

@@ -50,7 +50,7 @@ from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["place_layout_3d", "grow_first_frame", "check_first_frame"]
+__all__ = ["place_layout_3d", "grow_first_frame", "check_first_frame", "paired_markers"]
 
 log = logging.getLogger(__name__)
 
@@ -271,7 +271,7 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     """
     inits = [np.array(u, dtype=float) for u in inits]
     given = [u.copy() for u in inits]
-    both = _paired(inits)
+    both = paired_markers(inits)
     gap = np.full(len(both), np.nan)
     if both.any():
         gap[both] = triangulate(cameras[1], inits[1][both], cameras[0], inits[0][both])[1]
@@ -284,12 +284,12 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     pairs = both & ~bad
     if grow and one_view is not None and pairs.sum() < one_view:
         seeded, view = seed_from_one_view(given, dots, cameras, model_points, max_gap)
-        paired = _paired(seeded)
+        paired = paired_markers(seeded)
         if view is not None and paired.sum() > pairs.sum() and not moves_pairs(seeded, inits, pairs):
             kept = _settle(inits, dots, cameras, model_points, max_gap, covariance, names)
             held = np.all(np.isfinite(seeded[0]), axis=1) | np.all(np.isfinite(seeded[1]), axis=1)
             tried = _settle(seeded, dots, cameras, model_points, max_gap, covariance, names)
-            n_kept, n_tried = int(_paired(kept).sum()), int(_paired(tried).sum())
+            n_kept, n_tried = int(paired_markers(kept).sum()), int(paired_markers(tried).sum())
             if n_tried >= confirm and n_tried > n_kept:
                 log.info("first frame: %d marker(s) matched in both views, seeded from the %s view's matches "
                          "instead: %d, grown to %d (against %d)", int(pairs.sum()), VIEWS[view],
@@ -301,8 +301,9 @@ def check_first_frame(inits: list[np.ndarray], dots: list[np.ndarray],
     return _settle(inits, dots, cameras, model_points, max_gap, covariance, names, grow), bad
 
 
-def _paired(inits) -> np.ndarray:
-    """(P,) bool: the markers matched in both views."""
+def paired_markers(inits) -> np.ndarray:
+    """(P,) bool: the markers matched in both views; ``inits`` is (virtual, real), each (P, 2) px
+    with NaN rows for no match."""
     return np.all(np.isfinite(inits[0]), axis=1) & np.all(np.isfinite(inits[1]), axis=1)
 
 

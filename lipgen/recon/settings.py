@@ -196,6 +196,30 @@ class ReconstructSettings:
         before the runs): 18441 against None's 15163, no set's over-3-px count up; held out (``hard``
         53-58, once) the tracks equal None's to the bit, the seeding taken nowhere
         (``renders/examples/tracking/hard17b.md``).
+    first_frame_floor : float or None
+        Where a view's first-frame matches are paler than the detector's fixed floor allows for, the
+        view's first frame is detected again with its floor lowered to this share of their median
+        darkness, never under ``tracker.floor_min`` (:func:`lipgen.recon.firstframe.first_frame_dots`;
+        the tracker's ``floor_ratio`` rule, which acts from the second image on). None: the fixed
+        floor (main's behaviour). On ``hard`` 35, 56, 58 and 64 frame 0 the mirror's marks are
+        missed because they are faint, not because they are blurred wide
+        (``renders/examples/tracking/collapse19_first_frame.md``). Development (20 sets, within 3 px
+        - 10 x over): None 11025, 0.7 11710 (``hard`` 55 68 -> 3 over 3 px, 35 77.6 -> 68.8 %
+        accepted), 0.5 11507 (``hard`` 62 over 3 px +32). Held out (``hard`` 65-70, 0.7): 2060 ->
+        1954, ``hard`` 70 over 3 px 16 -> 24: failed; so off.
+    first_frame_repose : int or None
+        With the calibrated cameras and the markers at rest: where the first frame leaves fewer than
+        this many markers matched in both views, both views are detected again at
+        ``tracker.floor_min``, the layout is moved to where their dot pairs place it, and the first
+        frame is matched again from it with one view's dots at that floor (the view that pairs more
+        markers); kept where it leaves more markers matched in both
+        views (:func:`lipgen.recon.firstpose.first_frame`). None: off. The default 6: on the 20
+        development sets it acts on ``hard`` 48, 56 and 64 only (the others bit-identical):
+        accepted 21.0 -> 52.9 %, 13.7 -> 31.5 %, 0 -> 62.7 %; over 3 px 68 -> 2, 77 -> 10, 0 -> 17;
+        score 11025 -> 13829. On fresh held-out ``hard`` 71-76 (pre-registered, run once) it never
+        acted: identical to off (a pass by a tie); on the already opened ``hard`` 66 and 69, where it
+        acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2
+        (``renders/examples/tracking/c3_fresh_71_76.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -227,6 +251,8 @@ class ReconstructSettings:
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1
     first_frame_one_view: int | None = 18
+    first_frame_floor: float | None = None
+    first_frame_repose: int | None = 6
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
@@ -242,6 +268,14 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_one_view must be None (off) or an integer >= 1 (markers "
                              f"matched in both views), got {n!r}")
+        r = self.first_frame_floor
+        if r is not None and (isinstance(r, bool) or not isinstance(r, numbers.Real) or not 0 < r < 1):
+            raise ValueError(f"settings.first_frame_floor must be None (the fixed floor) or in (0, 1) (a "
+                             f"share of the matched dots' median darkness, e.g. 0.7), got {r!r}")
+        n = self.first_frame_repose
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
+            raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
+                             f"matched in both views under which the layout is re-posed), got {n!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):

@@ -32,10 +32,8 @@ import numpy as np
 
 from lipgen._validate import as_float_array
 from lipgen.recon.backfill import WalkQueue
-from lipgen.recon.dots import detect_dots
 from lipgen.recon.epipolar import recover_along_epipolar
-from lipgen.recon.firstframe import match_first_frame
-from lipgen.recon.grow import check_first_frame
+from lipgen.recon.firstpose import first_frame
 from lipgen.recon.jumps import StepLimit
 from lipgen.recon.motioncheck import MotionCheck
 from lipgen.recon.oneview import pair_one_view
@@ -44,7 +42,6 @@ from lipgen.recon.pending import PendingAcquisitions
 from lipgen.recon.recheck import IdentityCheck
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.shifted import ShiftCheck
-from lipgen.recon.stereo_init import layout_dots
 from lipgen.recon.track import LOST, MarkerTracker, Tracks
 from lipgen.recon.twins import resolve_twins
 from lipgen.recon.viewcheck import check_views
@@ -131,34 +128,9 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
         if t == 0:
-            inits, n_dots = [], []
-            detected = [detect_dots(img, settings.tracker.dots) for img in views]
-            found = [d[0] for d in detected]
-            keep = [np.ones(len(d), dtype=bool) for d in found]
-            if cameras is not None and rest_points is not None and settings.first_frame_lures:
-                keep = layout_dots(found[0], found[1], cameras, rest_points)
-            for v, dots in enumerate(found):
-                ok = np.all(np.isfinite(exp[v]), axis=1)
-                init = np.full(exp[v].shape, np.nan)
-                match = np.full(len(ok), -1)
-                match[ok] = match_first_frame(dots, detected[v][1], exp[v][ok], settings.init_gate,
-                                              settings.robust_first_frame, settings.first_frame_dark)
-                # Matched on all dots (a dot removed would leave its marker to a neighbour's), but
-                # a match on a lure is dropped.
-                lure = (match >= 0) & ~keep[v][np.maximum(match, 0)]
-                if lure.any():
-                    log.info("%s view, first frame: %d match(es) on dots no other-view dot places near "
-                             "the layout dropped", VIEWS[v], int(lure.sum()))
-                    match[lure] = -1
-                init[match >= 0] = dots[match[match >= 0]]
-                inits.append(init)
-                n_dots.append(len(dots))
-            bad = np.zeros(len(exp[0]), dtype=bool)
-            if cameras is not None:
-                inits, bad = check_first_frame(inits, found, cameras, settings.max_ray_gap,
-                                               rest_points if settings.first_frame_layout else None,
-                                               settings.first_frame_grow, names, layout_covariance,
-                                               settings.first_frame_one_view)
+            inits, bad, found = first_frame(views, exp, settings, cameras, rest_points, names,
+                                            layout_covariance)
+            n_dots = [len(d) for d in found]
             for v in range(2):
                 ok = np.all(np.isfinite(exp[v]), axis=1)
                 trackers.append(MarkerTracker(inits[v], settings.tracker, np.where(ok[:, None], exp[v], 0.0)))

@@ -29,7 +29,7 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["stereo_candidates", "layout_dots"]
+__all__ = ["stereo_candidates", "layout_dots", "repose_layout"]
 
 
 def stereo_candidates(dots_v: np.ndarray, dots_r: np.ndarray, cameras: tuple[PinholeCamera, PinholeCamera],
@@ -111,21 +111,76 @@ then by the similarity that fits them to their nearest points (twice).
     M = as_float_array(model_points, "model_points", (None, 3), finite=False)
     M = M[np.all(np.isfinite(M), axis=1)]
     keep_v, keep_r = np.ones(len(dots_v), dtype=bool), np.ones(len(dots_r), dtype=bool)
-    X, pairs = stereo_candidates(dots_v, dots_r, cameras, max_gap)
-    if len(X) < 4 or len(M) < 4:
+    placed = _placed(dots_v, dots_r, cameras, M, max_gap, near, reach, least=4)
+    if placed is None:
         return keep_v, keep_r
+    moved, X, pairs = placed
+    close = np.linalg.norm(X[:, None] - moved[None], axis=2).min(1) <= near
+    keep_v[:], keep_r[:] = False, False
+    keep_v[pairs[close, 0]] = True
+    keep_r[pairs[close, 1]] = True
+    return keep_v, keep_r
+
+
+def _place(X: np.ndarray, M: np.ndarray, near: float, reach: float) -> np.ndarray:
+    """The layout ``M (P, 3)`` moved to the candidates ``X (c, 3)``: the translation (up to ``reach``)
+    that brings the most markers within ``near`` of one, then the similarity of the markers to their
+    nearest candidates, twice (the head turns)."""
     moved = M + _best_translation(X, M, near, reach)
-    for _ in range(2):  # then the similarity of the markers to their nearest candidates (the head turns)
+    for _ in range(2):
         d = np.linalg.norm(moved[:, None] - X[None], axis=2)
         hit = d.min(1) <= near
         if hit.sum() < 4:
             break
         T = _similarity_3d(M[hit], X[d[hit].argmin(1)])
         moved = M @ T[:3, :3].T + T[:3, 3]
-    close = np.linalg.norm(X[:, None] - moved[None], axis=2).min(1) <= near
-    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[close][None], axis=2).min(1) <= near) < 4:
-        return keep_v, keep_r
-    keep_v[:], keep_r[:] = False, False
-    keep_v[pairs[close, 0]] = True
-    keep_r[pairs[close, 1]] = True
-    return keep_v, keep_r
+    return moved
+
+
+def repose_layout(dots_v, dots_r, cameras: tuple[PinholeCamera, PinholeCamera], model_points,
+                  max_gap: float = 1.0, near: float = 4.0, reach: float = 40.0, least: int = 6
+                  ) -> np.ndarray | None:
+    """The layout ``model_points (P, 3)`` moved to where the two views' dot pairs place it, or None.
+
+    As :func:`layout_dots` places it (pairs of dots whose rays meet within ``max_gap`` mm, a
+    translation of up to ``reach`` mm, then a similarity), for a first frame whose pose is far from
+    the layout's (``hard`` 58: 30-50 px). None where fewer than ``least`` markers end within ``near``
+    mm of a pair's point (nothing is known then). Rows of ``model_points`` that are not finite stay NaN.
+
+    Parameters
+    ----------
+    dots_v, dots_r : (m, 2), (n, 2) float
+        The virtual and the real view's dots, px.
+    cameras : (virtual, real) PinholeCamera
+    model_points : (P, 3) float
+        The layout at rest in the cameras' frame, mm.
+    max_gap, near, reach : float
+        mm; ``max_gap`` is this placement's own ray-gap limit (as :func:`layout_dots`'s), not the
+        tracker's ``max_ray_gap``.
+
+    Returns
+    -------
+    (P, 3) float or None
+        The moved layout, mm.
+    """
+    M0 = as_float_array(model_points, "model_points", (None, 3), finite=False)
+    ok = np.all(np.isfinite(M0), axis=1)
+    placed = _placed(dots_v, dots_r, cameras, M0[ok], max_gap, near, reach, least)
+    if placed is None:
+        return None
+    out = np.full(M0.shape, np.nan)
+    out[ok] = placed[0]
+    return out
+
+
+def _placed(dots_v, dots_r, cameras, M, max_gap, near, reach, least):
+    """The finite layout ``M (P, 3)`` moved onto the views' dot pairs (:func:`_place`), with the pairs'
+    points ``X (c, 3)`` and dot indices ``pairs (c, 2)``; None where fewer than 4 pairs or markers, or
+    fewer than ``least`` markers end within ``near`` mm of a point."""
+    X, pairs = stereo_candidates(dots_v, dots_r, cameras, max_gap)
+    if len(X) < 4 or len(M) < 4:
+        return None
+    moved = _place(X, M, near, reach)
+    if np.count_nonzero(np.linalg.norm(moved[:, None] - X[None], axis=2).min(1) <= near) < least:
+        return None
+    return moved, X, pairs

@@ -51,8 +51,9 @@ from lipgen.recon.association import (
     shift_group,
 )
 from lipgen.recon.blend import split_blobs
+from lipgen.recon.blobs import blob_allowed, blob_candidates
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around, search_box
-from lipgen.recon.dots import _dedupe, dot_peaks, ink_gray, refine_centroids, refine_peaks
+from lipgen.recon.dots import _dedupe, dot_peaks, dot_response, ink_gray, refine_centroids, refine_peaks
 from lipgen.recon.pointreg import assign
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
@@ -109,6 +110,9 @@ class MarkerTracker:
         # None for images more than history_frames back.
         self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
         self.history_frames = 300
+        # this image's search region (lo (2,) int, ink grey (h, w), detector response (h, w)), set
+        # by _dots and read by _with_blobs in the same step
+        self._region: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._before = (self.last.copy(), self.gap.copy(), list(self.templates), self.strength.copy())
 
     def _dots(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -124,7 +128,8 @@ class MarkerTracker:
             a, b = box
             lo, sub = a, gray[a[1]:b[1], a[0]:b[0]]
         cfg = self.cfg.dots_for(self.typical_strength(np.ones(len(self.init), dtype=bool)))
-        peaks, strength, roundness = dot_peaks(sub, cfg)
+        self._region = (lo, sub, dot_response(sub, cfg))   # kept for the blob candidates
+        peaks, strength, roundness = dot_peaks(sub, cfg, response=self._region[2])
         round_ = roundness >= cfg.min_roundness
         uv, keep = refine_peaks(sub, peaks[round_], cfg)
         return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
@@ -151,6 +156,22 @@ class MarkerTracker:
         if len(dots):
             ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
         return uv[ok], idx[ok]
+
+    def _with_blobs(self, gray, dots, strength, round_, allowed, e_peaks, need, cand, guess, gates, reach):
+        """The candidates with unresolved blobs near the ``need`` markers' predictions appended
+        (:func:`lipgen.recon.blobs.blob_candidates`), takeable only as
+        :func:`~lipgen.recon.blobs.blob_allowed` says, and by the prediction route only with
+        ``blob_prediction`` (else as elongated dots). Returns (dots, strength, round_, allowed)."""
+        cfg, share = self.cfg, self.cfg.blob_share
+        lo, sub, response = self._region
+        near = np.maximum(reach, gates)[need] * share
+        b_uv, b_str = blob_candidates(sub, response, lo, cfg.dots, np.vstack([guess[need], cand[need]]),
+                                      np.concatenate([near, near]), np.vstack([dots, e_peaks]), gray)
+        most = np.inf if cfg.max_strength_ratio is None else cfg.max_strength_ratio
+        ok = blob_allowed(b_uv, b_str, guess, cand, share * reach, share * gates, need & ~self.twins,
+                          self.strength, (cfg.min_strength_ratio, most))
+        return (np.vstack([dots, b_uv]), np.concatenate([strength, b_str]),
+                np.r_[round_, np.full(len(b_uv), cfg.blob_prediction)], np.hstack([allowed, ok]))
 
     def _acquire(self, uv: np.ndarray, status: np.ndarray, dots: np.ndarray, strength: np.ndarray) -> None:
         """Take dots for markers not seen yet where the layout, registered to this image's sightings,
@@ -195,6 +216,7 @@ class MarkerTracker:
         score = np.full(P, np.nan)
         first = not self._out
         shifted = np.zeros(P, dtype=bool)
+        n_top = len(dots)   # dots from here on are blobs (cfg.blobs)
         if first:
             seen = np.all(np.isfinite(self.init), axis=1)
             # Snap the given positions to this frame's dots so every position is a centroid.
@@ -249,6 +271,10 @@ class MarkerTracker:
             # than ink, and the correlation may follow the skin around a hidden dot.
             dark_enough = (np.isnan(self.strength)[:, None]
                            | (strength[None, :] >= cfg.min_strength_ratio * self.strength[:, None]))
+            n_top = len(dots)
+            if cfg.blobs:   # dots the top-hat cannot resolve, for markers with no round dot
+                dots, strength, round_, dark_enough = self._with_blobs(
+                    gray, dots, strength, round_, dark_enough, e_peaks, need, cand, guess, gates, reach)
             snap, via_corr = assign_two_routes(cand, guess, dots, gates, reach, corr_ok & ~back,
                                                 dark_enough, round_dots=round_)
             got = snap >= 0
@@ -277,11 +303,12 @@ class MarkerTracker:
         self.last[visible] = uv[visible]
         self.gap[visible] = 0
         self.gap[~visible & np.all(np.isfinite(self.last), axis=1)] += 1
-        got = visible & (status != CORRELATION_ONLY)
-        if got.any():
-            near = np.linalg.norm(uv[got][:, None] - dots[None], axis=2)
-            mine = strength[near.argmin(1)]
-            self.strength[got] = _darkness(self.strength[got], mine)
+        got = np.flatnonzero(visible & (status != CORRELATION_ONLY))
+        if len(got) and len(dots):  # a frame-0 match made at a lowered floor may leave no dot here
+            idx = np.linalg.norm(uv[got][:, None] - dots[None], axis=2).argmin(1)
+            # a blob's darkness is its flank's, not learnt (looked up after fix_order's swaps)
+            got, idx = got[idx < n_top], idx[idx < n_top]
+            self.strength[got] = _darkness(self.strength[got], strength[idx])
         self._out.append((uv, status, score))
         self._rejected.append(np.zeros(P, dtype=bool))
         return uv, status, score

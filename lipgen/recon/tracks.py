@@ -14,7 +14,17 @@ import numpy as np
 from lipgen._validate import as_float_array
 from lipgen.recon.dots import DotSettings
 
-__all__ = ["TrackerSettings", "Tracks", "twin_partners"]
+__all__ = ["TrackerSettings", "Tracks", "twin_partners", "lowered_floor"]
+
+
+def lowered_floor(typical: float, ratio: float, min_contrast: float, least: float) -> float | None:
+    """The contrast floor of a pale view: ``ratio`` x the darkness ``typical`` of its markers' dots
+    where that is under ``min_contrast`` (else None: the fixed floor stays; NaN ``typical``, not
+    known yet, too), never under ``least``."""
+    lowered = ratio * typical
+    if not 0 < lowered < min_contrast:
+        return None
+    return max(lowered, least)
 
 
 @dataclass(frozen=True)
@@ -104,6 +114,21 @@ class TrackerSettings:
         lower its floor step by step into the skin texture (0.04-0.08: see
         :mod:`lipgen.recon.epipolar`). A guard, not a tuned value: 0.7 x the median darkness at ``hard``
         25's true marks (0.095) is 0.067.
+    blobs : bool
+        A marker with no round dot within ``gate`` of where it is looked for may take a dot the
+        top-hat cannot resolve (a Laplacian-of-Gaussian blob on a darker structure's flank in
+        the defocused mirror, :mod:`lipgen.recon.blobs`): by the same two routes and
+        unambiguity tests as a dot, if it is ``min_strength_ratio`` to ``max_strength_ratio``
+        as dark as the marker's own dot (which must be known) and nearer its prediction than
+        any other marker's. False: the top-hat's dots only (the old step).
+    blob_share : float
+        Such a blob must lie within this share (0, 1] of the ``gate`` / recovery reach.
+    blob_prediction : bool
+        A blob may also be taken by the motion prediction (a marker coming back, or whose
+        correlation failed). False: only where the marker's correlation found it in the frame
+        after a sighting (held through, never re-acquired on a blob by the tracker's step; the
+        epipolar recovery, ``ReconstructSettings.epipolar_blobs``, still may), as an elongated dot
+        is; it still counts as a rival in the prediction's unambiguity test.
     """
 
     dots: DotSettings = DotSettings()
@@ -123,6 +148,9 @@ class TrackerSettings:
     blend: bool = True
     floor_ratio: float | None = 0.7
     floor_min: float = 0.05
+    blobs: bool = False
+    blob_share: float = 1.0
+    blob_prediction: bool = True
 
     def __post_init__(self):
         lo, hi = self.min_strength_ratio, self.max_strength_ratio
@@ -134,6 +162,13 @@ class TrackerSettings:
         if not 0 <= self.floor_min <= self.dots.min_contrast:   # also refuses NaN
             raise ValueError(f"floor_min must be in [0, dots.min_contrast = {self.dots.min_contrast!r}], "
                              f"got {self.floor_min!r}")
+        if not isinstance(self.blobs, bool):
+            raise ValueError(f"blobs must be True or False, got {self.blobs!r}")
+        if not isinstance(self.blob_prediction, bool):
+            raise ValueError(f"blob_prediction must be True or False, got {self.blob_prediction!r}")
+        share = self.blob_share
+        if isinstance(share, bool) or not isinstance(share, int | float | np.floating) or not 0 < share <= 1:
+            raise ValueError(f"blob_share must be a number in (0, 1] (1: as far as a dot), got {share!r}")
         if hi is not None and not (hi >= lo):  # also refuses NaN
             raise ValueError(f"max_strength_ratio must be None (no limit) or at least min_strength_ratio "
                              f"({lo!r}), got {hi!r}")
@@ -142,9 +177,9 @@ class TrackerSettings:
         """The detector's settings in a view whose markers' dots have darkness ``typical`` (NaN:
         not known yet): ``dots`` with its contrast floor lowered to ``floor_ratio * typical``
         where that is lower, but not under ``floor_min``."""
-        if self.floor_ratio is None or not 0 < self.floor_ratio * typical < self.dots.min_contrast:
-            return self.dots
-        return replace(self.dots, min_contrast=max(self.floor_ratio * typical, self.floor_min))
+        floor = (None if self.floor_ratio is None
+                 else lowered_floor(typical, self.floor_ratio, self.dots.min_contrast, self.floor_min))
+        return self.dots if floor is None else replace(self.dots, min_contrast=floor)
 
     @property
     def twins(self) -> float:
