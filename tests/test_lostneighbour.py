@@ -13,8 +13,7 @@ import pytest
 from test_motioncheck import _layout, _marks
 from test_raygap import _two_views
 
-from lipgen.recon.lostneighbour import (close_neighbours, lost_neighbour_runs, runs,
-                                        take_back_lost_neighbour)
+from lipgen.recon.lostneighbour import close_neighbours, lost_neighbour_runs, runs, take_back_lost_neighbour
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.track import LOST, TRACKED
 from lipgen.recon.tracks import Tracks
@@ -99,3 +98,23 @@ def test_bad_arguments_and_settings_are_refused():
     with pytest.raises(ValueError, match="set both"):
         ReconstructSettings(lost_neighbour_neither=0.5)
     assert ReconstructSettings().lost_neighbour_ratio is None
+
+
+def test_track_raw_frames_runs_the_pass_after_out_of_place_only_when_set(monkeypatch):
+    from test_shifted import _two_view_frames
+
+    import lipgen.recon.steps as steps
+
+    raws, layout, expected, cams, X = _two_view_frames()
+    calls = []
+    place, lost = steps.take_back_out_of_place, steps.take_back_lost_neighbour
+    monkeypatch.setattr(steps, "take_back_out_of_place",
+                        lambda *a, **kw: calls.append("place") or place(*a, **kw))
+    monkeypatch.setattr(steps, "take_back_lost_neighbour",
+                        lambda *a, **kw: calls.append(("lost", kw["ratio"], kw["neither"])) or lost(*a, **kw))
+    steps.track_raw_frames(iter(raws), layout, expected, ReconstructSettings(), cameras=cams, rest_points=X)
+    assert calls == ["place"], "off by default"
+    calls.clear()
+    on = ReconstructSettings(lost_neighbour_ratio=0.5, lost_neighbour_neither=0.5)
+    steps.track_raw_frames(iter(raws), layout, expected, on, cameras=cams, rest_points=X)
+    assert calls == ["place", ("lost", 0.5, 0.5)]

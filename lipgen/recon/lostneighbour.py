@@ -182,7 +182,8 @@ def lost_neighbour_runs(
         raise ValueError(f"tracks must both have shape (F, {len(rest)}, 2) like rest_points (P, 3), "
                          f"got {tv.uv.shape} and {tr.uv.shape}")
     if not (np.isfinite(ratio) and 0 < ratio <= 1):
-        raise ValueError(f"ratio must be in (0, 1] (a share of the distance from its own place), got {ratio!r}")
+        raise ValueError(f"ratio must be in (0, 1] (a share of the distance from its own place), "
+                         f"got {ratio!r}")
     if neither is not None and not (np.isfinite(neither) and neither > 0):
         raise ValueError(f"neither must be None or a number of layout spacings > 0, got {neither!r}")
     if int(min_pairs) != min_pairs or min_pairs < 6:
@@ -202,8 +203,9 @@ def lost_neighbour_runs(
     return out
 
 
-def take_back_lost_neighbour(tracks, cameras, rest_points, covariance=None, ratio: float = 0.5,
-                             neither: float | None = None, names=None) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
+def take_back_lost_neighbour(
+    tracks, cameras, rest_points, covariance=None, ratio: float = 0.5, neither: float | None = None, names=None
+) -> tuple[tuple[Tracks, Tracks], np.ndarray]:
     """The tracks with the runs of :func:`lost_neighbour_runs` taken back in both views.
 
     Returns the new (virtual, real) tracks and the (F, P) bool pairs taken back; ``names`` are for the log."""

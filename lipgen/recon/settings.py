@@ -226,7 +226,10 @@ class ReconstructSettings:
         nearer the layout's prediction of a close neighbour that is not seen in both views than this
         times its distance from its own prediction is taken back in both views (an identity shift
         onto a lost neighbour's dot; :func:`lipgen.recon.lostneighbour.take_back_lost_neighbour`).
-        None: off (measuring; ``renders/examples/tracking/corner19_identity.md``).
+        None: off. Measured on 14 development sets (within 3 px - 10 x over 3 px, rule fixed before the
+        runs): main 10064, 0.5 9988 (it hardly acts: the wrong runs fit their own prediction better,
+        the layout predicting a corner marker at its lost neighbour's place), with
+        ``lost_neighbour_neither`` 0.5 8969 (``renders/examples/tracking/corner19_identity.md``).
     lost_neighbour_neither : float or None
         With ``lost_neighbour_ratio``: a run is also taken back when its medians from its own
         predicted place and from every lost neighbour's are over this many layout spacings (a lure
