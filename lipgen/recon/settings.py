@@ -220,20 +220,6 @@ class ReconstructSettings:
         acted: identical to off (a pass by a tie); on the already opened ``hard`` 66 and 69, where it
         acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2
         (``renders/examples/tracking/c3_fresh_71_76.md``).
-    lost_neighbour_ratio : float or None
-        With the calibrated cameras and the markers at rest, after ``out_of_place_k``'s pass: a
-        marker's run of frames seen in both views whose 3-D point lies, over the run (medians),
-        nearer the layout's prediction of a close neighbour that is not seen in both views than this
-        times its distance from its own prediction is taken back in both views (an identity shift
-        onto a lost neighbour's dot; :func:`lipgen.recon.lostneighbour.take_back_lost_neighbour`).
-        None: off. Measured on 14 development sets (within 3 px - 10 x over 3 px, rule fixed before the
-        runs): main 10064, 0.5 9988 (it hardly acts: the wrong runs fit their own prediction better,
-        the layout predicting a corner marker at its lost neighbour's place), with
-        ``lost_neighbour_neither`` 0.5 8969 (``renders/examples/tracking/corner19_identity.md``).
-    lost_neighbour_neither : float or None
-        With ``lost_neighbour_ratio``: a run is also taken back when its medians from its own
-        predicted place and from every lost neighbour's are over this many layout spacings (a lure
-        on nobody's place). None: not.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -267,8 +253,6 @@ class ReconstructSettings:
     first_frame_one_view: int | None = 18
     first_frame_floor: float | None = None
     first_frame_repose: int | None = 6
-    lost_neighbour_ratio: float | None = None
-    lost_neighbour_neither: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
@@ -292,18 +276,6 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
                              f"matched in both views under which the layout is re-posed), got {n!r}")
-        r = self.lost_neighbour_ratio
-        if r is not None and (isinstance(r, bool) or not isinstance(r, numbers.Real) or not 0 < r <= 1):
-            raise ValueError(f"settings.lost_neighbour_ratio must be None (off) or in (0, 1] (a share of the "
-                             f"run's distance from its own predicted place, e.g. 0.5), got {r!r}")
-        w = self.lost_neighbour_neither
-        if w is not None and (isinstance(w, bool) or not isinstance(w, numbers.Real)
-                              or not (math.isfinite(w) and w > 0)):
-            raise ValueError(f"settings.lost_neighbour_neither must be None (not) or a number > 0 (layout "
-                             f"spacings, e.g. 0.5), got {w!r}")
-        if w is not None and r is None:
-            raise ValueError("settings.lost_neighbour_neither needs lost_neighbour_ratio set (e.g. 0.5); "
-                             "set both or neither")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):

@@ -35,7 +35,6 @@ from lipgen.recon.backfill import WalkQueue
 from lipgen.recon.epipolar import recover_along_epipolar
 from lipgen.recon.firstpose import first_frame
 from lipgen.recon.jumps import StepLimit
-from lipgen.recon.lostneighbour import take_back_lost_neighbour
 from lipgen.recon.motioncheck import MotionCheck
 from lipgen.recon.oneview import pair_one_view
 from lipgen.recon.outofplace import take_back_out_of_place
@@ -185,10 +184,6 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
     if cameras is not None and rest_points is not None and settings.out_of_place_k is not None:
         tracks = take_back_out_of_place(tracks, cameras, rest_points, layout_covariance,
                                         k=settings.out_of_place_k, names=names)[0]
-    if cameras is not None and rest_points is not None and settings.lost_neighbour_ratio is not None:
-        tracks = take_back_lost_neighbour(tracks, cameras, rest_points, layout_covariance,
-                                          ratio=settings.lost_neighbour_ratio,
-                                          neither=settings.lost_neighbour_neither, names=names)[0]
     return tracks
 
 
