@@ -192,3 +192,48 @@ def test_the_response_passed_in_gives_the_same_peaks():
     for a, b in zip(blob_peaks(g, s), blob_peaks(g, s, None, r), strict=True):
         assert np.array_equal(a, b)
     assert len(dot_peaks(g, s)[0]) >= 3
+
+
+def test_a_blob_candidate_is_fitted_to_sub_pixel():
+    """blob_candidates on a dot at (24.3, 20.2) beside a dark line: within 0.3 px (a whole-pixel peak is
+    0.36 px off), and a centre farther than its radius keeps nothing."""
+    from lipgen.recon.blobs import blob_candidates
+    from lipgen.recon.dots import dot_response
+
+    y, x = np.mgrid[:41, :61].astype(float)
+    img = 0.7 * (1 - 0.5 * np.exp(-((x - 30) ** 2) / (2 * 2.5 ** 2))) \
+        * (1 - 0.25 * np.exp(-((x - 24.3) ** 2 + (y - 20.2) ** 2) / (2 * 1.5 ** 2)))
+    s = DotSettings(sigma=1.5)
+    resp = dot_response(img, s)
+    lo = np.zeros(2, dtype=int)
+    uv, strength = blob_candidates(img, resp, lo, s, np.array([[25.0, 20.0]]), np.array([4.0]),
+                                   np.zeros((0, 2)), img)
+    assert len(uv) == 1 and np.linalg.norm(uv[0] - [24.3, 20.2]) < 0.3 and strength[0] > 0
+    far, _ = blob_candidates(img, resp, lo, s, np.array([[10.0, 10.0]]), np.array([4.0]), np.zeros((0, 2)),
+                             img)
+    assert len(far) == 0
+
+
+def test_a_blob_nearer_another_markers_guess_is_not_taken():
+    """blob_allowed: a blob within marker 0's reach but nearer marker 1's guess goes to neither marker 0
+    nor (without need) marker 1; by the correlation's candidate (gates) alone it is taken; too faint or
+    too dark against the marker's own dot, refused."""
+    from lipgen.recon.blobs import blob_allowed
+
+    guess = np.array([[10.0, 10.0], [14.0, 10.0]])
+    cand = guess.copy()
+    own = np.array([0.2, 0.2])
+    need = np.array([True, False])
+    reach, none, ratios = np.array([3.0, 3.0]), np.zeros(2), (0.5, 2.0)
+    blob = np.array([[12.5, 10.0]])                       # 2.5 px from marker 0, 1.5 px from marker 1
+    ok = blob_allowed(blob, np.array([0.2]), guess, cand, reach, none, need, own, ratios)
+    assert not ok.any()
+    blob = np.array([[11.0, 10.0]])                       # nearer marker 0
+    ok = blob_allowed(blob, np.array([0.2]), guess, cand, reach, none, need, own, ratios)
+    assert ok[:, 0].tolist() == [True, False]
+    far_cand = np.array([[11.2, 10.0], [14.0, 10.0]])   # the correlation by it; the guess out of reach
+    short = np.array([0.5, 0.5])
+    ok = blob_allowed(blob, np.array([0.2]), guess, far_cand, short, short, need, own, ratios)
+    assert ok[:, 0].tolist() == [True, False]
+    for s in (0.05, 0.9):   # a quarter, and 4.5 times, the marker's own darkness
+        assert not blob_allowed(blob, np.array([s]), guess, cand, reach, none, need, own, ratios).any()
