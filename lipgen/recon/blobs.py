@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from lipgen.recon.dots import DotSettings, dot_response, local_maxima, peak_roundness, refine_centroids
+from lipgen.recon.dots import DotSettings, dot_response, local_maxima, peak_roundness, refine_peaks
 
 __all__ = ["blob_peaks", "blob_candidates", "blob_allowed"]
 
@@ -102,7 +102,8 @@ def blob_candidates(gray: np.ndarray, response: np.ndarray, lo: np.ndarray, sett
         uv, strength = uv[near], strength[near]
     if len(uv) == 0:
         return uv, strength
-    fit = refine_centroids(full, uv, settings.sigma, window=settings.window)
+    fit, kept = refine_peaks(full, uv, settings)   # two peaks that converge to one dot: one candidate
+    uv, strength = uv[kept], strength[kept]
     moved = np.linalg.norm(fit - uv, axis=1) > settings.separation / 2
     return np.where(moved[:, None], uv, fit), strength
 
