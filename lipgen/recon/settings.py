@@ -218,8 +218,9 @@ class ReconstructSettings:
         accepted 21.0 -> 52.9 %, 13.7 -> 31.5 %, 0 -> 62.7 %; over 3 px 68 -> 2, 77 -> 10, 0 -> 17;
         score 11025 -> 13829. On fresh held-out ``hard`` 71-76 (pre-registered, run once) it never
         acted: identical to off (a pass by a tie); on the already opened ``hard`` 66 and 69, where it
-        acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2
-        (``renders/examples/tracking/c3_fresh_71_76.md``).
+        acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2; on fresh
+        ``hard`` 77-82 against off it acted on 80 only (over 3 px 140 -> 72, not a rescue): score
+        3899 -> 4563 (``renders/examples/tracking/c3_fresh_71_76.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
