@@ -1,51 +1,88 @@
 """generate refuses a truth motion the machine cannot hold, before the physics runs and before any write."""
 
+import subprocess
+import sys
+
 import pytest
 
 from lipgen.cli import main
 from lipgen.dataset import footprint
-from lipgen.dataset.footprint import (
-    FIXED_BYTES,
-    PEAK_BYTES_PER_VERTEX_FRAME,
-    check_motion_memory,
-    motion_peak_bytes,
-)
+from lipgen.dataset.footprint import BYTES_PER_VERTEX_FRAME, FIXED_MB, check_motion_memory, motion_peak_bytes
 from lipgen.errors import DatasetError
 
 
-def test_estimate_grows_with_frames_vertices_and_workers():
-    assert motion_peak_bytes(0, 750) == FIXED_BYTES
-    one = motion_peak_bytes(1000, 750) - FIXED_BYTES
-    assert one == 1000 * 750 * PEAK_BYTES_PER_VERTEX_FRAME + 1000 * 750 * 24
-    assert motion_peak_bytes(2000, 750) - FIXED_BYTES == 2 * one
-    assert motion_peak_bytes(1000, 750, workers=3) - motion_peak_bytes(1000, 750) == 2 * 1000 * 750 * 24
+def test_estimate_grows_with_frames_and_takes_the_larger_of_physics_and_rendering():
+    fixed = FIXED_MB["linear"][1] << 20
+    assert motion_peak_bytes(0, 750) == fixed
+    assert motion_peak_bytes(1000, 750) - fixed == 1000 * 750 * BYTES_PER_VERTEX_FRAME
+    assert motion_peak_bytes(1000, 750, 1, "layer") - motion_peak_bytes(1000, 750) == (170 - 20) << 20
+    # 20 workers each holding the vertices outweigh the physics
+    assert motion_peak_bytes(10**5, 750, workers=20) == 24 * 10**5 * 750 * 21
 
 
-def test_simulated_motion_stays_under_the_estimate():
-    """The estimate is an upper bound of the measured peak (tracemalloc) on a short clip."""
-    import tracemalloc
+_PROBE = """
+import resource, sys
+from lipgen.dataset.settings import GenerateSettings
+from lipgen.dataset.simulation import simulate_motion
+from lipgen.mesh.procedural import lip_mesh
+lip_mesh(1)
+r0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+simulate_motion(GenerateSettings.from_preset("default", frames=int(sys.argv[1])))
+print((resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - r0) * 1024)
+"""
 
-    from lipgen.dataset.settings import GenerateSettings
-    from lipgen.dataset.simulation import simulate_motion
 
-    s = GenerateSettings.from_preset("default", frames=120)
-    tracemalloc.start()
-    try:
-        m = simulate_motion(s)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    n = m.vertices.shape[1]
-    assert peak <= motion_peak_bytes(120, n)
-    assert peak / (120 * n) > 100  # the per-vertex-frame figure is of the right size, not padding
+def _growth(frames: int) -> int:
+    out = subprocess.run([sys.executable, "-c", _PROBE, str(frames)], capture_output=True, text=True,
+                         check=True)
+    return int(out.stdout.strip().splitlines()[-1])
+
+
+def test_the_per_frame_figure_bounds_the_measured_slope():
+    """The resident set's growth over the truth physics, at 20 and 220 frames (fresh processes): its slope
+    per vertex and frame is under the estimate's and of its size (not padding), its whole under the
+    estimate."""
+    lo, hi = _growth(20), _growth(220)
+    slope = (hi - lo) / (200 * 750)
+    assert 0.4 * BYTES_PER_VERTEX_FRAME < slope <= BYTES_PER_VERTEX_FRAME
+    assert hi <= motion_peak_bytes(220, 750)
 
 
 def test_refused_with_the_need_the_free_and_the_fix():
-    want = (r"--frames 100000 at subject resolution 4 \(44976 vertices\) needs about .* GB .* 1\.0 GB is "
-            r"free; generate at most about \d+ frames")
+    want = (r"100000 frames at subject resolution 4 \(44976 vertices, linear truth\) need about .* GB .* "
+            r"4\.0 GB is free: at most about \d+ frames fit")
     with pytest.raises(DatasetError, match=want):
-        check_motion_memory(100000, 4, available=1 << 30)
+        check_motion_memory(100000, 4, available=4 << 30)
+    with pytest.raises(DatasetError, match="no length fits at this subject resolution"):
+        check_motion_memory(100, 4, available=1 << 30)   # under the physics' fixed 2.1 GB
     assert check_motion_memory(10, 1, available=1 << 30) == motion_peak_bytes(10, 750)
+
+
+def test_the_check_can_be_switched_off(monkeypatch):
+    monkeypatch.setenv(footprint.MEMORY_CHECK_ENV, "off")
+    assert check_motion_memory(100000, 4, available=1 << 30) > 1 << 30
+
+
+def test_a_cgroup_limit_lowers_what_is_free(tmp_path, monkeypatch):
+    import builtins
+
+    files = {"/proc/meminfo": "MemTotal: 100 kB\nMemAvailable: 8388608 kB\n",
+             "/sys/fs/cgroup/memory.max": str(3 << 30), "/sys/fs/cgroup/memory.current": str(1 << 30)}
+    real = builtins.open
+
+    def fake(path, *a, **k):
+        if str(path) in files:
+            p = tmp_path / str(path).replace("/", "_")
+            p.write_text(files[str(path)])
+            return real(p, *a, **k)
+        if str(path).startswith("/sys/fs/cgroup"):
+            raise FileNotFoundError(path)
+        return real(path, *a, **k)
+
+    monkeypatch.setattr(builtins, "open", fake)
+    assert footprint.available_bytes() == 2 << 30          # the cgroup's room, not the host's 8 GB
+    files["/sys/fs/cgroup/memory.max"] = "max"
+    assert footprint.available_bytes() == 8 << 30
 
 
 def test_generate_refuses_before_the_physics_and_writes_nothing(tmp_path, capsys, monkeypatch):
@@ -62,5 +99,5 @@ def test_generate_refuses_before_the_physics_and_writes_nothing(tmp_path, capsys
                    "--no-progress"])
     assert status == 1
     err = capsys.readouterr().err
-    assert "--frames 5000" in err and "GB is free" in err and "nothing was written" in err
+    assert "5000 frames" in err and "GB is free" in err and "Nothing was written" in err
     assert not out.exists()

@@ -97,10 +97,11 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False, progress: bo
     out = Path(out)
     check_renderer(s.renderer)  # e.g. cycles without bpy: say so before anything is simulated or written
     old = check_folder(out, resume)  # another dataset, a foreign folder: refused before the truth physics
-    check_motion_memory(s.frames, s.subject_resolution, workers)  # before the physics, not killed after it
     rig = rig_for(s.size, s.conditions, default_rig)
     if old is not None:  # --resume with other settings: refused now too, not after the physics
         check_same_dataset(out, old, json.loads(json.dumps(settings_entries(s, rig))))
+    # before the physics, not killed after it
+    check_motion_memory(s.frames, s.subject_resolution, s.truth_physics, workers)
     if s.conditions.video_codec:
         from lipgen.dataset.video import check_video_codec
 
@@ -203,7 +204,8 @@ def generate(out, settings: GenerateSettings | None = None, workers: int = 1, re
     Raises
     ------
     DatasetError
-        ``out`` is another dataset, not a dataset, differs in settings, or is not writable.
+        ``out`` is another dataset, not a dataset, differs in settings, or is not writable; or the
+        truth motion would not fit in the free memory (:mod:`lipgen.dataset.footprint`).
     ValueError
         Bad settings (unknown viseme in the script, a rig that does not see the face, ...).
     """

@@ -146,7 +146,7 @@ class PipelineSettings:
                              f"n_test {self.n_test}, window {self.window}")
         if not 1 <= self.n_modes < self.n_train:
             raise ValueError(f"need 1 <= n_modes < n_train, got {self.n_modes}, {self.n_train}")
-        check_workers(self.workers)
+        object.__setattr__(self, "workers", check_workers(self.workers))   # a numpy int: a plain one
         dataset_settings(self, self.seeds[0])  # their checks (size) before any folder
 
     @property

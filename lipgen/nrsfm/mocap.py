@@ -101,6 +101,7 @@ def mocap_sequence(name: str, seed: int, folder: Path | None = None) -> HumanSeq
 
 
 def _filmed(name: str, skeleton: BvhSkeleton, seed: int) -> HumanSequence:
+    """The parsed clip ``name`` filmed with ``seed`` (see :func:`mocap_sequence`)."""
     X = clip_points(skeleton)
     rng = np.random.default_rng(seed)
     t = np.arange(len(X)) * STEP * skeleton.frame_time
@@ -117,5 +118,5 @@ def mocap_set(clips=None, folder: Path | None = None) -> list[HumanSequence]:
     if unknown:
         raise ValueError(f"unknown clip(s) {unknown}; the clips are {', '.join(CLIPS)}")
     index = {n: i for i, n in enumerate(CLIPS)}
-    skeletons = {n: load_clip(n, folder) for n in names}  # each file parsed once, filmed twice
+    skeletons = {n: load_clip(n, folder) for n in names}  # each file parsed once, filmed once per seed
     return [_filmed(n, skeletons[n], base + index[n]) for base in SEEDS for n in names]
