@@ -39,8 +39,8 @@ from lipgen.recon.stereo_init import _similarity_3d, stereo_candidates
 from lipgen.recon.tracks import lowered_floor
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["match_first_frame", "pale_floor", "first_frame_dots", "predict_layout", "check_layout",
-           "checked_matches", "triangulate_matched"]
+__all__ = ["match_first_frame", "match_view", "pale_floor", "first_frame_dots", "predict_layout",
+           "check_layout", "checked_matches", "triangulate_matched"]
 
 
 def match_first_frame(dots, strength, expected, gate: float, robust: bool = False,
@@ -140,11 +140,21 @@ def first_frame_dots(views, dots: DotSettings, expected, gate: float, robust: bo
 
 def _view_floor(uv, strength, expected, gate, robust, dark, ratio, least, min_contrast) -> float | None:
     """:func:`pale_floor` of the dots one view's first-frame match takes (see :func:`first_frame_dots`)."""
-    ok = np.all(np.isfinite(expected), axis=1)
-    if not ok.any() or len(uv) == 0:
+    if len(uv) == 0:
         return None
-    match = match_first_frame(uv, strength, expected[ok], gate, robust, dark)
+    match = match_view(uv, strength, expected, gate, robust, dark)
     return pale_floor(strength[match[match >= 0]], min_contrast, ratio, least)
+
+
+def match_view(dots, strength, expected, gate: float, robust: bool = False, dark: float | None = None
+               ) -> np.ndarray:
+    """(P,) int: :func:`match_first_frame` of one view's ``dots`` to the projected rows of ``expected
+    (P, 2)`` (NaN rows: not projected, -1 there, as for a marker left unmatched)."""
+    ok = np.all(np.isfinite(expected), axis=1)
+    match = np.full(len(ok), -1)
+    if ok.any():
+        match[ok] = match_first_frame(dots, strength, expected[ok], gate, robust, dark)
+    return match
 
 
 def predict_layout(model: np.ndarray, points: np.ndarray, use: np.ndarray, width: float,

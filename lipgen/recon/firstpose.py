@@ -25,7 +25,7 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.dots import detect_dots
-from lipgen.recon.firstframe import first_frame_dots, match_first_frame
+from lipgen.recon.firstframe import first_frame_dots, match_view
 from lipgen.recon.grow import check_first_frame, paired_markers
 from lipgen.recon.stereo_init import layout_dots, repose_layout
 from lipgen.rig.camera import VIEWS
@@ -49,11 +49,9 @@ def match_first_frame_views(detected, exp, settings, cameras=None, rest_points=N
         keep = layout_dots(found[0], found[1], cameras, rest_points)
     inits = []
     for v, dots in enumerate(found):
-        ok = np.all(np.isfinite(exp[v]), axis=1)
         init = np.full(exp[v].shape, np.nan)
-        match = np.full(len(ok), -1)
-        match[ok] = match_first_frame(dots, detected[v][1], exp[v][ok], settings.init_gate,
-                                      settings.robust_first_frame, settings.first_frame_dark)
+        match = match_view(dots, detected[v][1], exp[v], settings.init_gate, settings.robust_first_frame,
+                           settings.first_frame_dark)
         # Matched on all dots (a dot removed would leave its marker to a neighbour's), but a match
         # on a lure is dropped.
         lure = (match >= 0) & ~keep[v][np.maximum(match, 0)]
