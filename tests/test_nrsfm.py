@@ -274,5 +274,12 @@ def test_evaluate_on_dataset(tmp_path):
     assert np.isnan(data["W"][2 * 3:2 * 7, 2]).all() and not data["visible"][3:7, 2].any()
     measured = evaluate_on_dataset(path, "real", k=1, method="dai", uv=noisy, seen=seen)
     assert "tracked by" in measured["markdown"] and np.isfinite(measured["e3d"])
+    # the flat baseline is the same noisy tracks with zero depth (the truth's pixels only where
+    # the tracks have none), not the truth's exact projections
+    F, P = data["visible"].shape
+    flat = np.zeros((F, 3, P))
+    flat[:, :2] = np.where(np.isfinite(data["W"]), data["W"], data["W_all"]).reshape(F, 2, P)
+    assert measured["flat_e3d"] == pytest.approx(e3d(S_est=flat, S_true=data["S"]), rel=1e-12)
+    assert measured["flat_e3d"] != pytest.approx(result["flat_e3d"], rel=1e-6)  # the truth's flat
     with pytest.raises(DatasetError, match="were the tracks made from this dataset"):
         dataset_tracks(path, "real", uv=noisy[:5], seen=seen[:5])
