@@ -20,9 +20,24 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from lipgen.recon.dots import DotSettings, dot_response, local_maxima, peak_roundness, refine_peaks
+from lipgen.recon.dots import (
+    DotSettings,
+    _dedupe,
+    dot_response,
+    local_maxima,
+    peak_roundness,
+    refine_centroids,
+    refine_peaks,
+)
 
-__all__ = ["blob_peaks", "blob_candidates", "blob_allowed"]
+__all__ = ["blob_peaks", "blob_candidates", "blob_allowed", "foreshortened_dots", "near_centres"]
+
+
+def near_centres(points: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """(m,) bool: which ``points`` (m, 2) lie within ``radii`` (n,) of any of ``centres`` (n, 2)."""
+    if len(points) == 0 or len(centres) == 0:
+        return np.zeros(len(points), dtype=bool)
+    return (np.linalg.norm(points[:, None] - centres[None], axis=2) <= radii[None]).any(1)
 
 
 def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | None = None,
@@ -97,9 +112,8 @@ def blob_candidates(gray: np.ndarray, response: np.ndarray, lo: np.ndarray, sett
         return np.zeros((0, 2)), np.zeros(0)
     uv, strength = blob_peaks(gray, settings, np.asarray(exclude) - lo, response)
     uv = uv + lo
-    if len(uv):
-        near = (np.linalg.norm(uv[:, None] - centres[None], axis=2) <= radii[None]).any(1)
-        uv, strength = uv[near], strength[near]
+    near = near_centres(uv, centres, radii)
+    uv, strength = uv[near], strength[near]
     if len(uv) == 0:
         return uv, strength
     fit, kept = refine_peaks(full, uv, settings)   # two peaks that converge to one dot: one candidate
@@ -131,3 +145,26 @@ def blob_allowed(blobs: np.ndarray, strength: np.ndarray, guess: np.ndarray, can
     with np.errstate(invalid="ignore"):
         ok &= (strength[None] >= ratios[0] * own[:, None]) & (strength[None] <= ratios[1] * own[:, None])
     return ok
+
+
+def foreshortened_dots(gray: np.ndarray, dots: np.ndarray, peaks: np.ndarray, centres: np.ndarray,
+                       radii: np.ndarray, settings: DotSettings) -> tuple[np.ndarray, np.ndarray]:
+    """Sub-pixel centres of the elongated ``peaks`` (m, 2) within ``radii`` (n,) + 1 px of
+    ``centres`` (n, 2): dots seen obliquely, which the roundness test rejects.
+
+    Refined together with the round ``dots`` (k, 2) near them (deblending), and dropped where
+    they end on a round dot. Only markers whose own dot was not found need them, so this is
+    usually empty and costs nothing. Returns (uv (j, 2), index (j,) into ``peaks``).
+    """
+    idx = np.flatnonzero(near_centres(peaks, centres, radii + 1.0))
+    if len(idx) == 0:
+        return np.zeros((0, 2)), idx
+    reach = 2 * (np.ceil(3.0 * settings.sigma) + 1)
+    nb = (np.linalg.norm(dots[:, None] - peaks[idx][None], axis=2) < reach).any(1)
+    uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), settings.sigma,
+                          window=None)[:len(idx)]   # elongated blobs: the whole patch
+    sep = settings.separation / 2
+    ok = _dedupe(uv, sep)
+    if len(dots):
+        ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
+    return uv[ok], idx[ok]

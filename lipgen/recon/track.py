@@ -51,9 +51,9 @@ from lipgen.recon.association import (
     shift_group,
 )
 from lipgen.recon.blend import split_blobs
-from lipgen.recon.blobs import blob_allowed, blob_candidates
+from lipgen.recon.blobs import blob_allowed, blob_candidates, foreshortened_dots
 from lipgen.recon.correlate import correlate_near, normalized_correlation, patch_around, search_box
-from lipgen.recon.dots import _dedupe, dot_peaks, dot_response, ink_gray, refine_centroids, refine_peaks
+from lipgen.recon.dots import dot_peaks, dot_response, ink_gray, refine_peaks
 from lipgen.recon.pointreg import assign
 from lipgen.recon.tracks import TrackerSettings, Tracks, twin_partners
 
@@ -133,29 +133,6 @@ class MarkerTracker:
         round_ = roundness >= cfg.min_roundness
         uv, keep = refine_peaks(sub, peaks[round_], cfg)
         return uv + lo, strength[round_][keep], peaks[~round_] + lo, strength[~round_]
-
-    def _foreshortened(self, gray, dots, peaks, centres, radii) -> tuple[np.ndarray, np.ndarray]:
-        """Sub-pixel centres of the elongated ``peaks`` within ``radii`` of ``centres``.
-
-        Refined together with the round ``dots`` near them (deblending), and dropped where they
-        end on a round dot. Only markers whose own dot was not found need them, so this is
-        usually empty and costs nothing. Returns (uv (m, 2), index (m,) into ``peaks``).
-        """
-        idx = np.zeros(0, dtype=np.int64)
-        if len(peaks) and len(centres):
-            near = np.linalg.norm(peaks[:, None] - centres[None], axis=2) <= radii[None, :] + 1.0
-            idx = np.flatnonzero(near.any(1))
-        if len(idx) == 0:
-            return np.zeros((0, 2)), idx
-        reach = 2 * (np.ceil(3.0 * self.cfg.dots.sigma) + 1)
-        nb = (np.linalg.norm(dots[:, None] - peaks[idx][None], axis=2) < reach).any(1)
-        uv = refine_centroids(gray, np.vstack([peaks[idx], dots[nb]]), self.cfg.dots.sigma,
-                              window=None)[:len(idx)]   # elongated blobs: the whole patch
-        sep = self.cfg.dots.separation / 2
-        ok = _dedupe(uv, sep)
-        if len(dots):
-            ok &= np.linalg.norm(uv[:, None] - dots[None], axis=2).min(1) >= sep
-        return uv[ok], idx[ok]
 
     def _with_blobs(self, gray, dots, strength, round_, allowed, e_peaks, need, cand, guess, gates, reach):
         """The candidates with unresolved blobs near the ``need`` markers' predictions appended
@@ -262,8 +239,8 @@ class MarkerTracker:
             # correlation peak, elongated blobs near them become candidates: takeable only where
             # the correlation found them, and rivals in the unambiguity test of the prediction.
             need = np.all(np.isfinite(pred), axis=1) & ~(d0 <= cfg.gate)
-            e_uv, e_idx = self._foreshortened(gray, dots, e_peaks, np.vstack([cand[need], guess[need]]),
-                                              np.concatenate([gates[need], reach[need]]))
+            e_uv, e_idx = foreshortened_dots(gray, dots, e_peaks, np.vstack([cand[need], guess[need]]),
+                                             np.concatenate([gates[need], reach[need]]), cfg.dots)
             round_ = np.r_[np.ones(len(dots), dtype=bool), np.zeros(len(e_uv), dtype=bool)]
             dots = np.vstack([dots, e_uv])
             strength = np.concatenate([strength, e_strength[e_idx]])
@@ -331,9 +308,8 @@ class MarkerTracker:
         velocity, template from ``gray`` (the ink image), darkness ``strength``."""
         uv, status, _ = self._out[-1]
         uv[k], status[k] = p, RECOVERED
-        self.last[k], self.vel[k], self.gap[k] = p, 0.0, 0
-        self.templates[k] = (patch_around(gray, p, self.cfg.template_radius).copy(), p - np.round(p))
-        self.strength[k] = _darkness(self.strength[k], strength)
+        template = (patch_around(gray, p, self.cfg.template_radius).copy(), p - np.round(p))
+        self._set_state(k, p, 0, template, _darkness(self.strength[k], strength))
 
     def reject(self, markers) -> None:
         """Take back the last image's sightings of ``markers`` (indices): they become LOST there.
@@ -352,9 +328,8 @@ class MarkerTracker:
                 continue
             uv[i], status[i] = np.nan, LOST
             self._rejected[-1][i] = True
-            self.last[i], self.vel[i], self.strength[i] = last[i], 0.0, strength[i]
-            self.templates[i] = templates[i]
-            self.gap[i] = gap[i] + 1 if np.all(np.isfinite(last[i])) else 0
+            self._set_state(i, last[i], gap[i] + 1 if np.all(np.isfinite(last[i])) else 0, templates[i],
+                            strength[i])
             self.acquired[i] = False
 
     def withdraw(self, markers) -> None:
@@ -379,11 +354,16 @@ class MarkerTracker:
     def unlearn(self, k: int) -> None:
         """Drop marker ``k``'s state (position, template, darkness) but not its sightings: it is
         acquired afresh, as one never seen (an identity found wrong, :mod:`lipgen.recon.motioncheck`)."""
-        self.last[k], self.vel[k], self.gap[k], self.strength[k] = np.nan, 0.0, 0, np.nan
-        self.templates[k] = None
+        self._set_state(k, np.nan, 0, None, np.nan)
         self.acquired[k] = False
         last, gap, templates, strength = self._before
         last[k], gap[k], templates[k], strength[k] = np.nan, 0, None, np.nan
+
+    def _set_state(self, k: int, last, gap: int, template, strength: float) -> None:
+        """Marker ``k``'s state set from outside a step: position, frames since seen, template,
+        darkness; no velocity (a sighting put, taken back or forgotten is not motion)."""
+        self.last[k], self.vel[k], self.gap[k] = last, 0.0, gap
+        self.templates[k], self.strength[k] = template, strength
 
     def tracks(self) -> Tracks:
         """Everything tracked so far."""
