@@ -337,3 +337,27 @@ def test_only_the_frames_that_need_it_take_the_pseudo_inverse():
     keep = np.arange(5) != 2
     assert np.array_equal(out[keep], np.linalg.inv(G[keep]))
     np.testing.assert_allclose(out[2], np.linalg.pinv(G[2], hermitian=True), rtol=1e-8, atol=1e-12)
+
+
+def test_a_rank_that_fits_every_row_completes_without_iterating():
+    # 3K = P - 1 (16 tracked marks at K = 5, one mark of the 17 never tracked): the model fits any
+    # centred row, says nothing about the hidden entries, and the run made no evaluator (it crashed
+    # resetting one: 'SubspaceCompletion' object has no attribute 'frames')
+    rng = np.random.default_rng(3)
+    F, P = 30, 16
+    W = rng.normal(size=(2 * F, P))
+    mask = rng.random((F, P)) > 0.2
+    full, misfit, info = complete_subspace(W, mask, P - 1, max_iter=50)
+    seen = np.repeat(mask, 2, axis=0)
+    assert np.array_equal(full[seen], W[seen]) and np.isfinite(full).all()
+    assert info["steps"] == 0 and misfit == pytest.approx(0.0, abs=1e-9)
+    # resumed with a higher cap: still nothing to do, and no error
+    full2, _, _ = complete_subspace(W, mask, P - 1, max_iter=60, resume=info["state"])
+    assert np.array_equal(full, full2)
+    # and through the methods: dai at K = 5 on 16 points with a fifth of the entries hidden
+    from lipgen.nrsfm import reconstruct
+    from lipgen.nrsfm.synthetic import low_rank_sequence
+
+    Wk = low_rank_sequence(F, P, 2, np.random.default_rng(1))[0]
+    rec = reconstruct(Wk, 5, visible=mask)
+    assert np.isfinite(rec.S).all()

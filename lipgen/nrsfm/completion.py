@@ -257,7 +257,7 @@ class SubspaceCompletion:
         self.d = d = P - 1 - rank
         row_mean = W0.sum(1) / seen.sum(1)
         self.spread = float(np.linalg.norm(np.where(seen, W0 - row_mean[:, None], 0.0)))
-        self.steps, self.done = 0, d <= 0
+        self.steps, self.done, self.frames = 0, d <= 0, None
         if self.done:   # every row fits exactly: the model says nothing about the hidden entries
             return
         _, _, Vt = np.linalg.svd(self.prior - self.prior.mean(1, keepdims=True), full_matrices=False)
@@ -276,7 +276,8 @@ class SubspaceCompletion:
         values)."""
         with reuse_freed_memory():
             self._run(max_iter)
-        self.frames._last = None   # kept terms are reused only within a run (a resumed run recomputes)
+        if self.frames is not None:   # kept terms are reused only within a run (a resumed run recomputes)
+            self.frames._last = None
 
     def _run(self, max_iter: int) -> None:
         d = self.d
