@@ -214,9 +214,9 @@ def test_auto_with_rho_scales_only_the_depth(monkeypatch):
 
     default = []
 
-    def spy(runs, chosen, m, rho):
+    def spy(runs, chosen, m, rho, roughness_ratio=None):
         default.append(consensus_reconstruction(runs, chosen, m))
-        return consensus_reconstruction(runs, chosen, m, rho)
+        return consensus_reconstruction(runs, chosen, m, rho, roughness_ratio)
 
     monkeypatch.setattr(kchoice, "consensus_reconstruction", spy)
     s = human_sequence(302, 12)
@@ -240,3 +240,42 @@ def test_auto_refuses_a_bad_rho_on_every_path_before_any_work():
     for method in ("dai", "bregler"):
         with pytest.raises(ValueError, match="rho must be a correlation in"):
             kchoice.reconstruct_auto(W, method, kmax=2, rho=1.5)
+
+
+def test_a_roughness_ratio_leaves_out_rotations_much_rougher_than_the_smoothest():
+    """Three runs turning at 0.01, 0.02 and 0.1 rad per frame (roughness about 2 a^4: 1, 16 and 10^4 times
+    the least): ratio 20 averages the first two, ratio 1 the chosen one alone (unshrunk), None all three;
+    the chosen run always stays, even when it is not the smoothest."""
+    rng = np.random.default_rng(2)
+    F, P = 12, 9
+    cams = [_centre(rng.standard_normal((F, 3, P))) for _ in range(3)]
+    rates = (0.01, 0.02, 0.1)
+    recs = [_record(cams[i], _rotations(F, rates[i], rng), i + 1) for i in range(3)]
+    assert consensus_depth(recs, 0, m=3)[1]["ks"] == [1, 2, 3]
+    _, record = consensus_depth(recs, 0, m=3, roughness_ratio=20.0)
+    assert record["ks"] == [1, 2] and record["roughness_ratio"] == 20.0
+    z, record = consensus_depth(recs, 0, m=3, roughness_ratio=1)
+    assert record["ks"] == [1] and record["factor"] == 1.0
+    np.testing.assert_allclose(z, cams[0][:, 2], atol=1e-12)   # the chosen depth, unshrunk
+    assert consensus_depth(recs, 2, m=3, roughness_ratio=20.0)[1]["ks"] == [3, 1, 2]
+    for bad in (0.5, float("nan"), "5", True, -1):
+        with pytest.raises(ValueError, match="roughness_ratio must be None or a number >= 1"):
+            consensus_depth(recs, 0, m=3, roughness_ratio=bad)
+
+
+def test_auto_hands_the_roughness_ratio_to_the_consensus():
+    """reconstruct_auto(roughness_ratio=...) reaches the consensus record; None is today's answer, bit for
+    bit; a bad ratio is refused before any work, on every path."""
+    from lipgen.nrsfm import kchoice
+    from lipgen.nrsfm.validation import human_sequence
+
+    s = human_sequence(302, 20)
+    base = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None)
+    same = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None, roughness_ratio=None)
+    assert np.array_equal(base.S, same.S) and base.info["depth_consensus"]["roughness_ratio"] is None
+    one = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None, roughness_ratio=1.0)
+    assert one.info["depth_consensus"]["roughness_ratio"] == 1.0 and one.k == base.k
+    assert len(one.info["depth_consensus"]["ks"]) <= len(base.info["depth_consensus"]["ks"])
+    for method in ("dai", "bregler"):
+        with pytest.raises(ValueError, match="roughness_ratio must be None or a number >= 1"):
+            kchoice.reconstruct_auto(s.W[:6], method, roughness_ratio=0.0)

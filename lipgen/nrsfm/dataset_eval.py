@@ -137,8 +137,8 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
     dict
         ``e3d`` (benchmark metric), ``flat_e3d`` (the same for the tracks the method was given,
         with zero depth and the truth's projection where they have no sighting: the score of not
-        reconstructing depth at all from the same input), ``mean_error_mm`` (mean point distance after the same
-        alignment, in mm), ``frames``, ``points``, ``observed_fraction``, ``k``, ``method``,
+        reconstructing depth at all from the same input), ``mean_error_mm`` (mean point distance
+        after the same alignment, in mm), ``frames``, ``points``, ``observed_fraction``, ``k``, ``method``,
         ``view``, ``reprojection_rms_mm``, ``depth_mm``, ``relief``, ``tracks`` (which tracks
         were used), ``tracking_rms_px`` (their error against the truth; 0 for the truth's own
         projections), and ``markdown`` (a snippet for the end-to-end report).
