@@ -283,3 +283,22 @@ def test_evaluate_on_dataset(tmp_path):
     assert measured["flat_e3d"] != pytest.approx(result["flat_e3d"], rel=1e-6)  # the truth's flat
     with pytest.raises(DatasetError, match="were the tracks made from this dataset"):
         dataset_tracks(path, "real", uv=noisy[:5], seen=seen[:5])
+
+
+def test_flat_baseline_fills_only_the_missing_entries_and_asks_for_a_fill():
+    from lipgen.nrsfm.metrics import flat_e3d
+
+    rng = np.random.default_rng(4)
+    S = rng.standard_normal((3 * 6, 5))
+    W = S.reshape(6, 3, 5)[:, :2].reshape(12, 5).copy()
+    full = flat_e3d(W, S)
+    F = np.zeros((6, 3, 5))
+    F[:, :2] = W.reshape(6, 2, 5)
+    assert full == pytest.approx(e3d(S_est=F, S_true=S), rel=1e-12) and full > 0
+    hidden = W.copy()
+    hidden[2:4, 1] = np.nan
+    assert flat_e3d(hidden, S, fill=W) == pytest.approx(full, rel=1e-12)   # filled with the same values
+    with pytest.raises(ValueError, match="2 missing entries and no fill"):
+        flat_e3d(hidden, S)
+    with pytest.raises(ValueError, match=r"fill must have W's shape \(12, 5\)"):
+        flat_e3d(hidden, S, fill=W[:4])

@@ -148,6 +148,7 @@ def test_an_exact_fit_is_kept_bit_for_bit():
     assert runs[1].info["shapes"] == "rank-K fit"
     out = consensus_reconstruction(runs, 1)
     assert out.info["depth_consensus"]["factor"] == 1.0
+    assert out.info["depth_consensus"]["roughness_ratio"] is None   # the same keys as a consensus
     assert np.array_equal(out.S, runs[1].S) and np.array_equal(out.weights, runs[1].weights)
 
 
@@ -258,9 +259,23 @@ def test_a_roughness_ratio_leaves_out_rotations_much_rougher_than_the_smoothest(
     assert record["ks"] == [1] and record["factor"] == 1.0
     np.testing.assert_allclose(z, cams[0][:, 2], atol=1e-12)   # the chosen depth, unshrunk
     assert consensus_depth(recs, 2, m=3, roughness_ratio=20.0)[1]["ks"] == [3, 1, 2]
-    for bad in (0.5, float("nan"), "5", True, -1):
+    for bad in (0.5, float("nan"), "5", True, np.bool_(True), -1, -np.inf):
         with pytest.raises(ValueError, match="roughness_ratio must be None or a number >= 1"):
             consensus_depth(recs, 0, m=3, roughness_ratio=bad)
+    for good, ks in ((np.float32(20), [1, 2]), (np.int64(1), [1]), (1, [1]), (np.inf, [1, 2, 3])):
+        record = consensus_depth(recs, 0, m=3, roughness_ratio=good)[1]
+        assert record["ks"] == ks and type(record["roughness_ratio"]) is float
+
+
+def test_an_infinite_ratio_keeps_every_k_even_beside_a_still_camera():
+    """A run whose rotations do not change has roughness 0, and inf * 0 is nan: inf must still mean no
+    filter, not 'the chosen K alone'."""
+    rng = np.random.default_rng(6)
+    F, P = 12, 9
+    recs = [_record(_centre(rng.standard_normal((F, 3, P))), _rotations(F, a, rng), i + 1)
+            for i, a in enumerate((0.0, 0.01, 0.02))]
+    assert consensus_depth(recs, 0, m=3, roughness_ratio=np.inf)[1]["ks"] == [1, 2, 3]
+    assert consensus_depth(recs, 0, m=3, roughness_ratio=1e6)[1]["ks"] == [1]   # only the still one
 
 
 def test_auto_hands_the_roughness_ratio_to_the_consensus():
@@ -273,9 +288,12 @@ def test_auto_hands_the_roughness_ratio_to_the_consensus():
     base = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None)
     same = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None, roughness_ratio=None)
     assert np.array_equal(base.S, same.S) and base.info["depth_consensus"]["roughness_ratio"] is None
+    assert len(base.info["depth_consensus"]["ks"]) > 1
     one = kchoice.reconstruct_auto(s.W, "dai", kmax=3, support=None, roughness_ratio=1.0)
-    assert one.info["depth_consensus"]["roughness_ratio"] == 1.0 and one.k == base.k
-    assert len(one.info["depth_consensus"]["ks"]) <= len(base.info["depth_consensus"]["ks"])
+    record = one.info["depth_consensus"]
+    assert record["roughness_ratio"] == 1.0 and one.k == base.k
+    assert record["ks"] == [one.k] and record["factor"] == 1.0   # the chosen K alone, its own depth
+    assert np.array_equal(one.rotations, base.rotations)
     for method in ("dai", "bregler"):
         with pytest.raises(ValueError, match="roughness_ratio must be None or a number >= 1"):
             kchoice.reconstruct_auto(s.W[:6], method, roughness_ratio=0.0)

@@ -215,6 +215,30 @@ def test_foreshortened_dot_is_a_candidate_but_not_a_detection():
     assert DotSettings().min_foreshortened_roundness <= roundness[d.argmin()] < DotSettings().min_roundness
 
 
+def test_foreshortened_dots_near_the_centres_only_and_nothing_from_nothing():
+    from lipgen.recon.blobs import foreshortened_dots, near_centres
+
+    frames, paths = _corner_clip(11)
+    gray = as_gray(frames[-1])
+    settings = DotSettings()
+    peaks, _, roundness = dot_peaks(gray, settings)
+    elongated = peaks[roundness < settings.min_roundness]
+    dots = detect_dots(gray)[0]
+    target = paths[-1, 0]
+    uv, idx = foreshortened_dots(gray, dots, elongated, target[None], np.array([3.0]), settings)
+    assert len(uv) == 1 and np.linalg.norm(uv[0] - target) < 1.0   # sub-pixel, on the oblique dot
+    assert np.linalg.norm(elongated[idx[0]] - target) <= 4.0
+    far, _ = foreshortened_dots(gray, dots, elongated, target[None] + 40.0, np.array([3.0]), settings)
+    assert len(far) == 0
+    for empty in ((dots, elongated[:0], target[None]), (dots, elongated, np.zeros((0, 2))),
+                  (dots[:0], elongated[:0], np.zeros((0, 2)))):
+        uv, idx = foreshortened_dots(gray, *empty, np.full(len(empty[2]), 3.0), settings)
+        assert uv.shape == (0, 2) and idx.shape == (0,) and idx.dtype == np.int64
+    assert near_centres(np.zeros((0, 2)), target[None], np.array([1.0])).shape == (0,)
+    assert not near_centres(target[None], np.zeros((0, 2)), np.zeros(0)).any()
+    assert near_centres(np.array([[0.0, 0.0], [3.0, 4.0]]), np.array([[0.0, 0.0]]), np.array([5.0])).all()
+
+
 @pytest.mark.parametrize("seed", [11, 14])
 def test_foreshortened_dot_beside_a_round_blob_is_not_swapped_for_it(seed):
     # Before the fix the tracker, finding no round dot at its correlation peak, took the round

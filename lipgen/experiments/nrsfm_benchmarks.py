@@ -111,13 +111,10 @@ def _load(name: str):
 
 
 def flat_e3d(W, S) -> float:
-    """e3D of the flat baseline: the centred tracks with zero depth (no reconstruction at all)."""
-    from ..nrsfm import e3d
+    """e3D of the flat baseline, the tracks with zero depth (:func:`lipgen.nrsfm.metrics.flat_e3d`)."""
+    from ..nrsfm.metrics import flat_e3d as flat
 
-    F, P = W.shape[0] // 2, W.shape[1]
-    flat = np.zeros((F, 3, P))
-    flat[:, :2] = (W - W.mean(1, keepdims=True)).reshape(F, 2, P)
-    return e3d(S_est=flat, S_true=S)
+    return flat(W, S)
 
 
 def _record(rec, W, S, seconds: float, cpu: float, label: str) -> dict:

@@ -170,10 +170,11 @@ def consensus_depth(candidates: list[Reconstruction], chosen: int,
                          "sequence")
     check_rho(rho)
     check_roughness_ratio(roughness_ratio)
-    ratio = roughness_ratio
+    ratio = None if roughness_ratio is None else float(roughness_ratio)
     rough = np.array([rotation_roughness(c.rotations) for c in candidates])
+    everyone = ratio is None or np.isinf(ratio)   # inf: no filter (inf * 0 would drop all but the chosen)
     order = [int(i) for i in np.argsort(rough, kind="stable") if i != chosen
-             and (ratio is None or rough[i] <= ratio * rough.min())]
+             and (everyone or rough[i] <= ratio * rough.min())]
     picked = [chosen] + order[: int(m) - 1]
     effect = design_effect(len(picked), rho) if len(picked) > 1 else 1.0
     ref = _centred_depth(candidates[chosen])
@@ -247,7 +248,11 @@ def consensus_reconstruction(candidates: list[Reconstruction], chosen: int,
     rec = candidates[chosen]
     if rec.info.get("shapes") == "rank-K fit" or m == 1:
         reason = "exact K-shape fit: depth kept" if m != 1 else "m = 1: depth kept"
-        record = {"ks": [int(rec.k)], "factor": 1.0, "spread": 0.0, "reason": reason}
+        check_rho(rho)
+        check_roughness_ratio(roughness_ratio)
+        record = {"ks": [int(rec.k)], "factor": 1.0, "spread": 0.0, "design_effect": 1.0,
+                  "roughness_ratio": None if roughness_ratio is None else float(roughness_ratio),
+                  "reason": reason}
         return replace(rec, info=rec.info | {"depth_consensus": record})   # the same arrays, bit for bit
     z, record = consensus_depth(candidates, chosen, m, rho, roughness_ratio)
     return with_depth(rec, z, {"depth_consensus": record | {"reason": f"mean of the {len(record['ks'])} "

@@ -19,7 +19,7 @@ import numpy as np
 from lipgen._io import load_npz
 from lipgen.errors import DatasetError
 from lipgen.nrsfm.core import DEFAULT_METHOD, reconstruct
-from lipgen.nrsfm.metrics import e3d
+from lipgen.nrsfm.metrics import e3d, flat_e3d
 
 __all__ = ["dataset_tracks", "evaluate_on_dataset"]
 
@@ -154,9 +154,7 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
     # carry the tracker's error, and a baseline without it would blame NRSfM for the tracking),
     # with the truth's projection where the tracks have no sighting.
     F, P = visible.shape
-    flat = np.zeros((F, 3, P))
-    flat[:, :2] = np.where(np.isfinite(W), W, data["W_all"]).reshape(F, 2, P)
-    flat_err = e3d(S_est=flat, S_true=S)
+    flat_err = flat_e3d(W, S, fill=data["W_all"])
     s = float(np.mean(np.std(S, axis=1)))
     result = {"e3d": err, "flat_e3d": flat_err, "mean_error_mm": err * s, "frames": F, "points": P,
               "observed_fraction": float(visible.mean()), "k": rec.k, "method": method, "view": view,

@@ -12,7 +12,7 @@ from lipgen._validate import as_float_array
 from lipgen.nrsfm.kchoice import choose_k, curve_values
 from lipgen.nrsfm.record import DEFAULT_METHOD, MEAN_PLUS_MODES
 
-__all__ = ["e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve", "plot_k_choice"]
+__all__ = ["e3d", "flat_e3d", "KCurve", "reprojection_curve", "choose_k", "plot_curve", "plot_k_choice"]
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +103,41 @@ class KCurve:
     chosen: int
     rule: str
     method: str
+
+
+def flat_e3d(W, S_true, fill=None) -> float:
+    """e3D of the flat baseline: the tracks with zero depth, what no reconstruction at all scores.
+
+    Parameters
+    ----------
+    W : (2F, P) array_like
+        Tracks, rows u1, v1, u2, v2, ...; NaN where a point was not seen.
+    S_true : (3F, P) or (F, 3, P) array_like
+        The true camera-frame shapes.
+    fill : (2F, P) array_like, optional
+        What the baseline puts where ``W`` is NaN (e.g. the truth's projections); needed when ``W``
+        has NaN.
+
+    Returns
+    -------
+    float
+        :func:`e3d` of the shapes ``(u, v, 0)`` (each row centred) against ``S_true``.
+    """
+    W = np.asarray(W, dtype=np.float64)
+    if W.ndim != 2 or W.shape[0] % 2:
+        raise ValueError(f"W must be (2F, P) tracks, got shape {W.shape}")
+    if fill is not None:
+        fill = np.asarray(fill, dtype=np.float64)
+        if fill.shape != W.shape:
+            raise ValueError(f"fill must have W's shape {W.shape}, got {fill.shape}")
+        W = np.where(np.isfinite(W), W, fill)
+    if not np.isfinite(W).all():
+        raise ValueError(f"W has {int((~np.isfinite(W)).sum())} missing entries and no fill: give fill= "
+                         "(e.g. the truth's projections) for the flat baseline")
+    F, P = W.shape[0] // 2, W.shape[1]
+    flat = np.zeros((F, 3, P))
+    flat[:, :2] = (W - W.mean(1, keepdims=True)).reshape(F, 2, P)
+    return e3d(S_est=flat, S_true=S_true)
 
 
 def reprojection_curve(W, ks=None, method: str = DEFAULT_METHOD, visible=None, rtol: float = 0.01,

@@ -13,6 +13,9 @@ are offered only where the tracker already knows where to look: along the other 
 line (:func:`lipgen.recon.epipolar.recover_along_epipolar`) and, with
 ``TrackerSettings.blobs``, near the prediction of a marker that has no round dot there
 (:func:`blob_candidates`, :class:`lipgen.recon.track.MarkerTracker`).
+
+A dot seen obliquely is the other kind the tracker needs help with: an elongated top-hat peak that the
+roundness test rejects (:func:`foreshortened_dots`).
 """
 
 from __future__ import annotations

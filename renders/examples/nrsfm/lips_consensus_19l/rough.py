@@ -1,4 +1,8 @@
-"""Consensus restricted to Ks within R times the least rotation roughness: e3D per R (dev harness)."""
+"""Consensus restricted to Ks within R times the least rotation roughness: e3D per R (dev harness).
+
+'flat' here is the reconstruction itself with zero depth (shrink_depth(rec, 0)): its x, y are the tracks,
+with the method's own completion where a mark was not seen (lipgen evaluate's flat_e3d fills those from the
+truth's projections instead; the two differ only where marks are missing)."""
 import sys, json, numpy as np
 import lipgen.nrsfm.kchoice as kc
 from lipgen.nrsfm import reconstruct
@@ -10,9 +14,9 @@ from lipgen.nrsfm.plausibility import rotation_roughness
 RS = [np.inf, 100, 30, 10, 5, 3]
 captured = {}
 orig = kc.consensus_reconstruction
-def spy(runs, chosen, m, rho):
+def spy(runs, chosen, m, rho, roughness_ratio=None):
     captured["runs"], captured["chosen"] = runs, chosen
-    return orig(runs, chosen, m, rho)
+    return orig(runs, chosen, m, rho, roughness_ratio)
 kc.consensus_reconstruction = spy
 
 def run(W, S, name):
@@ -26,9 +30,8 @@ def run(W, S, name):
         rough = np.array([rotation_roughness(r.rotations) for r in runs])
         out["single"] = round(e3d(S_est=runs[ch].S, S_true=S), 4)
         out["rough_ratio"] = [round(float(x), 1) for x in sorted(rough / rough.min())][:5]
-        for R in RS:
-            keep = [i for i in range(len(runs)) if rough[i] <= R * rough.min() or i == ch]
-            r2 = consensus_reconstruction([runs[i] for i in keep], keep.index(ch))
+        for R in RS:   # the library's filter (the runs of this session used the same rule written here)
+            r2 = consensus_reconstruction(runs, ch, roughness_ratio=R)
             out[f"R{R}"] = round(e3d(S_est=r2.S, S_true=S), 4)
     print(json.dumps(out), flush=True)
 
