@@ -126,3 +126,36 @@ def test_acquisition_without_a_layout_or_when_switched_off_does_nothing():
         for _ in range(3):
             tr.step(frame(base, pts, rng))
             assert not tr.acquired.any()
+
+
+def test_a_marker_lost_after_being_seen_is_reacquired_from_the_layout_only_with_reacquire_after():
+    """Marker 4 is seen in frame 0 off its layout place, hidden in frames 1-2, and back in frame 3 at its
+    layout place, 25 px from where it was lost: beyond every motion gate (recovery 8 + 3 per frame lost),
+    so only the layout acquisition finds it, and by default that is for markers never seen."""
+    rng = np.random.default_rng(4)
+    layout = np.array([[40.0, 40.0], [70.0, 40.0], [100.0, 40.0], [40.0, 80.0], [70.0, 80.0], [100.0, 80.0]])
+    start = layout.copy()
+    start[4] += [0.0, 25.0]
+    base = background((140, 160), rng)
+    shown = np.ones(6, dtype=bool)
+    images = [frame(base, start, rng)]
+    shown[4] = False
+    images += [frame(base, layout, rng, visible=shown) for _ in range(2)]
+    images += [frame(base, layout, rng) for _ in range(4)]
+    out = {}
+    for after in (None, 1, 3):
+        settings = TrackerSettings(acquire_gate=6.0, reacquire_after=after)
+        tr = MarkerTracker(start, settings, reference_uv=layout)
+        for image in images:
+            tr.step(image)
+        out[after] = tr.tracks()
+    assert not out[None].visible[1:, 4].any(), "by default it stays lost"
+    for after, back in ((1, 3), (3, 4)):   # 3: wanted once lost in 3 images (frames 1-3), taken in frame 4
+        tracks = out[after]
+        assert not tracks.visible[1:back, 4].any() and tracks.visible[back:, 4].all()
+        assert np.linalg.norm(tracks.uv[back:, 4] - layout[4], axis=1).max() < 1.0
+        others = np.delete(np.arange(6), 4)
+        assert tracks.visible[:, others].all()
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="reacquire_after must be None .* or an integer >= 1"):
+            TrackerSettings(reacquire_after=bad)

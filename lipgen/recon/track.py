@@ -155,7 +155,10 @@ class MarkerTracker:
         puts them (``settings.acquire_gate``); updates ``uv``, ``status`` and :attr:`acquired` in place."""
         cfg = self.cfg
         self.acquired = np.zeros(len(uv), dtype=bool)
-        wanted = (status == LOST) & ~np.all(np.isfinite(self.last), axis=1) & ~self.twins
+        never = ~np.all(np.isfinite(self.last), axis=1)
+        if cfg.reacquire_after is not None:   # and markers lost this long after being seen
+            never |= self.gap >= cfg.reacquire_after
+        wanted = (status == LOST) & never & ~self.twins
         seen = np.isin(status, (TRACKED, RECOVERED))
         if cfg.acquire_gate is None or self.reference is None or not wanted.any() or seen.sum() < 3 \
                 or len(dots) == 0:

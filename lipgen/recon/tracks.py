@@ -78,6 +78,9 @@ class TrackerSettings:
         builds on wrong first-frame matches); with the robust first frame 66.7 % and 141.
     acquire_ratio : float
         Ambiguity ratio of an acquisition.
+    reacquire_after : int, optional
+        A marker seen before and lost for at least this many images is searched for by the layout
+        as a marker not seen yet is (``acquire_gate``); None (default): only markers never seen.
     max_strength_ratio : float or None
         An acquisition takes no dot more than this many times as dark as the median of the
         view's markers' dots (None: no limit): a blob much darker than ink is the mouth's inside
@@ -145,6 +148,7 @@ class TrackerSettings:
     max_strength_ratio: float | None = 2.0
     acquire_gate: float | None = 6.0
     acquire_ratio: float = 0.6
+    reacquire_after: int | None = None
     blend: bool = True
     floor_ratio: float | None = 0.7
     floor_min: float = 0.05
@@ -162,6 +166,11 @@ class TrackerSettings:
         if not 0 <= self.floor_min <= self.dots.min_contrast:   # also refuses NaN
             raise ValueError(f"floor_min must be in [0, dots.min_contrast = {self.dots.min_contrast!r}], "
                              f"got {self.floor_min!r}")
+        after = self.reacquire_after
+        if after is not None and (isinstance(after, bool) or not isinstance(after, int | np.integer)
+                                  or after < 1):
+            raise ValueError(f"reacquire_after must be None (never-seen markers only) or an integer >= 1 "
+                             f"(images lost), got {after!r}")
         if not isinstance(self.blobs, bool):
             raise ValueError(f"blobs must be True or False, got {self.blobs!r}")
         if not isinstance(self.blob_prediction, bool):
