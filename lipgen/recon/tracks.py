@@ -81,6 +81,9 @@ class TrackerSettings:
     reacquire_after : int, optional
         A marker seen before and lost for at least this many images is searched for by the layout
         as a marker not seen yet is (``acquire_gate``); None (default): only markers never seen.
+        1 lifted development ``default`` 1-5 from 88.3 to 94.1 % accepted (over 3 px 98 -> 43) and
+        fresh ``hard`` 83-86 from 79.7 to 80.7 %, but lost on fresh ``default`` 105-109 (score
+        24389 -> 24307, one set -67), so it is off (``renders/examples/tracking/reacquire20.md``).
     max_strength_ratio : float or None
         An acquisition takes no dot more than this many times as dark as the median of the
         view's markers' dots (None: no limit): a blob much darker than ink is the mouth's inside
