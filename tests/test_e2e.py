@@ -288,3 +288,37 @@ def test_the_physics_layout_prior_reaches_the_tracker_from_the_model_mesh(datase
     P = len(mesh.markers)
     assert seen["rest_points"].shape == (P + 1, 3)
     np.testing.assert_array_equal(seen["layout_covariance"], physics_layout_covariance(Physics(mesh)))
+
+
+def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_change_it(dataset, recon, monkeypatch):
+    """Settings given with the detector left at its defaults get the rig's dot size, as no settings do
+    (the default sigma is no rig's); a detector the caller set is kept. Stops at the tracker."""
+    from dataclasses import replace
+
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.recon.dots import DotSettings
+    from lipgen.recon.settings import ReconstructSettings
+
+    class Reached(Exception):
+        pass
+
+    def sigma_of(settings):
+        seen = []
+
+        def capture(frames, rig, expected, given, *args, **kwargs):
+            seen.append(given)
+            raise Reached
+
+        monkeypatch.setattr(pipeline, "track_raw_frames", capture)
+        with pytest.raises(Reached):
+            reconstruct_dataset(dataset, settings=settings)
+        return seen[0]
+
+    fitted = sigma_of(None).tracker.dots.sigma
+    assert fitted != DotSettings().sigma
+    given = sigma_of(ReconstructSettings(first_frame_repose=None))
+    assert given.tracker.dots.sigma == fitted and given.first_frame_repose is None   # the rest kept
+    own = DotSettings(sigma=2.2)
+    mine = ReconstructSettings()
+    mine = replace(mine, tracker=replace(mine.tracker, dots=own))
+    assert sigma_of(mine).tracker.dots == own
