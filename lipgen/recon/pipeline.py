@@ -270,14 +270,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3])
     from lipgen.recon.dots import DotSettings
 
-    if settings is None or settings.tracker.dots == DotSettings():
-        # the detector's size fitted to this rig's dots, also under settings given with the detector
-        # left at its defaults (its default sigma is no rig's: default 1 fell from 96.5 to 93.2 % accepted)
-        from lipgen.recon.track import TrackerSettings
-
+    settings = ReconstructSettings() if settings is None else settings
+    if settings.tracker.dots == DotSettings():
+        # the detector's size fitted to this rig's dots unless the caller set it (its default sigma
+        # is no rig's: default 1 fell from 96.5 to 93.2 % accepted)
         dots = DotSettings(sigma=dot_sigma_px(cal, T, float(ds.settings.dot_diameter)))
-        settings = (ReconstructSettings(tracker=TrackerSettings(dots=dots)) if settings is None
-                    else replace(settings, tracker=replace(settings.tracker, dots=dots)))
+        settings = replace(settings, tracker=replace(settings.tracker, dots=dots))
     marks_rest = np.vstack([mesh.vertices[mesh.markers], mesh.nose])
     expected = expected_projections(lab.views, marks_rest)
     bar = None
