@@ -142,7 +142,7 @@ def test_the_rest_is_recorded_and_evaluate_measures_from_it(dataset, recon, scor
     assert np.array_equal(rest, np.asarray(own.info["rest"]))
     ds = Dataset(dataset)
     got = score(ds, model, own, test_frames=2, mesh=mesh)
-    assert "quiet rest" in got["displacements"]["rest"]
+    assert "rest (estimated on" in got["displacements"]["rest"]
     P = len(mesh.markers)
     truth = load_truth(ds)["marks_model"][:, :P]
     expect = displacement_error(own.markers, measured_markers(own), rest, truth, ds.rest_marks()[:P])
@@ -238,7 +238,7 @@ def test_evaluate_reconstructs_from_the_rest_the_model_was_trained_on(dataset, r
         with pytest.raises(RuntimeError, match="stopped"):
             main(args)
         assert asked[-1] == expect
-    # --rest-from: another reconstruction's rest (here one measured from its own quiet rest)
+    # --rest-from: another reconstruction's rest (here one measured from its own rest)
     from lipgen.fem import Physics
     from lipgen.recon.restsource import measured_from_rest, rest_frames
 

@@ -119,9 +119,9 @@ def _reconstruction(X, N, mesh):
 
 def test_renormalize_reaches_fields_from_the_rest_given(model, recordings):
     """rest=None reaches from the model's markers; rest=(P, 3) from those (NaN rows: the model's);
-    metric_renormalize is scale 1 with the quiet rest of its own frames."""
+    metric_renormalize is scale 1 with the rest of its own frames (recording_rest)."""
     from lipgen.recon.rereference import renormalize
-    from lipgen.recon.rest import metric_renormalize, quiet_rest
+    from lipgen.recon.rest import metric_renormalize, recording_rest
     from lipgen.recon.steps import reach_fields
 
     mesh, physics = model
@@ -146,7 +146,7 @@ def test_renormalize_reaches_fields_from_the_rest_given(model, recordings):
     assert np.array_equal(again.info["rest"], M) and again.info["rest_source"]["kind"] == "model"
     metric, quiet = metric_renormalize(recon, physics)
     assert metric.info["normalisation"]["scale"] == 1.0
-    assert np.allclose(quiet, quiet_rest(metric.markers, metric.visible), equal_nan=True)
+    assert np.allclose(quiet, recording_rest(metric.markers, metric.visible, M), equal_nan=True)
     with pytest.raises(TypeError, match="rest must be numeric"):
         renormalize(recon, unit, physics, rest="quiet")
     with pytest.raises(ValueError, match="rest"):

@@ -1,5 +1,5 @@
 """Where a reconstruction measures its displacements from (lipgen.recon.restsource): the recording's
-quiet rest, another recording's, or the model's; recorded, honoured by train, refused when bad."""
+own rest, another recording's, or the model's; recorded, honoured by train, refused when bad."""
 
 import numpy as np
 import pytest
@@ -119,12 +119,13 @@ def test_the_recordings_rest_is_recovered_and_recorded(model, subject):
     assert norm["scale"] == 1.0 and norm["fitted_scale"] == recon.info["normalisation"]["scale"]
     assert norm["reference_frame"] == recon.info["normalisation"]["reference_frame"] >= 0  # kept for evaluate
     # the subject's shape is recovered up to the head pose's constant bias (a rigid motion): measured
-    # 0.03 mm RMS after a rigid fit, the model's rest 1.58 mm
-    assert _rigid_rms(rest, M + shape) < 0.2 < 1.0 < _rigid_rms(M, M + shape)
+    # 0.54 mm RMS after a rigid fit, the model's rest 1.58 mm (0.03 from the quiet frames' densest
+    # half, the rule before 2026-12-05: this clip's small syllables pass nearer the model's rest)
+    assert _rigid_rms(rest, M + shape) < 0.7 < 1.0 < _rigid_rms(M, M + shape)
     frames = np.arange(F)
     from_model = _offset(recon, mesh, true, M + shape, frames)
     from_own = _offset(own, mesh, true, M + shape, frames)
-    assert from_own < 0.3 * from_model  # measured 3.03 -> 0.22 mm
+    assert from_own < 0.5 * from_model  # measured 3.03 -> 1.39 mm (0.22 by the earlier rule, see above)
     # the fields are the reach of the markers from that rest, and the model's rest is left as it was
     assert np.allclose(own.fields, reach_fields(physics, own.markers - rest, own.visible, mesh.markers, 4))
     kept = measured_from_rest(recon, physics, "model")
@@ -172,8 +173,8 @@ def test_train_records_the_rest_and_refuses_a_tail_that_shaped_it(tmp_path, mode
     assert main(["train", str(tmp_path / "r.npz"), "--out", str(tmp_path / "m.npz"), "--modes", "3",
                  "--test-frames", str(T)]) == 0
     prov = ModeModel.load(tmp_path / "m.npz").provenance_
-    assert prov["rest_kind"] == "recording" and "this recording's quiet rest" in prov["rest"]
-    assert "quiet rest" in capsys.readouterr().out
+    assert prov["rest_kind"] == "recording" and "this recording's rest" in prov["rest"]
+    assert "recording's rest (estimated on" in capsys.readouterr().out
     # a held-out tail that holds a rest frame is refused
     first = min(measured_from_rest(recon, physics, "recording", rest_frames(F, T)).info["rest_source"]
                 ["rest_frames"])
@@ -222,22 +223,24 @@ def test_bad_rest_options_are_refused_naming_the_value(tmp_path, model, subject,
         measured_from_rest(recon, physics, "recording", np.arange(0, 20, 2))
 
 
-def test_rest_frames_from_one_held_posture_are_not_taken_by_auto(model, subject, caplog):
+def test_rest_frames_from_one_stretch_are_not_taken_by_auto(model, subject, caplog):
     """Pauses: runs of rest frames more than PAUSE_GAP apart. ``auto`` asks for MIN_PAUSES of them
-    (a held vowel is quiet too); fewer give the model's rest, and the reason is recorded."""
+    (a held posture can lie near the model's rest too); fewer give the model's rest, and the
+    reason is recorded. This 32-frame recording's rest frames are one stretch."""
     import logging
 
     mesh, physics = model
     _, (recon, _), _ = subject
     assert pause_count([]) == 0 and pause_count([3, 4, 6, 9]) == 1 and pause_count([3, 4, 20, 21]) == 2
-    own = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=2)
-    assert own.info["rest_source"]["kind"] == "recording" and own.info["rest_source"]["pauses"] >= 2
-    auto = measured_from_rest(recon, physics, "auto", rest_frames(F, T))  # MIN_PAUSES: the same rest
-    assert auto.info["rest_source"] == own.info["rest_source"] and auto.info["rest"] == own.info["rest"]
+    own = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=1)
+    src = own.info["rest_source"]
+    assert src["kind"] == "recording" and src["pauses"] == pause_count(src["rest_frames"]) == 1
     with caplog.at_level(logging.WARNING, logger="lipgen.recon.restsource"):
-        held = measured_from_rest(recon, physics, "recording", rest_frames(F, T), min_pauses=9)
-    src = held.info["rest_source"]
-    assert src["kind"] == "model" and "held posture" in src["why"] and "held posture" in caplog.text
+        auto = measured_from_rest(recon, physics, "auto", rest_frames(F, T))  # MIN_PAUSES = 2
+    why = auto.info["rest_source"]["why"]
+    assert auto.info["rest_source"]["kind"] == "model" and "held posture" in why and "held posture" in caplog.text
+    assert str(src["rest_frames"]) in why
+    assert np.array_equal(np.asarray(auto.info["rest"]), mesh.vertices[mesh.markers])
 
 
 def test_displacement_error_against_a_closed_form():

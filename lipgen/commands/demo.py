@@ -155,7 +155,7 @@ def step_reconstruct(dataset: Path, out: Path, progress: bool):
     from lipgen.recon.pipeline import reconstruct_dataset
 
     # the demo's subject has the model's shape (preset easy) and moves in gestures, not speech: the
-    # model's rest is exact, the recording's quiet frames are held gestures (lipgen.recon.restsource)
+    # model's rest is exact (lipgen.recon.restsource)
     recon = reconstruct_dataset(dataset, progress=progress, rest="model")
     recon.save(out / "recon.npz")
     return recon, out / "recon.npz"

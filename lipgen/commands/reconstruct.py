@@ -22,12 +22,12 @@ model reaching the markers with the least-norm force (Physics.reach, thesis eq 4
 truth is not read.
 
 Displacements are measured from rest. --rest recording: the recording's own rest, each marker's
-median over its quietest training frames (speech pauses), at the rig's metric scale; the held-out
-tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
+median over the training frames nearest the model's rest (speech pauses), at the rig's metric
+scale; the held-out tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
 another reconstruction of the same subject, e.g. a test utterance measured from the training
 recording's rest. --rest model (the default): the model's rest markers (right when the subject's
 lips have the model's shape, as on the easy preset). --rest auto: the recording's rest when its
-quietest frames come from two or more pauses, else (one held posture may be a held vowel; fewer
+rest frames come from two or more pauses, else (one stretch may be a held posture; fewer
 than 10 training frames) the model's, with a warning; use it (or --rest recording) for speech
 with pauses. The choice is recorded in the output; lipgen train and evaluate use it.
 
@@ -73,7 +73,7 @@ def add_parser(sub) -> None:
                    "'0-20' or '3,7,12' (default: all training frames)")
     p.add_argument("--rest", choices=REST_CHOICES, default=None,
                    help=f"where displacements are measured from: the model's rest markers, the recording's "
-                   f"quiet rest (its training frames), or auto (the recording's when its rest frames come "
+                   f"rest (its training frames), or auto (the recording's when its rest frames come "
                    f"from 2 or more pauses, else the model's); default {DEFAULT_REST}")
     p.add_argument("--rest-from", default=None, metavar="RECON",
                    help="measure from the rest of another reconstruction (lipgen reconstruct --rest "

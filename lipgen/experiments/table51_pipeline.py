@@ -89,26 +89,27 @@ class PipelineSettings:
     workers: int = 1
     rest: str = "training"
     """Where displacements are measured from, and the scale. ``"training"`` (the default): the
-    training subject's rest estimated on the training recording's quiet frames
-    (:func:`lipgen.recon.rest.quiet_rest`: each marker's median over its accepted sightings in the
-    rest frames; a marker seen in too few of them takes the model's rest, and a warning names it),
-    at the rig's metric scale, for the training and the utterance recordings; the other subject,
-    who has no training recording, from the model's rest at metric scale. ``"quiet"``: the same,
-    but the other subject from its own recording's quiet rest. ``"metric"``: the model's rest at
-    the rig's metric scale (scale 1, the head pose fitted again; the rig is calibrated in mm and so
-    is the model). ``"model"``: the model's rest with the scale of a similarity fitted on the most
-    neutral frame (as first built). Chosen on validation subject seeds 20 and 23 (not the report's
-    seeds): the per-marker constant offset of the displacements against the truth (RMS over the
-    markers), from the model's rest -> from the training rest, was 3.35 -> 0.93 (training) and
-    3.82 -> 1.42 mm (utterance) on seed 20, 2.42 -> 1.53 and 2.37 -> 1.61 mm on seed 23; the other
-    subject's own quiet rest, from its 40 frames, 3.27 -> 2.85 and 2.06 -> 5.92 mm, so it keeps the
-    model's (:mod:`lipgen.recon.rest`). The learned estimators' relative errors (utterance split, vs
-    the true surface, 10 modes, rows xyz / yz / xy), ``"metric"`` -> ``"training"``: seed 20
-    1.22 / 1.28 / 1.30 -> 0.31 / 0.33 / 0.34, seed 23 0.64 / 0.68 / 0.68 -> 0.44 / 0.47 / 0.48
-    (other subject: 5.7 / 8.5 / 6.2 -> 3.0 / 2.1 / 2.0 and 1.9 / 1.9 / 2.3 -> 1.4 / 1.5 / 0.72,
-    the training subject's shape no longer in the learned mean). Earlier, on the tracker before
-    backfill, ``"quiet"`` hurt badly tracked recordings (seed 13 training, 58 % accepted:
-    2.73 -> 4.69 mm RMS)."""
+    training subject's rest estimated on the training recording
+    (:func:`lipgen.recon.rest.recording_rest`: each marker's median over its accepted sightings in
+    the frames nearest the model's rest; a marker seen in too few of them takes the model's rest,
+    and a warning names it), at the rig's metric scale, for the training and the utterance
+    recordings; the other subject, who has no training recording, from the model's rest at metric
+    scale. ``"own"``: the same, but the other subject from its own recording's rest, estimated on
+    all of its 40 frames, test windows included. ``"metric"``: the model's rest at the rig's metric
+    scale (scale 1, the head pose fitted again; the rig is calibrated in mm and so is the model).
+    ``"model"``: the model's rest with the scale of a similarity fitted on the most neutral frame
+    (as first built).
+
+    Measured on validation subject seeds 100-119 (not the report's seeds), 10 modes, row xyz, error
+    relative to the test motion, mean / worst over the seeds: the rest from the quietest frames (the
+    rule before 2026-12-05) -> from the frames nearest the model's rest, utterance split
+    1.01 / 7.55 -> 0.64 / 2.11; marker displacements against the true ones, mm RMS, training
+    2.21 / 5.52 -> 1.91 / 2.63, utterance 2.39 / 5.27 -> 2.13 / 2.86. ``"own"`` on the subject
+    split, from the model's rest -> its own: 0.99 / 3.38 -> 0.63 / 1.41 (displacements
+    3.26 -> 2.19 mm), but its test frames shape that rest, so it is not the default; from its 10
+    lead-in frames only it was worse (1.56 / 11.0; 2.90 mm). Earlier, on validation seeds 20 and
+    23, ``"training"`` against ``"metric"``: utterance 1.22 / 1.28 / 1.30 -> 0.31 / 0.33 / 0.34
+    and 0.64 / 0.68 / 0.68 -> 0.44 / 0.47 / 0.48 (rows xyz / yz / xy)."""
     learning: str = "measured"
     """``"measured"``: the learned estimators learn from the measured markers only
     (:meth:`ModeModel.fit_measured`) and ignore markers never measured in training; ``"all"``: from
@@ -131,7 +132,7 @@ class PipelineSettings:
         if self.utterance_reference not in ("train", "own"):
             raise ValueError(f"utterance_reference must be 'train' or 'own', got "
                              f"{self.utterance_reference!r}")
-        for name, allowed in (("rest", ("training", "quiet", "metric", "model")),
+        for name, allowed in (("rest", ("training", "own", "metric", "model")),
                               ("learning", ("measured", "all")), ("noise", ("robust", "measured", "none"))):
             if getattr(self, name) not in allowed:
                 raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")

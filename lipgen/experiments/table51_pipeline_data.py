@@ -40,11 +40,12 @@ def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     """The reconstructions in the frame of reference of ``s`` and the rest (P, 3) of each (None:
     the model's).
 
-    ``rest="training"`` (the default) re-normalises at scale 1 and measures the training and the
-    utterance recordings from the training recording's quiet rest (:func:`lipgen.recon.rest.quiet_rest`),
-    the other subject from the model's rest; ``"quiet"`` likewise, but the other subject (and the
-    utterance with ``utterance_reference="own"``) from its own recording's quiet rest; ``"metric"``
-    at scale 1 from the model's rest; ``"model"`` as reconstructed. The utterance is re-normalised
+    ``rest="training"`` re-normalises at scale 1 and measures the training and the utterance
+    recordings from the training recording's rest (:func:`lipgen.recon.rest.recording_rest`), the
+    other subject from the model's rest; ``"own"`` likewise, but the other subject (and the
+    utterance with ``utterance_reference="own"``) from its own recording's rest, estimated on all
+    of its frames (its test windows included: every marker of the frames nearest the model's rest
+    shapes it); ``"metric"`` at scale 1 from the model's rest; ``"model"`` as reconstructed. The utterance is re-normalised
     with the training reference if ``utterance_reference="train"``.
     """
     from lipgen.recon.rereference import renormalize
@@ -64,12 +65,12 @@ def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
         return out, dict.fromkeys(recons)
     out["train"], rest = metric_renormalize(recons["train"], physics)
     rests = {"train": rest}
-    if s.rest == "quiet" and ref is None:
+    if s.rest == "own" and ref is None:
         out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics)
     else:
         out["utterance"], rests["utterance"] = metric_renormalize(recons["utterance"], physics, rest=rest,
                                                                   reference=ref)
-    if s.rest == "quiet":
+    if s.rest == "own":
         out["subject"], rests["subject"] = metric_renormalize(recons["subject"], physics)
     else:  # another subject has no training recording: the model's rest
         out["subject"], _ = metric_renormalize(recons["subject"], physics, rest=M)
@@ -95,14 +96,15 @@ def marker_error(recon, ds, mesh, rest=None) -> dict:
 def model_line(s: dict) -> str:
     """The report's sentence on the rest, the learning and the noise term (settings ``s``)."""
     rest = {"training": "Displacements are measured from the subject's rest estimated on the training "
-                        "recording's quiet frames (each marker's median over its accepted sightings "
-                        "there), at the rig's metric scale, for the training and the utterance "
+                        "recording (each marker's median over its accepted sightings in the frames nearest "
+                        "the model's rest), at the rig's metric scale, for the training and the utterance "
                         "recordings; the other subject (no training recording) from the model's rest "
-                        "markers at metric scale "
-                        "(`lipgen.recon.rest`)",
-            "quiet": "Displacements are measured from the subject's rest estimated on the training "
-                     "recording's quiet frames, at the rig's metric scale (the other subject: from its own "
-                     "recording; `lipgen.recon.rest`)",
+                        "markers at metric scale (`lipgen.recon.rest`)",
+            "own": "Displacements are measured from the subject's rest estimated on the training "
+                   "recording (each marker's median over its accepted sightings in the frames nearest "
+                   "the model's rest), at the rig's metric scale; the other subject from its own "
+                   "recording's rest, estimated alike on all its frames, its test frames included "
+                   "(`lipgen.recon.rest`)",
             "metric": "Displacements are measured from the model's rest markers at the rig's metric scale "
                       "(scale 1, not a similarity fitted on a speaking frame; `lipgen.recon.rest`)",
             }.get(s.get("rest", "model"), "Displacements are measured from the model's rest markers, at the "

@@ -217,8 +217,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     :data:`lipgen.recon.restsource.DEFAULT_REST`, the model's) and ``rest_from`` (the path of
     another reconstruction) say where the displacements are measured from
     (:mod:`lipgen.recon.restsource`). ``"auto"`` takes the model's rest, and says so, when the
-    training frames are too few for a quiet rest (``"recording"`` refuses) or when their quietest
-    frames are one held posture rather than pauses (``"recording"`` takes it, with a warning).
+    training frames are too few for a rest of their own (``"recording"`` refuses) or when its rest
+    frames are one stretch rather than pauses (``"recording"`` takes it, with a warning).
 
     ``settings`` (default: :class:`~lipgen.recon.settings.ReconstructSettings`): the tracker's dot
     detector is fitted to the rig's dot size (:func:`dot_sigma_px`) unless ``settings.tracker.dots``
@@ -259,7 +259,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     lender = None if rest_from is None else check_rest_from(Reconstruction.load(rest_from), mesh, rest_from)
     frames_at_rest = (rest_frames(len(ds), test_frames, explicit=not auto)
                       if rest_kind == "recording" and lender is None else None)
-    short = (f"{len(ds)} frames leave fewer than {MIN_REST_FRAMES} training frames for a quiet rest"
+    short = (f"{len(ds)} frames leave fewer than {MIN_REST_FRAMES} training frames for a rest of their own"
              if rest_kind == "recording" and lender is None and frames_at_rest is None else None)
     if short:
         log.warning("%s: measured from the model's rest", short)

@@ -7,8 +7,8 @@ learned modes learn it as motion. A person reconstructing their own footage has 
 that is theirs. Three sources of the rest (``rest`` / ``rest_from`` of
 :func:`measured_from_rest`):
 
-- ``"recording"``: the recording's own quiet rest (:func:`lipgen.recon.rest.quiet_rest`: each
-  marker's median over the densest half of the slowest frames), estimated on its **training
+- ``"recording"``: the recording's own rest (:func:`lipgen.recon.rest.recording_rest`: each
+  marker's median over the frames nearest the model's rest), estimated on its **training
   frames only** (all but the held-out tail, as the normalisation's reference frame), at the rig's
   metric scale (:func:`lipgen.recon.rest.metric_renormalize`). A marker seen in too few rest frames
   takes the model's rest (a warning names it; ``info["rest_source"]["fallback"]``).
@@ -69,7 +69,7 @@ import os
 import numpy as np
 
 from lipgen.errors import TopologyMismatchError
-from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, quiet_rest
+from lipgen.recon.rest import MIN_REST_FRAMES, metric_renormalize, recording_rest
 
 __all__ = ["REST_CHOICES", "DEFAULT_REST", "PAUSE_GAP", "MIN_PAUSES", "pause_count", "check_rest_options",
            "rest_frames", "check_rest_from",
@@ -98,8 +98,9 @@ MIN_PAUSES = 2
 def pause_count(rest_frames) -> int:
     """How many separate pauses the rest frames (sorted ints) come from: runs split by gaps > PAUSE_GAP.
 
-    The lips return to one rest in every pause, but a held vowel is quiet too: rest frames from one
-    run alone may be a held posture, from two or more the same posture was returned to.
+    The lips return to one rest in every pause, but a held posture can lie near the model's rest
+    too: rest frames from one run alone may be a held posture, from two or more the same posture
+    was returned to.
     """
     f = np.sort(np.asarray(rest_frames, dtype=np.int64))
     return 0 if len(f) == 0 else 1 + int(np.sum(np.diff(f) > PAUSE_GAP))
@@ -140,7 +141,7 @@ def rest_frames(n_frames: int, test_frames: int | None = None, explicit: bool = 
         return frames
     if explicit:
         raise ValueError(f"the recording's rest needs at least {MIN_REST_FRAMES} training frames (before the "
-                         f"held-out tail) to find quiet ones in, got {len(frames)} of {n_frames} frames; "
+                         f"held-out tail) to find the rest in, got {len(frames)} of {n_frames} frames; "
                          "record longer, hold out fewer (--test-frames), or measure from the model's rest "
                          "(--rest model) or another recording's (--rest-from)")
     return None
@@ -241,21 +242,23 @@ def measured_from_rest(recon, physics, rest: str = DEFAULT_REST, frames=None, re
     names = mesh.marker_names
     estimate = {}
 
-    def quiet(X, m):
-        estimate["rest"], estimate["at"] = quiet_rest(X[frames], m[frames], names=names, return_frames=True)
+    def own_rest(X, m):
+        estimate["rest"], estimate["at"] = recording_rest(X[frames], m[frames], M, names=names,
+                                                          return_frames=True)
         return estimate["rest"]
 
-    out, _ = metric_renormalize(recon, physics, rest=quiet)
+    out, _ = metric_renormalize(recon, physics, rest=own_rest)
     at = [int(f) for f in frames[estimate["at"]]]
     pauses = pause_count(at)
     if pauses < min_pauses:
-        reason = (f"the quietest training frames {at} are one held posture ({pauses} pause), maybe not a "
-                  f"rest; record pauses, or give --rest recording or --rest-from")
+        reason = (f"the rest frames {at} (the training frames nearest the model's rest) are one stretch "
+                  f"({pauses} pause), maybe a held posture, not a rest; record pauses, or give --rest "
+                  f"recording or --rest-from")
         log.warning("%s: measured from the model's rest", reason)
         return measured_from_rest(recon, physics, "model", why=reason)
     if pauses < MIN_PAUSES:
-        log.warning("the recording's rest is the median of frames %s, one held posture: if that is not a "
-                    "rest (a held vowel), measure from another recording's rest (--rest-from)", at)
+        log.warning("the recording's rest is the median of frames %s, one stretch: if that is a held "
+                    "posture, not a rest, measure from another recording's rest (--rest-from)", at)
     fallback = [names[j] for j in np.flatnonzero(~np.all(np.isfinite(estimate["rest"]), axis=1))]
     source = {"kind": "recording", "of": "this recording", "frames": [int(frames[0]), int(frames[-1])],
               "rest_frames": at, "pauses": pauses, "fallback": fallback}
@@ -290,7 +293,7 @@ def rest_markers(recon, mesh) -> np.ndarray:
 
 
 def rest_frames_held_out(recon, held_out) -> list[int]:
-    """The frames of ``recon``'s own quiet rest (``--rest recording``) that are in ``held_out``
+    """The frames of ``recon``'s own rest (``--rest recording``) that are in ``held_out``
     (ints), sorted: held-out frames that shaped the training data (empty for any other rest)."""
     src = recon.info.get("rest_source", {})
     if src.get("of") != "this recording":
@@ -309,4 +312,4 @@ def rest_line(recon) -> str:
     whose = ("this recording's" if src.get("of") == "this recording"
              else f"another recording's ({src.get('dataset')})")
     fallback = f"; the model's rest for {', '.join(src['fallback'])}" if src.get("fallback") else ""
-    return f"{whose} quiet rest (estimated on {span}), at the rig's metric scale{fallback}"
+    return f"{whose} rest (estimated on {span}), at the rig's metric scale{fallback}"
