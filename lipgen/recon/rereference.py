@@ -81,7 +81,7 @@ def renormalize(recon, reference, physics=None, rest=None):
     rest : (P, 3) float or callable, optional
         The rest markers (model frame, mm) the fields are reached from; NaN rows fall back to the
         model's. A callable is given the renormalised markers (F, P, 3) and the measured mask
-        (F, P) and returns them (e.g. :func:`lipgen.recon.rest.quiet_rest`). None (default): the
+        (F, P) and returns them (e.g. :func:`lipgen.recon.rest.recording_rest`). None (default): the
         model's rest markers.
 
     Returns
