@@ -23,6 +23,10 @@ The rest used is recorded in the reconstruction (``info["rest"]`` (P, 3) mm, ``i
 ``lipgen train`` records it in the model's provenance and refuses a held-out tail that holds a rest
 frame; ``lipgen evaluate`` measures the markers from it (:func:`rest_markers`).
 
+The figures below were measured with the rest rule before 2026-12-05 (the densest half of the
+quietest frames), not yet again with the frames nearest the model's rest (:mod:`lipgen.recon.rest`
+has that rule's validation and held-out figures).
+
 Validation (``lipgen generate --preset default --seed 1``, ``lipgen reconstruct --rest model``, then
 the recording's rest as :func:`measured_from_rest` takes it; scored by
 :func:`lipgen.evaluate.displacement.displacement_error`, the figures ``lipgen evaluate`` reports: the
