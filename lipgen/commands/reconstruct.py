@@ -23,12 +23,12 @@ truth is not read.
 
 Displacements are measured from rest. --rest recording: the recording's own rest, each marker's
 median over the training frames nearest the model's rest (speech pauses), at the rig's metric
-scale; the held-out tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame of reference) of
-another reconstruction of the same subject, e.g. a test utterance measured from the training
-recording's rest. --rest model (the default): the model's rest markers (right when the subject's
-lips have the model's shape, as on the easy preset). --rest auto: the recording's rest when its
-rest frames come from two or more pauses, else (one stretch may be a held posture; fewer
-than 10 training frames) the model's, with a warning; use it (or --rest recording) for speech
+scale; the held-out tail (--test-frames) is not used. --rest-from TRAIN.npz: the rest (and frame
+of reference) of another reconstruction of the same subject, e.g. a test utterance measured from
+the training recording's rest. --rest model (the default): the model's rest markers (right when
+the subject's lips have the model's shape, as on the easy preset). --rest auto: the recording's
+rest when its rest frames come from two or more pauses, else (one stretch may be a held posture;
+fewer than 10 training frames) the model's, with a warning; use it (or --rest recording) for speech
 with pauses. The choice is recorded in the output; lipgen train and evaluate use it.
 
 Every marker sighting is accounted for: accepted (both views agree), rejected (the views disagree,

@@ -45,8 +45,8 @@ def normalised(s, recons: dict, physics) -> tuple[dict, dict]:
     other subject from the model's rest; ``"own"`` likewise, but the other subject (and the
     utterance with ``utterance_reference="own"``) from its own recording's rest, estimated on all
     of its frames (its test windows included: every marker of the frames nearest the model's rest
-    shapes it); ``"metric"`` at scale 1 from the model's rest; ``"model"`` as reconstructed. The utterance is re-normalised
-    with the training reference if ``utterance_reference="train"``.
+    shapes it); ``"metric"`` at scale 1 from the model's rest; ``"model"`` as reconstructed. The
+    utterance is re-normalised with the training reference if ``utterance_reference="train"``.
     """
     from lipgen.recon.rereference import renormalize
     from lipgen.recon.rest import metric_renormalize

@@ -198,6 +198,10 @@ def metric_renormalize(recon, physics, rest=None, reference=None):
     ref = reference_similarity(recon if reference is None else reference)
     mesh = physics.mesh
     M = mesh.vertices[mesh.markers]
+
+    def own_rest(X, m):
+        return recording_rest(X, m, M, names=mesh.marker_names)
+
     out = renormalize(recon, Similarity(1.0, ref.rotation, ref.translation), physics,
-                      rest=(lambda X, m: recording_rest(X, m, M, names=mesh.marker_names)) if rest is None else rest)
+                      rest=own_rest if rest is None else rest)
     return out, np.asarray(out.info["rest"], dtype=np.float64)
