@@ -63,6 +63,11 @@ recording's rest made the offsets worse: training 0.67 -> 1.81 mm, tail 0.63 -> 
 data (and any subject with the model's shape) are measured with ``--rest model``. That is why the
 default is the model's rest (:data:`DEFAULT_REST`; ``easy`` is ``lipgen generate``'s default preset and
 must keep its figures), and ``"auto"`` (the pause rule) or ``"recording"`` is asked for by name.
+With the rest frames nearest the model's rest (2026-12-05) the recording's rest no longer hurts
+there: fresh ``--preset easy --seed 47`` / ``48`` (150 frames, ``--rest model`` -> ``--rest
+recording``, RMS / each marker's offset, mm), training 0.98 / 0.43 -> 0.98 / 0.44 and
+1.02 / 0.54 -> 1.03 / 0.57, tail 0.25 / 0.16 -> 0.24 / 0.13 and 1.06 / 0.96 -> 1.03 / 0.92
+(script: ``renders/examples/table51_pipeline_rest/scripts/easy_disp.py``).
 """
 
 from __future__ import annotations
