@@ -77,6 +77,15 @@ def measured_markers(recon) -> np.ndarray:
     return m
 
 
+def _markers_seen(markers, measured) -> tuple[np.ndarray, np.ndarray]:
+    """``markers`` (F, P, 3) as floats and the (F, P) mask of those measured and finite."""
+    X = as_float_array(markers, "markers", (None, None, 3), finite=False)
+    m = np.asarray(measured, dtype=bool)
+    if m.shape != X.shape[:2]:
+        raise ValueError(f"measured must have shape {X.shape[:2]}, got {m.shape}")
+    return X, m & np.all(np.isfinite(X), axis=-1)
+
+
 def rest_frames_near(markers, measured, start, share: float = REST_SHARE,
                      min_frames: int = MIN_REST_FRAMES) -> np.ndarray:
     """The ``k = (max(min_frames, round(share · F)) + 1) // 2`` frames whose markers lie nearest ``start``.
@@ -98,17 +107,14 @@ def rest_frames_near(markers, measured, start, share: float = REST_SHARE,
         By the RMS distance over the markers measured in the frame (at least 3 of them; frames with
         fewer are never taken).
     """
-    X = as_float_array(markers, "markers", (None, None, 3), finite=False)
-    m = np.asarray(measured, dtype=bool)
-    if m.shape != X.shape[:2]:
-        raise ValueError(f"measured must have shape {X.shape[:2]}, got {m.shape}")
+    X, m = _markers_seen(markers, measured)
     S = as_float_array(start, "start", (X.shape[1], 3), finite=False)
     if not 0 < share <= 1:
         raise ValueError(f"share must be in (0, 1], got {share}")
     F = len(X)
     if F < 5:
         raise ValueError(f"need at least 5 frames to find the rest in, got {F}")
-    m = m & np.all(np.isfinite(X), axis=-1) & np.all(np.isfinite(S), axis=-1)
+    m = m & np.all(np.isfinite(S), axis=-1)
     n = m.sum(axis=1)
     d2 = np.where(m, np.sum((np.where(m[..., None], X, 0.0) - np.nan_to_num(S)) ** 2, axis=-1), 0.0)
     dist = np.where(n >= 3, np.sqrt(d2.sum(axis=1) / np.maximum(n, 1)), np.inf)
@@ -145,11 +151,7 @@ def recording_rest(markers, measured, start, share: float = REST_SHARE, min_fram
         A marker seen in too few rest frames is NaN: its median over all frames would be pulled by
         the motion.
     """
-    X = as_float_array(markers, "markers", (None, None, 3), finite=False)
-    m = np.asarray(measured, dtype=bool)
-    if m.shape != X.shape[:2]:
-        raise ValueError(f"measured must have shape {X.shape[:2]}, got {m.shape}")
-    m = m & np.all(np.isfinite(X), axis=-1)
+    X, m = _markers_seen(markers, measured)
     P = X.shape[1]
     if not 0 <= min_sightings <= 1:
         raise ValueError(f"min_sightings must be a share in [0, 1], got {min_sightings}")
