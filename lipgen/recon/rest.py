@@ -32,7 +32,7 @@ itself): training recordings (150 frames) 2.01 / 5.29 -> 1.55 / 2.71 (2.52 / 4.1
 (40 frames, its own) 3.72 / 7.38 -> 2.06 / 3.22; the other subject (40 frames) 3.47 / 7.35 ->
 2.01 / 3.30 (2.75 / 5.02); with the true rest's frames (an oracle, for scale) 1.37, 2.11 and 2.03.
 (The scripts' medians need 2 sightings of a marker; with :data:`MIN_SIGHTINGS` the training
-recordings' figure is 1.59.)
+recordings' figure is 1.60.)
 
 It is biased towards the model's rest when small motions pass nearer the model's rest than the
 subject's rest is: on a 32-frame synthetic clip whose syllables return to rest every 5 frames
