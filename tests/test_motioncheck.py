@@ -26,15 +26,18 @@ def _layout():
     return np.array([(xi, y, -0.02 * xi ** 2) for y in (-3.0, 3.0) for xi in x])
 
 
-def _marks(jaw: float = 0.0) -> np.ndarray:
-    """(F, 14, 3) the patch swaying; with ``jaw``, the lower row drops ``jaw`` mm a frame from frame 3."""
+def _marks(jaw: float = 0.0, back: float = 0.0) -> np.ndarray:
+    """(F, 14, 3) the patch swaying; with ``jaw``, the lower row drops ``jaw`` mm a frame from frame 3,
+    and with ``back`` it also moves ``back`` mm a frame away from the cameras (the jaw's rotation)."""
     t = np.arange(F)[:, None, None]
     marks = _layout()[None] + [0.0, 0.0, 3.0] + np.array([1.0, 0.8, 1.5]) * np.sin(0.3 * t)
-    marks[:, :7, 1] -= jaw * np.clip(np.arange(F) - 2, 0, None)[:, None]
+    ramp = np.clip(np.arange(F) - 2, 0, None)[:, None]
+    marks[:, :7, 1] -= jaw * ramp
+    marks[:, :7, 2] += back * ramp
     return marks
 
 
-def _run(marks, inject=None, lure=None, check=True, seed=1):
+def _run(marks, inject=None, lure=None, check=True, seed=1, trust_steps=False):
     """Track the marks in both views; ``inject(f, trackers, uv)`` may change a frame's sightings
     before the check; ``lure`` (F, 2) draws an extra dot in view 1 and starts mark BAD there.
     Returns the (virtual, real) tracks, the true uv (2, F, P, 2) and the check (or None)."""
@@ -49,7 +52,7 @@ def _run(marks, inject=None, lure=None, check=True, seed=1):
         if lure is not None and v == 1:
             init[BAD] = lure[0]
         trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref[v]))
-    mc = MotionCheck(_layout()) if check else None
+    mc = MotionCheck(_layout(), trust_steps=trust_steps) if check else None
     for f in range(len(marks)):
         images = []
         for v in range(2):
@@ -67,7 +70,8 @@ def _err(tracks, uv, v, i):
     return np.linalg.norm(tracks[v].uv[:, i] - uv[v, :, i], axis=1)
 
 
-def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_again():
+@pytest.mark.parametrize("trust_steps", [False, True])
+def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_again(trust_steps):
     # At frame 6 the tracker puts mark BAD on the dot of the mark above it, one row (6 mm) up,
     # in both views: a pair whose rays meet, on a neighbour's point. Its step is one row; its
     # neighbours' are a fraction of a mm.
@@ -77,7 +81,7 @@ def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_ag
                 trackers[v]._out[-1][0][BAD] = uv[v, f, ABOVE]
 
     plain, uv, _ = _run(_marks(), check=False)
-    tracks, uv, mc = _run(_marks(), inject=shift)
+    tracks, uv, mc = _run(_marks(), inject=shift, trust_steps=trust_steps)
     assert [(k, i, kind, vs) for k, i, kind, vs, _ in mc.changes] == [(6, BAD, "jump", (0, 1))]
     for v in range(2):
         assert not tracks[v].visible[6, BAD] and tracks[v].rejected[6, BAD]
@@ -102,7 +106,8 @@ def test_two_markers_swapped_in_both_views_are_swapped_back():
             assert _err(tracks, uv, v, i).max() < 0.5
 
 
-def test_a_lure_behind_the_lips_on_the_epipolar_line_is_dropped_in_its_view_only():
+@pytest.mark.parametrize("trust_steps", [False, True])
+def test_a_lure_behind_the_lips_on_the_epipolar_line_is_dropped_in_its_view_only(trust_steps):
     # View 1 starts mark BAD on a dark blob 6 mm behind the mark along view 0's ray: on the
     # epipolar line of view 0's right dot, so the rays meet (at the blob). It is taken back in
     # view 1 from the first frame on; view 0 keeps the mark; view 1 acquires it on its own dot.
@@ -111,7 +116,7 @@ def test_a_lure_behind_the_lips_on_the_epipolar_line_is_dropped_in_its_view_only
     lure = np.stack([_lure_on_epipolar_line(cams, m[BAD], 6.0) for m in marks])
     own = np.stack([cams[1].project(m[[BAD]])[0] for m in marks])
     assert np.all(np.linalg.norm(lure - own, axis=1) > 3.0)
-    tracks, uv, mc = _run(marks, lure=lure)
+    tracks, uv, mc = _run(marks, lure=lure, trust_steps=trust_steps)
     assert (1, BAD, "run", (1,)) in [(k, i, kind, vs) for k, i, kind, vs, _ in mc.changes]
     on_lure = np.linalg.norm(tracks[1].uv[:, BAD] - lure, axis=1) < 1.0
     assert not (on_lure & tracks[0].visible[:, BAD] & tracks[1].visible[:, BAD])[1:].any(), \
@@ -129,6 +134,22 @@ def test_a_fast_jaw_opening_is_left_alone():
     tracks, uv, mc = _run(marks)
     for v in range(2):
         assert plain[v].visible.all() and np.nanmax(np.linalg.norm(plain[v].uv - uv[v], axis=2)) < 0.5
+    assert mc.changes == []
+    for v in range(2):
+        np.testing.assert_allclose(tracks[v].uv, plain[v].uv, rtol=0, atol=1e-7)
+
+
+def test_a_jaw_opening_down_and_back_is_left_alone_when_the_steps_are_trusted():
+    # The lower row drops 2.5 mm and moves 2 mm back a frame (14 mm back at the end; past the
+    # 0.9-spacing depth limit from frame 8) while its steps agree with each other: the layout at
+    # rest predicts a closed mouth, the neighbours' steps predict the motion.
+    marks = _marks(jaw=2.5, back=2.0)
+    plain, uv, _ = _run(marks, check=False)
+    for v in range(2):
+        assert plain[v].visible.all() and np.nanmax(np.linalg.norm(plain[v].uv - uv[v], axis=2)) < 0.5
+    _, _, strict = _run(marks)
+    assert {kind for _, _, kind, _, _ in strict.changes} == {"behind"}, "the layout alone drops the lower row"
+    tracks, uv, mc = _run(marks, trust_steps=True)
     assert mc.changes == []
     for v in range(2):
         np.testing.assert_allclose(tracks[v].uv, plain[v].uv, rtol=0, atol=1e-7)

@@ -248,6 +248,7 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
+    motion_physics_prior: bool = False
     shift_check: bool = True
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1

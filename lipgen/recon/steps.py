@@ -123,7 +123,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                if cameras is not None and settings.acquire_pending else None)
     recheck = (IdentityCheck(rest_points, settings.identity_recheck, layout_covariance)
                if cameras is not None and rest_points is not None and settings.identity_recheck else None)
-    motion = (MotionCheck(rest_points)
+    motion_cov = layout_covariance if settings.motion_physics_prior else None
+    motion = (MotionCheck(rest_points, covariance=motion_cov)
               if cameras is not None and rest_points is not None and settings.motion_check else None)
     for t, raw in enumerate(raw_frames):
         views = layout.split_views(np.asarray(raw))
