@@ -37,7 +37,14 @@ def _marks(jaw: float = 0.0, back: float = 0.0) -> np.ndarray:
     return marks
 
 
-def _run(marks, inject=None, lure=None, check=True, seed=1, trust_steps=False):
+def _smooth_covariance(width: float = 6.0) -> np.ndarray:
+    """(42, 42) a smooth prior on the 14 marks' displacements (near marks move alike), node-major, for
+    the check's physics-prior route (:func:`lipgen.recon.layoutprior.predict_layout_physics`)."""
+    d = np.linalg.norm(_layout()[:, None] - _layout()[None], axis=2)
+    return np.kron(np.exp(-0.5 * (d / width) ** 2), np.eye(3))
+
+
+def _run(marks, inject=None, lure=None, check=True, seed=1, trust_steps=False, covariance=None):
     """Track the marks in both views; ``inject(f, trackers, uv)`` may change a frame's sightings
     before the check; ``lure`` (F, 2) draws an extra dot in view 1 and starts mark BAD there.
     Returns the (virtual, real) tracks, the true uv (2, F, P, 2) and the check (or None)."""
@@ -52,7 +59,7 @@ def _run(marks, inject=None, lure=None, check=True, seed=1, trust_steps=False):
         if lure is not None and v == 1:
             init[BAD] = lure[0]
         trackers.append(MarkerTracker(init, TrackerSettings(acquire_gate=6.0), reference_uv=ref[v]))
-    mc = MotionCheck(_layout(), trust_steps=trust_steps) if check else None
+    mc = MotionCheck(_layout(), trust_steps=trust_steps, covariance=covariance) if check else None
     for f in range(len(marks)):
         images = []
         for v in range(2):
@@ -70,8 +77,8 @@ def _err(tracks, uv, v, i):
     return np.linalg.norm(tracks[v].uv[:, i] - uv[v, :, i], axis=1)
 
 
-@pytest.mark.parametrize("trust_steps", [False, True])
-def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_again(trust_steps):
+@pytest.mark.parametrize("trust_steps, prior", [(False, "rest"), (True, "rest"), (False, "physics")])
+def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_again(trust_steps, prior):
     # At frame 6 the tracker puts mark BAD on the dot of the mark above it, one row (6 mm) up,
     # in both views: a pair whose rays meet, on a neighbour's point. Its step is one row; its
     # neighbours' are a fraction of a mm.
@@ -81,7 +88,8 @@ def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_ag
                 trackers[v]._out[-1][0][BAD] = uv[v, f, ABOVE]
 
     plain, uv, _ = _run(_marks(), check=False)
-    tracks, uv, mc = _run(_marks(), inject=shift, trust_steps=trust_steps)
+    tracks, uv, mc = _run(_marks(), inject=shift, trust_steps=trust_steps,
+                          covariance=_smooth_covariance() if prior == "physics" else None)
     assert [(k, i, kind, vs) for k, i, kind, vs, _ in mc.changes] == [(6, BAD, "jump", (0, 1))]
     for v in range(2):
         assert not tracks[v].visible[6, BAD] and tracks[v].rejected[6, BAD]
@@ -91,14 +99,16 @@ def test_a_row_shifted_identity_in_both_views_is_dropped_and_the_marker_found_ag
         np.testing.assert_allclose(tracks[v].uv[:, others], plain[v].uv[:, others], rtol=0, atol=1e-7)
 
 
-def test_two_markers_swapped_in_both_views_are_swapped_back():
+@pytest.mark.parametrize("prior", ["rest", "physics"])
+def test_two_markers_swapped_in_both_views_are_swapped_back(prior):
     def swap(f, trackers, uv):
         if f == 6:
             for v in range(2):
                 out = trackers[v]._out[-1][0]
                 out[[BAD, ABOVE]] = out[[ABOVE, BAD]]
 
-    tracks, uv, mc = _run(_marks(), inject=swap)
+    cov = _smooth_covariance() if prior == "physics" else None
+    tracks, uv, mc = _run(_marks(), inject=swap, covariance=cov)
     assert sorted((k, i, kind) for k, i, kind, _, _ in mc.changes) == [(6, BAD, "swap"), (6, ABOVE, "swap")]
     for v in range(2):
         for i in (BAD, ABOVE):
@@ -127,11 +137,12 @@ def test_a_lure_behind_the_lips_on_the_epipolar_line_is_dropped_in_its_view_only
     assert tracks[1].visible[-4:, BAD].all() and e1[-4:].max() < 0.5, "found again on its own dot"
 
 
-def test_a_fast_jaw_opening_is_left_alone():
+@pytest.mark.parametrize("prior", ["rest", "physics"])
+def test_a_fast_jaw_opening_is_left_alone(prior):
     # The lower row drops 2.5 mm a frame (6-7 px) while the upper row sways: a fast right motion.
     marks = _marks(jaw=2.5)
     plain, uv, _ = _run(marks, check=False)
-    tracks, uv, mc = _run(marks)
+    tracks, uv, mc = _run(marks, covariance=_smooth_covariance() if prior == "physics" else None)
     for v in range(2):
         assert plain[v].visible.all() and np.nanmax(np.linalg.norm(plain[v].uv - uv[v], axis=2)) < 0.5
     assert mc.changes == []
@@ -162,3 +173,5 @@ def test_bad_arguments_are_refused():
         MotionCheck(_layout(), depth=0)
     with pytest.raises(ValueError, match=r"jump_floor \(0.9\) exceeds jump_cap \(0.8\)"):
         MotionCheck(_layout(), jump_floor=0.9)
+    with pytest.raises(ValueError, match=r"covariance must have shape \(42, 42\)"):
+        MotionCheck(_layout(), covariance=np.eye(39))
