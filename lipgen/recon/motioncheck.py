@@ -16,7 +16,11 @@ neighbours' (a swap is a jump the neighbours do not make). :class:`MotionCheck` 
 marker and per run, every frame after the view checks. A marker's point is predicted from the
 *established* markers (seen in both views in this frame and the one before) by the layout at
 rest moved by a 3-D similarity and their smooth local offsets, its own left out
-(:func:`lipgen.recon.firstframe.predict_layout`):
+(:func:`lipgen.recon.firstframe.predict_layout`), or, with ``covariance`` (the pipeline's default,
+``ReconstructSettings.motion_physics_prior``), by the model's physics prior
+(:func:`lipgen.recon.layoutprior.predict_layout_physics`): with the jaw open the lower lip lies
+15-25 mm from the layout at rest, and the rest layout took right lower-lip sightings back
+(``renders/examples/tracking/jaw21.md``):
 
 * **Behind the lips.** Ink lies on the lip surface; the dark blobs that pass for dots in both
   views (the mouth's inside, a lure along one view's ray) lie behind it. A point more than

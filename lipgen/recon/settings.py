@@ -150,6 +150,16 @@ class ReconstructSettings:
         ``hard`` 21 69 -> 25 accepted sightings over 3 px and ``hard`` 10 77.9 -> 78.6 % accepted,
         the other validation sets and all held-out ``hard`` 11, 23, 24, 25 and ``default`` 11 unchanged
         (``renders/examples/tracking/hard15k_physics_layout.md``). Off: the model's rest layout alone.
+    motion_physics_prior : bool
+        The motion check (``motion_check``) predicts the 3-D layout with the model's physics prior
+        (as ``physics_layout_prior`` gives the first frame and the identity re-check) instead of
+        the rest layout moved by a similarity: when the jaw opens the whole lower lip lies 15-25 mm
+        from the layout at rest, and right sightings were taken back as 'behind' or 'out of place'
+        (on development ``default`` sets 26 of 28 'behind' take-backs were right). On (adopted with
+        ``TrackerSettings.reacquire_after = 1`` after a held-out check; alone it lost on
+        development ``default`` 2 and 105): fresh ``default`` 110-114 88.9 -> 93.4 % accepted, over
+        3 px 143 -> 7; fresh ``hard`` 87-90 82.9 -> 86.2 %, 42 -> 5
+        (``renders/examples/tracking/jaw21.md``).
     shift_check : bool
         With the calibrated cameras and the markers at rest, once tracking is done: in every
         frame, a marker whose dots read better as a close neighbour's (the neighbour lost, its
@@ -248,7 +258,7 @@ class ReconstructSettings:
     motion_check: bool = True
     one_view_pairing: bool = True
     physics_layout_prior: bool = True
-    motion_physics_prior: bool = False
+    motion_physics_prior: bool = True
     shift_check: bool = True
     out_of_place_k: float | None = 2.0
     identity_reference_age: int | None = 1

@@ -80,10 +80,13 @@ class TrackerSettings:
         Ambiguity ratio of an acquisition.
     reacquire_after : int, optional
         A marker seen before and lost for at least this many images is searched for by the layout
-        as a marker not seen yet is (``acquire_gate``); None (default): only markers never seen.
-        1 lifted development ``default`` 1-5 from 88.3 to 94.1 % accepted (over 3 px 98 -> 43) and
-        fresh ``hard`` 83-86 from 79.7 to 80.7 %, but lost on fresh ``default`` 105-109 (score
-        24389 -> 24307, one set -67), so it is off (``renders/examples/tracking/reacquire20.md``).
+        as a marker not seen yet is (``acquire_gate``); None: only markers never seen. Default 1,
+        with ``ReconstructSettings.motion_physics_prior`` (adopted together after a held-out check,
+        ``renders/examples/tracking/jaw21.md``): fresh ``default`` 110-114 88.9 -> 93.4 % accepted,
+        over 3 px 143 -> 7; fresh ``hard`` 87-90 82.9 -> 86.2 %, 42 -> 5. Alone it had lifted
+        development ``default`` 1-5 (88.3 -> 94.1 %) but lost on fresh ``default`` 105-109 (score
+        24389 -> 24307; ``reacquire20.md``): a marker re-acquired while the jaw opens was judged
+        against the layout at rest, and right lower-lip sightings were taken back.
     max_strength_ratio : float or None
         An acquisition takes no dot more than this many times as dark as the median of the
         view's markers' dots (None: no limit): a blob much darker than ink is the mouth's inside
@@ -151,7 +154,7 @@ class TrackerSettings:
     max_strength_ratio: float | None = 2.0
     acquire_gate: float | None = 6.0
     acquire_ratio: float = 0.6
-    reacquire_after: int | None = None
+    reacquire_after: int | None = 1
     blend: bool = True
     floor_ratio: float | None = 0.7
     floor_min: float = 0.05
