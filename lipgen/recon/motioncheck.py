@@ -123,11 +123,6 @@ class MotionCheck:
     min_established : int
         Fewest established markers (seen in both views in this frame and the one before) for a
         run to be judged against the layout.
-    trust_steps : bool
-        A run judged right at its start that continues with a step its neighbours' steps predict
-        (within the jump limit) is not tested for lying behind the layout: when the jaw opens,
-        the lower lip moves down and back together, away from the layout at rest, and its steps
-        agree.
     covariance : (3P, 3P) float, optional
         The layout's physics prior (:func:`lipgen.recon.layoutprior.physics_layout_covariance`):
         the layout predictions are then
@@ -138,7 +133,7 @@ class MotionCheck:
     def __init__(self, rest_points, birth: float = 1.5, depth: float = 0.9, jump_k: float = 6.0,
                  jump_floor: float = 0.4, jump_cap: float = 0.8, min_samples: int = 50,
                  max_back: int = 3, spread: float = 2.0, min_established: int = 8,
-                 trust_steps: bool = False, covariance=None):
+                 covariance=None):
         self.rest = np.asarray(rest_points, dtype=float)
         if self.rest.ndim != 2 or self.rest.shape[1] != 3 or len(self.rest) < 2:
             raise ValueError(f"rest_points must have shape (P, 3) with P >= 2, got {self.rest.shape}")
@@ -164,7 +159,6 @@ class MotionCheck:
         self.min_samples = int(min_samples)
         self.max_back = int(max_back)
         self.spread, self.min_established = float(spread), int(min_established)
-        self.trust_steps = bool(trust_steps)
         self.covariance = (None if covariance is None
                            else as_float_array(covariance, "covariance", (3 * len(self.rest),) * 2))
         self._last: np.ndarray | None = None
@@ -338,8 +332,6 @@ class MotionCheck:
                 if i in bad or i in swapped:
                     continue
                 if behind[i] > self.depth * self.spacing:
-                    if self.trust_steps and self.judged[i] and cont[i] and tres[i] <= limit:
-                        continue     # a judged run's agreed step (NaN: no step, not trusted)
                     drop(int(i), "first" if last[i] < 0 else "behind" if self.judged[i] else "run", pred[i])
         # A run is judged against the layout at its first frame where the layout can judge it
         # (enough established markers near it): at its first frame, or later for a run from the
