@@ -159,7 +159,8 @@ class ReconstructSettings:
         ``TrackerSettings.reacquire_after = 1`` after a held-out check; alone it lost on
         development ``default`` 2 and 105): fresh ``default`` 110-114 88.9 -> 93.4 % accepted, over
         3 px 143 -> 7; fresh ``hard`` 87-90 82.9 -> 86.2 %, 42 -> 5
-        (``renders/examples/tracking/jaw21.md``).
+        (``renders/examples/tracking/jaw21.md``). The prior is ``physics_layout_prior``'s: with
+        that off, every layout check uses the rest layout, this one too.
     shift_check : bool
         With the calibrated cameras and the markers at rest, once tracking is done: in every
         frame, a marker whose dots read better as a close neighbour's (the neighbour lost, its
