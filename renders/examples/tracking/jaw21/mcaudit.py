@@ -3,7 +3,7 @@ import json, os, sys, time
 import numpy as np
 from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, sighting_errors
+from lipgen.evaluate.scoring import load_truth, tracking_table
 from lipgen.recon.pipeline import reconstruct_dataset
 import lipgen.recon.motioncheck as mcmod
 import lipgen.recon.steps as stepsmod
@@ -22,12 +22,9 @@ for path in sys.argv[2:]:
     cpu = time.process_time() - t
     rec.save(f"/work/reacq3/rec/{os.path.basename(path)}.main.npz")
     truth = load_truth(ds)
-    e = sighting_errors(truth, rec)
-    within = over = vis = acc = 0
-    for view in ("virtual", "real"):
-        x = e[view]
-        vis += int(x["truly"].sum()); acc += int(x["ok"].sum())
-        within += int((x["ok"] & (x["err"] <= 3)).sum()); over += int((x["ok"] & (x["err"] > 3)).sum())
+    t = tracking_table(truth, rec)   # per view: accepted, rejected, lost, accepted over 3 px
+    acc = sum(t[v]["accepted"] for v in t); over = sum(t[v]["wrong_over_3px"] for v in t)
+    vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t); within = acc - over
     rows = []
     for (k, i, kind, vs, before) in made[0].changes:
         errs = [float(np.linalg.norm(before[v] - truth["uv"][k, v, i])) for v in range(2)]

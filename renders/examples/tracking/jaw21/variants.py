@@ -4,7 +4,7 @@ trust+r1. Score per set: accepted within 3 px - 10 x accepted over 3 px (visible
 import json, os, sys, time, functools
 from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, sighting_errors
+from lipgen.evaluate.scoring import load_truth, tracking_table
 from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.track import TrackerSettings
@@ -26,12 +26,9 @@ for path in sys.argv[3:]:
         cpu = time.process_time() - t
         rec.save(f"/work/reacq3/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
         truth = load_truth(ds)   # read only after the tracking, to score
-        e = sighting_errors(truth, rec)
-        within = over = vis = acc = 0
-        for view in ("virtual", "real"):
-            x = e[view]
-            vis += int(x["truly"].sum()); acc += int(x["ok"].sum())
-            within += int((x["ok"] & (x["err"] <= 3)).sum()); over += int((x["ok"] & (x["err"] > 3)).sum())
+        t = tracking_table(truth, rec)   # per view: accepted, rejected, lost, accepted over 3 px
+        acc = sum(t[v]["accepted"] for v in t); over = sum(t[v]["wrong_over_3px"] for v in t)
+        vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t); within = acc - over
         row = dict(set=os.path.basename(path.rstrip("/")), variant=var, visible=vis, accepted=acc,
                    share=round(100 * acc / vis, 2), within=within, over=over, score=within - 10 * over,
                    cpu=round(cpu, 1))
