@@ -289,9 +289,9 @@ def test_the_physics_layout_prior_reaches_the_tracker_from_the_model_mesh(datase
     np.testing.assert_array_equal(seen["layout_covariance"], physics_layout_covariance(Physics(mesh)))
 
 
-def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_change_it(dataset, recon, monkeypatch):
+def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_set_its_size(dataset, recon, monkeypatch):
     """Settings given with the detector left at its defaults get the rig's dot size, as no settings do
-    (the default sigma is no rig's); a detector the caller set is kept. Stops at the tracker."""
+    (the default sigma is no rig's); a size the caller set is kept. Stops at the tracker."""
     from dataclasses import replace
 
     import lipgen.recon.pipeline as pipeline
@@ -321,3 +321,6 @@ def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_change_it(dataset
     mine = ReconstructSettings()
     mine = replace(mine, tracker=replace(mine.tracker, dots=own))
     assert sigma_of(mine).tracker.dots == own
+    # another detector setting changed, the size left: still fitted, the change kept
+    other = replace(mine, tracker=replace(mine.tracker, dots=DotSettings(min_contrast=0.1)))
+    assert sigma_of(other).tracker.dots == DotSettings(sigma=fitted, min_contrast=0.1)

@@ -221,8 +221,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     frames are one stretch rather than pauses (``"recording"`` takes it, with a warning).
 
     ``settings`` (default: :class:`~lipgen.recon.settings.ReconstructSettings`): the tracker's dot
-    detector is fitted to the rig's dot size (:func:`dot_sigma_px`) unless ``settings.tracker.dots``
-    was changed from ``DotSettings()``.
+    detector is fitted to the rig's dot size (:func:`dot_sigma_px`) unless ``settings.tracker.dots.sigma``
+    was changed from its default.
     """
     from lipgen.dataset.layout import Dataset
     from lipgen.fem import Physics
@@ -271,10 +271,10 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     from lipgen.recon.dots import DotSettings
 
     settings = ReconstructSettings() if settings is None else settings
-    if settings.tracker.dots == DotSettings():
+    if settings.tracker.dots.sigma == DotSettings().sigma:
         # the detector's size fitted to this rig's dots unless the caller set it (its default sigma
-        # is no rig's: default 1 fell from 96.5 to 93.2 % accepted)
-        dots = DotSettings(sigma=dot_sigma_px(cal, T, float(ds.settings.dot_diameter)))
+        # is no rig's: default 1 fell from 96.5 to 93.2 % accepted); its other settings kept
+        dots = replace(settings.tracker.dots, sigma=dot_sigma_px(cal, T, float(ds.settings.dot_diameter)))
         settings = replace(settings, tracker=replace(settings.tracker, dots=dots))
     marks_rest = np.vstack([mesh.vertices[mesh.markers], mesh.nose])
     expected = expected_projections(lab.views, marks_rest)
