@@ -1,36 +1,54 @@
-"""Main against detector variants in one process per set (one calibration).
-usage: python variants.py OUT.jsonl VARIANTS SET...   VARIANTS: comma list of
-main; E (blob_response hessian: epipolar recovery only); B (tracker blobs, LoG); BH (tracker blobs, hessian).
-Score per set: accepted within 3 px - 10 x accepted over 3 px (lipgen.evaluate.scoring.tracking_table)."""
+"""curv22's candidates against main, one process per set (one calibration).
+
+usage: python variants.py OUT.jsonl VARIANTS SET...   (from the repository's root, one BLAS thread)
+VARIANTS, a comma list of:
+  main  the defaults
+  E     DotSettings(blob_response="hessian"): curvature blobs in the epipolar recovery   } apply
+  B     TrackerSettings(blobs=True): the tracker's Laplacian blobs (main's code)        } hessian_blobs.patch
+  BH    both of the above                                                                } first for E, BH,
+  BHc   BH with blob_prediction=False, blob_share=0.5                                    } BHc
+  J     lipgen.recon.grow.JOINT = True (apply joint_labels.patch first)
+  C     lipgen.recon.firstpose.FIRST_FRAME_CAP = True (apply first_frame_cap.patch first)
+Score per set: accepted within 3 px - 10 x accepted over 3 px (visible sightings, both views). Reconstructions
+are saved as REC_DIR/SET.VARIANT.npz (REC_DIR: environment variable, default ./curv22_rec)."""
 import json, os, sys, time
 from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, sighting_errors
+from lipgen.evaluate.scoring import load_truth, tracking_table
 from lipgen.recon.dots import DotSettings
 from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.tracks import TrackerSettings
+
+
+def settings_for(var):
+    if var in ("J", "C"):
+        import lipgen.recon.firstpose as firstpose
+        import lipgen.recon.grow as grow
+        grow.JOINT, firstpose.FIRST_FRAME_CAP = var == "J", var == "C"
+    if var in ("main", "J", "C"):
+        return ReconstructSettings()
+    dots = DotSettings(blob_response="hessian") if var in ("E", "BH", "BHc") else DotSettings()
+    extra = dict(blob_prediction=False, blob_share=0.5) if var == "BHc" else {}
+    return ReconstructSettings(tracker=TrackerSettings(blobs=var != "E", dots=dots, **extra))
+
+
+rec_dir = os.environ.get("REC_DIR", "curv22_rec")
+os.makedirs(rec_dir, exist_ok=True)
 out = open(sys.argv[1], "a")
-variants = sys.argv[2].split(",")
 for path in sys.argv[3:]:
     ds = Dataset(path)
-    for var in variants:
-        hess = var in ("E", "BH")
-        blobs = var in ("B", "BH")
-        settings = ReconstructSettings(tracker=TrackerSettings(
-            blobs=blobs, dots=DotSettings(blob_response="hessian" if hess else "log")))
+    for var in sys.argv[2].split(","):
+        settings = settings_for(var)
         t = time.process_time()
         with blas_threads(1):
             rec = reconstruct_dataset(path, settings=settings)
         cpu = time.process_time() - t
-        rec.save(f"/work/curv/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
-        e = sighting_errors(load_truth(ds), rec)   # the truth read only after the tracking, to score
-        within = over = vis = acc = 0
-        for view in ("virtual", "real"):
-            x = e[view]
-            vis += int(x["truly"].sum()); acc += int(x["ok"].sum())
-            within += int((x["ok"] & (x["err"] <= 3)).sum()); over += int((x["ok"] & (x["err"] > 3)).sum())
-        row = dict(set=os.path.basename(path.rstrip("/")), variant=var, visible=vis, accepted=acc,
-                   share=round(100 * acc / vis, 2), within=within, over=over, score=within - 10 * over,
-                   cpu=round(cpu, 1))
+        name = os.path.basename(path.rstrip("/"))
+        rec.save(os.path.join(rec_dir, f"{name}.{var}.npz"))
+        t = tracking_table(load_truth(ds), rec)   # the truth read only after the tracking, to score
+        acc = sum(t[v]["accepted"] for v in t); over = sum(t[v]["wrong_over_3px"] for v in t)
+        vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t); within = acc - over
+        row = dict(set=name, variant=var, visible=vis, accepted=acc, share=round(100 * acc / vis, 2),
+                   within=within, over=over, score=within - 10 * over, cpu=round(cpu, 1))
         print(json.dumps(row), file=out, flush=True)
