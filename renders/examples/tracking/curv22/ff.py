@@ -5,43 +5,20 @@ apply first_frame_cap.patch). Rows: "joint": false for main, true for the candid
 import sys, os, json, numpy as np
 import lipgen.recon.firstpose as firstpose
 import lipgen.recon.grow as grow
-import lipgen.recon.track as tr
-from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
 from lipgen.evaluate.scoring import load_truth
-from lipgen.recon.pipeline import reconstruct_dataset
+from frame0 import frame0
 
 
-class Stop(Exception):
-    pass
-
-
-got = []
-step = tr.MarkerTracker.step
-
-
-def first_step(self, *a, **k):   # stop once both views have their frame 0
-    r = step(self, *a, **k)
-    got.append(self._out[-1][0].copy())
-    if len(got) >= 2:
-        raise Stop
-    return r
-
-
-tr.MarkerTracker.step = first_step
 out = open(sys.argv[1], 'a')
 module, flag = {"joint": (grow, "JOINT"), "cap": (firstpose, "FIRST_FRAME_CAP")}[sys.argv[2]]
 for path in sys.argv[3:]:
     ds = Dataset(path); names = list(ds.marks)
     for on in (False, True):
-        setattr(module, flag, on); got.clear()
-        try:
-            with blas_threads(1):
-                reconstruct_dataset(path)
-        except Stop:
-            pass
+        setattr(module, flag, on)
+        got, _ = frame0(path)
         t = load_truth(ds)
-        err = np.linalg.norm(np.stack(got[:2]) - t['uv'][0], axis=2)    # (2, P) virtual, real
+        err = np.linalg.norm(got - t['uv'][0], axis=2)    # (2, P) virtual, real
         seen = np.isfinite(err)
         right = (seen & (err <= 3)).all(0)
         wrong = (seen & (err > 3)).any(0)

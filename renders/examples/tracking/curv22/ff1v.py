@@ -1,27 +1,15 @@
 """Frame 0 after main's first-frame stage: per marker, matched in both views or one, right or wrong (3 px)."""
-import sys, os, json, numpy as np, collections
-import lipgen.recon.track as tr
-from lipgen._threads import blas_threads
+import sys, os, json, numpy as np
 from lipgen.dataset.layout import Dataset
 from lipgen.evaluate.scoring import load_truth
-from lipgen.recon.pipeline import reconstruct_dataset
-class Stop(Exception): pass
-got = []
-step = tr.MarkerTracker.step
-def first_step(self, *a, **k):
-    r = step(self, *a, **k); got.append(self._out[-1][0].copy())
-    if len(got) >= 2: raise Stop
-    return r
-tr.MarkerTracker.step = first_step
+from frame0 import frame0
 out = open(sys.argv[1], 'a')
 for path in sys.argv[2:]:
-    ds = Dataset(path); names = list(ds.marks); got.clear()
-    try:
-        with blas_threads(1): reconstruct_dataset(path)
-    except Stop: pass
+    ds = Dataset(path); names = list(ds.marks)
+    got, _ = frame0(path)
     t = load_truth(ds)
-    err = np.linalg.norm(np.stack(got[:2]) - t['uv'][0], axis=2)
-    seen = np.isfinite(err); vis = t['visible'][0] if t['visible'].ndim == 3 else t['visible'][0]
+    err = np.linalg.norm(got - t['uv'][0], axis=2)
+    seen = np.isfinite(err)
     rows = []
     for i, n in enumerate(names):
         s = seen[:, i]

@@ -1,22 +1,12 @@
 """Frame 0 after the first-frame stage: for each wrong marker, whose true dot it took (nearest truth)."""
 import sys, numpy as np
 import lipgen.recon.grow as grow
-import lipgen.recon.track as tr
 from lipgen.dataset.layout import Dataset
 from lipgen.evaluate.scoring import load_truth
-from lipgen.recon.pipeline import reconstruct_dataset
+from frame0 import frame0
 grow.JOINT = len(sys.argv) > 2 and sys.argv[2] == 'joint'
-got = []
-class Stop(Exception): pass
-o = tr.MarkerTracker.step
-def step(self, *a, **k):
-    r = o(self, *a, **k); got.append(self._out[-1][0].copy())
-    if len(got) >= 2: raise Stop
-    return r
-tr.MarkerTracker.step = step
 ds = Dataset(sys.argv[1]); names = list(ds.marks); t = load_truth(ds)
-try: reconstruct_dataset(sys.argv[1])
-except Stop: pass
+got, _ = frame0(sys.argv[1])
 for v in range(2):
     uv = got[v]; tv = t['uv'][0, v]
     for i, n in enumerate(names):

@@ -1,23 +1,12 @@
 """Frame 0 after the first-frame stage (main): darkness of each wrong match's dot over the median of the right
 matches' dots in that view, and the largest ratio among right matches."""
 import sys, numpy as np
-import lipgen.recon.track as tr
 from lipgen.dataset.layout import Dataset
 from lipgen.evaluate.scoring import load_truth
-from lipgen.recon.pipeline import reconstruct_dataset
+from frame0 import frame0
 from lipgen.recon.dots import detect_dots
-class Stop(Exception): pass
-got = []; cfgs = []
-o = tr.MarkerTracker.step
-def step(self, *a, **k):
-    r = o(self, *a, **k); got.append(self._out[-1][0].copy()); cfgs.append(self.cfg.dots)
-    if len(got) >= 2: raise Stop
-    return r
-tr.MarkerTracker.step = step
 for path in sys.argv[1:]:
-    got.clear(); cfgs.clear()
-    try: reconstruct_dataset(path)
-    except Stop: pass
+    got, cfgs = frame0(path)
     ds = Dataset(path); t = load_truth(ds); names = list(ds.marks)
     halves = ds.rig.split_views(ds[0].image)
     for v in range(2):

@@ -12,9 +12,10 @@ VARIANTS, a comma list of:
 Score per set: accepted within 3 px - 10 x accepted over 3 px (visible sightings, both views). Reconstructions
 are saved as REC_DIR/SET.VARIANT.npz (REC_DIR: environment variable, default ./curv22_rec)."""
 import json, os, sys, time
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from trackscore import score_row   # noqa: E402  (renders/examples/tracking/trackscore.py)
 from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, tracking_table
 from lipgen.recon.dots import DotSettings
 from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.recon.settings import ReconstructSettings
@@ -46,9 +47,5 @@ for path in sys.argv[3:]:
         cpu = time.process_time() - t
         name = os.path.basename(path.rstrip("/"))
         rec.save(os.path.join(rec_dir, f"{name}.{var}.npz"))
-        t = tracking_table(load_truth(ds), rec)   # the truth read only after the tracking, to score
-        acc = sum(t[v]["accepted"] for v in t); over = sum(t[v]["wrong_over_3px"] for v in t)
-        vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t); within = acc - over
-        row = dict(set=name, variant=var, visible=vis, accepted=acc, share=round(100 * acc / vis, 2),
-                   within=within, over=over, score=within - 10 * over, cpu=round(cpu, 1))
+        row = score_row(ds, rec, name, var, cpu)   # the truth read only after the tracking
         print(json.dumps(row), file=out, flush=True)

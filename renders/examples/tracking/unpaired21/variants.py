@@ -4,9 +4,10 @@ M; needs candidate.patch), off (no motion check); none of them ("main"): both of
 phys+r1 (the defaults since jaw21). Score per set: accepted within 3 px - 10 x accepted over 3 px (visible
 sightings, both views)."""
 import json, os, sys, time
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from trackscore import score_row   # noqa: E402  (renders/examples/tracking/trackscore.py)
 from lipgen._threads import blas_threads
 from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, tracking_table
 from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.track import TrackerSettings
@@ -25,11 +26,5 @@ for path in sys.argv[3:]:
             rec = reconstruct_dataset(path, settings=settings)
         cpu = time.process_time() - t
         rec.save(f"/work/reacq4/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
-        truth = load_truth(ds)   # read only after the tracking, to score
-        t = tracking_table(truth, rec)   # per view: accepted, rejected, lost, accepted over 3 px
-        acc = sum(t[v]["accepted"] for v in t); over = sum(t[v]["wrong_over_3px"] for v in t)
-        vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t); within = acc - over
-        row = dict(set=os.path.basename(path.rstrip("/")), variant=var, visible=vis, accepted=acc,
-                   share=round(100 * acc / vis, 2), within=within, over=over, score=within - 10 * over,
-                   cpu=round(cpu, 1))
+        row = score_row(ds, rec, os.path.basename(path.rstrip("/")), var, cpu)
         print(json.dumps(row), file=out, flush=True)

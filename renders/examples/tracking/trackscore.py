@@ -1,0 +1,18 @@
+"""The score the tracking reports rank candidates by, from one reconstruction of a synthetic set (shared by the
+report scripts: jaw21, unpaired21, curv22).
+
+Score = accepted sightings within 3 px - 10 x accepted sightings over 3 px, over the sightings the truth calls
+visible in both views (lipgen.evaluate.scoring.tracking_table)."""
+from lipgen.evaluate.scoring import load_truth, tracking_table
+
+
+def score_row(ds, rec, name, variant, cpu):
+    """The JSON row of one set and variant: visible, accepted, share (%), within, over, score, cpu (s). The truth
+    is read here, after the tracking."""
+    t = tracking_table(load_truth(ds), rec)   # per view: accepted, rejected, lost, accepted over 3 px
+    acc = sum(t[v]["accepted"] for v in t)
+    over = sum(t[v]["wrong_over_3px"] for v in t)
+    vis = sum(t[v]["accepted"] + t[v]["rejected"] + t[v]["lost"] for v in t)
+    within = acc - over
+    return dict(set=name, variant=variant, visible=vis, accepted=acc, share=round(100 * acc / vis, 2),
+                within=within, over=over, score=within - 10 * over, cpu=round(cpu, 1))
