@@ -16,3 +16,22 @@ def score_row(ds, rec, name, variant, cpu):
     within = acc - over
     return dict(set=name, variant=variant, visible=vis, accepted=acc, share=round(100 * acc / vis, 2),
                 within=within, over=over, score=within - 10 * over, cpu=round(cpu, 1))
+
+
+def run_and_score(path, variant, settings, rec_path):
+    """Reconstruct the set at ``path`` with ``settings`` on one BLAS thread, save it to ``rec_path`` and return
+    its :func:`score_row` (cpu: this process's CPU seconds for the reconstruction, calibration included when it
+    is the process's first of this set)."""
+    import os
+    import time
+
+    from lipgen._threads import blas_threads
+    from lipgen.dataset.layout import Dataset
+    from lipgen.recon.pipeline import reconstruct_dataset
+
+    t = time.process_time()
+    with blas_threads(1):
+        rec = reconstruct_dataset(path, settings=settings)
+    cpu = time.process_time() - t
+    rec.save(rec_path)
+    return score_row(Dataset(path), rec, os.path.basename(str(path).rstrip("/")), variant, cpu)

@@ -11,13 +11,10 @@ VARIANTS, a comma list of:
   C     lipgen.recon.firstpose.FIRST_FRAME_CAP = True (apply first_frame_cap.patch first)
 Score per set: accepted within 3 px - 10 x accepted over 3 px (visible sightings, both views). Reconstructions
 are saved as REC_DIR/SET.VARIANT.npz (REC_DIR: environment variable, default ./curv22_rec)."""
-import json, os, sys, time
+import json, os, sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from trackscore import score_row   # noqa: E402  (renders/examples/tracking/trackscore.py)
-from lipgen._threads import blas_threads
-from lipgen.dataset.layout import Dataset
+from trackscore import run_and_score   # noqa: E402  (renders/examples/tracking/trackscore.py)
 from lipgen.recon.dots import DotSettings
-from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.tracks import TrackerSettings
 
@@ -38,14 +35,7 @@ rec_dir = os.environ.get("REC_DIR", "curv22_rec")
 os.makedirs(rec_dir, exist_ok=True)
 out = open(sys.argv[1], "a")
 for path in sys.argv[3:]:
-    ds = Dataset(path)
     for var in sys.argv[2].split(","):
-        settings = settings_for(var)
-        t = time.process_time()
-        with blas_threads(1):
-            rec = reconstruct_dataset(path, settings=settings)
-        cpu = time.process_time() - t
         name = os.path.basename(path.rstrip("/"))
-        rec.save(os.path.join(rec_dir, f"{name}.{var}.npz"))
-        row = score_row(ds, rec, name, var, cpu)   # the truth read only after the tracking
+        row = run_and_score(path, var, settings_for(var), os.path.join(rec_dir, f"{name}.{var}.npz"))
         print(json.dumps(row), file=out, flush=True)

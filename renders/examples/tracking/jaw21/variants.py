@@ -1,12 +1,9 @@
 """Main against variants in one process per set (one calibration). usage: python variants.py OUT.jsonl VARIANTS SET...
 VARIANTS: comma list of main, off (motion_check False), trust (MotionCheck trust_steps), r1 (reacquire_after 1),
 trust+r1. Score per set: accepted within 3 px - 10 x accepted over 3 px (visible sightings, both views)."""
-import json, os, sys, time, functools
+import json, os, sys, functools
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from trackscore import score_row   # noqa: E402  (renders/examples/tracking/trackscore.py)
-from lipgen._threads import blas_threads
-from lipgen.dataset.layout import Dataset
-from lipgen.recon.pipeline import reconstruct_dataset
+from trackscore import run_and_score   # noqa: E402  (renders/examples/tracking/trackscore.py)
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.track import TrackerSettings
 import lipgen.recon.motioncheck as mcmod
@@ -15,16 +12,11 @@ _MC = mcmod.MotionCheck
 out = open(sys.argv[1], "a")
 variants = sys.argv[2].split(",")
 for path in sys.argv[3:]:
-    ds = Dataset(path)
     for var in variants:
         parts = set(var.split("+"))
         stepsmod.MotionCheck = functools.partial(_MC, trust_steps="trust" in parts)
         settings = ReconstructSettings(motion_check="off" not in parts, motion_physics_prior="phys" in parts,
                                        tracker=TrackerSettings(reacquire_after=1 if "r1" in parts else None))
-        t = time.process_time()
-        with blas_threads(1):
-            rec = reconstruct_dataset(path, settings=settings)
-        cpu = time.process_time() - t
-        rec.save(f"/work/reacq3/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
-        row = score_row(ds, rec, os.path.basename(path.rstrip("/")), var, cpu)
+        row = run_and_score(path, var, settings,
+                            f"/work/reacq3/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
         print(json.dumps(row), file=out, flush=True)

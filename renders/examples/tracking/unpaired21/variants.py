@@ -3,28 +3,20 @@ VARIANTS: comma list of parts joined by +: phys (motion_physics_prior), r1 (reac
 M; needs candidate.patch), off (no motion check); none of them ("main"): both off. This experiment's baseline was
 phys+r1 (the defaults since jaw21). Score per set: accepted within 3 px - 10 x accepted over 3 px (visible
 sightings, both views)."""
-import json, os, sys, time
+import json, os, sys
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from trackscore import score_row   # noqa: E402  (renders/examples/tracking/trackscore.py)
-from lipgen._threads import blas_threads
-from lipgen.dataset.layout import Dataset
-from lipgen.recon.pipeline import reconstruct_dataset
+from trackscore import run_and_score   # noqa: E402  (renders/examples/tracking/trackscore.py)
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.track import TrackerSettings
 out = open(sys.argv[1], "a")
 variants = sys.argv[2].split(",")
 for path in sys.argv[3:]:
-    ds = Dataset(path)
     for var in variants:
         parts = set(var.split("+"))
         fu = [int(x[2:]) for x in parts if x.startswith("fu")]   # fuM needs candidate.patch applied
         settings = ReconstructSettings(motion_check="off" not in parts, motion_physics_prior="phys" in parts,
                                        **({"forget_unpaired": fu[0]} if fu else {}),
                                        tracker=TrackerSettings(reacquire_after=1 if "r1" in parts else None))
-        t = time.process_time()
-        with blas_threads(1):
-            rec = reconstruct_dataset(path, settings=settings)
-        cpu = time.process_time() - t
-        rec.save(f"/work/reacq4/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
-        row = score_row(ds, rec, os.path.basename(path.rstrip("/")), var, cpu)
+        row = run_and_score(path, var, settings,
+                            f"/work/reacq4/rec/{os.path.basename(path.rstrip('/'))}.{var}.npz")
         print(json.dumps(row), file=out, flush=True)
