@@ -14,7 +14,8 @@ variants = sys.argv[2].split(",")
 for path in sys.argv[3:]:
     for var in variants:
         parts = set(var.split("+"))
-        stepsmod.MotionCheck = functools.partial(_MC, trust_steps="trust" in parts)
+        # trust_steps was built, measured and removed (jaw21.md): "trust" runs only on the commit that had it
+        stepsmod.MotionCheck = functools.partial(_MC, trust_steps=True) if "trust" in parts else _MC
         settings = ReconstructSettings(motion_check="off" not in parts, motion_physics_prior="phys" in parts,
                                        tracker=TrackerSettings(reacquire_after=1 if "r1" in parts else None))
         row = run_and_score(path, var, settings,
