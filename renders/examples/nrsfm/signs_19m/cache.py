@@ -12,7 +12,7 @@ def spy(runs, chosen, *a, **k):
 kc.consensus_reconstruction = spy
 
 def run(W, S, name):
-    out = f"cache/{name.replace(' ', '_')}.pkl"
+    out = f"{CACHE}/{name.replace(' ', '_')}.pkl"
     if os.path.exists(out):
         return
     vis = np.isfinite(W[::2]) & np.isfinite(W[1::2])
@@ -22,7 +22,8 @@ def run(W, S, name):
                 open(out, "wb"))
     print(name, flush=True)
 
-os.makedirs("cache", exist_ok=True)
+CACHE = os.environ.get("CACHE", "cache")
+os.makedirs(CACHE, exist_ok=True)
 if sys.argv[1] == "lips":
     from lipgen.recon.pipeline import Reconstruction
     from lipgen.recon.track import LOST
@@ -36,6 +37,15 @@ if sys.argv[1] == "lips":
             tt = dataset_tracks(d + "/dataset", view)
             run(tr["W"], tr["S"], f"{d.rstrip('/').split('/')[-1]} {view} tracks")
             run(tt["W"], tt["S"], f"{d.rstrip('/').split('/')[-1]} {view} truth")
+elif sys.argv[1] == "mocap":
+    from lipgen.nrsfm.mocap import mocap_set
+    for seq in mocap_set():
+        run(seq.W, seq.S, "mocap_" + seq.name)
+elif sys.argv[1] == "bench":
+    from lipgen.experiments.nrsfm_benchmarks import data_dir
+    for name in ("drink", "jaws"):
+        with np.load(data_dir() / f"{name}.npz") as d:
+            run(d["W"], d["S"], "bench_" + name)
 else:
     from lipgen.nrsfm.validation import human_sequence
     for s in sys.argv[2:]:
