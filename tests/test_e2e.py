@@ -324,3 +324,28 @@ def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_set_its_size(data
     # another detector setting changed, the size left: still fitted, the change kept
     other = replace(mine, tracker=replace(mine.tracker, dots=DotSettings(min_contrast=0.1)))
     assert sigma_of(other).tracker.dots == DotSettings(sigma=fitted, min_contrast=0.1)
+
+
+
+def _blank_first_frame(dataset, folder):
+    """A copy of ``dataset`` in ``folder`` whose frame 0 is a flat grey image (no dot, no lips)."""
+    import shutil
+
+    from PIL import Image
+
+    from lipgen.dataset.layout import Dataset
+
+    copy = folder / "ds"
+    shutil.copytree(dataset, copy)
+    raw = copy / Dataset(copy).manifest["frames"][0]["raw"]
+    image = np.asarray(Image.open(raw))
+    Image.fromarray(np.full_like(image, int(np.median(image)))).save(raw)
+    return copy
+
+
+def test_a_first_frame_without_dots_gets_a_clear_error_from_frame_0(dataset, tmp_path):
+    """A recording may open on a frame that shows no dot (the camera starting). The first-frame stage
+    matched nothing there and its lure check indexed an empty dot list (IndexError). Tracking from frame
+    0, no marker is ever placed, and the error says which mark is missing."""
+    with pytest.raises(DatasetError, match="never seen in both views"):
+        reconstruct_dataset(_blank_first_frame(dataset, tmp_path))

@@ -54,7 +54,8 @@ def match_first_frame_views(detected, exp, settings, cameras=None, rest_points=N
                            settings.first_frame_dark)
         # Matched on all dots (a dot removed would leave its marker to a neighbour's), but a match
         # on a lure is dropped.
-        lure = (match >= 0) & ~keep[v][np.maximum(match, 0)]
+        lure = np.zeros(len(match), dtype=bool)       # (a view with no dots has no index to look up)
+        lure[match >= 0] = ~keep[v][match[match >= 0]]
         if lure.any():
             log.info("%s view, first frame: %d match(es) on dots no other-view dot places near the layout "
                      "dropped", VIEWS[v], int(lure.sum()))
