@@ -30,6 +30,7 @@ from lipgen._threads import blas_threads
 from lipgen.errors import DatasetError, TopologyMismatchError
 from lipgen.mesh.lipmesh import LipMesh
 from lipgen.recon.account import sighting_account
+from lipgen.recon.anchor import track_from_anchor
 from lipgen.recon.calibcache import calibrated
 from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.modelmesh import model_mesh
@@ -283,7 +284,6 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         from tqdm import tqdm
 
         bar = tqdm(total=len(ds), desc="tracking", unit="frame")
-    frames = (f.image for f in ds)
     names = [*mesh.marker_names, "nose"]
     physics = Physics(mesh)  # a large factorisation keeps its threads
     layout_cov = None
@@ -292,10 +292,13 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         with blas_threads(1):  # the same bits whatever the thread count: it feeds threshold tests
             layout_cov = physics_layout_covariance(physics)
+    def track(frames, progress):
+        return track_raw_frames(frames, ds.rig, expected, settings, progress, cameras=lab.views, names=names,
+                                rest_points=marks_rest, layout_covariance=layout_cov)
+
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
-        tracks = track_raw_frames(frames, ds.rig, expected, settings,
-                                  (lambda _: bar.update()) if bar else None, cameras=lab.views, names=names,
-                                  rest_points=marks_rest, layout_covariance=layout_cov)
+        tracks, anchor = track_from_anchor(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
+                                           (lambda _: bar.update()) if bar else None)
     if bar is not None:
         bar.close()
     t_track, c_track = time.perf_counter(), time.process_time()
@@ -339,7 +342,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
-        "ray_gap_limit_mm": max_gap,
+        "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

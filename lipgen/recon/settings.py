@@ -232,6 +232,11 @@ class ReconstructSettings:
         acts, accepted 16.9 -> 55.6 % and 30.0 -> 45.7 %, over 3 px 55 -> 5 and 22 -> 2; on fresh
         ``hard`` 77-82 against off it acted on 80 only (over 3 px 140 -> 72, not a rescue): score
         3899 -> 4563 (``renders/examples/tracking/c3_fresh_71_76.md``).
+    anchor_step : int or None
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` starts tracking at the first of frames 0,
+        ``anchor_step``, ... whose first-frame stage matches every marker in both views, and tracks
+        forward and backward from it (:mod:`lipgen.recon.anchor`); frame 0 when it is such a frame or
+        none is. None: from frame 0 (``track_raw_frames`` alone always starts at its first frame).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -266,6 +271,7 @@ class ReconstructSettings:
     first_frame_one_view: int | None = 18
     first_frame_floor: float | None = None
     first_frame_repose: int | None = 6
+    anchor_step: int | None = None
 
     def __post_init__(self):
         if not isinstance(self.epipolar_blobs, bool):
@@ -289,6 +295,10 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
                              f"matched in both views under which the layout is re-posed), got {n!r}")
+        n = self.anchor_step
+        if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
+            raise ValueError(f"settings.anchor_step must be None (from frame 0) or an integer >= 1 (frames "
+                             f"between the candidate first frames), got {n!r}")
         k = self.out_of_place_k
         if k is not None and (isinstance(k, bool) or not isinstance(k, numbers.Real)
                               or not (math.isfinite(k) and k > 0)):
