@@ -346,20 +346,22 @@ def _blank_first_frame(dataset, folder):
 def test_a_first_frame_without_dots_gets_a_clear_error_from_frame_0(dataset, tmp_path):
     """A recording may open on a frame that shows no dot (the camera starting). The first-frame stage
     matched nothing there and its lure check indexed an empty dot list (IndexError). Tracking from frame
-    0, no marker is ever placed, and the error says which mark is missing."""
+    0 (``anchor_step=None``), no marker is ever placed, and the error says which mark is missing; by
+    default the tracker starts elsewhere (the next test)."""
+    from lipgen.recon.settings import ReconstructSettings
+
     with pytest.raises(DatasetError, match="never seen in both views"):
-        reconstruct_dataset(_blank_first_frame(dataset, tmp_path))
+        reconstruct_dataset(_blank_first_frame(dataset, tmp_path),
+                            settings=ReconstructSettings(anchor_step=None))
 
 
 def test_tracking_starts_where_every_marker_is_matched_when_frame_0_shows_none(dataset, recon, tmp_path):
-    """Frame 0 blanked: with ``anchor_step`` the tracker starts at the first probed frame whose markers are
-    all matched in both views and tracks back to frame 0 from there; the other frames are tracked as well
-    as in the intact clip (from frame 0 nothing is ever placed: the test above)."""
+    """Frame 0 blanked: by default (``anchor_step`` 5) the tracker starts at the first probed frame whose
+    markers are all matched in both views and tracks back to frame 0 from there; the other frames are
+    tracked as well as in the intact clip (from frame 0 nothing is ever placed: the test above)."""
     from lipgen.evaluate.scoring import accepted_sightings
-    from lipgen.recon.settings import ReconstructSettings
 
-    rec = reconstruct_dataset(_blank_first_frame(dataset, tmp_path),
-                              settings=ReconstructSettings(anchor_step=5))
+    rec = reconstruct_dataset(_blank_first_frame(dataset, tmp_path))
     anchor = rec.info["tracking_anchor"]
     assert anchor["frame"] in (5, 10) and anchor["matched"][0] == 0
     assert anchor["matched"][-1] == anchor["markers"] == rec.uv.shape[2]

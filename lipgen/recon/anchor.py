@@ -10,8 +10,10 @@ It tracks forward from that frame to the end and backward from it to frame 0, an
 
 A frame with every marker matched is not always rightly matched: on the development sets the first-frame
 stage put 1 marker on a wrong dot in 4 of 16 such frames, and in none of 11 frames 0 (the clips open near
-rest). So frame 0 is kept whenever it is complete; the frame that matches the most markers, whatever it
-is, was tried and lost on the ``hard`` preset (``renders/examples/tracking/anchor23.md``).
+rest). So frame 0 is kept whenever it is complete. The frame that matches the most markers, whatever their
+number, was tried twice and lost on ``hard``, where the busiest frame often holds a lure
+(``renders/examples/tracking/hard15j_anchor.md``, and A5 in ``anchor23.md``); no ``hard`` frame probed so
+far was complete, so there this rule leaves the tracks as they were.
 """
 
 from __future__ import annotations
