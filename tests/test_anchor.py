@@ -90,3 +90,30 @@ def test_bad_steps_are_refused(bad):
         ReconstructSettings(anchor_step=bad)
     with pytest.raises(ValueError, match="anchor step"):
         find_anchor(lambda i: i, 10, FakeTracker(set()), step=bad)
+
+
+def test_the_cli_passes_the_anchor_step_and_refuses_a_negative_one(tmp_path, monkeypatch, capsys):
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.cli import main
+
+    seen = []
+
+    class Reached(Exception):
+        pass
+
+    def capture(dataset, mesh, settings=None, **kwargs):
+        seen.append(settings)
+        raise Reached
+
+    monkeypatch.setattr(pipeline, "reconstruct_dataset", capture)
+    out = ["--out", str(tmp_path / "o.npz")]
+    for given, step in ((["--anchor-step", "0"], None), ([], 5), (["--anchor-step", "3"], 3)):
+        with pytest.raises(Reached):
+            main(["reconstruct", str(tmp_path / "ds"), *given, *out])
+        assert seen[-1].anchor_step == step
+    for bad in ("-1", "two"):
+        with pytest.raises(SystemExit):
+            main(["reconstruct", str(tmp_path / "ds"), "--anchor-step", bad, *out])
+        err = capsys.readouterr().err
+        assert "--anchor-step" in err and repr(bad) in err
+    assert not (tmp_path / "o.npz").exists()

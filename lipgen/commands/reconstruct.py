@@ -14,7 +14,9 @@ REST_CHOICES, DEFAULT_REST = ("model", "recording", "auto"), "model"
 
 _EPILOG = """\
 steps: calibrate the camera and the mirror from the dataset's chessboard frames; detect and track
-the ink dots in both views (normalised correlation, first frame matched to the model's markers);
+the ink dots in both views (normalised correlation; the dots matched to the model's markers on the
+first of frames 0, 5, 10, ... where every marker is matched in both views, then tracked forward to
+the end and backward to frame 0; --anchor-step 0 starts at frame 0 whatever it shows);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
 thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the
@@ -46,6 +48,7 @@ examples:
   lipgen reconstruct data/s0 --out recon.npz
   lipgen reconstruct data/lowres --out recon.npz --allow-missing
   lipgen reconstruct data/s0 --mesh my_lips.npz --out recon.npz
+  lipgen reconstruct data/s0 --anchor-step 0 --out recon.npz      (track from frame 0)
   lipgen reconstruct data/take2 --rest-from recon.npz --out take2.npz   (take2 from take 1's rest)
   lipgen reconstruct take1.mp4 --calib boards/ --out take1.npz     (writes take1_recording/ too)
   lipgen reconstruct frames/ --fps 60 --calib boards/ --out f.npz --recording rec_f
@@ -86,8 +89,23 @@ def add_parser(sub) -> None:
                    help="with --calib: the recording folder to build (default: OUT's name + '_recording')")
     add_footage_options(p)
     p.add_argument("--force", action="store_true", help="overwrite --out (and --recording) if they exist")
+    p.add_argument("--anchor-step", type=_non_negative, default=5, metavar="N",
+                   help="frames between the frames tried as the tracking's start (the first with every "
+                        "marker matched in both views is taken; frame 0 when it is one or none is); 0: start "
+                        "at frame 0")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
+
+
+def _non_negative(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be a whole number of frames >= 0 (0: start at frame 0), got "
+                                         f"{text!r}")
+    return n
 
 
 MAX_LISTED_FRAMES = 10**6
@@ -161,14 +179,22 @@ def _run(args) -> int:
         from lipgen.recon.restsource import check_rest_from
 
         check_rest_from(Reconstruction.load(args.rest_from), model_mesh(args.mesh), args.rest_from)
+    from lipgen.recon.settings import ReconstructSettings
+
+    settings = ReconstructSettings(anchor_step=args.anchor_step or None)
     dataset = _dataset_or_recording(args, out)
-    recon = reconstruct_dataset(dataset, args.mesh, progress=not args.no_progress,
+    recon = reconstruct_dataset(dataset, args.mesh, settings=settings, progress=not args.no_progress,
                                 normalisation=args.normalisation, test_frames=args.test_frames,
                                 reference_frames=args.reference_frames, rest=args.rest,
                                 rest_from=args.rest_from)
     recon.save(out)
     account = recon.info["sightings"]
     sys.stderr.write("\n".join(account_lines(account)) + "\n")
+    anchor = recon.info["tracking_anchor"]
+    if anchor["frame"]:
+        sys.stderr.write(f"tracking started at frame {anchor['frame']}, the first probed frame with every "
+                         f"marker matched in both views (frame 0: {anchor['matched'][0]} of "
+                         f"{anchor['markers']}); the frames before it were tracked backward from there\n")
     sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({100 * account['accepted_share']:.1f}% of "
                      f"marker sightings accepted: seen in both views, rays agreeing; calibration "
                      f"{recon.calibration.rms['all']:.3f} px RMS; displacements from {rest_line(recon)})"
