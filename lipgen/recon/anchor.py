@@ -134,11 +134,16 @@ def track_from_anchor(frame_at: Callable[[int], np.ndarray], n_frames: int, trac
         frame, record = 0, {"frame": 0, "step": None, "probed": [], "matched": []}
     else:
         frame, record = find_anchor(frame_at, n_frames, track, step)
-    forward = track((frame_at(i) for i in range(frame, n_frames)),
-                    None if progress is None else (lambda t: progress(frame + t)))
+    def forward_progress(t):
+        progress(frame + t)
+
+    def backward_progress(t):
+        if t > 0:                   # the backward run starts on the anchor frame, counted by the forward run
+            progress(frame - t)
+
+    report = progress is not None
+    forward = track((frame_at(i) for i in range(frame, n_frames)), forward_progress if report else None)
     if frame == 0:
         return forward, record
-    # the anchor frame is tracked again first and not counted twice
-    backward = track((frame_at(i) for i in range(frame, -1, -1)),
-                     None if progress is None else (lambda t: t and progress(frame - t)))
+    backward = track((frame_at(i) for i in range(frame, -1, -1)), backward_progress if report else None)
     return (join_runs(backward[0], forward[0]), join_runs(backward[1], forward[1])), record

@@ -292,6 +292,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
 
         with blas_threads(1):  # the same bits whatever the thread count: it feeds threshold tests
             layout_cov = physics_layout_covariance(physics)
+
     def track(frames, progress):
         return track_raw_frames(frames, ds.rig, expected, settings, progress, cameras=lab.views, names=names,
                                 rest_points=marks_rest, layout_covariance=layout_cov)
