@@ -8,12 +8,12 @@ first-frame stage alone on frames 0, ``step``, 2 ``step``, ... and takes the fir
 marker (the nose included) is matched in both views; frame 0 itself when it is one, or when none is.
 It tracks forward from that frame to the end and backward from it to frame 0, and joins the two runs.
 
-A frame with every marker matched is not always rightly matched: on the development sets the first-frame
-stage put 1 marker on a wrong dot in 4 of 16 such frames, and in none of 11 frames 0 (the clips open near
-rest). So frame 0 is kept whenever it is complete. The frame that matches the most markers, whatever their
-number, was tried twice and lost on ``hard``, where the busiest frame often holds a lure
-(``renders/examples/tracking/hard15j_anchor.md``, and A5 in ``anchor23.md``); no ``hard`` frame probed so
-far was complete, so there this rule leaves the tracks as they were.
+A frame with every marker matched is not always rightly matched: on the 12 development sets 5 of the 24
+such frames among those probed had 1 or 2 markers on a wrong dot, and frame 0 (the clips open near rest)
+had one in 2 of 12. So frame 0 is kept whenever it is complete. The frame that matches the most
+markers, whatever their number, was tried twice and lost on ``hard``, where the busiest frame often
+holds a lure (``renders/examples/tracking/hard15j_anchor.md``, and A5 in ``anchor23.md``); no ``hard``
+frame probed so far was complete, so there this rule leaves the tracks as they were.
 """
 
 from __future__ import annotations
