@@ -117,3 +117,12 @@ def test_the_cli_passes_the_anchor_step_and_refuses_a_negative_one(tmp_path, mon
         err = capsys.readouterr().err
         assert "--anchor-step" in err and repr(bad) in err
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_the_start_is_said_only_when_it_is_not_frame_0():
+    from lipgen.recon.anchor import anchor_line
+
+    assert anchor_line(None) is None and anchor_line({}) is None            # made before anchors
+    assert anchor_line({"frame": 0, "matched": [17], "markers": 17}) is None
+    line = anchor_line({"frame": 10, "matched": [13, 15, 17], "markers": 17})
+    assert line.startswith("Tracking started at frame 10") and "frame 0: 13 of 17" in line

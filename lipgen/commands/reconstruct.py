@@ -164,6 +164,7 @@ def _dataset_or_recording(args, out: Path) -> Path:
 
 def _run(args) -> int:
     from lipgen.recon.account import account_lines, missing_marks
+    from lipgen.recon.anchor import anchor_line
     from lipgen.recon.pipeline import reconstruct_dataset
     from lipgen.recon.restsource import check_rest_options, rest_line
 
@@ -190,11 +191,9 @@ def _run(args) -> int:
     recon.save(out)
     account = recon.info["sightings"]
     sys.stderr.write("\n".join(account_lines(account)) + "\n")
-    anchor = recon.info["tracking_anchor"]
-    if anchor["frame"]:
-        sys.stderr.write(f"tracking started at frame {anchor['frame']}, the first probed frame with every "
-                         f"marker matched in both views (frame 0: {anchor['matched'][0]} of "
-                         f"{anchor['markers']}); the frames before it were tracked backward from there\n")
+    start = anchor_line(recon.info["tracking_anchor"])
+    if start:
+        sys.stderr.write(start + "\n")
     sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({100 * account['accepted_share']:.1f}% of "
                      f"marker sightings accepted: seen in both views, rays agreeing; calibration "
                      f"{recon.calibration.rms['all']:.3f} px RMS; displacements from {rest_line(recon)})"

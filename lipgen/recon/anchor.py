@@ -24,7 +24,7 @@ import numpy as np
 
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["ANCHOR_STEP", "find_anchor", "join_runs", "track_from_anchor"]
+__all__ = ["ANCHOR_STEP", "anchor_line", "find_anchor", "join_runs", "track_from_anchor"]
 
 ANCHOR_STEP = 5
 """Frames between the candidate first frames (every 5th: a 150-frame clip probes at most 30)."""
@@ -147,3 +147,13 @@ def track_from_anchor(frame_at: Callable[[int], np.ndarray], n_frames: int, trac
         return forward, record
     backward = track((frame_at(i) for i in range(frame, -1, -1)), backward_progress if report else None)
     return (join_runs(backward[0], forward[0]), join_runs(backward[1], forward[1])), record
+
+
+def anchor_line(record: dict | None) -> str | None:
+    """One sentence saying where tracking started, for the command's output and the report; None when it
+    started at frame 0 (or ``record`` is None: reconstructions made before anchors started there)."""
+    if not record or not record.get("frame"):
+        return None
+    return (f"Tracking started at frame {record['frame']}, the first probed frame with every mark matched in "
+            f"both views (frame 0: {record['matched'][0]} of {record['markers']}); the frames before it were "
+            "tracked backward from there.")
