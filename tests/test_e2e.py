@@ -326,7 +326,6 @@ def test_the_dot_detector_is_fitted_to_the_rig_unless_settings_set_its_size(data
     assert sigma_of(other).tracker.dots == DotSettings(sigma=fitted, min_contrast=0.1)
 
 
-
 def _blank_first_frame(dataset, folder):
     """A copy of ``dataset`` in ``folder`` whose frame 0 is a flat grey image (no dot, no lips)."""
     import shutil
