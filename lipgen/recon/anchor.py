@@ -19,6 +19,7 @@ frame probed so far was complete, so there this rule leaves the tracks as they w
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import fields
 
 import numpy as np
 
@@ -75,11 +76,6 @@ def find_anchor(frame_at: Callable[[int], np.ndarray], n_frames: int, track: Tra
                    "markers": int(virtual.n_markers)}
 
 
-def _rows(t: Tracks, rows) -> Tracks:
-    return Tracks(uv=t.uv[rows], visible=t.visible[rows], status=t.status[rows], score=t.score[rows],
-                  rejected=None if t.rejected is None else t.rejected[rows])
-
-
 def join_runs(backward: Tracks, forward: Tracks) -> Tracks:
     """One view's tracks from a run backward from the anchor to frame 0 and one forward from it.
 
@@ -98,13 +94,13 @@ def join_runs(backward: Tracks, forward: Tracks) -> Tracks:
     """
     if backward.n_markers != forward.n_markers:
         raise ValueError(f"the runs track {backward.n_markers} and {forward.n_markers} markers")
-    before = _rows(backward, slice(backward.n_frames - 1, 0, -1))
-    rejected = (None if before.rejected is None or forward.rejected is None
-                else np.concatenate([before.rejected, forward.rejected]))
-    return Tracks(uv=np.concatenate([before.uv, forward.uv]),
-                  visible=np.concatenate([before.visible, forward.visible]),
-                  status=np.concatenate([before.status, forward.status]),
-                  score=np.concatenate([before.score, forward.score]), rejected=rejected)
+    before = slice(backward.n_frames - 1, 0, -1)   # anchor - 1, ..., 0 reversed into time order
+
+    def joined(name):
+        a, b = getattr(backward, name), getattr(forward, name)
+        return None if a is None or b is None else np.concatenate([a[before], b])   # rejected may be None
+
+    return Tracks(**{f.name: joined(f.name) for f in fields(Tracks)})
 
 
 def track_from_anchor(frame_at: Callable[[int], np.ndarray], n_frames: int, track: TrackFn,
@@ -134,6 +130,7 @@ def track_from_anchor(frame_at: Callable[[int], np.ndarray], n_frames: int, trac
         frame, record = 0, {"frame": 0, "step": None, "probed": [], "matched": []}
     else:
         frame, record = find_anchor(frame_at, n_frames, track, step)
+
     def forward_progress(t):
         progress(frame + t)
 
