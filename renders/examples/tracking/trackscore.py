@@ -35,3 +35,21 @@ def run_and_score(path, variant, settings, rec_path):
     cpu = time.process_time() - t
     rec.save(rec_path)
     return score_row(Dataset(path), rec, os.path.basename(str(path).rstrip("/")), variant, cpu)
+
+
+def run_sets(argv, settings_for):
+    """The loop of the run scripts (bh25, mc26): ``argv`` is ``[OUT.jsonl, "A,B", SET...]``; for each set, each
+    variant in turn (one process, so one calibration per set) is run by :func:`run_and_score` with
+    ``settings_for(variant)`` and its row appended to OUT.jsonl. Reconstructions go to ``$REC_DIR`` (default
+    ``rec``) as ``SET.VARIANT.npz``."""
+    import json
+    import os
+
+    rec_dir = os.environ.get("REC_DIR", "rec")
+    os.makedirs(rec_dir, exist_ok=True)
+    with open(argv[0], "a") as out:
+        for path in argv[2:]:
+            name = os.path.basename(path.rstrip("/"))
+            for var in argv[1].split(","):
+                row = run_and_score(path, var, settings_for(var), os.path.join(rec_dir, f"{name}.{var}.npz"))
+                print(json.dumps(row), file=out, flush=True)
