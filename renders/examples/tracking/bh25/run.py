@@ -1,6 +1,9 @@
-"""bh25: main (today's defaults), BH (curvature blobs, no confirmation: bh24's variant) and BHC (BH, blob
+"""bh25: main (today's defaults), BH (curvature blobs, no confirmation: bh24's variant) and BHC / BHC2 (BH, blob
 sightings withdrawn unless the other view sees the marker) per set, one process per set.
-usage: run.py OUT.jsonl VARIANTS SET..."""
+usage: run.py OUT.jsonl VARIANTS SET...   (PYTHONPATH: the worktree with bhc2.patch applied)
+BHC and BHC2 have the same settings; they differ in the worktree's code: BHC's rows (dev.jsonl, probe128.jsonl)
+ran with confirm_blobs called before the epipolar recovery in steps.py, BHC2's (dev2.jsonl, probe2.jsonl,
+held.jsonl) after it, as in bhc2.patch."""
 import sys
 sys.path.insert(0, "/work/main/renders/examples/tracking")
 from trackscore import run_sets   # noqa: E402
