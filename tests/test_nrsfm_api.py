@@ -70,3 +70,29 @@ def test_subnormal_scale_names_the_scale():
     W, _, _ = low_rank_sequence(30, 10, 2, np.random.default_rng(1))
     with pytest.raises(ValueError, match=r"no larger than .*e-310.*multiply W"):
         reconstruct(W * 1e-310, 2)
+
+
+
+@pytest.mark.parametrize("method", ["dai", "em-pnd", "em-ppca"])
+@pytest.mark.parametrize("scale", [2.0**-997, 2.0**-60, 2.0**700, 2.0**997])
+def test_k_auto_solves_extreme_scales_as_the_ordinary_one(method, scale):
+    # k="auto" chooses K and (dai) averages the depths of several Ks: at 1e-300 it used to refuse the
+    # tracks as constant, at 1e300 it overflowed (RuntimeWarnings) and answered differently. A power of
+    # two rescales exactly, so the answer is the ordinary one times the scale.
+    import warnings
+
+    W, _, _ = low_rank_sequence(20, 12, 2, np.random.default_rng(5))
+    W = W + 0.01 * np.random.default_rng(6).standard_normal(W.shape)    # noisy: not an exact fit
+    base = reconstruct(W, "auto", method=method)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                                   # no overflow on the way
+        rec = reconstruct(W * scale, "auto", method=method)
+    assert rec.k == base.k and np.isfinite(rec.S).all()
+    np.testing.assert_allclose(rec.S / scale, base.S, rtol=0, atol=1e-9 * np.abs(base.S).max())
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e300])
+def test_k_auto_solves_decimal_extremes_too(scale):
+    W, S, _ = low_rank_sequence(30, 10, 2, np.random.default_rng(1))
+    rec = reconstruct(W * scale, "auto")
+    assert rec.k == 2 and e3d(S_est=rec.S, S_true=S * scale) < 1e-6

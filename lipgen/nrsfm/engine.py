@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import inspect
 import logging
 
 import numpy as np
@@ -18,7 +20,7 @@ from lipgen.nrsfm.plausibility import shape_figures
 from lipgen.nrsfm.record import Reconstruction, check_method_k
 from lipgen.nrsfm.refine import bundle_adjust
 
-__all__ = ["reconstruct_k"]
+__all__ = ["reconstruct_k", "at_unit_scale"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +46,25 @@ def reconstruct_k(W, k: int, method: str, visible=None, *, seed: int = 0, n_star
                "em_iter": em_iter}
     W, unit = _normalise_scale(W, visible)
     return _scale_back(_reconstruct(W, k, method, visible, **options), unit)
+
+
+def at_unit_scale(solve):
+    """Decorate a solver ``solve(W, ..., visible=None, ...) -> Reconstruction`` so that W whose largest
+    magnitude lies outside [2**-20, 2**20] is divided by a power of two near it (:func:`_normalise_scale`)
+    and the answer scaled back, as :func:`reconstruct_k` does: the K choice of ``k="auto"`` then solves
+    any scale alike (W x 1e-300 was refused as constant, W x 1e300 overflowed). Tracks of ordinary
+    magnitude (normalised, mm, pixels) are passed as they are, so their answers are unchanged."""
+    signature = inspect.signature(solve)
+
+    @functools.wraps(solve)
+    def solve_at_unit_scale(*args, **kwargs):
+        bound = signature.bind(*args, **kwargs)
+        W, unit = _normalise_scale(bound.arguments["W"], bound.arguments.get("visible"))
+        if 2.0**-20 <= unit <= 2.0**20:
+            return solve(*args, **kwargs)
+        bound.arguments["W"] = W
+        return _scale_back(solve(*bound.args, **bound.kwargs), unit)
+    return solve_at_unit_scale
 
 
 def _scale_back(rec: Reconstruction, unit: float) -> Reconstruction:

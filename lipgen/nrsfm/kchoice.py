@@ -33,7 +33,7 @@ from lipgen.nrsfm.consensus import (
     check_roughness_ratio,
     consensus_reconstruction,
 )
-from lipgen.nrsfm.engine import reconstruct_k
+from lipgen.nrsfm.engine import at_unit_scale, reconstruct_k
 from lipgen.nrsfm.kscan import DaiScan, scan_estimated, scan_smooth
 from lipgen.nrsfm.plausibility import rotation_roughness
 from lipgen.nrsfm.record import MEAN_PLUS_MODES, Reconstruction, check_method_k
@@ -103,6 +103,7 @@ def smooth_k(candidates: list[Reconstruction], tol: float = SMOOTH_TOL) -> tuple
 
 
 @single_threaded(always=True)
+@at_unit_scale
 def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus: int = CONSENSUS_KS,
                      support: float | None = SUPPORT_DEG, rho: float = ERROR_CORRELATION,
                      roughness_ratio: float | None = None, **options) -> Reconstruction:

@@ -20,7 +20,7 @@ import numpy as np
 from lipgen._threads import single_threaded
 from lipgen.nrsfm._tracks import check_tracks
 from lipgen.nrsfm.empnd import bic
-from lipgen.nrsfm.engine import reconstruct_k
+from lipgen.nrsfm.engine import at_unit_scale, reconstruct_k
 from lipgen.nrsfm.kchoice import candidate_ks
 from lipgen.nrsfm.record import Reconstruction
 
@@ -37,6 +37,7 @@ K_GRID = (0, 1, 2, 4, 8, 12)
 
 
 @single_threaded(always=True)
+@at_unit_scale
 def reconstruct_pnd_auto(W, visible=None, *, kmax: int = 12, **options) -> Reconstruction:
     """:func:`lipgen.nrsfm.reconstruct` with ``method="em-pnd"`` and ``k="auto"``.
 
