@@ -89,10 +89,10 @@ def add_parser(sub) -> None:
                    help="with --calib: the recording folder to build (default: OUT's name + '_recording')")
     add_footage_options(p)
     p.add_argument("--force", action="store_true", help="overwrite --out (and --recording) if they exist")
-    p.add_argument("--anchor-step", type=_non_negative, default=5, metavar="N",
+    p.add_argument("--anchor-step", type=_non_negative, default=None, metavar="N",
                    help="frames between the frames tried as the tracking's start (the first with every "
                         "marker matched in both views is taken; frame 0 when it is one or none is); 0: start "
-                        "at frame 0")
+                        "at frame 0; default: the library's (ReconstructSettings.anchor_step, 5)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
@@ -182,7 +182,8 @@ def _run(args) -> int:
         check_rest_from(Reconstruction.load(args.rest_from), model_mesh(args.mesh), args.rest_from)
     from lipgen.recon.settings import ReconstructSettings
 
-    settings = ReconstructSettings(anchor_step=args.anchor_step or None)
+    settings = (ReconstructSettings() if args.anchor_step is None   # one default, the library's
+                else ReconstructSettings(anchor_step=args.anchor_step or None))
     dataset = _dataset_or_recording(args, out)
     recon = reconstruct_dataset(dataset, args.mesh, settings=settings, progress=not args.no_progress,
                                 normalisation=args.normalisation, test_frames=args.test_frames,
