@@ -38,7 +38,7 @@ def run_and_score(path, variant, settings, rec_path):
 
 
 def run_sets(argv, settings_for):
-    """The loop of the run scripts (bh25, mc26): ``argv`` is ``[OUT.jsonl, "A,B", SET...]``; for each set, each
+    """The loop of the run scripts (bh24, bh25, mc26): ``argv`` is ``[OUT.jsonl, "A,B", SET...]``; for each set, each
     variant in turn (one process, so one calibration per set) is run by :func:`run_and_score` with
     ``settings_for(variant)`` and its row appended to OUT.jsonl. Reconstructions go to ``$REC_DIR`` (default
     ``rec``) as ``SET.VARIANT.npz``."""

@@ -1,7 +1,7 @@
 """bh24: main (today's defaults) and/or BH per set, one process per set. usage: run.py OUT.jsonl VARIANTS SET..."""
-import json, os, sys
+import sys
 sys.path.insert(0, "/work/main/renders/examples/tracking")
-from trackscore import run_and_score   # noqa: E402
+from trackscore import run_sets   # noqa: E402
 import lipgen.recon.dots as dots_mod
 from lipgen.recon.dots import DotSettings
 from lipgen.recon.settings import ReconstructSettings
@@ -13,11 +13,4 @@ def settings_for(var):
         return ReconstructSettings()
     return ReconstructSettings(tracker=TrackerSettings(blobs=True, dots=DotSettings(blob_response="hessian")))
 
-rec_dir = os.environ.get("REC_DIR", "rec")
-os.makedirs(rec_dir, exist_ok=True)
-out = open(sys.argv[1], "a")
-for path in sys.argv[3:]:
-    for var in sys.argv[2].split(","):
-        name = os.path.basename(path.rstrip("/"))
-        row = run_and_score(path, var, settings_for(var), os.path.join(rec_dir, f"{name}.{var}.npz"))
-        print(json.dumps(row), file=out, flush=True)
+run_sets(sys.argv[1:], settings_for)
