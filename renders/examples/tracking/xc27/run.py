@@ -34,7 +34,8 @@ def settings_for(var):
     blobs = "B" in var
     state["base"] = "blobs" if blobs else "main"
     tracker = TrackerSettings(blobs=True, dots=DotSettings(blob_response="hessian")) if blobs else TrackerSettings()
-    return ReconstructSettings(tracker=tracker, cross_check=var.startswith("X"), cross_check_fill=var.endswith("U"))
+    return ReconstructSettings(tracker=tracker, cross_check=var.startswith("X"), cross_check_fill=var.endswith("U"),
+                               cross_check_arbitrate=var.endswith("A"))
 
 
 run_sets(sys.argv[1:], settings_for)
