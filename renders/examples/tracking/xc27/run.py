@@ -35,7 +35,7 @@ def settings_for(var):
     state["base"] = "blobs" if blobs else "main"
     tracker = TrackerSettings(blobs=True, dots=DotSettings(blob_response="hessian")) if blobs else TrackerSettings()
     return ReconstructSettings(tracker=tracker, cross_check=var.startswith("X"), cross_check_fill=var.endswith("U"),
-                               cross_check_arbitrate=var.endswith("A"))
+                               cross_check_arbitrate=var.endswith("A") or "K" in var, cross_check_keep="K" in var)
 
 
 run_sets(sys.argv[1:], settings_for)
