@@ -77,6 +77,8 @@ def test_the_setting_must_be_a_bool():
         ReconstructSettings(epipolar_blob_share=0.0)
     with pytest.raises(ValueError, match="epipolar_blob_share must be in"):
         ReconstructSettings(epipolar_blob_share=True)
+    with pytest.raises(ValueError, match="confirm_blobs must be True or False, got 1"):
+        ReconstructSettings(confirm_blobs=1)
     default = ReconstructSettings()
     assert default.epipolar_blobs is True and default.epipolar_blob_share == 0.5   # hard18's E2
     assert ReconstructSettings(epipolar_blobs=False).epipolar_blobs is False       # the old recovery
@@ -237,3 +239,84 @@ def test_a_blob_nearer_another_markers_guess_is_not_taken():
     assert ok[:, 0].tolist() == [True, False]
     for s in (0.05, 0.9):   # a quarter, and 4.5 times, the marker's own darkness
         assert not blob_allowed(blob, np.array([s]), guess, cand, reach, none, need, own, ratios).any()
+
+
+@pytest.mark.parametrize("gap", [3.5, 4.0])
+def test_a_dot_closer_to_the_line_is_a_pit_of_curvature_but_no_laplacian_peak(gap):
+    # nearer the line the Laplacian's peak merges into the line's flank; the smaller principal
+    # curvature is still positive at the dot only
+    img = _dot_by_a_line(gap)
+    truth = [30 - gap, 20]
+    log_uv, _ = blob_peaks(img, DotSettings(sigma=1.5))
+    assert len(log_uv) == 0 or np.linalg.norm(log_uv - truth, axis=1).min() > 1.5
+    uv, strength = blob_peaks(img, DotSettings(sigma=1.5, blob_response="hessian"))
+    assert np.linalg.norm(uv - truth, axis=1).min() <= 0.5
+    assert np.all(strength > 0)
+
+
+def test_the_pit_response_of_a_line_and_a_slope_is_not_positive():
+    from lipgen.recon.blobs import pit_response
+
+    y, x = np.mgrid[:41, :61].astype(float)
+    line = 0.7 * (1 - 0.5 * np.exp(-((x - 30) ** 2) / (2 * 2.5 ** 2)))
+    small, large = pit_response(line, 1.0)
+    assert small[5:-5, 5:-5].max() < 1e-6 and large[20, 30] > 0      # curved across only
+    small, _ = pit_response(0.3 + 0.01 * x, 1.0)     # a slope: no curvature (to the kernels' 1e-4)
+    assert np.abs(small[5:-5, 5:-5]).max() < 1e-4
+
+
+def test_an_unknown_blob_response_is_refused_with_the_choices():
+    with pytest.raises(ValueError, match="blob_response.*'log', 'hessian'"):
+        DotSettings(blob_response="dog")
+
+
+def _line_and_hidden(hide: bool, confirm: bool, n_frames: int = 14, seed: int = 3):
+    """``_one_view``'s dark line beside mark 0 in view 0 from frame 5, both views tracked with blobs;
+    with ``hide`` mark 0's dot is gone from view 1 from frame 5 (a fold over it). Each image:
+    :func:`confirm_blobs` (with ``confirm``), then :func:`check_views`. Returns (trackers, true uv,
+    what confirm_blobs withdrew (F, 2, P))."""
+    from dataclasses import replace
+
+    from lipgen.recon.viewcheck import confirm_blobs
+    cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
+    trackers = [MarkerTracker(uv[v, 0], replace(trackers[v].cfg, blobs=True)) for v in range(2)]
+    cols = np.arange(160)[None, :]
+    withdrawn = np.zeros((n_frames, 2, 6), dtype=bool)
+    for f in range(n_frames):
+        for v in range(2):
+            marks = uv[v, f][1:] if (hide and v == 1 and f >= 5) else uv[v, f]
+            img = draw_dots(bases[v].copy(), marks, depth=0.2)
+            if v == 0 and f >= 5:
+                img = img - 0.35 * np.exp(-((cols - uv[0, f, 0, 0] - 5.0) ** 2) / (2 * 2.5 ** 2))
+            trackers[v].step(frame(img, np.zeros((0, 2)), rng, noise=0.003))
+        if f > 0:
+            if confirm:
+                withdrawn[f] = confirm_blobs(trackers)
+            check_views(trackers, cams, limit)
+    return trackers, uv, withdrawn
+
+
+def test_a_blob_sighting_stands_only_where_the_other_view_sees_the_marker():
+    # both views see mark 0: its blob sightings in view 0 stand and are right
+    seen, uv, withdrawn = _line_and_hidden(hide=False, confirm=True)
+    tracks = seen[0].tracks()
+    assert not withdrawn.any()
+    assert tracks.visible[5:, 0].all()
+    assert np.linalg.norm(tracks.uv[5:, 0] - uv[0, 5:, 0], axis=1).max() < 1.0
+    # hidden in view 1: without the guard view 0 holds it on the blob alone; with it, view 0 loses it
+    alone, _, _ = _line_and_hidden(hide=True, confirm=False)
+    assert alone[0].tracks().visible[5:, 0].all() and not alone[1].tracks().visible[6:, 0].any()
+    guarded, _, withdrawn = _line_and_hidden(hide=True, confirm=True)
+    g = guarded[0].tracks()
+    assert not g.visible[6:, 0].any()
+    assert withdrawn[6:, 0, 0].all() and not withdrawn[:, :, 1:].any() and not withdrawn[:, 1].any()
+    assert not guarded[0]._rejected[6][0]          # withdrawn as a guess, not a rejected sighting
+    # the other marks are untouched
+    assert np.array_equal(g.visible[:, 1:], alone[0].tracks().visible[:, 1:])
+
+
+def test_the_tracker_flags_its_blob_sightings_only():
+    trackers, _, _ = _line_and_hidden(hide=False, confirm=False, n_frames=8)
+    # the last image: marks 0 and 3, the column the line runs beside (grid x = -8)
+    assert trackers[0].blobbed.tolist() == [True, False, False, True, False, False]
+    assert not trackers[1].blobbed.any()

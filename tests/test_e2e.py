@@ -366,3 +366,19 @@ def test_tracking_starts_where_every_marker_is_matched_when_frame_0_shows_none(d
     assert anchor["matched"][-1] == anchor["markers"] == rec.uv.shape[2]
     assert not accepted_sightings(rec)[0].any()
     assert accepted_sightings(rec)[1:].mean() >= accepted_sightings(recon)[1:].mean() - 0.02
+
+
+def test_the_cross_check_tracks_the_clip_again_from_its_end_and_keeps_what_both_runs_agree_on(dataset, recon):
+    """``cross_check``: the clip is tracked a second time from its last frame; on this clean clip the two
+    runs agree, so nothing is taken back and every sighting of the plain run stands (the fill may add)."""
+    from lipgen.evaluate.scoring import accepted_sightings
+    from lipgen.recon.settings import ReconstructSettings
+
+    settings = ReconstructSettings(cross_check=True, cross_check_arbitrate=True, cross_check_keep=True,
+                                   cross_check_fill=True)
+    rec = reconstruct_dataset(dataset, settings=settings)
+    record = rec.info["cross_check"]
+    assert record["dropped"] == 0 and record["swapped"] == 0
+    assert record["anchor"]["probed"] and 0 <= record["anchor"]["frame"] < FRAMES
+    assert accepted_sightings(rec).sum() >= accepted_sightings(recon).sum()
+    assert recon.info["cross_check"] is None

@@ -67,12 +67,15 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
         The smoothed top-hat darkness there (the scale of :func:`dot_peaks`' strength), not the
         Laplacian: the tracker compares it with the marker's own dot.
     """
-    s = settings.sigma
-    # A dark blob is a minimum of the image: its Laplacian is positive; s^2 normalises the scale.
-    lap = s * s * ndimage.gaussian_laplace(gray, s, mode="nearest")
-    rows, cols = np.nonzero(local_maxima(lap, settings, -np.inf))    # the noise floor only
-    keep = peak_roundness(lap, rows, cols)[0] >= settings.min_roundness
-    rows, cols = rows[keep], cols[keep]
+    if settings.blob_response == "hessian":
+        rows, cols = _pit_peaks(gray, settings)
+    else:
+        s = settings.sigma
+        # A dark blob is a minimum of the image: its Laplacian is positive; s^2 normalises the scale.
+        lap = s * s * ndimage.gaussian_laplace(gray, s, mode="nearest")
+        rows, cols = np.nonzero(local_maxima(lap, settings, -np.inf))    # the noise floor only
+        keep = peak_roundness(lap, rows, cols)[0] >= settings.min_roundness
+        rows, cols = rows[keep], cols[keep]
     uv = np.column_stack([cols, rows]).astype(np.float64)
     if exclude is not None and len(exclude) and len(uv):
         far = np.linalg.norm(uv[:, None] - np.asarray(exclude)[None], axis=2).min(1) >= settings.separation
@@ -82,6 +85,29 @@ def blob_peaks(gray: np.ndarray, settings: DotSettings, exclude: np.ndarray | No
     strength = response[rows, cols]
     order = np.argsort(-strength, kind="stable")
     return uv[order], strength[order]
+
+
+def pit_response(gray: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The principal curvatures of ``gray`` (h, w) smoothed at ``scale`` pixels, scale-normalised
+    (times ``scale**2``): (smaller, larger), each (h, w). A dark dot is a pit, both positive; a
+    slope, or a slit like the mouth opening, has the smaller near 0 or negative."""
+    hxx = ndimage.gaussian_filter(gray, scale, order=(0, 2), mode="nearest")
+    hyy = ndimage.gaussian_filter(gray, scale, order=(2, 0), mode="nearest")
+    hxy = ndimage.gaussian_filter(gray, scale, order=(1, 1), mode="nearest")
+    half_trace, root = 0.5 * (hxx + hyy), np.sqrt(0.25 * (hxx - hyy) ** 2 + hxy ** 2)
+    return scale * scale * (half_trace - root), scale * scale * (half_trace + root)
+
+
+def _pit_peaks(gray: np.ndarray, settings: DotSettings) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the maxima of the smaller curvature (:func:`pit_response` at 0.7 sigma,
+    which resolves a dot beside a dark slit better than sigma: measured on ``default`` development
+    sets, 563 against 444 of 627 shoulder dots), over the noise floor, at least
+    ``min_foreshortened_roundness`` round."""
+    small, large = pit_response(gray, 0.7 * settings.sigma)
+    pit = np.maximum(small, 0.0)
+    rows, cols = np.nonzero(local_maxima(pit, settings, 0.0))
+    keep = small[rows, cols] >= settings.min_foreshortened_roundness * large[rows, cols]
+    return rows[keep], cols[keep]
 
 
 def blob_candidates(gray: np.ndarray, response: np.ndarray, lo: np.ndarray, settings: DotSettings,

@@ -26,6 +26,9 @@ __all__ = ["DotSettings", "as_gray", "ink_gray", "darkness", "dot_response", "de
            "local_maxima", "peak_roundness", "refine_peaks", "refine_centroids"]
 
 
+BLOB_RESPONSES = ("log", "hessian")
+
+
 @dataclass(frozen=True)
 class DotSettings:
     """How dots look in the image.
@@ -54,6 +57,13 @@ class DotSettings:
         turning away from the camera (the lip corner in a side view) is an ellipse and may fall
         below ``min_roundness``; such blobs are kept as candidates that a tracker may snap to
         only where its correlation already found the marker.
+    blob_response : str
+        What :func:`lipgen.recon.blobs.blob_peaks` (dots the top-hat cannot resolve) looks for
+        maxima of: ``"log"``, the scale-normalised Laplacian of Gaussian at ``sigma``, kept where
+        round (``min_roundness``); ``"hessian"``, the smaller principal curvature of the image
+        smoothed at ``0.7 * sigma`` (scale-normalised), which is positive only where the image
+        curves up both ways (a pit, not a slope or a slit), so a dot on the shoulder of the dark
+        mouth opening keeps a maximum of its own.
     window : float or None
         Weight window of the sub-pixel fit, in ``sigma`` (:func:`refine_centroids`); None: the
         plain fit. From starts within 0.7 px of the truth, ``default`` validation seeds 7-9 (dots
@@ -76,6 +86,7 @@ class DotSettings:
     smoothing: float = 0.6
     min_roundness: float = 0.3
     min_foreshortened_roundness: float = 0.1
+    blob_response: str = "log"
     window: float | None = 1.25
 
     def __post_init__(self) -> None:
@@ -83,6 +94,9 @@ class DotSettings:
             raise ValueError(f"DotSettings.sigma must be in [0.3, 50] pixels, got {self.sigma!r}")
         if not 0 < self.min_contrast < 1:
             raise ValueError(f"DotSettings.min_contrast must be in (0, 1), got {self.min_contrast!r}")
+        if self.blob_response not in BLOB_RESPONSES:
+            raise ValueError(f"DotSettings.blob_response must be one of {BLOB_RESPONSES}, "
+                             f"got {self.blob_response!r}")
 
     @property
     def separation(self) -> float:

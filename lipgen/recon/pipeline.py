@@ -33,6 +33,7 @@ from lipgen.recon.account import sighting_account
 from lipgen.recon.anchor import track_from_anchor
 from lipgen.recon.calibcache import calibrated
 from lipgen.recon.calibrate import RigCalibration
+from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.split import training_candidates
@@ -300,6 +301,17 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks, anchor = track_from_anchor(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                            (lambda _: bar.update()) if bar else None)
+        crossed = None
+        if settings.cross_check:
+            second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step)
+            tol = 2.0 * settings.tracker.dots.sigma   # sightings nearer than this are of one dot
+            judge = None
+            if settings.cross_check_arbitrate:
+                def judge(a, b, disputed):
+                    return arbitrate(a, b, disputed, lab.views, marks_rest, layout_cov)
+            tracks, crossed = cross_check(tracks, second, tol, settings.cross_check_fill, judge,
+                                          settings.cross_check_keep)
+            crossed = crossed | {"anchor": back}
     if bar is not None:
         bar.close()
     t_track, c_track = time.perf_counter(), time.process_time()
@@ -343,7 +355,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
-        "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor,
+        "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

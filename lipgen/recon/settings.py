@@ -244,6 +244,25 @@ class ReconstructSettings:
         91-94, run once: ``default`` 23289 -> 24121 (accepted 93.6 -> 95.2 %, over 3 px 48 -> 10;
         ``default`` 119 87.0 -> 94.9 %), ``hard`` identical. Tracking CPU 1.01-1.14x on ``default``,
         1.2-1.7x on 40-frame ``hard`` clips (8 probes, none complete).
+    cross_check : bool
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` tracks the clip a second time from its other
+        end and takes back, in both views, every sighting the two runs put on different dots
+        (:mod:`lipgen.recon.crosscheck`); tracking costs about twice as much. Default False.
+    cross_check_fill : bool
+        With ``cross_check``: a marker the first run lacks takes the second run's pair where that pair
+        agrees with what the first run saw. Default False.
+    cross_check_arbitrate : bool
+        With ``cross_check``: where the runs disagree, the run whose 3-D points lie clearly nearer the
+        layout's prediction over the disputed frames is kept (:func:`lipgen.recon.crosscheck.arbitrate`);
+        only undecided disputes are dropped. Default False.
+    cross_check_keep : bool
+        With ``cross_check``: an undecided dispute keeps the first run's sighting instead of dropping it.
+        Default False.
+    confirm_blobs : bool
+        With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
+        where the other view sees the marker in the same image
+        (:func:`lipgen.recon.viewcheck.confirm_blobs`): alone, a fold's shadow or a half-hidden
+        neighbour's dot passes for one (bh25, ``renders/examples/tracking/bh25.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -279,8 +298,16 @@ class ReconstructSettings:
     first_frame_floor: float | None = None
     first_frame_repose: int | None = 6
     anchor_step: int | None = ANCHOR_STEP
+    cross_check: bool = False
+    cross_check_fill: bool = False
+    cross_check_arbitrate: bool = False
+    cross_check_keep: bool = False
+    confirm_blobs: bool = True
 
     def __post_init__(self):
+        for name in ("cross_check", "cross_check_fill", "cross_check_arbitrate", "cross_check_keep"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
         if not isinstance(self.epipolar_blobs, bool):
             raise ValueError(f"settings.epipolar_blobs must be True or False, got {self.epipolar_blobs!r}")
         share = self.epipolar_blob_share
@@ -302,6 +329,8 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
                              f"matched in both views under which the layout is re-posed), got {n!r}")
+        if not isinstance(self.confirm_blobs, bool):
+            raise ValueError(f"settings.confirm_blobs must be True or False, got {self.confirm_blobs!r}")
         n = self.anchor_step
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.anchor_step must be None (from frame 0) or an integer >= 1 (frames "

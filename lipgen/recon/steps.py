@@ -44,7 +44,7 @@ from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.shifted import ShiftCheck
 from lipgen.recon.track import LOST, MarkerTracker, Tracks
 from lipgen.recon.twins import resolve_twins
-from lipgen.recon.viewcheck import check_views
+from lipgen.recon.viewcheck import check_views, confirm_blobs
 from lipgen.rig.camera import VIEWS, MirrorRig
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
@@ -153,6 +153,8 @@ def track_raw_frames(raw_frames: Iterable, layout: MirrorRig, expected,
                 recover_along_epipolar(trackers, views, cameras, gap_limit.limit(),
                                        blobs=settings.epipolar_blobs,
                                        blob_share=settings.epipolar_blob_share)
+            if settings.confirm_blobs and settings.tracker.blobs:
+                confirm_blobs(trackers)      # after the recovery: a dot found on its epipolar line confirms
             if settings.one_view_pairing and rest_points is not None:
                 fresh = np.stack([tr.acquired for tr in trackers])
                 fresh |= False if pending is None else pending.since >= 0

@@ -106,6 +106,7 @@ class MarkerTracker:
         self._out: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         self._rejected: list[np.ndarray] = []        # per image: sightings taken back by reject()
         self.acquired = np.zeros(P, dtype=bool)      # in the last image: markers seen for the first time
+        self.blobbed = np.zeros(P, dtype=bool)       # in the last image: sighted on a blob (cfg.blobs)
         # Per image: its round dots (uv, strength), for tracking a marker back (lipgen.recon.backfill);
         # None for images more than history_frames back.
         self.dot_history: list[tuple[np.ndarray, np.ndarray] | None] = []
@@ -180,6 +181,7 @@ class MarkerTracker:
         """Track into the next image; returns this frame's ``(uv (P, 2), status (P,), score (P,))``."""
         cfg, P = self.cfg, len(self.init)
         self.acquired = np.zeros(P, dtype=bool)
+        self.blobbed = np.zeros(P, dtype=bool)
         if self._out:
             # Carried only now, after any outside check took back sightings of the last image:
             # a wrong dot's jump must not drag its lost neighbours along.
@@ -287,6 +289,7 @@ class MarkerTracker:
         if len(got) and len(dots):  # a frame-0 match made at a lowered floor may leave no dot here
             idx = np.linalg.norm(uv[got][:, None] - dots[None], axis=2).argmin(1)
             # a blob's darkness is its flank's, not learnt (looked up after fix_order's swaps)
+            self.blobbed[got[idx >= n_top]] = True
             got, idx = got[idx < n_top], idx[idx < n_top]
             self.strength[got] = _darkness(self.strength[got], strength[idx])
         self._out.append((uv, status, score))
@@ -334,6 +337,7 @@ class MarkerTracker:
             self._set_state(i, last[i], gap[i] + 1 if np.all(np.isfinite(last[i])) else 0, templates[i],
                             strength[i])
             self.acquired[i] = False
+            self.blobbed[i] = False
 
     def withdraw(self, markers) -> None:
         """Take back the last image's acquisitions of ``markers`` (indices) as :meth:`reject` does,

@@ -21,7 +21,7 @@ from lipgen.recon.raygap import RayGapLimit
 from lipgen.recon.track import LOST, MarkerTracker
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["check_views", "confirm_acquired"]
+__all__ = ["check_views", "confirm_acquired", "confirm_blobs"]
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +57,21 @@ def confirm_acquired(trackers: list[MarkerTracker], cameras, max_gap: float) -> 
         gap[pair] = triangulate(cameras[1], uv1[pair], cameras[0], uv0[pair])[1]
         miss = pair & (gap > max_gap)
         out |= acq & miss[None]
+    for v in range(2):
+        trackers[v].withdraw(np.flatnonzero(out[v]))
+    return out
+
+
+def confirm_blobs(trackers: list[MarkerTracker]) -> np.ndarray:
+    """Withdraw this image's blob sightings (:attr:`~lipgen.recon.track.MarkerTracker.blobbed`) of
+    markers the other view does not see.
+
+    A blob is a dot the detector could not resolve, and a fold's shadow or a neighbour's half-hidden
+    dot looks like one; alone in one view it is a guess. Where the other view sees the marker, the
+    ray-gap check of :func:`check_views` judges the pair. Returns the (2, P) bool withdrawn.
+    """
+    seen = np.stack([tr._out[-1][1] != LOST for tr in trackers])
+    out = np.stack([tr.blobbed for tr in trackers]) & ~seen[::-1]
     for v in range(2):
         trackers[v].withdraw(np.flatnonzero(out[v]))
     return out

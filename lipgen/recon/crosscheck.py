@@ -1,0 +1,196 @@
+"""Forward-backward cross-check of the marker labels: the clip tracked a second time from its other end.
+
+The tracker labels the dots once, where it starts (:mod:`lipgen.recon.anchor`), and carries the labels
+from there; a label wrong at the start stays wrong for as long as the marker is followed, and the
+3-D checks cannot always see it. On ``hard`` the layout at rest predicts a marker to about 2 mm while
+the corner dots lie 4-5 mm apart: on 8 of 20 spent ``hard`` sets the first frame held a marker on a
+wrong dot in both views (``lower_corner_left`` on ``corner_left``'s dot, whose own marker was never
+seen, on ``hard`` 102), and the 3-D layout residual put the wrong label nearer than the right one.
+
+A second run that starts from the clip's other end labels the dots afresh, from another frame. Where
+the two runs both see a marker and put it on different dots, one of them is wrong, and which one the
+data cannot tell; so that sighting is dropped in both views (a tracking failure detected by
+forward-backward consistency, after Kalal, Mikolajczyk and Matas, "Forward-backward error: automatic
+detection of tracking failures", ICPR 2010). Where they agree, or only one sees the marker, the first
+run's sighting stands. With ``fill``, a marker the first run does not have in both views takes the
+second run's pair, when that pair agrees with whatever the first run saw.
+
+The second run is :func:`lipgen.recon.anchor.track_from_anchor` on the clip reversed (its anchor the
+last probed complete frame, counting from the end; the last frame when none is), so it costs one more
+tracking of the clip.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from lipgen.recon.anchor import TrackFn, track_from_anchor
+from lipgen.recon.association import LOST
+from lipgen.recon.tracks import Tracks
+
+__all__ = ["reversed_run", "arbitrate", "cross_check"]
+
+
+def _reversed(tracks: Tracks) -> Tracks:
+    def flip(a):
+        return None if a is None else np.ascontiguousarray(a[::-1])
+
+    return Tracks(uv=flip(tracks.uv), visible=flip(tracks.visible), status=flip(tracks.status),
+                  score=flip(tracks.score), rejected=flip(tracks.rejected))
+
+
+def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: TrackFn,
+                 step: int | None) -> tuple[tuple[Tracks, Tracks], dict]:
+    """The clip tracked from its other end (see the module docstring), in time order.
+
+    Parameters
+    ----------
+    frame_at, n_frames, track, step
+        As :func:`lipgen.recon.anchor.track_from_anchor`.
+
+    Returns
+    -------
+    (virtual, real) : Tracks
+        Frames 0 ... F - 1.
+    record : dict
+        The anchor record of the reversed clip, with ``frame`` counted in the clip's own time.
+    """
+    (virtual, real), record = track_from_anchor(lambda i: frame_at(n_frames - 1 - i), n_frames, track, step)
+    return (_reversed(virtual), _reversed(real)), record | {"frame": n_frames - 1 - int(record["frame"])}
+
+
+def _seen(t: Tracks) -> np.ndarray:
+    return (t.status != LOST) & np.all(np.isfinite(t.uv), axis=-1)
+
+
+def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
+              rest_points, covariance=None, ratio: float = 0.6) -> np.ndarray:
+    """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
+
+    In every disputed frame both runs' pairs are triangulated and compared with the marker's position
+    predicted from the undisputed markers of the first run (:func:`lipgen.recon.firstframe.predict_layout`,
+    the physics prior with ``covariance``). Over the span, the run whose points lie nearer the prediction
+    on average wins when it is nearer than ``ratio`` times the other (the first frame's replacement rule);
+    otherwise neither does.
+
+    Parameters
+    ----------
+    first, second : (virtual, real) Tracks
+    disputed : (F, P) bool
+    cameras : (virtual, real) PinholeCamera
+    rest_points : (P, 3) float
+        The markers at rest in the frame of ``cameras``, mm.
+    covariance : (3P, 3P) float, optional
+    ratio : float
+
+    Returns
+    -------
+    (F, P) int8
+        0 where neither run is trusted, 1 where the first run's sighting stands, 2 where the second's.
+    """
+    from lipgen.recon.firstframe import predict_layout
+    from lipgen.recon.pointreg import layout_spacing
+    from lipgen.rig.pinhole import triangulate
+
+    rest = np.asarray(rest_points, dtype=float)
+    width = layout_spacing(rest[np.all(np.isfinite(rest), axis=1)])
+
+    def points(run):
+        both = _seen(run[0]) & _seen(run[1])
+        X = np.full(both.shape + (3,), np.nan)
+        X[both] = triangulate(cameras[1], run[1].uv[both], cameras[0], run[0].uv[both])[0]
+        return X, both
+
+    Xa, both_a = points(first)
+    Xb, _ = points(second)
+    F, P = disputed.shape
+    ra, rb = np.full((F, P), np.nan), np.full((F, P), np.nan)
+    for f in np.flatnonzero(disputed.any(axis=1)):
+        use = both_a[f] & ~disputed[f]
+        if use.sum() < 6:
+            continue
+        pred = predict_layout(rest, Xa[f], use, width, covariance)
+        ra[f] = np.linalg.norm(Xa[f] - pred, axis=1)
+        rb[f] = np.linalg.norm(Xb[f] - pred, axis=1)
+    out = np.zeros((F, P), np.int8)
+    for m in range(P):
+        d = disputed[:, m].astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], d, [0]])))
+        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+            ok = np.isfinite(ra[start:stop, m]) & np.isfinite(rb[start:stop, m])
+            if not ok.any():
+                continue
+            a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
+            out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
+    return out
+
+
+def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float,
+                fill: bool = False, judge=None, keep_undecided: bool = False
+                ) -> tuple[tuple[Tracks, Tracks], dict]:
+    """Drop the sightings the two runs put on different dots; optionally fill from the second run.
+
+    Parameters
+    ----------
+    first, second : (virtual, real) Tracks
+        The same clip tracked twice (F frames, P markers each).
+    tol : float
+        Two sightings of one marker in one view farther apart than this (pixels) are on different dots.
+    fill : bool
+        Where the first run lacks a marker in a view (after the drop) and the second run has it in both
+        views, agreeing with the first run's sighting in the other view if it has one, take the second
+        run's pair.
+    judge : callable, optional
+        ``judge(first, second, disputed)`` -> (F, P) int8 as :func:`arbitrate`: where it says 1 the first
+        run's sighting stands, where 2 the second run's pair is taken; elsewhere both are dropped.
+    keep_undecided : bool
+        Where the runs disagree and no judge (or an undecided one) settles it, the first run's sighting
+        stands instead of being dropped (the first run starts nearer rest, where labels are surer).
+
+    Returns
+    -------
+    (virtual, real) : Tracks
+        The first run's tracks with the disagreements taken back in both views (``LOST``, ``rejected``)
+        and, with ``fill``, the second run's sightings added.
+    record : dict
+        ``dropped`` (frame-marker pairs taken back), ``filled`` (pairs added), ``tol``.
+    """
+    if not tol > 0:
+        raise ValueError(f"tol must be a positive distance in pixels, got {tol!r}")
+    for a, b in zip(first, second, strict=True):
+        if a.uv.shape != b.uv.shape:
+            raise ValueError(f"the two runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
+    seen_a = np.stack([_seen(t) for t in first])
+    seen_b = np.stack([_seen(t) for t in second])
+    dist = np.stack([np.linalg.norm(a.uv - b.uv, axis=-1) for a, b in zip(first, second, strict=True)])
+    with np.errstate(invalid="ignore"):
+        differ = seen_a & seen_b & (dist > tol)          # (2, F, P)
+    drop = differ.any(axis=0)                            # (F, P): one view's disagreement is the pair's
+    verdict = np.zeros(drop.shape, np.int8)
+    if judge is not None and drop.any():
+        verdict = np.where(drop, np.asarray(judge(first, second, drop), np.int8), 0)
+    if keep_undecided:
+        verdict = np.where(drop & (verdict == 0), 1, verdict).astype(np.int8)
+    swap = verdict == 2
+    drop = drop & (verdict == 0)
+    keep = seen_a & ~drop
+    take = np.zeros_like(drop)
+    if fill:
+        agree = ~seen_a | (dist <= tol)
+        take = ~keep.all(axis=0) & seen_b.all(axis=0) & ~drop & agree.all(axis=0)
+    out = []
+    for v, (a, b) in enumerate(zip(first, second, strict=True)):
+        uv, status, score = a.uv.copy(), a.status.copy(), a.score.copy()
+        rejected = np.zeros(status.shape, bool) if a.rejected is None else a.rejected.copy()
+        gone = drop & seen_a[v]
+        uv[gone], status[gone], rejected[gone] = np.nan, LOST, True
+        uv[take], status[take], score[take] = b.uv[take], b.status[take], b.score[take]
+        rejected[take] = False
+        uv[swap], status[swap], score[swap] = b.uv[swap], b.status[swap], b.score[swap]
+        rejected[swap] = a.status[swap] != LOST
+        out.append(Tracks(uv=uv, visible=(status != LOST), status=status, score=score, rejected=rejected))
+    record = {"dropped": int(drop.sum()), "filled": int(take.sum()), "tol": float(tol),
+              "kept": int((verdict == 1).sum()), "swapped": int(swap.sum())}
+    return (out[0], out[1]), record
