@@ -75,5 +75,5 @@ def test_the_tracker_keeps_both_of_two_blurred_dots_4px_apart(seed):
     got = run(cfg)
     assert got.visible.all()
     assert np.linalg.norm(got.uv - paths, axis=2).max() < 0.3
-    without = run(TrackerSettings(dots=cfg.dots, blend=False))
+    without = run(TrackerSettings(dots=cfg.dots, blend=False, blobs=False))   # (the blobs keep it too)
     assert not without.visible[-1].all(), "without the joint fit the merged pair is lost"

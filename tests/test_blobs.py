@@ -12,6 +12,13 @@ from lipgen.recon.track import RECOVERED, MarkerTracker, TrackerSettings
 from lipgen.recon.viewcheck import check_views
 
 
+def _log(cfg):
+    """``cfg`` with the Laplacian-of-Gaussian blob response these toy scenes were built for (the default is
+    the curvature pit since xc27)."""
+    from dataclasses import replace
+    return replace(cfg, dots=replace(cfg.dots, blob_response="log"))
+
+
 def _dot_by_a_line(gap: float, line_width: float = 2.5) -> np.ndarray:
     """(41, 61): a dot (sigma 1.5, relative depth 0.25) at (30 - gap, 20) beside a dark vertical line
     (relative depth 0.5, Gaussian profile of ``line_width``) along column 30, on a 0.7 background."""
@@ -24,23 +31,27 @@ def _dot_by_a_line(gap: float, line_width: float = 2.5) -> np.ndarray:
 @pytest.mark.parametrize("gap", [5.0, 6.0])
 def test_a_dot_on_a_dark_lines_flank_is_a_blob_but_no_top_hat_peak(gap):
     img = _dot_by_a_line(gap)
-    uv, _, _ = dot_peaks(img, DotSettings(sigma=1.5, min_contrast=0.005, noise_k=0.0))
+    uv, _, _ = dot_peaks(img, DotSettings(sigma=1.5, min_contrast=0.005, noise_k=0.0, blob_response="log"))
     assert len(uv) == 0 or np.linalg.norm(uv - [30 - gap, 20], axis=1).min() > 1.5
-    b, strength = blob_peaks(img, DotSettings(sigma=1.5))
+    b, strength = blob_peaks(img, DotSettings(sigma=1.5, blob_response="log"))
     assert len(b) == 1 and np.linalg.norm(b[0] - [30 - gap, 20]) <= 1.0
     assert 0.05 < strength[0] < 0.7 * 0.5        # the top-hat there: dark, not the line's depth
 
 
 def test_blobs_by_a_peak_already_found_are_left_out():
     img = _dot_by_a_line(6.0)
-    assert len(blob_peaks(img, DotSettings(sigma=1.5), exclude=np.array([[25.0, 21.0]]))[0]) == 0
-    assert len(blob_peaks(img, DotSettings(sigma=1.5), exclude=np.array([[10.0, 10.0]]))[0]) == 1
+    log = DotSettings(sigma=1.5, blob_response="log")
+    assert len(blob_peaks(img, log, exclude=np.array([[25.0, 21.0]]))[0]) == 0
+    assert len(blob_peaks(img, log, exclude=np.array([[10.0, 10.0]]))[0]) == 1
 
 
 def _run(blobs: bool, seed: int = 3, n_frames: int = 14, blob_share: float = 1.0):
     """Six marks in two views; from frame 5 a dark vertical line runs 5 px right of mark 0 in view
-    0, so its dot has no top-hat peak there. Returns (view 0 tracks, true uv (2, F, P, 2))."""
+    0, so its dot has no top-hat peak there. Returns (view 0 tracks, true uv (2, F, P, 2)). The trackers'
+    own step takes no blobs: only the recovery's ``blobs`` is measured."""
+    from dataclasses import replace
     cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
+    trackers = [MarkerTracker(uv[v, 0], replace(_log(trackers[v].cfg), blobs=False)) for v in range(2)]
     cols = np.arange(160)[None, :]
     for f in range(n_frames):
         images = []
@@ -90,7 +101,7 @@ def _one_view(blobs: bool, n_frames: int = 14, blob_share: float = 1.0, line_px:
     Returns (tracks, true uv (F, P, 2))."""
     from dataclasses import replace
     cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
-    tracker = MarkerTracker(uv[0, 0], replace(trackers[0].cfg, blobs=blobs, blob_share=blob_share))
+    tracker = MarkerTracker(uv[0, 0], replace(_log(trackers[0].cfg), blobs=blobs, blob_share=blob_share))
     cols = np.arange(160)[None, :]
     for f in range(n_frames):
         img = draw_dots(bases[0].copy(), uv[0, f], depth=0.2)
@@ -117,7 +128,7 @@ def test_the_tracker_holds_a_dot_on_a_dark_lines_flank_only_with_blobs():
 def test_blobs_off_is_the_old_step_bit_for_bit():
     a, _ = _one_view(blobs=False)
     _, uv, _, trackers, _, _ = six_marks(3, 14)
-    assert trackers[0].cfg.blobs is False                   # the default
+    assert trackers[0].cfg.blobs is True                    # the default since xc27
     b, _ = _one_view(blobs=False, blob_share=0.5)           # the share alone changes nothing
     assert np.array_equal(a.uv, b.uv, equal_nan=True) and np.array_equal(a.status, b.status)
 
@@ -152,7 +163,7 @@ def test_a_held_dot_is_held_on_blobs_by_the_correlation_alone():
     runs = {}
     for on in (False, True):
         cams, uv, bases, trackers, limit, rng = six_marks(3, 14)
-        tracker = MarkerTracker(uv[0, 0], replace(trackers[0].cfg, blobs=on, blob_prediction=False))
+        tracker = MarkerTracker(uv[0, 0], replace(_log(trackers[0].cfg), blobs=on, blob_prediction=False))
         cols = np.arange(160)[None, :]
         for f in range(14):
             img = draw_dots(bases[0].copy(), uv[0, f], depth=0.2)
@@ -187,7 +198,7 @@ def test_the_response_passed_in_gives_the_same_peaks():
     rows, cols = np.mgrid[0:60, 0:80].astype(float)
     for u, v in [(20.3, 15.7), (50.1, 30.2), (33.6, 44.4)]:
         g -= 0.15 * np.exp(-((cols - u) ** 2 + (rows - v) ** 2) / (2 * 1.3 ** 2))
-    s = DotSettings(sigma=1.3)
+    s = DotSettings(sigma=1.3, blob_response="log")
     r = dot_response(g, s)
     for a, b in zip(dot_peaks(g, s), dot_peaks(g, s, None, r), strict=True):
         assert np.array_equal(a, b)
@@ -205,7 +216,7 @@ def test_a_blob_candidate_is_fitted_to_sub_pixel():
     y, x = np.mgrid[:41, :61].astype(float)
     img = 0.7 * (1 - 0.5 * np.exp(-((x - 30) ** 2) / (2 * 2.5 ** 2))) \
         * (1 - 0.25 * np.exp(-((x - 24.3) ** 2 + (y - 20.2) ** 2) / (2 * 1.5 ** 2)))
-    s = DotSettings(sigma=1.5)
+    s = DotSettings(sigma=1.5, blob_response="log")
     resp = dot_response(img, s)
     lo = np.zeros(2, dtype=int)
     uv, strength = blob_candidates(img, resp, lo, s, np.array([[25.0, 20.0]]), np.array([4.0]),
@@ -247,7 +258,7 @@ def test_a_dot_closer_to_the_line_is_a_pit_of_curvature_but_no_laplacian_peak(ga
     # curvature is still positive at the dot only
     img = _dot_by_a_line(gap)
     truth = [30 - gap, 20]
-    log_uv, _ = blob_peaks(img, DotSettings(sigma=1.5))
+    log_uv, _ = blob_peaks(img, DotSettings(sigma=1.5, blob_response="log"))
     assert len(log_uv) == 0 or np.linalg.norm(log_uv - truth, axis=1).min() > 1.5
     uv, strength = blob_peaks(img, DotSettings(sigma=1.5, blob_response="hessian"))
     assert np.linalg.norm(uv - truth, axis=1).min() <= 0.5
@@ -279,7 +290,7 @@ def _line_and_hidden(hide: bool, confirm: bool, n_frames: int = 14, seed: int = 
 
     from lipgen.recon.viewcheck import confirm_blobs
     cams, uv, bases, trackers, limit, rng = six_marks(seed, n_frames)
-    trackers = [MarkerTracker(uv[v, 0], replace(trackers[v].cfg, blobs=True)) for v in range(2)]
+    trackers = [MarkerTracker(uv[v, 0], replace(_log(trackers[v].cfg), blobs=True)) for v in range(2)]
     cols = np.arange(160)[None, :]
     withdrawn = np.zeros((n_frames, 2, 6), dtype=bool)
     for f in range(n_frames):

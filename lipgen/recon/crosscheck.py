@@ -8,12 +8,22 @@ wrong dot in both views (``lower_corner_left`` on ``corner_left``'s dot, whose o
 seen, on ``hard`` 102), and the 3-D layout residual put the wrong label nearer than the right one.
 
 A second run that starts from the clip's other end labels the dots afresh, from another frame. Where
-the two runs both see a marker and put it on different dots, one of them is wrong, and which one the
-data cannot tell; so that sighting is dropped in both views (a tracking failure detected by
-forward-backward consistency, after Kalal, Mikolajczyk and Matas, "Forward-backward error: automatic
-detection of tracking failures", ICPR 2010). Where they agree, or only one sees the marker, the first
-run's sighting stands. With ``fill``, a marker the first run does not have in both views takes the
-second run's pair, when that pair agrees with whatever the first run saw.
+the two runs both see a marker and put it on different dots, one of them is wrong (a tracking failure
+detected by forward-backward consistency, after Kalal, Mikolajczyk and Matas, "Forward-backward error:
+automatic detection of tracking failures", ICPR 2010). Where they agree, or only one sees the marker, the
+first run's sighting stands.
+
+* A dispute is judged over each marker's span of consecutive disputed frames (:func:`arbitrate`): the run
+  whose triangulated points lie clearly nearer the marker's layout prediction wins.
+* An undecided dispute is dropped in both views, or, with ``keep_undecided``, left to the first run: the
+  first run starts at the clip's first complete frame or at frame 0, where the clips open near rest and
+  labels are surer than at the last frame. Dropping every dispute lost on the development sets (``hard``
+  90 and 102: the reversed run, wrong from frame 39, took the first run's right sightings with it).
+* With ``fill``, a marker the first run does not have in both views takes the second run's pair, when that
+  pair agrees with whatever the first run saw: the second run finds markers the first lost.
+
+The pipeline's defaults (``ReconstructSettings.cross_check`` and its three options, all on) were chosen
+on 18 development sets and passed held-out fresh sets (``renders/examples/tracking/xc27.md``).
 
 The second run is :func:`lipgen.recon.anchor.track_from_anchor` on the clip reversed (its anchor the
 last probed complete frame, counting from the end; the last frame when none is), so it costs one more

@@ -63,7 +63,7 @@ class DotSettings:
         round (``min_roundness``); ``"hessian"``, the smaller principal curvature of the image
         smoothed at ``0.7 * sigma`` (scale-normalised), which is positive only where the image
         curves up both ways (a pit, not a slope or a slit), so a dot on the shoulder of the dark
-        mouth opening keeps a maximum of its own.
+        mouth opening keeps a maximum of its own. Default ``"hessian"`` (xc27).
     window : float or None
         Weight window of the sub-pixel fit, in ``sigma`` (:func:`refine_centroids`); None: the
         plain fit. From starts within 0.7 px of the truth, ``default`` validation seeds 7-9 (dots
@@ -86,7 +86,7 @@ class DotSettings:
     smoothing: float = 0.6
     min_roundness: float = 0.3
     min_foreshortened_roundness: float = 0.1
-    blob_response: str = "log"
+    blob_response: str = "hessian"
     window: float | None = 1.25
 
     def __post_init__(self) -> None:

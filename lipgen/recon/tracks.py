@@ -129,7 +129,9 @@ class TrackerSettings:
         the defocused mirror, :mod:`lipgen.recon.blobs`): by the same two routes and
         unambiguity tests as a dot, if it is ``min_strength_ratio`` to ``max_strength_ratio``
         as dark as the marker's own dot (which must be known) and nearer its prediction than
-        any other marker's. False: the top-hat's dots only (the old step).
+        any other marker's. False: the top-hat's dots only (the old step). On by default since xc27
+        (with ``dots.blob_response`` ``"hessian"``, ``ReconstructSettings.confirm_blobs`` and the
+        cross-check: ``renders/examples/tracking/xc27.md``).
     blob_share : float
         Such a blob must lie within this share (0, 1] of the ``gate`` / recovery reach.
     blob_prediction : bool
@@ -158,7 +160,7 @@ class TrackerSettings:
     blend: bool = True
     floor_ratio: float | None = 0.7
     floor_min: float = 0.05
-    blobs: bool = False
+    blobs: bool = True
     blob_share: float = 1.0
     blob_prediction: bool = True
 
