@@ -90,13 +90,17 @@ def test_the_reversed_run_is_made_on_the_reversed_clip_and_returned_in_time_orde
     def track(frames, progress):
         frames = [int(f) for f in frames]
         runs.append(frames)
+        for t in range(len(frames)):
+            if progress is not None:
+                progress(t)
         uv = np.zeros((len(frames), P, 2))
         uv[..., 0] = np.asarray(frames, float)[:, None]      # u holds the frame index
         t = _tracks(uv)
         return t, t
 
-    (v, r), record = reversed_run(lambda i: i, 7, track, step=None)
-    assert runs == [[6, 5, 4, 3, 2, 1, 0]]
+    ticks = []
+    (v, r), record = reversed_run(lambda i: i, 7, track, step=None, progress=ticks.append)
+    assert runs == [[6, 5, 4, 3, 2, 1, 0]] and len(ticks) == 7        # progress once per frame
     np.testing.assert_array_equal(v.uv[:, 0, 0], np.arange(7))
     assert record["frame"] == 6
 

@@ -52,13 +52,15 @@ def _reversed(tracks: Tracks) -> Tracks:
 
 
 def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: TrackFn,
-                 step: int | None) -> tuple[tuple[Tracks, Tracks], dict]:
+                 step: int | None, progress: Callable[[int], None] | None = None
+                 ) -> tuple[tuple[Tracks, Tracks], dict]:
     """The clip tracked from its other end (see the module docstring), in time order.
 
     Parameters
     ----------
-    frame_at, n_frames, track, step
-        As :func:`lipgen.recon.anchor.track_from_anchor`.
+    frame_at, n_frames, track, step, progress
+        As :func:`lipgen.recon.anchor.track_from_anchor` (``progress`` is called once per frame tracked,
+        with the index in the reversed clip).
 
     Returns
     -------
@@ -67,7 +69,8 @@ def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: Tr
     record : dict
         The anchor record of the reversed clip, with ``frame`` counted in the clip's own time.
     """
-    (virtual, real), record = track_from_anchor(lambda i: frame_at(n_frames - 1 - i), n_frames, track, step)
+    (virtual, real), record = track_from_anchor(lambda i: frame_at(n_frames - 1 - i), n_frames, track, step,
+                                                progress)
     return (_reversed(virtual), _reversed(real)), record | {"frame": n_frames - 1 - int(record["frame"])}
 
 

@@ -284,7 +284,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(ds), desc="tracking", unit="frame")
+        bar = tqdm(total=len(ds) * (2 if settings.cross_check else 1), desc="tracking", unit="frame")
     names = [*mesh.marker_names, "nose"]
     physics = Physics(mesh)  # a large factorisation keeps its threads
     layout_cov = None
@@ -303,7 +303,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
                                            (lambda _: bar.update()) if bar else None)
         crossed = None
         if settings.cross_check:
-            second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step)
+            second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
+                                        (lambda _: bar.update()) if bar else None)
             tol = 2.0 * settings.tracker.dots.sigma   # sightings nearer than this are of one dot
             judge = None
             if settings.cross_check_arbitrate:
