@@ -33,6 +33,7 @@ tracking of the clip.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields
 
 import numpy as np
 
@@ -45,10 +46,9 @@ __all__ = ["reversed_run", "arbitrate", "cross_check"]
 
 def _reversed(tracks: Tracks) -> Tracks:
     def flip(a):
-        return None if a is None else np.ascontiguousarray(a[::-1])
+        return None if a is None else np.ascontiguousarray(a[::-1])   # rejected may be None
 
-    return Tracks(uv=flip(tracks.uv), visible=flip(tracks.visible), status=flip(tracks.status),
-                  score=flip(tracks.score), rejected=flip(tracks.rejected))
+    return Tracks(**{f.name: flip(getattr(tracks, f.name)) for f in fields(Tracks)})   # as anchor.join_runs
 
 
 def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: TrackFn,
@@ -165,10 +165,11 @@ def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol
     Returns
     -------
     (virtual, real) : Tracks
-        The first run's tracks with the disagreements taken back in both views (``LOST``, ``rejected``)
-        and, with ``fill``, the second run's sightings added.
+        The first run's tracks with the dropped disagreements taken back in both views (``LOST``,
+        ``rejected``), the judge's swaps made and, with ``fill``, the second run's sightings added.
     record : dict
-        ``dropped`` (frame-marker pairs taken back), ``filled`` (pairs added), ``tol``.
+        Frame-marker pairs ``dropped``, ``kept`` (disputed, the first run's), ``swapped`` (disputed, the
+        second run's) and ``filled``; and ``tol``.
     """
     if not tol > 0:
         raise ValueError(f"tol must be a positive distance in pixels, got {tol!r}")
@@ -193,16 +194,15 @@ def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol
     if fill:
         agree = ~seen_a | (dist <= tol)
         take = ~keep.all(axis=0) & seen_b.all(axis=0) & ~drop & agree.all(axis=0)
+    from_b = take | swap                                 # (F, P): the second run's pair, both views
     out = []
     for v, (a, b) in enumerate(zip(first, second, strict=True)):
         uv, status, score = a.uv.copy(), a.status.copy(), a.score.copy()
         rejected = np.zeros(status.shape, bool) if a.rejected is None else a.rejected.copy()
         gone = drop & seen_a[v]
         uv[gone], status[gone], rejected[gone] = np.nan, LOST, True
-        uv[take], status[take], score[take] = b.uv[take], b.status[take], b.score[take]
-        rejected[take] = False
-        uv[swap], status[swap], score[swap] = b.uv[swap], b.status[swap], b.score[swap]
-        rejected[swap] = a.status[swap] != LOST
+        uv[from_b], status[from_b], score[from_b] = b.uv[from_b], b.status[from_b], b.score[from_b]
+        rejected[from_b] = swap[from_b] & (a.status[from_b] != LOST)   # a swapped-out sighting was taken back
         out.append(Tracks(uv=uv, visible=(status != LOST), status=status, score=score, rejected=rejected))
     record = {"dropped": int(drop.sum()), "filled": int(take.sum()), "tol": float(tol),
               "kept": int((verdict == 1).sum()), "swapped": int(swap.sum())}

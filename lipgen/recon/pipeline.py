@@ -305,7 +305,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         if settings.cross_check:
             second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                         (lambda _: bar.update()) if bar else None)
-            tol = 2.0 * settings.tracker.dots.sigma   # sightings nearer than this are of one dot
+            tol = settings.tracker.dots.separation   # the detector's: peaks nearer than this are one dot
             judge = None
             if settings.cross_check_arbitrate:
                 def judge(a, b, disputed):
