@@ -73,3 +73,22 @@ def test_unknown_command_is_an_argparse_error(capsys):
         cli.main(["bogus"])
     assert exc.value.code == 2
     assert "invalid choice: 'bogus'" in capsys.readouterr().err
+
+
+def _parsers(parser, path=()):
+    """Every (sub)parser under ``parser``, with its command path."""
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action.choices, dict):
+            for name, sub in action.choices.items():
+                yield from _parsers(sub, (*path, name))
+
+
+def test_every_commands_help_formats():
+    # argparse %-formats each help string: a bare "%" in one (as "60 %" did) breaks that
+    # command's --help with a TypeError, which no other test reaches
+    parsers = list(_parsers(cli.build_parser()))
+    assert len(parsers) > len(cli.COMMANDS)
+    for path, parser in parsers:
+        text = parser.format_help()
+        assert text.startswith("usage:"), path

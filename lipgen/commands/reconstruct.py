@@ -19,7 +19,7 @@ first of frames 0, 5, 10, ... where every marker is matched in both views, then 
 the end and backward to frame 0; --anchor-step 0 starts at frame 0 whatever it shows; then the
 clip is tracked again from its last frame, and where the two runs put a marker on different dots
 the run whose 3-D point lies nearer the model's layout keeps it: --no-cross-check tracks once,
-in about half the tracking time, and leaves the labels of the first run unchecked);
+in about 60 % of the tracking time, and leaves the labels of the first run unchecked);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
 thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the
@@ -99,7 +99,7 @@ def add_parser(sub) -> None:
                         "at frame 0; default: the library's (ReconstructSettings.anchor_step, 5)")
     p.add_argument("--no-cross-check", action="store_true",
                    help="track the clip once (from the anchor frame), not a second time from its end to "
-                   "check the labels: about half the tracking time")
+                   "check the labels: in about 60 %% of the tracking time")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
