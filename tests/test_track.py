@@ -324,8 +324,10 @@ def test_lost_markers_follow_their_group_after_a_sudden_jump(seed):
     # unambiguous recovery (and the correlation found the bare skin where their dots had been),
     # and stayed lost. Carried with the row's markers seen dropping, they are re-acquired in the
     # next frame, all on their dots.
-    # Without the curvature blobs (on by default since xc27): with them, seed 0 loses markers 10 and 11
-    # in frames 7-11 here (a known case, not yet traced; renders/examples/tracking/xc27.md).
+    # Without the curvature blobs (on by default since xc27): with them, seeds 0-3 and 6 lose one or two
+    # markers to the end here. The skin's texture blobs, too faint for any marker to take, stand as rivals
+    # of the real dots; dropping them fixed this but lost on rendered sets, where that caution keeps markers
+    # off their neighbours' dots (renders/examples/tracking/faint28.md).
     from lipgen.recon.track import MarkerTracker, TrackerSettings
     rng, base, paths = _row_drop(seed, 11.0)
     tracker = MarkerTracker(paths[0], TrackerSettings(blobs=False), reference_uv=paths[0])
