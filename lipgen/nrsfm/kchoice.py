@@ -146,7 +146,9 @@ def reconstruct_auto(W, method: str, visible=None, *, kmax: int = 15, consensus:
         ``dai``: only Ks whose rotation roughness is at most this multiple of the least join the
         consensus (:func:`lipgen.nrsfm.consensus.consensus_depth`). Default None (off): 5 left no
         held-out sequence worse than flat (main: 2 of 40 lip views) but raised the lip views' mean
-        e3D, which its pre-registered rule forbade (``renders/examples/nrsfm/lips_consensus_19l.md``).
+        e3D, which its pre-registered rule forbade (``renders/examples/nrsfm/lips_consensus_19l.md``);
+        on a second fresh set it left 5 of 60 worse than flat against main's 4
+        (``renders/examples/nrsfm/flat29.md``).
     **options
         As :func:`lipgen.nrsfm.reconstruct`.
 
