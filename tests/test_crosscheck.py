@@ -204,3 +204,15 @@ def test_the_cli_checks_by_default_and_tracks_once_with_no_cross_check(tmp_path,
         assert (seen[-1].cross_check, seen[-1].anchor_step) == (check, step)
         assert seen[-1].cross_check_fill and seen[-1].tracker == ReconstructSettings().tracker   # as default
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_the_line_says_what_the_second_run_changed():
+    from lipgen.recon.crosscheck import cross_check_line
+
+    assert cross_check_line(None) is None and cross_check_line({}) is None     # tracked once
+    record = {"dropped": 1, "kept": 8, "swapped": 2, "filled": 30, "tol": 2.5, "anchor": {"frame": 39}}
+    line = cross_check_line(record)
+    assert "in reverse from frame 39" in line and "11 marker sighting(s) on different dots" in line
+    assert "(8 kept from the first run, 2 taken from the second, 1 dropped)" in line
+    assert "30 sighting(s) the first run lacked" in line
+    assert "from frame" not in cross_check_line(record | {"anchor": {}})

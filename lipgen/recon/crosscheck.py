@@ -41,7 +41,7 @@ from lipgen.recon.anchor import TrackFn, track_from_anchor
 from lipgen.recon.association import LOST
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["reversed_run", "arbitrate", "cross_check"]
+__all__ = ["reversed_run", "arbitrate", "cross_check", "cross_check_line"]
 
 
 def _reversed(tracks: Tracks) -> Tracks:
@@ -207,3 +207,18 @@ def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol
     record = {"dropped": int(drop.sum()), "filled": int(take.sum()), "tol": float(tol),
               "kept": int((verdict == 1).sum()), "swapped": int(swap.sum())}
     return (out[0], out[1]), record
+
+
+def cross_check_line(record: dict | None) -> str | None:
+    """One sentence saying what the second tracking run changed, for the command's output; None when the
+    clip was tracked once (``record`` None: ``cross_check`` off, or a reconstruction made before it)."""
+    if not record:
+        return None
+    disputed = record["kept"] + record["swapped"] + record["dropped"]
+    start = record.get("anchor", {}).get("frame")
+    where = "" if start is None else f", in reverse from frame {start}"
+    return (f"Tracked a second time{where}: the two runs put {disputed} marker sighting(s) on different dots "
+            f"({record['kept']} kept from the first run, {record['swapped']} taken from the second, "
+            f"{record['dropped']} dropped); {record['filled']} sighting(s) the first run lacked were filled "
+            "from the second.")
+
