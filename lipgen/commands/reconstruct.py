@@ -17,9 +17,11 @@ steps: calibrate the camera and the mirror from the dataset's chessboard frames;
 the ink dots in both views (normalised correlation; the dots matched to the model's markers on the
 first of frames 0, 5, 10, ... where every marker is matched in both views, then tracked forward to
 the end and backward to frame 0; --anchor-step 0 starts at frame 0 whatever it shows; then the
-clip is tracked again from its last frame, and where the two runs put a marker on different dots
-the run whose 3-D point lies nearer the model's layout keeps it: --no-cross-check tracks once,
-in about 60 % of the tracking time, and leaves the labels of the first run unchecked);
+clip is tracked again in reverse, from its last frame (or the first probed frame from the end with
+every marker matched), and where the two runs put a marker on different dots the run whose 3-D
+points lie clearly nearer the model's layout keeps it, else the first run; a marker the first run
+lacks is filled from the second where the runs agree: --no-cross-check tracks once, in about 60 %
+of the tracking time, and leaves the labels of the first run unchecked);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
 thesis's section 3 lip planes with --normalisation thesis); and per frame the field of the

@@ -221,4 +221,3 @@ def cross_check_line(record: dict | None) -> str | None:
             f"({record['kept']} kept from the first run, {record['swapped']} taken from the second, "
             f"{record['dropped']} dropped); {record['filled']} sighting(s) the first run lacked were filled "
             "from the second.")
-
