@@ -92,7 +92,8 @@ def test_bad_steps_are_refused(bad):
         find_anchor(lambda i: i, 10, FakeTracker(set()), step=bad)
 
 
-def test_the_cli_passes_the_anchor_step_and_refuses_a_negative_one(tmp_path, monkeypatch, capsys):
+def test_the_cli_passes_the_anchor_step_and_cross_check_and_refuses_a_negative_step(tmp_path, monkeypatch,
+                                                                                     capsys):
     import lipgen.recon.pipeline as pipeline
     from lipgen.cli import main
 
@@ -107,10 +108,13 @@ def test_the_cli_passes_the_anchor_step_and_refuses_a_negative_one(tmp_path, mon
 
     monkeypatch.setattr(pipeline, "reconstruct_dataset", capture)
     out = ["--out", str(tmp_path / "o.npz")]
-    for given, step in ((["--anchor-step", "0"], None), ([], 5), (["--anchor-step", "3"], 3)):
+    cases = ((["--anchor-step", "0"], None, True), ([], 5, True), (["--anchor-step", "3"], 3, True),
+             (["--no-cross-check"], 5, False), (["--no-cross-check", "--anchor-step", "0"], None, False))
+    for given, step, check in cases:
         with pytest.raises(Reached):
             main(["reconstruct", str(tmp_path / "ds"), *given, *out])
-        assert seen[-1].anchor_step == step
+        assert (seen[-1].anchor_step, seen[-1].cross_check) == (step, check)
+        assert seen[-1].tracker == ReconstructSettings().tracker and seen[-1].cross_check_fill   # as default
     for bad in ("-1", "two"):
         with pytest.raises(SystemExit):
             main(["reconstruct", str(tmp_path / "ds"), "--anchor-step", bad, *out])

@@ -182,30 +182,6 @@ def test_keeping_undecided_disputes_leaves_the_first_runs_sightings():
     assert (v.status == TRACKED).all() and (r.status == TRACKED).all()
 
 
-def test_the_cli_checks_by_default_and_tracks_once_with_no_cross_check(tmp_path, monkeypatch):
-    import lipgen.recon.pipeline as pipeline
-    from lipgen.cli import main
-
-    seen = []
-
-    class Reached(Exception):
-        pass
-
-    def capture(dataset, mesh, settings=None, **kwargs):
-        seen.append(settings)
-        raise Reached
-
-    monkeypatch.setattr(pipeline, "reconstruct_dataset", capture)
-    out = ["--out", str(tmp_path / "o.npz")]
-    for given, check, step in (([], True, 5), (["--no-cross-check"], False, 5),
-                               (["--no-cross-check", "--anchor-step", "0"], False, None)):
-        with pytest.raises(Reached):
-            main(["reconstruct", str(tmp_path / "ds"), *given, *out])
-        assert (seen[-1].cross_check, seen[-1].anchor_step) == (check, step)
-        assert seen[-1].cross_check_fill and seen[-1].tracker == ReconstructSettings().tracker   # as default
-    assert not (tmp_path / "o.npz").exists()
-
-
 def test_the_line_says_what_the_second_run_changed():
     from lipgen.recon.crosscheck import cross_check_line
 
