@@ -42,6 +42,7 @@ SUITE_MODULES: tuple[str, ...] = (
     "lipgen.bench.campaign",
     "lipgen.bench.speech",
     "lipgen.bench.variance",
+    "lipgen.bench.tracking",
 )
 """The benchmark suites, one module each, in the order ``lipgen bench`` runs them."""
 

@@ -20,7 +20,7 @@ the end and backward to frame 0; --anchor-step 0 starts at frame 0 whatever it s
 clip is tracked again in reverse, from its last frame (or the first probed frame from the end with
 every marker matched), and where the two runs put a marker on different dots the run whose 3-D
 points lie clearly nearer the model's layout keeps it, else the first run; a marker the first run
-lacks is filled from the second where the runs agree: --no-cross-check tracks once, in about 60 %
+lacks is filled from the second where the runs agree: --no-cross-check tracks once, in 50-65 %
 of the tracking time, and leaves the labels of the first run unchecked);
 triangulate (closest point between rays); normalise (by default: the head rotation about the
 nose that leaves the least force on the model, one scale from the most neutral frame; or the
@@ -101,7 +101,7 @@ def add_parser(sub) -> None:
                         "at frame 0; default: the library's (ReconstructSettings.anchor_step, 5)")
     p.add_argument("--no-cross-check", action="store_true",
                    help="track the clip once (from the anchor frame), not a second time from its end to "
-                   "check the labels: in about 60 %% of the tracking time")
+                   "check the labels: in 50-65 %% of the tracking time")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_run)
 
