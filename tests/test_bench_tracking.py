@@ -30,7 +30,7 @@ def test_the_ratios_are_of_the_measured_seconds(monkeypatch):
     assert out["accepted_share"] == {"once": 0.9, "cross_checked": 0.95}
 
 
-@pytest.mark.slow
+@pytest.mark.slow(cover="tests/test_bench_tracking.py::test_the_ratios_are_of_the_measured_seconds")
 def test_a_quick_run_measures_both_runs_and_the_baseline():
     from lipgen.bench import tracking
 
