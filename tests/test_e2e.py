@@ -95,6 +95,7 @@ def test_report_and_files(tmp_path, dataset, recon, scored):
     path = write_report(tmp_path / "report", s, Dataset(dataset), model, recon, mesh)
     text = path.read_text()
     assert "Table 5.1" in text and "mm RMS" in text
+    assert "Tracked a second time, in reverse from frame" in text   # the cross-check's line (on by default)
     for pic in ("modes.png", "variance.png", "frame.png", "overlay.png"):
         assert (tmp_path / "report" / pic).stat().st_size > 1000
     data = json.loads((tmp_path / "report" / "report.json").read_text())

@@ -241,6 +241,7 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
     """Write ``report.md``, ``report.json`` and the pictures into folder ``out``."""
     from lipgen.evaluate.metric import ERROR_DEFINITION
     from lipgen.recon.anchor import anchor_line
+    from lipgen.recon.crosscheck import cross_check_line
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -284,9 +285,10 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
         L.append(f"| {v} | {_fmt(t['rms_px'])} | {_fmt(t['p95_px'])} | {_fmt(t['tracked_share'])} | "
                  f"{t.get('accepted', 'n/a')} | {t.get('rejected', 'n/a')} | {t.get('lost', 'n/a')} | "
                  f"{t['wrong_over_3px']} | {t['false_sightings']} |")
-    start = anchor_line(recon.info.get("tracking_anchor"))
-    if start:
-        L += ["", start]
+    info = recon.info
+    for line in (anchor_line(info.get("tracking_anchor")), cross_check_line(info.get("cross_check"))):
+        if line:
+            L += ["", line]
     never = recon.info.get("sightings", {}).get("never_tracked", [])
     if never:
         L += ["", "**Never tracked** (whole sequence):", ""]
