@@ -173,8 +173,7 @@ def _dataset_or_recording(args, out: Path) -> Path:
 
 def _run(args) -> int:
     from lipgen.recon.account import account_lines, missing_marks
-    from lipgen.recon.anchor import anchor_line
-    from lipgen.recon.crosscheck import cross_check_line
+    from lipgen.recon.crosscheck import tracking_lines
     from lipgen.recon.pipeline import reconstruct_dataset
     from lipgen.recon.restsource import check_rest_options, rest_line
 
@@ -204,9 +203,8 @@ def _run(args) -> int:
     recon.save(out)
     account = recon.info["sightings"]
     sys.stderr.write("\n".join(account_lines(account)) + "\n")
-    for line in (anchor_line(recon.info["tracking_anchor"]), cross_check_line(recon.info.get("cross_check"))):
-        if line:
-            sys.stderr.write(line + "\n")
+    for line in tracking_lines(recon.info):
+        sys.stderr.write(line + "\n")
     sys.stdout.write(f"reconstructed {len(recon.fields)} frames ({100 * account['accepted_share']:.1f}% of "
                      f"marker sightings accepted: seen in both views, rays agreeing; calibration "
                      f"{recon.calibration.rms['all']:.3f} px RMS; displacements from {rest_line(recon)})"

@@ -240,8 +240,7 @@ def _displacement_md(s: dict) -> list[str]:
 def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None) -> Path:
     """Write ``report.md``, ``report.json`` and the pictures into folder ``out``."""
     from lipgen.evaluate.metric import ERROR_DEFINITION
-    from lipgen.recon.anchor import anchor_line
-    from lipgen.recon.crosscheck import cross_check_line
+    from lipgen.recon.crosscheck import tracking_lines
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -285,10 +284,8 @@ def write_report(out, s: dict, ds, model, recon, mesh, extra: dict | None = None
         L.append(f"| {v} | {_fmt(t['rms_px'])} | {_fmt(t['p95_px'])} | {_fmt(t['tracked_share'])} | "
                  f"{t.get('accepted', 'n/a')} | {t.get('rejected', 'n/a')} | {t.get('lost', 'n/a')} | "
                  f"{t['wrong_over_3px']} | {t['false_sightings']} |")
-    info = recon.info
-    for line in (anchor_line(info.get("tracking_anchor")), cross_check_line(info.get("cross_check"))):
-        if line:
-            L += ["", line]
+    for line in tracking_lines(recon.info):
+        L += ["", line]
     never = recon.info.get("sightings", {}).get("never_tracked", [])
     if never:
         L += ["", "**Never tracked** (whole sequence):", ""]

@@ -37,11 +37,11 @@ from dataclasses import fields
 
 import numpy as np
 
-from lipgen.recon.anchor import TrackFn, track_from_anchor
+from lipgen.recon.anchor import TrackFn, anchor_line, track_from_anchor
 from lipgen.recon.association import LOST
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["reversed_run", "arbitrate", "cross_check", "cross_check_line"]
+__all__ = ["reversed_run", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
 
 
 def _reversed(tracks: Tracks) -> Tracks:
@@ -221,3 +221,11 @@ def cross_check_line(record: dict | None) -> str | None:
             f"({record['kept']} kept from the first run, {record['swapped']} taken from the second, "
             f"{record['dropped']} dropped); {record['filled']} sighting(s) the first run lacked were filled "
             "from the second.")
+
+
+def tracking_lines(info: dict) -> list[str]:
+    """The sentences on where tracking started and what its second run changed (:func:`anchor_line`,
+    :func:`cross_check_line`) for a reconstruction's ``info``, the ones that apply: for
+    ``lipgen reconstruct``'s output and ``lipgen evaluate``'s report."""
+    lines = (anchor_line(info.get("tracking_anchor")), cross_check_line(info.get("cross_check")))
+    return [line for line in lines if line]

@@ -311,11 +311,10 @@ class ReconstructSettings:
     confirm_blobs: bool = True
 
     def __post_init__(self):
-        for name in ("cross_check", "cross_check_fill", "cross_check_arbitrate", "cross_check_keep"):
+        for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
+                     "cross_check_arbitrate", "cross_check_keep"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
-        if not isinstance(self.epipolar_blobs, bool):
-            raise ValueError(f"settings.epipolar_blobs must be True or False, got {self.epipolar_blobs!r}")
         share = self.epipolar_blob_share
         if isinstance(share, bool) or not (isinstance(share, numbers.Real) and 0 < share <= 1):
             raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "
@@ -335,8 +334,6 @@ class ReconstructSettings:
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.first_frame_repose must be None (off) or an integer >= 1 (markers "
                              f"matched in both views under which the layout is re-posed), got {n!r}")
-        if not isinstance(self.confirm_blobs, bool):
-            raise ValueError(f"settings.confirm_blobs must be True or False, got {self.confirm_blobs!r}")
         n = self.anchor_step
         if n is not None and (isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 1):
             raise ValueError(f"settings.anchor_step must be None (from frame 0) or an integer >= 1 (frames "
