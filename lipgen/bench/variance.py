@@ -16,6 +16,12 @@ interleaved: the linear truth subject (the ``default`` preset's physics: precomp
 responses, the jaw's solve and the contact LCP), and the reconstruction model's linear solve
 (``Physics(lip_mesh(0)).reach`` of the 16 dots' displacements). Ratios are medians of per-round
 ratios, in CPU time and in wall time, with the load average.
+
+Measured (2026-12-06, 2 cores, load 1-2, the two trees run alternately twice): 5.44-5.48 layer
+frames per CPU second with 19.1 steps per frame, 927-933 times the linear subject's CPU per frame;
+the code before (each tet's 12 x 12 Hessian eigen-clipped, the tangent assembled through COO and
+sliced, SuperLU's general ordering) made 2.29-2.32 frames per CPU second with 26.7 steps, 2208-2317
+times the linear subject's.
 """
 
 from __future__ import annotations

@@ -16,10 +16,11 @@ model altogether:
 - **the gum**: the inner side of the lower lip rests on the lower teeth and is pulled along by the
   jaw through stiff springs (the upper lip's inner side lies free on the upper teeth).
 
-Each frame is an energy minimisation (scipy's L-BFGS with the analytic gradient), warm-started
-from the previous frame, with the anchors and the jaw-carried border prescribed. In the
-small-strain limit it agrees with the linear elasticity of its own Hessian at rest (tested), and
-it departs from it at lip-sized strains (measured in the tests).
+Each frame is an energy minimisation (a Newton-like descent with a positive semi-definite
+tangent and a line search, :meth:`Layer.solve`), warm-started from the previous frame, with the
+anchors and the jaw-carried border prescribed. In the small-strain limit it agrees with the
+linear elasticity of its own Hessian at rest (tested), and it departs from it at lip-sized
+strains (measured in the tests).
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from lipgen.subject.layer_stiffness import StiffnessPattern, rest_stiffness, spd_solver, tet_hessians
 
 __all__ = ["Layer", "build_layer", "stvk_energy_density", "active_strain"]
 
@@ -178,69 +181,34 @@ class Layer:
             g[:, 1] += np.bincount(up, push, len(x)) - np.bincount(lo, push, len(x))
         return energy, g
 
-    def tangent(self, x: np.ndarray, clip: bool = True, active: np.ndarray | None = None):
-        """(6n, 6n) sparse stiffness at ``x``: each tet's Hessian with its negative eigenvalues
-        clipped (positive semi-definite, for a descent direction), plus the springs as in K0;
-        ``active`` as in :meth:`energy_grad`."""
-        from scipy.sparse import coo_matrix, diags
+    def tangent(self, x: np.ndarray, psd: bool = True, active: np.ndarray | None = None,
+                free_only: bool = False):
+        """Sparse stiffness at ``x``: the tets' energy Hessians, or with ``psd`` their positive
+        semi-definite parts (a descent direction;
+        :func:`~lipgen.subject.layer_stiffness.stress_derivative`), plus the springs as in K0 (the
+        contact springs engaged where the lips touch); ``active`` as in :meth:`energy_grad`.
 
-        t = self.tets
-        Dm_inv = self._dm_inv(active)
-        P0 = x[t[:, 0]]
-        Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
-        F = Ds @ Dm_inv
-        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
-        trE = np.trace(E, axis1=-2, axis2=-1)
-        S = 2 * self.mu[:, None, None] * E + (self.lam * trE)[:, None, None] * np.eye(3)
-        f = [F[..., 0], F[..., 1], F[..., 2]]
-        cof = np.stack([np.cross(f[1], f[2]), np.cross(f[2], f[0]), np.cross(f[0], f[1])], axis=-1)
-        J = np.sum(f[0] * cof[..., 0], axis=-1)
-        C = np.zeros((len(t), 9, 9))
-        for q in range(9):  # dP for dF = unit matrix q (row-major index)
-            dF = np.zeros((3, 3))
-            dF.flat[q] = 1.0
-            FtdF = np.swapaxes(F, -1, -2) @ dF
-            dE = 0.5 * (FtdF + np.swapaxes(FtdF, -1, -2))
-            trdE = np.trace(dE, axis1=-2, axis2=-1)
-            dS = 2 * self.mu[:, None, None] * dE + (self.lam * trdE)[:, None, None] * np.eye(3)
-            dP = dF @ S + F @ dS
-            df = [np.broadcast_to(dF[:, k], f[0].shape) for k in range(3)]
-            dcof = np.stack([np.cross(df[1], f[2]) + np.cross(f[1], df[2]),
-                             np.cross(df[2], f[0]) + np.cross(f[2], df[0]),
-                             np.cross(df[0], f[1]) + np.cross(f[0], df[1])], axis=-1)
-            dJ = cof.reshape(len(t), 9)[:, q]
-            dP = dP + self.kappa[:, None, None] * (dJ[:, None, None] * cof + (J - 1.0)[:, None, None] * dcof)
-            C[:, :, q] = dP.reshape(len(t), 9)
-        gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
-        G = np.zeros((len(t), 9, 12))  # dF_ij (row-major) per node dof (a, i)
-        for i in range(3):
-            for a in range(4):
-                G[:, 3 * i:3 * i + 3, 3 * a + i] = gN[:, a, :]
-        K = self.volume[:, None, None] * np.swapaxes(G, 1, 2) @ C @ G
-        K = 0.5 * (K + np.swapaxes(K, 1, 2))
-        w, U = np.linalg.eigh(K)
-        if clip:
-            K = (U * np.maximum(w, 0.0)[:, None, :]) @ np.swapaxes(U, 1, 2)
-        dof = (3 * t[:, :, None] + np.arange(3)).reshape(len(t), 12)
-        rows = np.broadcast_to(dof[:, :, None], K.shape).ravel()
-        cols = np.broadcast_to(dof[:, None, :], K.shape).ravel()
-        N3 = 3 * len(x)
-        M = coo_matrix((K.ravel(), (rows, cols)), shape=(N3, N3)).tocsr()
-        M = M + diags(np.repeat(self.gum, 3))
-        if len(self.contact_pairs):  # the engaged contact springs
-            on = self.contact_pairs[x[self.contact_pairs[:, 0], 1] < x[self.contact_pairs[:, 1], 1]]
-            M = M + _rest_stiffness(x, t[:0], self.Dm_inv[:0], self.volume[:0], self.mu[:0], self.lam[:0],
-                                    np.zeros(len(x)), on, self.contact_stiffness)
-        return M
+        (6n, 6n) CSC, or the free nodes' block if ``free_only`` (the solver's matrix).
+        """
+        key = "pattern_free" if free_only else "pattern_all"
+        if key not in self.cache:
+            on = np.repeat(~self.fixed, 3) if free_only else np.ones(3 * len(self.rest), bool)
+            self.cache[key] = StiffnessPattern(self.tets, on, self.contact_pairs)
+        K = tet_hessians(x, self.tets, self._dm_inv(active), self.volume, self.mu, self.lam, self.kappa, psd)
+        up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
+        touching = self.contact_stiffness * (x[up, 1] < x[lo, 1])
+        return self.cache[key].assemble(K, np.repeat(self.gum, 3), touching)
 
     def solve(self, force: np.ndarray, prescribed: np.ndarray, x0: np.ndarray | None = None,
               gum_target: np.ndarray | None = None, tol: float = 1e-4, maxiter: int = 100,
               callback=None, active: np.ndarray | None = None) -> np.ndarray:
         """Equilibrium positions (2n, 3): minimise the energy over the free nodes.
 
-        A Newton-like descent preconditioned by the rest stiffness :attr:`K0` (factorised once):
-        each step is ``-K0^-1 g``, shortened by backtracking until the energy decreases (Armijo),
-        so the energy decreases monotonically. Stops when the step is below ``tol`` mm.
+        A Newton-like descent: each step is ``-T^-1 g`` with ``T`` the positive semi-definite
+        tangent (:meth:`tangent`) of a recent position, shortened by backtracking until the energy
+        decreases (Armijo), so the energy decreases monotonically. The tangent is factorised
+        afresh after a shortened step and every fifth step until a fresh one takes a full step,
+        and is kept for the next call (frames are alike). Stops when the step is below ``tol`` mm.
 
         Parameters
         ----------
@@ -289,43 +257,12 @@ class Layer:
 
     def _factor(self, x: np.ndarray | None = None, active: np.ndarray | None = None):
         """A solver with the free block of K0 (``x`` None, cached) or of the tangent at ``x``."""
-        from scipy.sparse.linalg import factorized
-
-        dof_free = np.repeat(~self.fixed, 3)
         if x is not None:
-            K = self.tangent(x, active=active)[dof_free][:, dof_free]
-            return factorized((K + 1e-9 * self.cache["diag"]).tocsc())
+            return spd_solver(self.tangent(x, active=active, free_only=True) + 1e-9 * self.cache["diag"])
         if "solve" not in self.cache:
-            self.cache["solve"] = factorized(self.K0[dof_free][:, dof_free].tocsc())
+            dof_free = np.repeat(~self.fixed, 3)
+            self.cache["solve"] = spd_solver(self.K0[dof_free][:, dof_free])
         return self.cache["solve"]
-
-
-def _rest_stiffness(rest, tets, Dm_inv, volume, mu, lam, gum, pairs, kc):
-    """(3N, 3N) linear-elastic stiffness of the tets at rest (Lamé ``lam``, ``mu``), plus springs."""
-    from scipy.sparse import coo_matrix
-
-    gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3) shape gradients
-    # K[a, i, b, k] = V (lam dNa_i dNb_k + mu dNa_k dNb_i + mu delta_ik dNa . dNb)
-    K = (lam[:, None, None, None, None] * np.einsum("tai,tbk->taibk", gN, gN)
-         + mu[:, None, None, None, None] * np.einsum("tak,tbi->taibk", gN, gN)
-         + mu[:, None, None, None, None] * np.einsum("taj,tbj,ik->taibk", gN, gN, np.eye(3)))
-    K *= volume[:, None, None, None, None]
-    dof = (3 * tets[:, :, None] + np.arange(3)).reshape(len(tets), 12)
-    rows = np.broadcast_to(dof[:, :, None], (len(tets), 12, 12)).ravel()
-    cols = np.broadcast_to(dof[:, None, :], (len(tets), 12, 12)).ravel()
-    N3 = 3 * len(rest)
-    M = coo_matrix((K.reshape(len(tets), 12, 12).ravel(), (rows, cols)), shape=(N3, N3)).tocsr()
-    d = np.repeat(gum, 3).astype(float)
-    if len(pairs):  # the contact springs as if engaged: a preconditioner only
-        up, lo = 3 * pairs[:, 0] + 1, 3 * pairs[:, 1] + 1
-        r = np.concatenate([up, lo, up, lo])
-        c = np.concatenate([up, lo, lo, up])
-        v = np.concatenate([np.full(len(up), kc), np.full(len(up), kc), np.full(len(up), -kc),
-                            np.full(len(up), -kc)])
-        M = M + coo_matrix((v, (r, c)), shape=(N3, N3)).tocsr()
-    from scipy.sparse import diags
-
-    return (M + diags(d)).tocsr()
 
 
 def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float = 0.45,
@@ -388,8 +325,8 @@ def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float =
     scatter = coo_matrix((np.ones(4 * T), (tets.T.ravel(), np.arange(4 * T))), shape=(2 * n, 4 * T)).tocsr()
     Dm_inv, vol, kappa = np.linalg.inv(Dm), det / 6.0, kappa_ratio * mu
     # at rest the volume penalty adds kappa to lambda (d det F = tr dF)
-    K0 = _rest_stiffness(rest, tets, Dm_inv, vol, mu, lam + kappa, gum, pairs, float(contact_stiffness))
-    springs = _rest_stiffness(rest, tets[:0], Dm_inv[:0], vol[:0], mu[:0], lam[:0], gum, pairs,
+    K0 = rest_stiffness(rest, tets, Dm_inv, vol, mu, lam + kappa, gum, pairs, float(contact_stiffness))
+    springs = rest_stiffness(rest, tets[:0], Dm_inv[:0], vol[:0], mu[:0], lam[:0], gum, pairs,
                               float(contact_stiffness))
     dof_free = np.repeat(~fixed, 3)
     diag = K0.diagonal()[dof_free]
