@@ -100,6 +100,20 @@ def test_same_settings_same_bytes_with_two_workers(reference, tmp_path):
     assert not different, f"files differ between runs: {different[:5]}"
 
 
+def test_the_calibration_boards_are_drawn_once(tmp_path, monkeypatch):
+    """``prepare_dataset`` draws them (to check they fit the rig) and hands them to the renderers:
+    with lens frames a draw is about a second of rejection sampling, once per worker before."""
+    from dataclasses import replace
+
+    import lipgen.rig.target as target
+    from lipgen.dataset.generate import generate
+
+    calls, real = [], target.calibration_targets
+    monkeypatch.setattr(target, "calibration_targets", lambda *a, **k: calls.append(a) or real(*a, **k))
+    ds = generate(tmp_path / "ds", replace(TINY, frames=2, calib_frames=2), progress=False)
+    assert len(calls) == 1 and len(list((ds / "calib").glob("*.png"))) == 2
+
+
 def test_resume_after_a_kill_completes_identically(reference, tmp_path):
     from lipgen.dataset.generate import generate
 

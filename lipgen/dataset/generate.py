@@ -106,12 +106,13 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False, progress: bo
         from lipgen.dataset.video import check_video_codec
 
         check_video_codec(s.conditions.video_codec)  # the encoder: before the truth physics and any write
+    targets = None
     if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): before the truth physics
         from lipgen.rig.target import Chessboard, calibration_targets
 
         rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames, s.lens_frames, rng,
-                            s.conditions.mirror_extent_mm)
+        targets = calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames,
+                                      s.lens_frames, rng, s.conditions.mirror_extent_mm)
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)
@@ -161,7 +162,7 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False, progress: bo
     if done:
         log.info("resuming %s: %d files already written, %d to go", out, done, len(jobs))
     ctx = _Context(str(out), s.to_dict(), np.asarray(motion.vertices), np.asarray(motion.poses),
-                   np.asarray(motion.activations), str(mesh_path), dots)
+                   np.asarray(motion.activations), str(mesh_path), dots, targets)
     return ctx, jobs
 
 

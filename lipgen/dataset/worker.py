@@ -55,6 +55,10 @@ class _Context:
     activations: np.ndarray
     mesh_path: str
     dots: dict | None = None
+    calib_targets: list | None = None
+    """The calibration frames' boards (:func:`lipgen.rig.target.calibration_targets`), drawn once
+    by ``prepare_dataset`` (a second of rejection sampling with lens frames); None: each worker
+    draws them again (the same seed gives the same boards)."""
 
 
 _WORKER: dict = {}
@@ -145,7 +149,7 @@ def _render_job(job: tuple[str, int]):
     else:
         from lipgen.rig.target import board_scene
 
-        board, P, lens = _calib_poses(rig, w["board"], s)[i]
+        board, P, lens = (ctx.calib_targets or _calib_poses(rig, w["board"], s))[i]
         if c.is_ideal:
             image = w["renderer"].render(board_scene(board, P)).image
         else:
