@@ -109,3 +109,20 @@ def test_ratios_against_a_second_baseline_are_per_round(monkeypatch, tmp_path):
     assert over["ratio"] == pytest.approx(2.5)
     assert over["ratio_spread"]["rounds"] == pytest.approx([2.5] * 3)
     assert over["wall_ratio"] == pytest.approx(1.0)  # the fake's wall is 2 s per frame in every tree
+
+
+def test_the_suite_times_hard_frames_with_and_without_their_truth_physics(monkeypatch, tmp_path):
+    """``hard`` runs with the linear truth (the frame pipeline), ``hard_layer`` with the hard
+    preset's own tissue layer (what a user waits for), in the same rounds."""
+    per_frame = {"base": 0.1, "base_one_thread": 0.1, "new": 0.05, "hard": 0.15, "hard_layer": 0.3}
+    runs, seen = _fake_runs({n: [(1.0, c, 0.0)] for n, c in per_frame.items()})
+    monkeypatch.setattr(g, "_runs", runs)
+    monkeypatch.setattr(g, "base_tree", lambda dest, commit=g.BASE_COMMIT: tmp_path)
+    out = g.run(quick=True)
+    trees, envs, _ = seen[-1]
+    assert set(trees) == {"base", "base_one_thread", "hard", "hard_layer"}
+    assert envs["hard_layer"]["LIPGEN_BENCH_PHYSICS"] == "layer"
+    assert "LIPGEN_BENCH_PHYSICS" not in envs["hard"]
+    assert 'os.environ.get("LIPGEN_BENCH_PHYSICS", "linear")' in g._DRIVER
+    assert out["hard_over_base_one_thread"]["ratio"] == pytest.approx(0.1 / 0.15)
+    assert out["hard_layer_over_base_one_thread"]["ratio"] == pytest.approx(0.1 / 0.3)
