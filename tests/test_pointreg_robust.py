@@ -66,3 +66,44 @@ def test_trimmed_registration_is_exact_without_lures_or_missing_dots():
     match, aligned = register_nonrigid(dots[order], layout, 6.0, robust=True)
     np.testing.assert_array_equal(order[match], np.arange(len(layout)))
     np.testing.assert_allclose(aligned, dots, atol=1e-9)
+
+
+def _dense_hypotheses(dots, expected, gate):
+    """``pointreg._hypotheses`` as first written: every hypothesis against every dot, (H, P, k)."""
+    from lipgen.recon import pointreg
+
+    calls = []
+
+    def dense(tree, d, moved, gate):
+        calls.append(1)
+        return np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)
+
+    orig = pointreg._nearest_within
+    pointreg._nearest_within = dense
+    try:
+        return pointreg._hypotheses(dots, expected, gate), len(calls)
+    finally:
+        pointreg._nearest_within = orig
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_two_point_hypotheses_match_every_distance_measured(seed):
+    """The nearest dots come from a k-d tree, but the winner is the one the dense (H, P, k) distances
+    give, bit for bit, with clutter, a duplicated dot (a tie) and dots far outside the gate."""
+    from scipy.spatial import cKDTree
+
+    from lipgen.recon import pointreg
+
+    rng = np.random.default_rng(seed)
+    layout, dots, _ = _case(seed, 6.0)
+    clutter = rng.uniform(dots.min(0) - 40, dots.max(0) + 40, (150, 2))
+    dots = np.vstack([dots, clutter, dots[:1], [[1e4, 1e4]]])
+    want, n = _dense_hypotheses(dots, layout, 3.0)
+    assert n > 0 and np.array_equal(pointreg._hypotheses(dots, layout, 3.0), want)
+    moved = (rng.normal(size=(50, len(layout))) * 30 + 1j * rng.normal(size=(50, len(layout))) * 30)
+    d = dots[:, 0] + 1j * dots[:, 1]
+    near = pointreg._nearest_within(cKDTree(dots), d, moved, 3.0)
+    dense = np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)
+    assert np.array_equal(near[dense < 3.0], dense[dense < 3.0])
+    assert np.all(np.isinf(near[dense >= 3.0 * 1.01]))
+    assert np.array_equal(pointreg._hypotheses(dots[:1], layout, 3.0), layout)  # one dot: no pair

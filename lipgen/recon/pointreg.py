@@ -72,8 +72,13 @@ def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarr
     similarity (as complex numbers, z -> a z + b); the one that brings the most layout points
     within ``gate`` of some dot wins. Returns the moved layout (P, 2).
     """
+    from scipy.spatial import cKDTree
+
+    if len(dots) < 2:  # no pair of dots: no hypothesis
+        return expected
     e = expected[:, 0] + 1j * expected[:, 1]
     d = dots[:, 0] + 1j * dots[:, 1]
+    tree = cKDTree(dots)
     centred = expected - expected.mean(0)
     _, _, axes = np.linalg.svd(centred, full_matrices=False)
     proj = centred @ axes.T
@@ -92,7 +97,7 @@ def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarr
         if len(z) == 0:
             continue
         moved = z[:, None] * e[None, :] + off[:, None]                        # (H, P)
-        near = np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)       # (H, P)
+        near = _nearest_within(tree, d, moved, gate)                          # (H, P)
         inliers = (near < gate).sum(1)
         spread = -np.minimum(near, gate).sum(1)
         h = int(np.lexsort((spread, inliers))[-1])
@@ -100,6 +105,23 @@ def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarr
             best_key = (int(inliers[h]), float(spread[h]))
             best = np.column_stack([moved[h].real, moved[h].imag])
     return best
+
+
+def _nearest_within(tree, d: np.ndarray, moved: np.ndarray, gate: float) -> np.ndarray:
+    """``|moved - d|`` to the nearest dot (complex, as ``moved (H, P)`` and ``d (k,)``) where one is
+    within ``gate``, else inf: what the hypotheses' count and spread need, without the (H, P, k)
+    array of every distance (a frame's texture makes k several hundred: 0.3 s per call on ``hard``).
+    The two nearest by the tree are measured as the dense version measured them, so the values are
+    the same to the bit."""
+    pts = np.column_stack([moved.real.ravel(), moved.imag.ravel()])
+    k = min(2, len(d))
+    _, idx = tree.query(pts, k=k, distance_upper_bound=gate * (1 + 1e-6) + 1e-9)
+    idx = idx.reshape(len(pts), k)
+    near = np.full(len(pts), np.inf)
+    for c in range(k):
+        found = idx[:, c] < len(d)
+        near[found] = np.minimum(near[found], np.abs(moved.ravel()[found] - d[idx[found, c]]))
+    return near.reshape(moved.shape)
 
 
 def _icp(dots: np.ndarray, expected: np.ndarray, start: np.ndarray, gate: float, iterations: int
