@@ -41,7 +41,6 @@ from lipgen.dataset.layout import (
 )
 from lipgen.dataset.simulation import face_look, simulate_motion, speech_phones
 from lipgen.dataset.worker import (  # noqa: F401  (the private names: bench and tests drive a worker)
-    _CALIB_STREAM,
     _WORKER,
     _close_worker,
     _Context,
@@ -50,6 +49,7 @@ from lipgen.dataset.worker import (  # noqa: F401  (the private names: bench and
     _render_job,
     _run_job,
     _write,
+    draw_calib_boards,
     render_jobs,
 )
 from lipgen.rig.camera import default_rig
@@ -106,13 +106,8 @@ def prepare_dataset(out, s: GenerateSettings, resume: bool = False, progress: bo
         from lipgen.dataset.video import check_video_codec
 
         check_video_codec(s.conditions.video_codec)  # the encoder: before the truth physics and any write
-    targets = None
-    if s.calib_frames:  # can the board be placed at all? (a tiny --size cannot): before the truth physics
-        from lipgen.rig.target import Chessboard, calibration_targets
-
-        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        targets = calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames,
-                                      s.lens_frames, rng, s.conditions.mirror_extent_mm)
+    # can the board be placed at all? (a tiny --size cannot): before the truth physics
+    targets = draw_calib_boards(rig, s) if s.calib_frames else None
     phones, audio = speech_phones(s) if (s.speech or s.speech_text) else (None, None)
     motion = simulate_motion(s, phones, progress=progress)  # the truth physics' bar
     marks = np.concatenate([motion.markers_world, motion.nose_world[:, None]], axis=1)

@@ -81,7 +81,6 @@ def _init_pool_worker(ctx: _Context, parent_pid: int) -> None:
 def _init_worker(ctx: _Context, renderer=None) -> None:
     from lipgen.mesh.lipmesh import LipMesh
     from lipgen.rig.backends import open_renderer
-    from lipgen.rig.target import Chessboard
 
     s = GenerateSettings.from_dict(ctx.settings)
     c = s.conditions
@@ -93,7 +92,7 @@ def _init_worker(ctx: _Context, renderer=None) -> None:
 
         dots = SurfaceDots.from_dict(ctx.dots, mesh.n_faces)
     face = FaceModel(mesh, face_look(s), dots=dots)
-    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face, board=Chessboard(*s.board),
+    _WORKER.update(ctx=ctx, s=s, rig=rig, mesh=mesh, face=face,
                    renderer=renderer or open_renderer(s.renderer, rig, c, s.cycles_samples, s.seed % 2**31))
     if not c.is_ideal:
         from lipgen.rig.imaging import FrameFormer
@@ -149,7 +148,7 @@ def _render_job(job: tuple[str, int]):
     else:
         from lipgen.rig.target import board_scene
 
-        board, P, lens = (ctx.calib_targets or _calib_poses(rig, w["board"], s))[i]
+        board, P, lens = _calib_poses(ctx, rig, s)[i]
         if c.is_ideal:
             image = w["renderer"].render(board_scene(board, P)).image
         else:
@@ -199,15 +198,23 @@ def _write(image, truth, png, npz, kind_tag, level, extras=()) -> None:
     save_npz(npz, kind_tag, SCHEMA, truth, clean=clean)
 
 
-def _calib_poses(rig: MirrorRig, board, s: GenerateSettings) -> list:
-    """Per calibration frame: (board, pose, view a lens frame fills or None)."""
-    from lipgen.rig.target import calibration_targets
+def draw_calib_boards(rig: MirrorRig, s: GenerateSettings) -> list:
+    """Per calibration frame of settings ``s``: (board, pose, view a lens frame fills or None), drawn
+    from the dataset seed's calibration stream (:func:`lipgen.rig.target.calibration_targets`)."""
+    from lipgen.rig.target import Chessboard, calibration_targets
 
+    rng = np.random.default_rng([s.seed, _CALIB_STREAM])
+    return calibration_targets(rig, Chessboard(*s.board), s.calib_frames - s.lens_frames, s.lens_frames, rng,
+                               s.conditions.mirror_extent_mm)
+
+
+def _calib_poses(ctx: _Context, rig: MirrorRig, s: GenerateSettings) -> list:
+    """The context's boards (drawn by ``prepare_dataset``), else drawn once in this worker."""
+    if ctx.calib_targets is not None:
+        return ctx.calib_targets
     key = ("calib_poses", s.calib_frames, s.lens_frames)
     if key not in _WORKER:
-        rng = np.random.default_rng([s.seed, _CALIB_STREAM])
-        _WORKER[key] = calibration_targets(rig, board, s.calib_frames - s.lens_frames, s.lens_frames, rng,
-                                           s.conditions.mirror_extent_mm)
+        _WORKER[key] = draw_calib_boards(rig, s)
     return _WORKER[key]
 
 
