@@ -30,7 +30,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from lipgen.subject.layer_stiffness import StiffnessPattern, rest_stiffness, spd_solver, tet_hessians
+from lipgen.subject.layer_stiffness import (
+    StiffnessPattern,
+    deformation_gradients,
+    rest_stiffness,
+    spd_solver,
+    strain_state,
+    tet_hessians,
+)
 
 __all__ = ["Layer", "build_layer", "stvk_energy_density", "active_strain"]
 
@@ -146,19 +153,11 @@ class Layer:
         inverse of each tetrahedron's isochoric active strain (:func:`active_strain`), whose
         elastic part ``F Fa^-1`` the energy measures (a contracting muscle), or None.
         """
-        t = self.tets
         Dm_inv = self._dm_inv(active)
-        P0 = x[t[:, 0]]
-        Ds = np.stack([x[t[:, 1]] - P0, x[t[:, 2]] - P0, x[t[:, 3]] - P0], axis=-1)
-        F = Ds @ Dm_inv
-        E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
-        trE = np.trace(E, axis1=-2, axis2=-1)
+        F = deformation_gradients(x, self.tets, Dm_inv)
+        E, trE, S, cof, J = strain_state(F, self.mu, self.lam)
         W = self.mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * self.lam * trE**2
-        S = 2 * self.mu[:, None, None] * E + (self.lam * trE)[:, None, None] * np.eye(3)
         Pk = F @ S  # first Piola-Kirchhoff stress
-        f0, f1, f2 = F[..., 0], F[..., 1], F[..., 2]
-        cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)  # det(F) F^-T
-        J = np.sum(f0 * cof[..., 0], axis=-1)
         Wv = 0.5 * self.kappa * (J - 1.0) ** 2
         stress = Pk + (self.kappa * (J - 1.0))[:, None, None] * cof
         H = self.volume[:, None, None] * stress @ np.swapaxes(Dm_inv, -1, -2)  # dE/dDs

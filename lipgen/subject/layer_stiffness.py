@@ -11,13 +11,35 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["stress_derivative", "tet_hessians", "StiffnessPattern", "spd_solver", "rest_stiffness"]
+__all__ = ["deformation_gradients", "strain_state", "stress_derivative", "tet_hessians", "StiffnessPattern",
+           "spd_solver", "rest_stiffness"]
 
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
     _LEVI_CIVITA[_i, _j, _k], _LEVI_CIVITA[_i, _k, _j] = 1.0, -1.0
 _COFACTOR_DERIVATIVE = np.einsum("ikn,jlq->nqijkl", _LEVI_CIVITA, _LEVI_CIVITA).reshape(9, 81)
 """d cof(F)_ij / dF_kl = eps_ikn eps_jlq F_nq, as a (9 [nq], 81 [ijkl]) matrix."""
+
+
+def deformation_gradients(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) deformation gradient of each tet at node positions ``x`` (N, 3), with inverse rest
+    edge matrices ``Dm_inv`` (T, 3, 3)."""
+    P0 = x[tets[:, 0]]
+    Ds = np.stack([x[tets[:, 1]] - P0, x[tets[:, 2]] - P0, x[tets[:, 3]] - P0], axis=-1)
+    return Ds @ Dm_inv
+
+
+def strain_state(F: np.ndarray, mu, lam):
+    """The Green strain ``E`` (T, 3, 3), its trace (T,), the St Venant-Kirchhoff second
+    Piola-Kirchhoff stress ``S`` (T, 3, 3), the cofactor matrix ``det(F) F^-T`` (T, 3, 3) and
+    ``J = det F`` (T,) of deformation gradients ``F`` (T, 3, 3)."""
+    E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
+    trE = np.trace(E, axis1=-2, axis2=-1)
+    S = 2 * mu[:, None, None] * E + (lam * trE)[:, None, None] * np.eye(3)
+    f0, f1, f2 = F[..., 0], F[..., 1], F[..., 2]
+    cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)
+    J = np.sum(f0 * cof[..., 0], axis=-1)
+    return E, trE, S, cof, J
 
 
 def stress_derivative(F: np.ndarray, mu, lam, kappa, psd: bool = False) -> np.ndarray:
@@ -48,12 +70,7 @@ def stress_derivative(F: np.ndarray, mu, lam, kappa, psd: bool = False) -> np.nd
     """
     T = len(F)
     eye = np.eye(3)
-    E = 0.5 * (np.swapaxes(F, -1, -2) @ F - eye)
-    trE = np.trace(E, axis1=-2, axis2=-1)
-    S = 2 * mu[:, None, None] * E + (lam * trE)[:, None, None] * eye
-    f0, f1, f2 = F[..., 0], F[..., 1], F[..., 2]
-    cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)
-    J = np.sum(f0 * cof[..., 0], axis=-1)
+    _, _, S, cof, J = strain_state(F, mu, lam)
     if psd:
         w, U = np.linalg.eigh(S)
         S = (U * np.maximum(w, 0.0)[:, None, :]) @ np.swapaxes(U, 1, 2)
@@ -84,9 +101,7 @@ def tet_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, volume: np
     volume, mu, lam, kappa : (T,) float
     psd : bool
     """
-    P0 = x[tets[:, 0]]
-    Ds = np.stack([x[tets[:, 1]] - P0, x[tets[:, 2]] - P0, x[tets[:, 3]] - P0], axis=-1)
-    C = stress_derivative(Ds @ Dm_inv, mu, lam, kappa, psd=psd)
+    C = stress_derivative(deformation_gradients(x, tets, Dm_inv), mu, lam, kappa, psd=psd)
     gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
     G = np.zeros((len(tets), 9, 12))  # dF_ij (row-major) per node dof (a, k): delta_ik gN[a, j]
     for i in range(3):
