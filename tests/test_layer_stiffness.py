@@ -73,13 +73,8 @@ def test_the_tangent_is_the_derivative_of_the_gradient(touching):
     M = L.tangent(x, psd=False).toarray()
     f = np.zeros_like(x)
     h = 1e-6
-    for d in np.random.default_rng(4).choice(x.size, 25, replace=False):
-        xp, xm = x.copy(), x.copy()
-        xp.flat[d] += h
-        xm.flat[d] -= h
-        fd = (L.energy_grad(xp, f)[1] - L.energy_grad(xm, f)[1]).ravel() / (2 * h)
-        assert np.allclose(M[:, d], fd, rtol=1e-5, atol=1e-6 * np.abs(M[:, d]).max())
-    for d in 3 * pairs[::2, 0] + 1:  # the engaged contact springs' y dofs
+    engaged = 3 * pairs[::2, 0] + 1  # the engaged contact springs' y dofs
+    for d in np.concatenate([np.random.default_rng(4).choice(x.size, 25, replace=False), engaged]):
         xp, xm = x.copy(), x.copy()
         xp.flat[d] += h
         xm.flat[d] -= h

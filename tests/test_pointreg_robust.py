@@ -68,7 +68,7 @@ def test_trimmed_registration_is_exact_without_lures_or_missing_dots():
     np.testing.assert_allclose(aligned, dots, atol=1e-9)
 
 
-def _dense_hypotheses(dots, expected, gate):
+def _dense_hypotheses(monkeypatch, dots, expected, gate):
     """``pointreg._hypotheses`` as first written: every hypothesis against every dot, (H, P, k)."""
     from lipgen.recon import pointreg
 
@@ -78,16 +78,13 @@ def _dense_hypotheses(dots, expected, gate):
         calls.append(1)
         return np.abs(moved[:, :, None] - d[None, None, :]).min(axis=2)
 
-    orig = pointreg._nearest_within
-    pointreg._nearest_within = dense
-    try:
+    with monkeypatch.context() as m:
+        m.setattr(pointreg, "_nearest_within", dense)
         return pointreg._hypotheses(dots, expected, gate), len(calls)
-    finally:
-        pointreg._nearest_within = orig
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_the_two_point_hypotheses_match_every_distance_measured(seed):
+def test_the_two_point_hypotheses_match_every_distance_measured(seed, monkeypatch):
     """The nearest dots come from a k-d tree, but the winner is the one the dense (H, P, k) distances
     give, bit for bit, with clutter, a duplicated dot (a tie) and dots far outside the gate."""
     from scipy.spatial import cKDTree
@@ -98,7 +95,7 @@ def test_the_two_point_hypotheses_match_every_distance_measured(seed):
     layout, dots, _ = _case(seed, 6.0)
     clutter = rng.uniform(dots.min(0) - 40, dots.max(0) + 40, (150, 2))
     dots = np.vstack([dots, clutter, dots[:1], [[1e4, 1e4]]])
-    want, n = _dense_hypotheses(dots, layout, 3.0)
+    want, n = _dense_hypotheses(monkeypatch, dots, layout, 3.0)
     assert n > 0 and np.array_equal(pointreg._hypotheses(dots, layout, 3.0), want)
     moved = (rng.normal(size=(50, len(layout))) * 30 + 1j * rng.normal(size=(50, len(layout))) * 30)
     d = dots[:, 0] + 1j * dots[:, 1]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
 
 from lipgen._validate import as_float_array
 
@@ -72,8 +73,6 @@ def _hypotheses(dots: np.ndarray, expected: np.ndarray, gate: float) -> np.ndarr
     similarity (as complex numbers, z -> a z + b); the one that brings the most layout points
     within ``gate`` of some dot wins. Returns the moved layout (P, 2).
     """
-    from scipy.spatial import cKDTree
-
     if len(dots) < 2:  # no pair of dots: no hypothesis
         return expected
     e = expected[:, 0] + 1j * expected[:, 1]
