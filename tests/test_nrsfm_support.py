@@ -132,3 +132,43 @@ def test_the_same_bytes_with_one_or_two_blas_threads():
     with blas_threads(2):
         two = depth_support(W, 2)
     assert one == two and one[1]["rival"]["found"]
+
+
+def test_the_halves_of_incomplete_tracks_start_from_the_whole_sequence(monkeypatch):
+    """Development body 1100 with a tenth of its points hidden at random: the halves started from the
+    whole sequence's completed tracks disagree by what the halves started from their own do (7.8
+    degrees both, measured), in 32 completion steps instead of 60; k="auto" hands them its first
+    stage's tracks."""
+    import lipgen.nrsfm.completion as completion
+    from lipgen.experiments.nrsfm_benchmarks import hide_points
+    from lipgen.nrsfm._tracks import check_tracks
+    from lipgen.nrsfm.engine import _dai_rotations, _normalise_scale
+
+    s = human_sequence(1100, 40)
+    vis = hide_points(40, s.W.shape[1], "random")
+    W = np.where(np.repeat(vis, 2, axis=0), s.W, np.nan)
+    steps = []
+    run = completion.SubspaceCompletion.run
+
+    def counted(self, max_iter):
+        before = self.steps
+        run(self, max_iter)
+        steps.append(self.steps - before)
+
+    monkeypatch.setattr(completion.SubspaceCompletion, "run", counted)
+    cold, _ = rotation_stability(W, 4, vis)
+    cold_steps, steps[:] = sum(steps), []
+    whole = _dai_rotations(check_tracks(_normalise_scale(W, vis)[0], vis), 4, seed=0, n_starts=4)[0]
+    steps[:] = []
+    warm, record = rotation_stability(W, 4, vis, start=whole)
+    assert warm < 0.3 * SUPPORT_DEG and abs(warm - cold) < 0.1 and record["k"] == 4
+    assert 0 < sum(steps) < cold_steps
+    seen = {}
+
+    def spy(*args, start=None, **kwargs):
+        seen["start"] = start
+        return 0.0, {}
+
+    monkeypatch.setattr("lipgen.nrsfm.support.rotation_stability", spy)
+    depth_support(W, 4, vis, first_stage=(whole, None, {}, None))
+    assert seen["start"] is whole

@@ -196,7 +196,7 @@ def check_k(k, n_frames: int, n_points: int, n_observed: int | None = None,
 
 
 def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 100, tol: float = 1e-9,
-                    return_residual: bool = False, resume=None):
+                    return_residual: bool = False, resume=None, start=None):
     """Tracks with unobserved entries filled from the best rank-``rank`` model plus translation.
 
     Fits ``W ~ M B + t 1^T`` (M: 2F x rank, B: rank x P, t: per-row translation) to the observed
@@ -204,7 +204,8 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 100, tol: float =
     each hidden entry is then the least-squares combination of what the model says and of the
     point's track interpolated in time (weighted by their measured errors). Complete tracks are
     returned unchanged. ``resume``: a stopped completion of these tracks at this rank to go on with
-    (:class:`lipgen.nrsfm.completion.SubspaceCompletion`).
+    (:class:`lipgen.nrsfm.completion.SubspaceCompletion`); ``start``: complete rows over the same points
+    to start the fit from (:func:`lipgen.nrsfm.completion.complete_subspace`).
 
     Returns
     -------
@@ -219,7 +220,8 @@ def complete_tracks(tracks: Tracks, rank: int, max_iter: int = 100, tol: float =
     W = tracks.W
     if tracks.complete:
         return (W.copy(), 0.0) if return_residual else W.copy()
-    full, misfit, _ = complete_subspace(W, tracks.mask, rank, max_iter=max_iter, tol=tol, resume=resume)
+    full, misfit, _ = complete_subspace(W, tracks.mask, rank, max_iter=max_iter, tol=tol, resume=resume,
+                                        start=start)
     return (full, misfit) if return_residual else full
 
 

@@ -162,6 +162,18 @@ def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
     return out
 
 
+def _start_rows(start, P: int) -> np.ndarray:
+    """``start`` as a finite (m, P) float array, or a ValueError naming its shape."""
+    rows = np.asarray(start, dtype=np.float64)
+    if rows.ndim != 2 or rows.shape[1] != P or rows.shape[0] < 1:
+        raise ValueError(f"start must be complete rows over the tracks' {P} points, shape (m, {P}); got "
+                         f"shape {rows.shape}")
+    if not np.isfinite(rows).all():
+        raise ValueError(f"start (shape {rows.shape}) has {int((~np.isfinite(rows)).sum())} NaN or infinite "
+                         "entries; it must be complete tracks")
+    return rows
+
+
 def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal N (P x d, orthogonal to the ones vector) and its complement Y within 1^perp."""
     P, d = N.shape
@@ -170,7 +182,7 @@ def _bases(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int = 100,
-                      tol: float = 1e-9, resume: SubspaceCompletion | None = None
+                      tol: float = 1e-9, resume: SubspaceCompletion | None = None, start=None
                       ) -> tuple[np.ndarray, float, dict]:
     """Complete tracks with the best rank-``rank`` plus translation model (Levenberg-Marquardt).
 
@@ -190,6 +202,11 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
     resume : SubspaceCompletion, optional
         The same completion (same W, mask, rank, tol) stopped at a lower cap: its steps are not run
         again (the result is bit for bit that of one run with ``max_iter``).
+    start : (m, P) array_like, optional
+        Complete rows over the same P points (e.g. the completed tracks of a longer sequence that holds
+        these frames) whose best rank-``rank`` row space the fit starts from, instead of that of the
+        tracks interpolated in time. A start near the answer saves most of the steps; the answer is
+        this fit's own (the observed entries alone decide where it converges). Not with ``resume``.
 
     Returns
     -------
@@ -205,7 +222,9 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
     if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 0:
         raise ValueError(f"max_iter must be an integer >= 0, got {max_iter!r}")
     if resume is None:
-        state = SubspaceCompletion(W, mask, rank, tol)
+        state = SubspaceCompletion(W, mask, rank, tol, start)
+    elif start is not None:
+        raise ValueError("start is for a new completion; resume goes on from where its own run stopped")
     else:
         _check_resume(resume, W, mask, rank, tol, max_iter)
         state = resume
@@ -242,10 +261,11 @@ class SubspaceCompletion:
     mask : (F, P) bool
     rank : int
     tol : float
+    start : (m, P) array_like, optional
         As :func:`complete_subspace`.
     """
 
-    def __init__(self, W: np.ndarray, mask: np.ndarray, rank: int, tol: float = 1e-9):
+    def __init__(self, W: np.ndarray, mask: np.ndarray, rank: int, tol: float = 1e-9, start=None):
         seen = np.repeat(mask, 2, axis=0)
         W0 = np.where(seen, W, 0.0)
         top = float(np.abs(W0).max())
@@ -260,7 +280,8 @@ class SubspaceCompletion:
         self.steps, self.done, self.frames = 0, d <= 0, None
         if self.done:   # every row fits exactly: the model says nothing about the hidden entries
             return
-        _, _, Vt = np.linalg.svd(self.prior - self.prior.mean(1, keepdims=True), full_matrices=False)
+        source = self.prior if start is None else _start_rows(start, P)
+        _, _, Vt = np.linalg.svd(source - source.mean(1, keepdims=True), full_matrices=False)
         self.N, self.Y = _bases(np.linalg.qr(np.column_stack([np.ones(P), Vt[:rank].T]),
                                              mode="complete")[0][:, rank + 1:])
         self.frames = _Frames(W0, mask, d)

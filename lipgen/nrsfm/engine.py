@@ -140,13 +140,14 @@ def _normalise_scale(W, visible):
     return W / unit, unit
 
 
-def _centred(tracks, k: int, completion_steps: int = 100, completion=None):
+def _centred(tracks, k: int, completion_steps: int = 100, completion=None, start=None):
     """Completed tracks centred per frame (2F, P), their translations (F, 2), and the record
     (``completion_steps``: the completion's cap on steps; ``completion``: a
-    :class:`lipgen.nrsfm.completion.SubspaceCompletion` of these tracks at rank 3K to go on with)."""
+    :class:`lipgen.nrsfm.completion.SubspaceCompletion` of these tracks at rank 3K to go on with;
+    ``start``: complete rows over the same points for a new completion to start from)."""
     F = tracks.n_frames
     full, misfit = complete_tracks(tracks, 3 * k, max_iter=completion_steps, return_residual=True,
-                                   resume=completion)
+                                   resume=completion, start=start)
     t = full.mean(axis=1)
     Wc = full - t[:, None]
     rank, sv = numerical_rank(Wc)
@@ -167,13 +168,13 @@ def _bregler(tracks, k: int):
 
 
 def _dai_rotations(tracks, k: int, *, seed: int, n_starts: int, completion_steps: int = 100,
-                   completion=None):
+                   completion=None, start=None):
     """``dai``'s first stage at K: the centred tracks (2F, P), translations (F, 2), the record and the
     rotations (F, 3, 3) of the corrective triple, before their per-frame signs are resolved
     (:func:`orient_frames` needs the shapes). ``completion_steps``: the cap on the completion's steps
     (fewer than its default 100 only for an estimate, :meth:`lipgen.nrsfm.kscan.DaiScan.estimate`);
-    ``completion``: as :func:`_centred`."""
-    Wc, t, info = _centred(tracks, k, completion_steps, completion)
+    ``completion``, ``start``: as :func:`_centred`."""
+    Wc, t, info = _centred(tracks, k, completion_steps, completion, start)
     M, _, _ = factor(Wc, min(3 * k, info["rank"]))
     g, cost = corrective_triple(M, n_starts=n_starts, seed=seed)
     R, _ = rotations_from_triple(M, g)
