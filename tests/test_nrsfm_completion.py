@@ -394,8 +394,9 @@ def test_a_start_must_be_complete_rows_over_the_same_points_and_not_resume():
     F, P, r = 40, 14, 8
     W = _low_rank(F, P, r, seed=5)
     mask = _mask(F, P, 0.2, 7)
-    for bad, words in ((np.zeros((5, P + 1)), r"shape \(5, 15\)"), (np.zeros(P), r"shape \(14,\)"),
-                       (np.full((3, P), np.nan), "42 NaN")):
+    for bad, words in ((np.zeros((12, P + 1)), r"shape \(12, 15\)"), (np.zeros(P), r"shape \(14,\)"),
+                       (np.zeros((r, P)), r"more than the rank 8.*shape \(8, 14\)"),
+                       (np.full((10, P), np.nan), "140 NaN")):
         with pytest.raises(ValueError, match=words):
             complete_subspace(W, mask, r, start=bad)
     state = complete_subspace(W, mask, r, max_iter=2)[2]["state"]

@@ -163,6 +163,8 @@ def test_the_halves_of_incomplete_tracks_start_from_the_whole_sequence(monkeypat
     warm, record = rotation_stability(W, 4, vis, start=whole)
     assert warm < 0.3 * SUPPORT_DEG and abs(warm - cold) < 0.1 and record["k"] == 4
     assert 0 < sum(steps) < cold_steps
+    with pytest.raises(ValueError, match=r"start must be complete rows.*got shape \(80, 5\)"):
+        rotation_stability(W, 4, vis, start=whole[:, :5])     # refused, not taken for a degenerate half
     seen = {}
 
     def spy(*args, start=None, **kwargs):

@@ -162,12 +162,13 @@ def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
     return out
 
 
-def _start_rows(start, P: int) -> np.ndarray:
-    """``start`` as a finite (m, P) float array, or a ValueError naming its shape."""
+def _start_rows(start, P: int, rank: int) -> np.ndarray:
+    """``start`` as a finite (m, P) float array with m > ``rank`` (enough rows to span a rank-``rank``
+    model besides the translation), or a ValueError naming its shape."""
     rows = np.asarray(start, dtype=np.float64)
-    if rows.ndim != 2 or rows.shape[1] != P or rows.shape[0] < 1:
-        raise ValueError(f"start must be complete rows over the tracks' {P} points, shape (m, {P}); got "
-                         f"shape {rows.shape}")
+    if rows.ndim != 2 or rows.shape[1] != P or rows.shape[0] <= rank:
+        raise ValueError(f"start must be complete rows over the tracks' {P} points, more than the rank "
+                         f"{rank} of them, shape (m > {rank}, {P}); got shape {rows.shape}")
     if not np.isfinite(rows).all():
         raise ValueError(f"start (shape {rows.shape}) has {int((~np.isfinite(rows)).sum())} NaN or infinite "
                          "entries; it must be complete tracks")
@@ -205,8 +206,9 @@ def complete_subspace(W: np.ndarray, mask: np.ndarray, rank: int, max_iter: int 
     start : (m, P) array_like, optional
         Complete rows over the same P points (e.g. the completed tracks of a longer sequence that holds
         these frames) whose best rank-``rank`` row space the fit starts from, instead of that of the
-        tracks interpolated in time. A start near the answer saves most of the steps; the answer is
-        this fit's own (the observed entries alone decide where it converges). Not with ``resume``.
+        tracks interpolated in time. A start near the answer saves steps (about half, measured on noisy
+        tracks and on halves of a sequence); the answer is this fit's own (the observed entries alone
+        decide where it converges). Not with ``resume``.
 
     Returns
     -------
@@ -280,7 +282,7 @@ class SubspaceCompletion:
         self.steps, self.done, self.frames = 0, d <= 0, None
         if self.done:   # every row fits exactly: the model says nothing about the hidden entries
             return
-        source = self.prior if start is None else _start_rows(start, P)
+        source = self.prior if start is None else _start_rows(start, P, rank)
         _, _, Vt = np.linalg.svd(source - source.mean(1, keepdims=True), full_matrices=False)
         self.N, self.Y = _bases(np.linalg.qr(np.column_stack([np.ones(P), Vt[:rank].T]),
                                              mode="complete")[0][:, rank + 1:])

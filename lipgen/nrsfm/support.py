@@ -225,6 +225,10 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
     if kk < 1:
         return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": None,
                               "reason": "no K fits the halves: not tested"}
+    if start is not None and not tracks.complete:   # a bad start is the caller's error, not a half's
+        from lipgen.nrsfm.completion import _start_rows
+
+        _start_rows(start, P, 3 * kk)
     halves = []
     for first in (0, 1):
         rows = np.arange(2 * F).reshape(F, 2)[first::2].ravel()
