@@ -3,7 +3,9 @@ with e3D beside the published figures.
 
 Baseline, timed in the same run: the thin SVD of the centred tracks (the first step of every
 factorisation method); for missing points (``dai`` K = 12 and, in the full bench, K = auto; 10 %
-hidden), the complete case.
+hidden), the complete case. The full bench also times K = auto with points missing on a short
+sequence, development body :data:`BODY_SEED` at 80 frames, where it costs the most relative to the
+complete tracks (``renders/examples/nrsfm/miss31.md``).
 Without the benchmark files (``$LIPGEN_NRSFM_DATA``) a synthetic
 articulated sequence of the same size is timed instead and e3D is scored against its truth.
 """
@@ -21,6 +23,11 @@ NAME = "nrsfm"
 _KS = {"bregler": (4, 8, 12, 13), "dai": (4, 8, 12, 13), "dai-ba": (4, 8, 12), "em-ppca": (5, 11, 12)}
 _KS_QUICK = {"bregler": (4, 12), "dai": (4, 12), "dai-ba": (4,), "em-ppca": (5,)}
 """K per method; em-ppca's K counts modes beyond the mean shape (K + 1 basis shapes)."""
+
+BODY_SEED = 1702
+"""The validation body (:func:`lipgen.nrsfm.validation.human_sequence`, 80 frames) of the short-sequence
+missing-points case: 5.5x (random) and 6.7x (gaps) the complete tracks' CPU on 2026-12-06, over the
+issue's 5x."""
 
 
 def _sequence():
@@ -59,8 +66,9 @@ def run(quick: bool = False) -> dict:
     missing = _missing(W, S, rounds=1 if quick else 3)
     # K = auto costs ~35 s of CPU a round on drink: in the full bench only
     missing_auto = {"skipped": "quick"} if quick else _missing(W, S, rounds=2, k="auto")
+    missing_body = {"skipped": "quick"} if quick else _missing_body()
     return {"sequence": name, "frames": W.shape[0] // 2, "points": W.shape[1], "missing": missing,
-            "missing_auto": missing_auto,
+            "missing_auto": missing_auto, "missing_auto_body": missing_body,
             "svd_baseline_s": t_svd, "runs": runs, "flat_e3d": flat_e3d(W, S),
             "published_e3d": [{"source": s, "k": k, "e3d": e} for s, k, e in PUBLISHED["drink"]],
             "load_before": load_before, "load_after": os.getloadavg(),
@@ -90,3 +98,13 @@ def _missing(W, S, rounds: int, k: int | str = 12) -> dict:
     timing = interleaved({name: (lambda n=name: call(n)) for name in cases}, baseline="complete",
                          rounds=rounds, warmup=False)
     return {"k": k, "timing": timing, "e3d": e3ds, "k_used": used}
+
+
+def _missing_body(rounds: int = 2) -> dict:
+    """:func:`_missing` at K = auto on body :data:`BODY_SEED` (80 frames), with the body's name and size."""
+    from lipgen.nrsfm.validation import human_sequence
+
+    body = human_sequence(BODY_SEED, 80)
+    return {"sequence": body.name, "frames": body.W.shape[0] // 2, "points": body.W.shape[1],
+            **_missing(body.W, body.S, rounds=rounds, k="auto")}
+
