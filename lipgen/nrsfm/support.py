@@ -235,8 +235,7 @@ def rotation_stability(W, k: int, visible=None, *, seed: int = 0, n_starts: int 
         vis = None if tracks.complete else tracks.mask[first::2]
         try:
             half = check_tracks(tracks.W[rows], vis)
-            halves.append(_dai_rotations(half, kk, seed=seed, n_starts=n_starts,
-                                         start=None if half.complete or start is None else start)[3])
+            halves.append(_dai_rotations(half, kk, seed=seed, n_starts=n_starts, start=start)[3])
         except ValueError as err:  # a degenerate half (rank < 3, a point never seen): no figure
             return float("nan"), {"angle_deg": float("nan"), "mean_deg": float("nan"), "k": kk,
                                   "reason": f"a half could not be solved ({err}): not tested"}
