@@ -25,9 +25,11 @@ alternating least squares happened to stop).
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
+import scipy.linalg
 
 from lipgen._memory import reuse_freed_memory
 
@@ -115,27 +117,51 @@ class _Frames:
         if Y is None:
             return cost
         r = Y.shape[1]
-        H = np.zeros((r * r, d * d))
-        H2 = np.zeros((r * r, d * d))
+        # Every product below is symmetric in its r pair and in its d pair, so only the upper triangles
+        # are formed (a quarter of the work) and the normal matrix is gathered from them.
+        ur, ud = np.triu_indices(r), np.triu_indices(d)
+        H = np.zeros((ur[0].size, ud[0].size))
         g = np.zeros((r, d))
+        eye = np.eye(d)[ud][None]
         for (idx, rows), (NH, Ginv, c, res) in zip(self.groups, terms, strict=True):
-            n, h = idx.shape
             beta = rows @ Y                                       # (n, 2, r)
-            if h:
+            if idx.shape[1]:
                 YH = Y[idx]                                       # (n, h, r)
                 beta = beta - c @ YH
-                DtD = YH.transpose(0, 2, 1) @ Ginv @ YH           # (n, r, r)
-                rr = np.einsum("nkj,nki->nji", res, res).reshape(n, d * d)
-                H2 += DtD.reshape(n, r * r).T @ rr
-                bb = np.einsum("nkl,nkm->nlm", beta, beta).reshape(n, r * r)
-                Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH   # (n, d, d), for the normal matrix only
-                H += bb.T @ Pi.reshape(n, d * d)
+                DtD = (YH.transpose(0, 2, 1) @ Ginv @ YH)[:, ur[0], ur[1]]        # (n, r(r+1)/2)
+                rr = np.einsum("nkj,nki->nji", res, res)[:, ud[0], ud[1]]         # (n, d(d+1)/2)
+                Pi = eye - (NH.transpose(0, 2, 1) @ Ginv @ NH)[:, ud[0], ud[1]]   # for the normal matrix only
+                bb = np.einsum("nkl,nkm->nlm", beta, beta)[:, ur[0], ur[1]]
+                H += np.concatenate([bb, DtD]).T @ np.concatenate([Pi, rr])
             else:
-                bb = np.einsum("nkl,nkm->lm", beta, beta).reshape(r * r, 1)
-                H += bb @ np.eye(d).reshape(1, d * d)
+                bb = np.einsum("nkl,nkm->lm", beta, beta)[ur]
+                H += bb[:, None] * eye[0]
             g += np.einsum("nkl,nkj->lj", beta, res)
-        JtJ = (H + H2).reshape(r, r, d, d).transpose(0, 2, 1, 3).reshape(r * d, r * d)
+        JtJ = H.ravel()[_gather_index(r, d)]
         return cost, JtJ, g.ravel()
+
+
+@functools.lru_cache(maxsize=2)
+def _gather_index(r: int, d: int) -> np.ndarray:
+    """(r d, r d) int: where entry ((l, j), (m, k)) of the normal matrix sits in the (r(r+1)/2, d(d+1)/2)
+    table of upper-triangle pairs ((min(l, m), max(l, m)), (min(j, k), max(j, k)))."""
+    def pair(n):
+        i, j = np.minimum.outer(np.arange(n), np.arange(n)), np.maximum.outer(np.arange(n), np.arange(n))
+        return i * n - i * (i - 1) // 2 + (j - i)      # row-major position of (i, j) in the upper triangle
+    pr, pd = pair(r), pair(d)
+    ds = d * (d + 1) // 2
+    out = pr[:, None, :, None] * ds + pd[None, :, None, :]   # (l, j, m, k)
+    out = out.reshape(r * d, r * d)
+    out.flags.writeable = False
+    return out
+
+
+def _damped_step(JtJ: np.ndarray, diag: np.ndarray, lam: float, g: np.ndarray) -> np.ndarray:
+    """The Levenberg-Marquardt step ``-(JtJ + lam diag(diag))^-1 g`` by Cholesky (the matrix is symmetric
+    positive definite: half the work of a general LU). LinAlgError where it is not, in floating point."""
+    A = JtJ + lam * np.diag(diag)
+    factor = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
+    return scipy.linalg.cho_solve(factor, -g, check_finite=False)
 
 
 def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
@@ -318,7 +344,11 @@ class SubspaceCompletion:
             diag = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.diag(JtJ).max()), 1e-300))
             accepted = False
             while not accepted and lam < 1e12:
-                step = np.linalg.solve(JtJ + lam * np.diag(diag), -g)
+                try:
+                    step = _damped_step(JtJ, diag, lam, g)
+                except np.linalg.LinAlgError:   # not positive definite in floating point: damp more
+                    lam *= 10
+                    continue
                 Nn, Yn = _bases(np.linalg.qr(N + Y @ step.reshape(Y.shape[1], d))[0])
                 new = self.frames.evaluate(Nn)
                 if new < cost:
