@@ -167,7 +167,7 @@ def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singul
     """Rank P - 2 leaves one model row per frame; with its noise at the floor the normal equations'
     matrix rounded to a singular one (LinAlgError on drink with 10 % hidden at K = 13). The stacked
     least squares gives the exact-model closed form, and the moderate-noise answer is unchanged."""
-    from lipgen.nrsfm.completion import _fill
+    from lipgen.nrsfm.time_prior import fill_hidden as _fill
 
     F, P = 40, 10
     W = _low_rank(F, P, P - 2, seed=8)
@@ -196,7 +196,7 @@ def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singul
 
 
 def test_frames_to_the_nearest_sighting_match_the_direct_search():
-    from lipgen.nrsfm.completion import _frames_to_sighting
+    from lipgen.nrsfm.time_prior import _frames_to_sighting
 
     rng = np.random.default_rng(11)
     for F, P, frac in ((200, 9, 0.1), (50, 7, 0.7), (5, 3, 0.5)):
