@@ -167,7 +167,7 @@ def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singul
     """Rank P - 2 leaves one model row per frame; with its noise at the floor the normal equations'
     matrix rounded to a singular one (LinAlgError on drink with 10 % hidden at K = 13). The stacked
     least squares gives the exact-model closed form, and the moderate-noise answer is unchanged."""
-    from lipgen.nrsfm.completion import _fill
+    from lipgen.nrsfm.time_prior import fill_hidden as _fill
 
     F, P = 40, 10
     W = _low_rank(F, P, P - 2, seed=8)
@@ -196,7 +196,7 @@ def test_an_exact_model_with_fewer_rows_than_hidden_entries_is_filled_not_singul
 
 
 def test_frames_to_the_nearest_sighting_match_the_direct_search():
-    from lipgen.nrsfm.completion import _frames_to_sighting
+    from lipgen.nrsfm.time_prior import _frames_to_sighting
 
     rng = np.random.default_rng(11)
     for F, P, frac in ((200, 9, 0.1), (50, 7, 0.7), (5, 3, 0.5)):
@@ -402,3 +402,62 @@ def test_a_start_must_be_complete_rows_over_the_same_points_and_not_resume():
     state = complete_subspace(W, mask, r, max_iter=2)[2]["state"]
     with pytest.raises(ValueError, match="start is for a new completion"):
         complete_subspace(W, mask, r, resume=state, start=W)
+
+
+def test_the_normal_matrix_is_exactly_symmetric_from_its_upper_triangles():
+    # built from the upper triangles of its symmetric factors (a quarter of the products), with hidden
+    # points in some frames and none in others, r != d
+    F, P, r = 30, 11, 3
+    W = _low_rank(F, P, r) + 0.05 * np.random.default_rng(4).standard_normal((2 * F, P))
+    mask = _mask(F, P, 0.15, 5)
+    d = P - 1 - r
+    N, Y = _bases(np.random.default_rng(6).standard_normal((P, d)))
+    frames = _Frames(np.where(np.repeat(mask, 2, axis=0), W, 0.0), mask, d)
+    assert {idx.shape[1] for idx, _ in frames.groups} >= {0, 1, 2}
+    _, JtJ, _ = frames.evaluate(N, Y)
+    # the plain sum over every (l, m, j, k), written out
+    full = np.zeros((r, d, r, d))
+    for idx, rows in frames.groups:
+        for i, row in zip(idx, rows, strict=True):
+            NH, YH = N[i], Y[i]
+            G = np.linalg.inv(NH @ NH.T) if len(i) else np.zeros((0, 0))
+            Pi = np.eye(d) - NH.T @ G @ NH
+            for w in row:
+                a = w @ N
+                x = -G @ NH @ a                                   # the hidden entries' least-squares fill
+                beta = w @ Y + x @ YH
+                res = Pi @ a
+                full += np.einsum("l,m,jk->ljmk", beta, beta, Pi)
+                full += np.einsum("lm,j,k->ljmk", YH.T @ G @ YH, res, res)
+    assert np.array_equal(JtJ, JtJ.T)
+    assert np.allclose(JtJ, full.reshape(r * d, r * d), rtol=1e-12, atol=1e-12 * np.abs(full).max())
+
+
+def test_a_damped_step_is_the_solve_and_a_failed_factorisation_damps_more(monkeypatch):
+    import lipgen.nrsfm.completion as completion
+
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((20, 20))
+    JtJ, g = A @ A.T, rng.standard_normal(20)
+    diag = np.diag(JtJ).copy()
+    step = completion._damped_step(JtJ, diag, 1e-3, g)
+    assert np.allclose(step, np.linalg.solve(JtJ + 1e-3 * np.diag(diag), -g), rtol=1e-10)
+    with pytest.raises(np.linalg.LinAlgError):
+        completion._damped_step(-JtJ, diag, 1e-3, g)      # not positive definite
+    # a factorisation that fails counts as a rejected step: the completion goes on with more damping
+    F, P, r = 40, 12, 4
+    W = _low_rank(F, P, r)
+    mask = _mask(F, P, 0.1, 8)
+    plain = complete_subspace(W, mask, r)
+    calls, real = [], completion._damped_step
+
+    def failing_twice(*args):
+        calls.append(args[2])
+        if len(calls) <= 2:
+            raise np.linalg.LinAlgError("not positive definite")
+        return real(*args)
+
+    monkeypatch.setattr(completion, "_damped_step", failing_twice)
+    full, misfit, _ = complete_subspace(W, mask, r)
+    assert calls[1] == pytest.approx(10 * calls[0]) and calls[2] == pytest.approx(100 * calls[0])
+    assert misfit < 1e-8 and np.allclose(full, plain[0], atol=1e-6 * np.abs(W).max())

@@ -20,48 +20,23 @@ The hidden entries x of a row then solve ``N_H^T x = -a`` in the least-squares s
 hidden points that system is under-determined (the model leaves h - d of them free); of its
 solutions the one nearest a prior is taken: the point's own track interpolated linearly in time
 between the frames where it is seen (truth-free; the free directions were otherwise left to where
-alternating least squares happened to stop).
+alternating least squares happened to stop; :mod:`lipgen.nrsfm.time_prior` holds the prior and the fill).
 """
 
 from __future__ import annotations
 
+import functools
 import logging
 
 import numpy as np
+import scipy.linalg
 
 from lipgen._memory import reuse_freed_memory
+from lipgen.nrsfm.time_prior import fill_hidden, interpolate_in_time, prior_variance
 
 __all__ = ["complete_subspace", "SubspaceCompletion", "interpolate_in_time", "prior_variance"]
 
 log = logging.getLogger(__name__)
-
-
-def interpolate_in_time(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Each point's hidden coordinates interpolated linearly in time from the frames that see it.
-
-    Parameters
-    ----------
-    W : (2F, P) float
-        Tracks; entries at hidden points are ignored.
-    mask : (F, P) bool
-        Observed points (every point seen at least once).
-
-    Returns
-    -------
-    (2F, P) float
-        W with the hidden entries filled (held constant before the first and after the last sighting).
-    """
-    F, P = mask.shape
-    out = W.copy()
-    frames = np.arange(F)
-    for p in range(P):
-        seen = mask[:, p]
-        if seen.all():
-            continue
-        for axis in (0, 1):
-            track = W[axis::2, p]
-            out[axis::2, p] = np.where(seen, track, np.interp(frames, frames[seen], track[seen]))
-    return out
 
 
 class _Frames:
@@ -115,27 +90,51 @@ class _Frames:
         if Y is None:
             return cost
         r = Y.shape[1]
-        H = np.zeros((r * r, d * d))
-        H2 = np.zeros((r * r, d * d))
+        # Every product below is symmetric in its r pair and in its d pair, so only the upper triangles
+        # are formed (a quarter of the work) and the normal matrix is gathered from them.
+        ur, ud = np.triu_indices(r), np.triu_indices(d)
+        H = np.zeros((ur[0].size, ud[0].size))
         g = np.zeros((r, d))
+        eye = np.eye(d)[ud][None]
         for (idx, rows), (NH, Ginv, c, res) in zip(self.groups, terms, strict=True):
-            n, h = idx.shape
             beta = rows @ Y                                       # (n, 2, r)
-            if h:
+            if idx.shape[1]:
                 YH = Y[idx]                                       # (n, h, r)
                 beta = beta - c @ YH
-                DtD = YH.transpose(0, 2, 1) @ Ginv @ YH           # (n, r, r)
-                rr = np.einsum("nkj,nki->nji", res, res).reshape(n, d * d)
-                H2 += DtD.reshape(n, r * r).T @ rr
-                bb = np.einsum("nkl,nkm->nlm", beta, beta).reshape(n, r * r)
-                Pi = np.eye(d) - NH.transpose(0, 2, 1) @ Ginv @ NH   # (n, d, d), for the normal matrix only
-                H += bb.T @ Pi.reshape(n, d * d)
+                DtD = (YH.transpose(0, 2, 1) @ Ginv @ YH)[:, ur[0], ur[1]]        # (n, r(r+1)/2)
+                rr = np.einsum("nkj,nki->nji", res, res)[:, ud[0], ud[1]]         # (n, d(d+1)/2)
+                Pi = eye - (NH.transpose(0, 2, 1) @ Ginv @ NH)[:, ud[0], ud[1]]   # for the normal matrix only
+                bb = np.einsum("nkl,nkm->nlm", beta, beta)[:, ur[0], ur[1]]
+                H += np.concatenate([bb, DtD]).T @ np.concatenate([Pi, rr])
             else:
-                bb = np.einsum("nkl,nkm->lm", beta, beta).reshape(r * r, 1)
-                H += bb @ np.eye(d).reshape(1, d * d)
+                bb = np.einsum("nkl,nkm->lm", beta, beta)[ur]
+                H += bb[:, None] * eye[0]
             g += np.einsum("nkl,nkj->lj", beta, res)
-        JtJ = (H + H2).reshape(r, r, d, d).transpose(0, 2, 1, 3).reshape(r * d, r * d)
+        JtJ = H.ravel()[_gather_index(r, d)]
         return cost, JtJ, g.ravel()
+
+
+@functools.lru_cache(maxsize=2)
+def _gather_index(r: int, d: int) -> np.ndarray:
+    """(r d, r d) int: where entry ((l, j), (m, k)) of the normal matrix sits in the (r(r+1)/2, d(d+1)/2)
+    table of upper-triangle pairs ((min(l, m), max(l, m)), (min(j, k), max(j, k)))."""
+    def pair(n):
+        i, j = np.minimum.outer(np.arange(n), np.arange(n)), np.maximum.outer(np.arange(n), np.arange(n))
+        return i * n - i * (i - 1) // 2 + (j - i)      # row-major position of (i, j) in the upper triangle
+    pr, pd = pair(r), pair(d)
+    ds = d * (d + 1) // 2
+    out = pr[:, None, :, None] * ds + pd[None, :, None, :]   # (l, j, m, k)
+    out = out.reshape(r * d, r * d)
+    out.flags.writeable = False
+    return out
+
+
+def _damped_step(JtJ: np.ndarray, diag: np.ndarray, lam: float, g: np.ndarray) -> np.ndarray:
+    """The Levenberg-Marquardt step ``-(JtJ + lam diag(diag))^-1 g`` by Cholesky (the matrix is symmetric
+    positive definite: half the work of a general LU). LinAlgError where it is not, in floating point."""
+    A = JtJ + lam * np.diag(diag)
+    factor = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
+    return scipy.linalg.cho_solve(factor, -g, check_finite=False)
 
 
 def _inverse_or_pseudo(G: np.ndarray) -> np.ndarray:
@@ -318,7 +317,11 @@ class SubspaceCompletion:
             diag = np.maximum(np.diag(JtJ), 1e-12 * max(float(np.diag(JtJ).max()), 1e-300))
             accepted = False
             while not accepted and lam < 1e12:
-                step = np.linalg.solve(JtJ + lam * np.diag(diag), -g)
+                try:
+                    step = _damped_step(JtJ, diag, lam, g)
+                except np.linalg.LinAlgError:   # not positive definite in floating point: damp more
+                    lam *= 10
+                    continue
                 Nn, Yn = _bases(np.linalg.qr(N + Y @ step.reshape(Y.shape[1], d))[0])
                 new = self.frames.evaluate(Nn)
                 if new < cost:
@@ -350,84 +353,8 @@ class SubspaceCompletion:
         hidden = (~mask).sum(1)
         dof = 2 * int(np.maximum(d - hidden, 0).sum()) - self.Y.shape[1] * d
         noise = max(2 * self.cost / max(dof, 1), 1e-24 * float((self.W0**2).mean()), 1e-300)
-        full = _fill(self.W0, self.prior, mask, self.N, noise)
+        full = fill_hidden(self.W0, self.prior, mask, self.N, noise)
         misfit = float(np.sqrt(2 * max(self.cost, 0.0))) / max(self.spread, 1e-300)
         log.debug("completion (subspace Gauss-Newton): %d hidden entries, %d steps, cost %.3e -> %.3e",
                   int(2 * (~mask).sum()), self.steps, self.first, self.cost)
         return full, misfit, {"steps": self.steps, "cost": [self.first, self.cost]}
-
-
-def prior_variance(W: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Expected squared error of :func:`interpolate_in_time` at each hidden entry, measured on the
-    observed entries themselves (no truth): at m frames from the nearest sighting, the mean square of
-    ``w_f - (w_{f-m} + w_{f+m}) / 2`` over the points seen at f - m, f and f + m (the middle of a gap
-    of 2m - 1 frames). A distance never measured takes the largest measured one's value times
-    (m / m')^2; 0 at observed entries.
-
-    Parameters
-    ----------
-    W : (2F, P) float
-    mask : (F, P) bool
-
-    Returns
-    -------
-    (2F, P) float
-    """
-    F, P = mask.shape
-    dist = _frames_to_sighting(mask)
-    Wf = W.reshape(F, 2, P)
-    var = np.zeros((F, P))
-    known: dict[int, float] = {}
-    for m in np.unique(dist[dist > 0]):
-        m = int(m)
-        if 2 * m < F:
-            ok = mask[m:F - m] & mask[: F - 2 * m] & mask[2 * m:]
-            if ok.sum() >= 10:
-                err = Wf[m:F - m] - 0.5 * (Wf[: F - 2 * m] + Wf[2 * m:])
-                known[m] = float(((err**2).sum(1))[ok].mean()) / 2
-        if m not in known:
-            last = max(known) if known else None
-            known[m] = np.inf if last is None else known[last] * (m / last) ** 2
-        var[dist == m] = known[m]
-    return np.repeat(var, 2, axis=0)
-
-
-def _frames_to_sighting(mask: np.ndarray) -> np.ndarray:
-    """(F, P) int: frames from each entry to the nearest frame where its point is seen (0 where seen),
-    by a forward and a backward running extreme of the sighting frames (O(F P), not O(F^2 P))."""
-    F = mask.shape[0]
-    frames = np.arange(F)[:, None]
-    far = 2 * F                                                   # beyond any real distance
-    last = np.maximum.accumulate(np.where(mask, frames, -far), axis=0)
-    nxt = np.minimum.accumulate(np.where(mask, frames, 3 * F)[::-1], axis=0)[::-1]
-    return np.minimum(frames - last, nxt - frames)
-
-
-def _fill(W0: np.ndarray, prior: np.ndarray, mask: np.ndarray, N: np.ndarray, noise: float) -> np.ndarray:
-    """Hidden entries x of each row: the model (``N_H^T x = -N^T w~``, residual variance ``noise``)
-    and the prior (variance :func:`prior_variance` per entry) combined by least squares."""
-    F, P = mask.shape
-    full = W0.reshape(F, 2, P).copy()
-    x0 = prior.reshape(F, 2, P)
-    floor = 1e-24 * max(float(np.mean(W0**2)), 1e-300)              # exact priors, without overflow
-    weight = 1.0 / np.maximum(prior_variance(W0, mask)[::2], floor)      # (F, P)
-    hidden = (~mask).sum(1)
-    for h in np.unique(hidden[hidden > 0]):
-        frames = np.flatnonzero(hidden == h)
-        idx = np.nonzero(~mask[frames])[1].reshape(frames.size, h)
-        NH = N[idx]                                               # (n, h, d)
-        start = np.take_along_axis(x0[frames], idx[:, None, :], axis=2)   # (n, 2, h)
-        D = np.take_along_axis(weight[frames], idx, axis=1)      # (n, h)
-        # min |(k + x NH)| / sqrt(noise) + sum D (x - start)^2 as one stacked least-squares problem,
-        # the model's rows first (Householder QR with the heavy rows on top stays accurate where the
-        # normal equations would lose D under NH NH^T / noise: noise at its floor made them singular)
-        root = np.sqrt(D)
-        M = np.concatenate([NH.transpose(0, 2, 1) / np.sqrt(noise), root[:, :, None] * np.eye(h)], axis=1)
-        b = np.concatenate([-(full[frames] @ N).transpose(0, 2, 1) / np.sqrt(noise),
-                            (start * root[:, None, :]).transpose(0, 2, 1)], axis=1)   # (n, d + h, 2)
-        Q, R = np.linalg.qr(M)
-        x = np.linalg.solve(R, Q.transpose(0, 2, 1) @ b).transpose(0, 2, 1)
-        rows = full[frames]
-        np.put_along_axis(rows, idx[:, None, :].repeat(2, axis=1), x, axis=2)
-        full[frames] = rows
-    return full.reshape(2 * F, P)
