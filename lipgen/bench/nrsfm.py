@@ -27,7 +27,7 @@ _KS_QUICK = {"bregler": (4, 12), "dai": (4, 12), "dai-ba": (4,), "em-ppca": (5,)
 BODY_SEED = 1702
 """The validation body (:func:`lipgen.nrsfm.validation.human_sequence`, 80 frames) of the short-sequence
 missing-points case: 5.5x (random) and 6.7x (gaps) the complete tracks' CPU on 2026-12-06, over the
-issue's 5x."""
+issue's 5x; 2.4x and 3.5x after the completion's Cholesky steps (``renders/examples/nrsfm/chol32.md``)."""
 
 
 def _sequence():
