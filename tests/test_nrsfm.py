@@ -256,8 +256,23 @@ def test_evaluate_on_dataset(tmp_path):
     assert np.isfinite(result["e3d"]) and np.isfinite(result["flat_e3d"])
     assert result["frames"] == 12 and result["points"] == 17
     assert "e3D" in result["markdown"]
+    # K chosen by the method: the report says whether the depth was kept and why (12 frames: the
+    # halves are too short for the test, which says so)
+    auto = evaluate_on_dataset(path, "real", k="auto", method="dai")
+    assert auto["depth_supported"] is True
+    assert "Depth kept:" in auto["markdown"] and "not tested" in auto["markdown"]
     with pytest.raises(ValueError, match="view must be one of"):
         evaluate_on_dataset(path, "left")
+    from types import SimpleNamespace
+
+    from lipgen.nrsfm.dataset_eval import _depth_sentence
+
+    flat = SimpleNamespace(depth_supported=False, info={"depth_support": {"reason": "halves disagree",
+                                                                          "spread_deg": 3.04}})
+    assert _depth_sentence(flat) == (" Depth not supported by the tracks: the flat answer (zero depth): "
+                                     "halves disagree; the views turn by 3.0 deg (median from their mean "
+                                     "direction).")
+    assert _depth_sentence(SimpleNamespace(depth_supported=True, info={})) == ""
 
     # Measured tracks: the truth's pixels plus 0.5 px noise, one mark lost for a few frames.
     from lipgen._io import load_npz

@@ -139,9 +139,11 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
         with zero depth and the truth's projection where they have no sighting: the score of not
         reconstructing depth at all from the same input), ``mean_error_mm`` (mean point distance
         after the same alignment, in mm), ``frames``, ``points``, ``observed_fraction``, ``k``, ``method``,
-        ``view``, ``reprojection_rms_mm``, ``depth_mm``, ``relief``, ``tracks`` (which tracks
+        ``view``, ``depth_supported`` (False: the method returned the flat answer),
+        ``reprojection_rms_mm``, ``depth_mm``, ``relief``, ``tracks`` (which tracks
         were used), ``tracking_rms_px`` (their error against the truth; 0 for the truth's own
-        projections), and ``markdown`` (a snippet for the end-to-end report).
+        projections), and ``markdown`` (a snippet for the end-to-end report, with why the depth was kept
+        or dropped).
     """
     data = dataset_tracks(path, view, marks, uv=uv, seen=seen)
     W, visible, S = data["W"], data["visible"], data["S"]
@@ -156,7 +158,8 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
     F, P = visible.shape
     flat_err = flat_e3d(W, S, fill=data["W_all"])
     s = float(np.mean(np.std(S, axis=1)))
-    result = {"e3d": err, "flat_e3d": flat_err, "mean_error_mm": err * s, "frames": F, "points": P,
+    result = {"e3d": err, "flat_e3d": flat_err, "depth_supported": bool(rec.depth_supported),
+              "mean_error_mm": err * s, "frames": F, "points": P,
               "observed_fraction": float(visible.mean()), "k": rec.k, "method": method, "view": view,
               "reprojection_rms_mm": rec.reprojection_rms, "depth_mm": data["depth"],
               "relief": data["relief"], "tracks": source,
@@ -172,6 +175,20 @@ def evaluate_on_dataset(path, view: str = "real", k: int | str = 2, method: str 
         + (f" ({data['pixels_rms']:.2f} px RMS from the truth)" if uv is not None else "")
         + f", made weak-perspective (normalised coordinates x mean depth {data['depth']:.0f} mm); the marks' "
         f"depth relief is {100 * data['relief']:.2f} % of their depth, so perspective is part of "
-        "the error, and the depth sign is fixed only up to one global reflection.")
+        "the error, and the depth sign is fixed only up to one global reflection."
+        + _depth_sentence(rec))
     return result
 
+
+def _depth_sentence(rec) -> str:
+    """Why the reconstruction kept its depth or returned the flat answer, from ``info["depth_support"]``
+    (empty where the method makes no such test), with how far the views turn: a few degrees leave
+    depth weakly observable whatever the test says."""
+    support = rec.info.get("depth_support")
+    if not support:
+        return ""
+    verdict = "kept" if rec.depth_supported else "not supported by the tracks: the flat answer (zero depth)"
+    span = support.get("spread_deg")
+    turn = f"; the views turn by {span:.1f} deg (median from their mean direction)" if span is not None \
+        and np.isfinite(span) else ""
+    return f" Depth {verdict}: {support.get('reason', 'no reason recorded')}{turn}."
