@@ -107,4 +107,3 @@ def _missing_body(rounds: int = 2) -> dict:
     body = human_sequence(BODY_SEED, 80)
     return {"sequence": body.name, "frames": body.W.shape[0] // 2, "points": body.W.shape[1],
             **_missing(body.W, body.S, rounds=rounds, k="auto")}
-

@@ -132,8 +132,9 @@ def _gather_index(r: int, d: int) -> np.ndarray:
 def _damped_step(JtJ: np.ndarray, diag: np.ndarray, lam: float, g: np.ndarray) -> np.ndarray:
     """The Levenberg-Marquardt step ``-(JtJ + lam diag(diag))^-1 g`` by Cholesky (the matrix is symmetric
     positive definite: half the work of a general LU). LinAlgError where it is not, in floating point."""
-    A = JtJ + lam * np.diag(diag)
-    factor = scipy.linalg.cho_factor(A, lower=True, check_finite=False)
+    A = JtJ.copy()
+    A[np.diag_indices_from(A)] += lam * diag        # the same sums as adding np.diag(lam * diag), in place
+    factor = scipy.linalg.cho_factor(A, lower=True, overwrite_a=True, check_finite=False)
     return scipy.linalg.cho_solve(factor, -g, check_finite=False)
 
 

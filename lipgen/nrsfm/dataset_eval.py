@@ -188,7 +188,7 @@ def _depth_sentence(rec) -> str:
     if not support:
         return ""
     verdict = "kept" if rec.depth_supported else "not supported by the tracks: the flat answer (zero depth)"
-    span = support.get("spread_deg")
-    turn = f"; the views turn by {span:.1f} deg (median from their mean direction)" if span is not None \
-        and np.isfinite(span) else ""
+    span = support.get("spread_deg", float("nan"))
+    turn = f"; the views turn by {span:.1f} deg (median from their mean direction)" if np.isfinite(span) \
+        else ""
     return f" Depth {verdict}: {support.get('reason', 'no reason recorded')}{turn}."
