@@ -91,3 +91,75 @@ def test_the_solvers_matrix_is_the_free_block_and_positive_definite(touching):
     assert np.linalg.eigvalsh(free.toarray()).min() > 0  # the springs and anchors pin it
     exact = np.linalg.eigvalsh(L.tangent(x, psd=False).toarray()[np.ix_(dof, dof)])
     assert exact.min() < 0  # at this crossed, jittered state the exact Hessian is indefinite
+
+
+def _hessians_by_the_chain_rule(x, tets, Dm_inv, volume, mu, lam, kappa, psd):
+    """``V G^T (dP/dF) G`` with ``G`` the (9, 12) map from a tet's node coordinates to its ``F``: the
+    product the node form replaces, written out here as the reference."""
+    from lipgen.subject.layer_stiffness import deformation_gradients
+
+    C = stress_derivative(deformation_gradients(x, tets, Dm_inv), mu, lam, kappa, psd=psd)
+    gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)
+    G = np.zeros((len(tets), 9, 12))
+    for i in range(3):
+        for a in range(4):
+            G[:, 3 * i:3 * i + 3, 3 * a + i] = gN[:, a, :]
+    return volume[:, None, None] * np.swapaxes(G, 1, 2) @ C @ G
+
+
+@pytest.mark.parametrize("psd", [True, False])
+def test_the_node_form_hessians_are_the_chain_rule_product(psd):
+    from lipgen.subject.layer_stiffness import tet_hessians
+
+    T = 60
+    F, mu, lam, kappa = _deformations(T, 0.4, seed=5)
+    rng = np.random.default_rng(6)
+    tets = np.arange(4 * T).reshape(T, 4)
+    Dm_inv = np.eye(3) + 0.3 * rng.normal(size=(T, 3, 3))
+    rest = rng.normal(size=(4 * T, 3))
+    x = rest.copy()   # node positions whose deformation gradients are F: Ds = F Dm, Dm = Dm_inv^-1
+    Ds = F @ np.linalg.inv(Dm_inv)
+    x[tets[:, 1:]] = x[tets[:, :1]] + np.swapaxes(Ds, 1, 2)
+    volume = rng.uniform(0.5, 2.0, T)
+    ref = _hessians_by_the_chain_rule(x, tets, Dm_inv, volume, mu, lam, kappa, psd)
+    got = tet_hessians(x, tets, Dm_inv, volume, mu, lam, kappa, psd)
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+    assert np.array_equal(got, np.swapaxes(got, 1, 2))
+
+
+def test_the_positive_part_matches_an_eigendecomposition():
+    from scipy.spatial.transform import Rotation
+
+    from lipgen.subject.layer_stiffness import positive_part, symmetric_eigenvalues
+
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(500, 3, 3))
+    A = A + np.swapaxes(A, 1, 2)
+    # the cases a cubic's closed form finds hard: repeated eigenvalues, zeros, one sign, tiny ones
+    spectra = [(0, 0, 0), (2, 2, 2), (-2, -2, -2), (1, 1, -1), (1, -1, -1), (3, 0, 0), (0, 0, -3), (1, 0, -1),
+               (1e-9, -1, -1), (1, 1, -1e-9), (5, 5, 5 + 1e-7), (1e6, 1, -1)]
+    R = Rotation.random(len(spectra), random_state=8).as_matrix()
+    special = np.einsum("tij,tj,tkj->tik", R, np.array(spectra, float), R)
+    for S in (A, special):
+        w, U = np.linalg.eigh(S)
+        ref = (U * np.maximum(w, 0.0)[:, None, :]) @ np.swapaxes(U, 1, 2)
+        scale = np.abs(w).max(axis=1)[:, None, None] + 1e-300
+        assert np.all(np.abs(positive_part(S) - ref) <= 1e-7 * scale)
+        lam = symmetric_eigenvalues(S)
+        assert np.all(np.abs(lam - w[:, ::-1]) <= 1e-7 * scale[:, :, 0])
+    assert np.array_equal(positive_part(special[:1]), np.zeros((1, 3, 3)))
+
+
+def test_a_factorisation_in_a_stored_order_solves_the_same_system(touching):
+    from lipgen.subject.layer_stiffness import fill_reducing_order, spd_solver
+
+    L, x, _ = touching
+    A = L.tangent(x, free_only=True)
+    order = fill_reducing_order(A)
+    assert sorted(order) == list(range(A.shape[0]))
+    B = L.tangent(L.rest + 0.5 * (x - L.rest), free_only=True)   # another matrix of the same pattern
+    b = np.random.default_rng(9).normal(size=A.shape[0])
+    for M in (A, B):
+        got = spd_solver(M, order)(b)
+        assert np.allclose(got, spd_solver(M)(b), rtol=0, atol=1e-9 * np.abs(got).max())
+        assert np.abs(M @ got - b).max() <= 1e-9 * np.abs(b).max()

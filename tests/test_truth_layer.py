@@ -226,3 +226,34 @@ def test_a_pucker_thickens_the_lips_at_nearly_constant_volume(pucker_subject):
     assert abs(vol - 1.0) < 0.03
     assert thick > 1.02
     assert thick - thick_pull > 0.03
+
+
+def test_the_lbfgs_direction_meets_the_secant_condition():
+    from lipgen.subject.layer import _lbfgs_direction
+
+    rng = np.random.default_rng(0)
+    Q = rng.normal(size=(8, 8))
+    H = Q @ Q.T + 8 * np.eye(8)            # a quadratic's Hessian
+    D = np.diag(np.diag(H))                 # the initial inverse Hessian's matrix
+    solve = lambda r: np.linalg.solve(D, r)  # noqa: E731
+    g = rng.normal(size=8)
+    assert np.allclose(_lbfgs_direction(g, [], solve), solve(g))
+    memory = []
+    for _ in range(4):
+        s = rng.normal(size=8)
+        y = H @ s
+        memory.append((s, y, 1.0 / float(s @ y)))
+        assert np.allclose(_lbfgs_direction(y, memory, solve), s)  # the newest pair, exactly
+
+
+def test_the_solver_stops_near_the_equilibrium_of_a_large_load(small):
+    """The default tolerance (1e-4 mm steps) against a solve to 1e-9 mm, and the gradient there."""
+    m, L = small
+    f = np.zeros_like(L.rest)
+    f[m.marker_index("corner_left")] = [4.0, 2.0, -1.0]   # millimetres of motion, far from linear
+    x = L.solve(f, L.rest)
+    tight = L.solve(f, L.rest, tol=1e-9, maxiter=400)
+    assert np.abs(x - L.rest).max() > 1.0
+    assert np.abs(x - tight).max() < 1e-3
+    g = L.energy_grad(tight, f)[1][~L.fixed]
+    assert np.abs(g).max() < 1e-6 * np.abs(f).max()

@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["deformation_gradients", "strain_state", "stress_derivative", "tet_hessians", "StiffnessPattern",
-           "spd_solver", "rest_stiffness"]
+__all__ = ["deformation_gradients", "strain_state", "symmetric_eigenvalues", "positive_part",
+           "stress_derivative", "tet_hessians", "StiffnessPattern", "fill_reducing_order", "spd_solver",
+           "rest_stiffness"]
 
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
@@ -40,6 +41,51 @@ def strain_state(F: np.ndarray, mu, lam):
     cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)
     J = np.sum(f0 * cof[..., 0], axis=-1)
     return E, trE, S, cof, J
+
+
+def symmetric_eigenvalues(A: np.ndarray) -> np.ndarray:
+    """(T, 3) eigenvalues, descending, of symmetric 3 x 3 matrices ``A`` (T, 3, 3), in closed form.
+
+    The trigonometric solution of the characteristic cubic (Smith 1961): LAPACK's ``eigh`` over
+    thousands of 3 x 3 matrices spends most of its time in per-matrix calls. Accurate to about
+    ``1e-8 |A|`` where eigenvalues nearly coincide (the cubic's double root), to rounding elsewhere.
+    """
+    q = np.trace(A, axis1=1, axis2=2) / 3.0
+    off = A[:, 0, 1] ** 2 + A[:, 0, 2] ** 2 + A[:, 1, 2] ** 2
+    dev = A - q[:, None, None] * np.eye(3)
+    p = np.sqrt((np.sum(np.diagonal(dev, axis1=1, axis2=2) ** 2, axis=1) + 2.0 * off) / 6.0)
+    safe = np.where(p > 0, p, 1.0)
+    r = np.clip(np.linalg.det(dev / safe[:, None, None]) / 2.0, -1.0, 1.0)
+    phi = np.arccos(r) / 3.0
+    top = q + 2.0 * p * np.cos(phi)
+    bottom = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    return np.stack([top, 3.0 * q - top - bottom, bottom], axis=1)
+
+
+def positive_part(S: np.ndarray) -> np.ndarray:
+    """(T, 3, 3) positive part ``sum over lambda > 0 of lambda u u^T`` of symmetric 3 x 3 matrices
+    ``S`` (T, 3, 3), without eigenvectors.
+
+    From the eigenvalues ``l1 >= l2 >= l3`` (:func:`symmetric_eigenvalues`), by the spectral
+    projector of the eigenvalue on the minority side of zero: with one positive eigenvalue the part
+    is ``l1 (S - l2)(S - l3) / ((l1 - l2)(l1 - l3))``, with two it is ``S - l3 (S - l1)(S - l2) /
+    ((l3 - l1)(l3 - l2))``. Each denominator is at least the square of the eigenvalue in front
+    (the others lie across zero), so neither blows up; all positive gives ``S``, none gives 0.
+    """
+    lam = symmetric_eigenvalues(S)
+    eye = np.eye(3)
+    n_pos = (lam > 0).sum(axis=1)
+    out = np.where((n_pos == 3)[:, None, None], S, 0.0)
+    for count, lead, a, b in ((1, 0, 1, 2), (2, 2, 0, 1)):
+        m = n_pos == count
+        if not m.any():
+            continue
+        Sm, lm = S[m], lam[m]
+        proj = ((Sm - lm[:, a, None, None] * eye) @ (Sm - lm[:, b, None, None] * eye)
+                / ((lm[:, lead] - lm[:, a]) * (lm[:, lead] - lm[:, b]))[:, None, None])
+        part = lm[:, lead, None, None] * proj
+        out[m] = part if count == 1 else Sm - part
+    return out
 
 
 def stress_derivative(F: np.ndarray, mu, lam, kappa, psd: bool = False) -> np.ndarray:
@@ -91,6 +137,16 @@ def tet_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, volume: np
     """(T, 12, 12) energy Hessian of each tet over its nodes' coordinates (node-major), or its
     positive semi-definite part (:func:`stress_derivative`).
 
+    The same sum as ``V G^T (dP/dF) G`` (``G`` the map from node coordinates to ``F``), taken term by
+    term in node form, where each term of :func:`stress_derivative` is a 4 x 4 or a rank-one
+    product: with ``n_a`` node a's shape gradient (row a of ``gN``), ``v_a = F n_a`` and
+    ``w_a = cof n_a``, entry ``(a p, b q)`` is ``V`` times
+
+    ``d_pq n_a.S n_b + mu (F F^T)_pq n_a.n_b + mu v_bp v_aq + lam v_ap v_bq + kappa w_ap w_bq``
+    ``+ kappa (J - 1) eps_pqn (F (n_a x n_b))_n`` (the last left out with ``psd``).
+
+    That takes a third of the time of the 9 x 9 products (measured on a 4176-tet ``hard`` layer).
+
     Parameters
     ----------
     x : (N, 3) float
@@ -101,13 +157,34 @@ def tet_hessians(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray, volume: np
     volume, mu, lam, kappa : (T,) float
     psd : bool
     """
-    C = stress_derivative(deformation_gradients(x, tets, Dm_inv), mu, lam, kappa, psd=psd)
+    F = deformation_gradients(x, tets, Dm_inv)
+    _, _, S, cof, J = strain_state(F, mu, lam)
+    if psd:
+        S = positive_part(S)
+    T = len(F)
     gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
-    G = np.zeros((len(tets), 9, 12))  # dF_ij (row-major) per node dof (a, k): delta_ik gN[a, j]
-    for i in range(3):
-        for a in range(4):
-            G[:, 3 * i:3 * i + 3, 3 * a + i] = gN[:, a, :]
-    K = volume[:, None, None] * np.swapaxes(G, 1, 2) @ C @ G
+    gNt = np.swapaxes(gN, 1, 2)
+    A = gN @ S @ gNt                                         # (T, 4, 4): n_a . S n_b
+    B = mu[:, None, None] * (gN @ gNt)                       # mu n_a . n_b
+    M = F @ np.swapaxes(F, 1, 2)                             # F F^T
+    v = gN @ np.swapaxes(F, 1, 2)                            # (T, 4, 3): v[a] = F n_a
+    wc = gN @ np.swapaxes(cof, 1, 2)                         # w[a] = cof n_a
+    K = B[:, :, None, :, None] * M[:, None, :, None, :]
+    K[:, :, [0, 1, 2], :, [0, 1, 2]] += A[None]               # d_pq n_a . S n_b (fancy index: axis 0 is p)
+    K += mu[:, None, None, None, None] * np.swapaxes(v, 1, 2)[:, None, :, :, None] * v[:, :, None, None, :]
+    K = K.reshape(T, 12, 12)
+    vf, wf = v.reshape(T, 12), wc.reshape(T, 12)
+    K += lam[:, None, None] * vf[:, :, None] * vf[:, None, :]
+    K += kappa[:, None, None] * wf[:, :, None] * wf[:, None, :]
+    if not psd:
+        c = np.cross(gN[:, :, None, :], gN[:, None, :, :]).reshape(T, 16, 3)   # n_a x n_b
+        d = ((kappa * (J - 1.0))[:, None, None] * (c @ np.swapaxes(F, 1, 2))).reshape(T, 4, 4, 3)
+        skew = np.zeros((T, 4, 3, 4, 3))                      # eps_pqn d_n
+        for p_, q_, n_ in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+            skew[:, :, p_, :, q_] = d[..., n_]
+            skew[:, :, q_, :, p_] = -d[..., n_]
+        K += skew.reshape(T, 12, 12)
+    K *= volume[:, None, None]
     return 0.5 * (K + np.swapaxes(K, 1, 2))
 
 
@@ -153,13 +230,38 @@ class StiffnessPattern:
         return csc_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
-def spd_solver(A):
-    """``b -> A^-1 b`` for a sparse symmetric positive definite ``A``: SuperLU in its symmetric mode
-    (a minimum-degree ordering of A + A^T and diagonal pivots), 2.5x faster than its general LU."""
+def fill_reducing_order(A) -> np.ndarray:
+    """(n,) int: the symmetric order in which SuperLU's minimum-degree ordering of ``A + A^T`` (a
+    function of the sparsity pattern alone) eliminates ``A``'s unknowns, so that matrices of one
+    pattern can be factorised in it without ordering each again (:func:`spd_solver`)."""
     from scipy.sparse.linalg import splu
 
-    return splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                options={"SymmetricMode": True}).solve
+    lu = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+    return np.argsort(lu.perm_c)
+
+
+def spd_solver(A, order: np.ndarray | None = None):
+    """``b -> A^-1 b`` for a sparse symmetric positive definite ``A``: SuperLU in its symmetric mode
+    (a minimum-degree ordering of A + A^T and diagonal pivots), 2.5x faster than its general LU.
+
+    ``order`` (:func:`fill_reducing_order` of a matrix with ``A``'s pattern) skips the ordering:
+    ``A`` is permuted symmetrically and factorised in its natural order (the same elimination,
+    17 against 21 ms for the 4,086 free dofs of a ``hard`` layer).
+    """
+    from scipy.sparse.linalg import splu
+
+    options = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
+    if order is None:
+        return splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", **options).solve
+    order = np.asarray(order)
+    lu = splu(A.tocsr()[order][:, order].tocsc(), permc_spec="NATURAL", **options)
+
+    def solve(b: np.ndarray) -> np.ndarray:
+        x = np.empty_like(b, dtype=float)
+        x[order] = lu.solve(b[order])
+        return x
+
+    return solve
 
 
 def rest_stiffness(rest, tets, Dm_inv, volume, mu, lam, gum, pairs, kc):
