@@ -93,40 +93,6 @@ def test_the_solvers_matrix_is_the_free_block_and_positive_definite(touching):
     assert exact.min() < 0  # at this crossed, jittered state the exact Hessian is indefinite
 
 
-def _hessians_by_the_chain_rule(x, tets, Dm_inv, volume, mu, lam, kappa, psd):
-    """``V G^T (dP/dF) G`` with ``G`` the (9, 12) map from a tet's node coordinates to its ``F``: the
-    product the node form replaces, written out here as the reference."""
-    from lipgen.subject.layer_stiffness import deformation_gradients
-
-    C = stress_derivative(deformation_gradients(x, tets, Dm_inv), mu, lam, kappa, psd=psd)
-    gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)
-    G = np.zeros((len(tets), 9, 12))
-    for i in range(3):
-        for a in range(4):
-            G[:, 3 * i:3 * i + 3, 3 * a + i] = gN[:, a, :]
-    return volume[:, None, None] * np.swapaxes(G, 1, 2) @ C @ G
-
-
-@pytest.mark.parametrize("psd", [True, False])
-def test_the_node_form_hessians_are_the_chain_rule_product(psd):
-    from lipgen.subject.layer_stiffness import tet_hessians
-
-    T = 60
-    F, mu, lam, kappa = _deformations(T, 0.4, seed=5)
-    rng = np.random.default_rng(6)
-    tets = np.arange(4 * T).reshape(T, 4)
-    Dm_inv = np.eye(3) + 0.3 * rng.normal(size=(T, 3, 3))
-    rest = rng.normal(size=(4 * T, 3))
-    x = rest.copy()   # node positions whose deformation gradients are F: Ds = F Dm, Dm = Dm_inv^-1
-    Ds = F @ np.linalg.inv(Dm_inv)
-    x[tets[:, 1:]] = x[tets[:, :1]] + np.swapaxes(Ds, 1, 2)
-    volume = rng.uniform(0.5, 2.0, T)
-    ref = _hessians_by_the_chain_rule(x, tets, Dm_inv, volume, mu, lam, kappa, psd)
-    got = tet_hessians(x, tets, Dm_inv, volume, mu, lam, kappa, psd)
-    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
-    assert np.array_equal(got, np.swapaxes(got, 1, 2))
-
-
 def test_the_positive_part_matches_an_eigendecomposition():
     from scipy.spatial.transform import Rotation
 

@@ -118,8 +118,6 @@ class Layer:
     contact_stiffness : float
     gum : (2n,) float
         Spring stiffness of each node to the jaw (the lower lip's inner side), per mm.
-    scatter : (2n, 4T) sparse
-        Sums per-tet-node vectors (tet corner 0 of every tet, then corner 1, ...) onto the nodes.
     K0 : (6n, 6n) sparse
         Stiffness at rest (linear elasticity with the volume penalty, plus the gum and contact
         springs): the solver's preconditioner, and the small-strain theory the tests compare with.
@@ -136,7 +134,6 @@ class Layer:
     contact_pairs: np.ndarray
     contact_stiffness: float
     gum: np.ndarray
-    scatter: object = None
     K0: object = None
     cache: dict = field(default_factory=dict)
     iterations: list = field(default_factory=list)
@@ -158,21 +155,39 @@ class Layer:
         inverse of each tetrahedron's isochoric active strain (:func:`active_strain`), whose
         elastic part ``F Fa^-1`` the energy measures (a contracting muscle), or None.
         """
-        return self._energy_grad(x, force, gum_target, self._dm_inv(active))
+        return self._energy_grad(x, force, gum_target, self._kinematics(active))
 
-    def _energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None,
-                     Dm_inv: np.ndarray):
-        """:meth:`energy_grad` with the (active-strain composed) inverse rest edge matrices given:
-        one product per solve instead of one per evaluation."""
-        F = deformation_gradients(x, self.tets, Dm_inv)
+    def _kinematics(self, active: np.ndarray | None):
+        """What one solve's evaluations share, for ``active`` (see :meth:`energy_grad`): the inverse
+        rest edge matrices composed with the active strain, the deformation gradients at rest, and
+        the sparse map ``G`` (9T, 6n) from node displacements to the change of ``F``
+        (``F = F_rest + G u``; the energy's gradient is ``G^T`` of the stresses). One sparse product
+        each way instead of gathers and per-tet products: F and the gradient take 0.3 ms against
+        1.3 ms on a 4,176-tet ``hard`` layer. Displacements, not positions, keep the sums small."""
+        from scipy.sparse import csr_matrix
+
+        Dm_inv = self._dm_inv(active)
+        T, N = len(self.tets), len(self.rest)
+        if "strain_pattern" not in self.cache:  # row (t, i, j) of F: node a's coordinate i, a = 0..3
+            cols = 3 * self.tets[:, None, None, :] + np.arange(3)[None, :, None, None]
+            self.cache["strain_pattern"] = (np.broadcast_to(cols, (T, 3, 3, 4)).ravel(),
+                                            np.arange(0, 36 * T + 1, 4))
+        indices, indptr = self.cache["strain_pattern"]
+        gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
+        data = np.broadcast_to(np.swapaxes(gN, 1, 2)[:, None], (T, 3, 3, 4)).ravel()
+        G = csr_matrix((data, indices, indptr), shape=(9 * T, 3 * N))
+        return deformation_gradients(self.rest, self.tets, Dm_inv), G
+
+    def _energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None, kinematics):
+        """:meth:`energy_grad` with :meth:`_kinematics` computed once per solve."""
+        F_rest, G = kinematics
+        T = len(self.tets)
+        F = F_rest + (G @ (x - self.rest).ravel()).reshape(T, 3, 3)
         E, trE, S, cof, J = strain_state(F, self.mu, self.lam)
         W = self.mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * self.lam * trE**2
-        Pk = F @ S  # first Piola-Kirchhoff stress
         Wv = 0.5 * self.kappa * (J - 1.0) ** 2
-        stress = Pk + (self.kappa * (J - 1.0))[:, None, None] * cof
-        H = self.volume[:, None, None] * stress @ np.swapaxes(Dm_inv, -1, -2)  # dE/dDs
-        per_node = np.concatenate([-H.sum(axis=-1), H[..., 0], H[..., 1], H[..., 2]])  # (4T, 3)
-        g = self.scatter @ per_node
+        stress = F @ S + (self.kappa * (J - 1.0))[:, None, None] * cof  # first Piola-Kirchhoff
+        g = (G.T @ (self.volume[:, None, None] * stress).ravel()).reshape(-1, 3)
         energy = float(np.sum(self.volume * (W + Wv)))
         energy -= float(np.sum(force * (x - self.rest)))
         g -= force
@@ -244,9 +259,9 @@ class Layer:
         free = ~self.fixed
         x = (self.rest if x0 is None else np.asarray(x0, float)).copy()
         x[self.fixed] = prescribed[self.fixed]
-        Dm_inv = self._dm_inv(active)
+        kinematics = self._kinematics(active)
         solve = self.cache.get("last", self._factor())  # the latest tangent: frames are alike
-        e, g = self._energy_grad(x, force, gum_target, Dm_inv)
+        e, g = self._energy_grad(x, force, gum_target, kinematics)
         memory: list = []      # L-BFGS pairs (s, y, 1 / y.s), oldest first
         for it in range(maxiter):  # noqa: B007 (the count is recorded after the loop)
             step = -_lbfgs_direction(g[free].ravel(), memory, solve).reshape(-1, 3)
@@ -258,7 +273,7 @@ class Layer:
             alpha, trial = 1.0, x.copy()
             while True:
                 trial[free] = x[free] + alpha * step
-                e_new, g_new = self._energy_grad(trial, force, gum_target, Dm_inv)
+                e_new, g_new = self._energy_grad(trial, force, gum_target, kinematics)
                 if e_new <= e + 1e-4 * alpha * slope or alpha < 1e-6:
                     break
                 curvature = e_new - e - slope * alpha
@@ -369,10 +384,6 @@ def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float =
     if gum_nodes is not None:
         gum[n:] = gum_stiffness * np.asarray(gum_nodes, float)
     pairs = np.zeros((0, 2), np.int64) if contact_pairs is None else np.asarray(contact_pairs, np.int64)
-    from scipy.sparse import coo_matrix
-
-    T = len(tets)
-    scatter = coo_matrix((np.ones(4 * T), (tets.T.ravel(), np.arange(4 * T))), shape=(2 * n, 4 * T)).tocsr()
     Dm_inv, vol, kappa = np.linalg.inv(Dm), det / 6.0, kappa_ratio * mu
     # at rest the volume penalty adds kappa to lambda (d det F = tr dF)
     K0 = rest_stiffness(rest, tets, Dm_inv, vol, mu, lam + kappa, gum, pairs, float(contact_stiffness))
@@ -383,4 +394,4 @@ def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float =
     from scipy.sparse import diags
 
     return Layer(rest, tets, Dm_inv, vol, mu, lam, kappa, fixed, pairs, float(contact_stiffness), gum,
-                 scatter, K0, {"springs": springs, "diag": diags(diag)})
+                 K0, {"springs": springs, "diag": diags(diag)})
