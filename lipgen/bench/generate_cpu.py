@@ -29,7 +29,7 @@ default frames when that issue was filed (:data:`ISSUE15_BASE_COMMIT`, whose fra
 :data:`BASE_COMMIT`'s), is measured after the timed rounds of issue 22, in rounds of its own
 (``hard`` against ``base``, the same way): a hard frame is 2-3 times a default one, and in the same
 rounds it would weigh on the others' load. The hard run's truth is moved by the linear truth
-physics: the nonlinear tissue layer is a one-off simulation (about 0.2 s of CPU per frame) before
+physics: the nonlinear tissue layer is a one-off simulation (about 0.1 s of CPU per frame) before
 any frame is drawn, not the frame pipeline this measures. ``hard_over_new`` divides that figure by
 issue 22's median (today's default frames, which ``easy`` reproduces). ``hard_layer`` is the same
 run with the hard preset's own nonlinear truth physics, in the same rounds: what a user of
@@ -58,6 +58,13 @@ made faster since): new over ``base_one_thread`` 2.72 (2.50-2.85) per CPU second
 ``base_one_thread`` 0.78 (0.70-0.84), 0.62 per wall second; ``hard_layer`` over
 ``base_one_thread`` 0.36 (0.35-0.37), 0.27 per wall second: with its own truth physics a hard
 frame costs 0.33 s of CPU, of which about 0.18 s is the tissue layer. The suite took 4 minutes.
+
+After the layer's solver became an L-BFGS from its factorised tangent (the layer's CPU per frame
+halved, 0.19 -> 0.10 s on the default seed), three runs later that day, one after another (load
+1.0-1.5): ``hard_layer`` over ``base_one_thread`` 0.41 (0.40-0.41), 0.39 (0.33-0.46) and 0.37
+(0.36-0.42), against 0.33 (0.30-0.34) and 0.39 (0.36-0.44) for the code before in runs interleaved
+with them: the rounds' spread is as large as the change, which the layer's own timing shows better
+(``renders/examples/speed33``).
 """
 
 from __future__ import annotations

@@ -46,7 +46,8 @@ log = logging.getLogger(__name__)
 
 LBFGS_MEMORY = 5
 """Pairs the truth layer's L-BFGS keeps (:meth:`Layer.solve`). 3, 5, 8 and 12 were measured on 40
-``hard`` frames (seed 6): 855, 865, 949 and 929 evaluations with 59, 53, 56 and 52 factorisations."""
+``hard`` frames (seed 6, with halving backtracking): 855, 865, 949 and 929 evaluations with 59, 53, 56
+and 52 factorisations; none (the tangent alone, refactorised after every shortened step) 1105 and 114."""
 
 
 def stvk_energy_density(F: np.ndarray, mu, lam) -> np.ndarray:
@@ -238,10 +239,12 @@ class Layer:
 
         The tangent alone makes a Newton-like descent that converges linearly (it leaves out the
         compressive and volume-change parts of the Hessian, which are indefinite); the memory supplies
-        their curvature along the path. On 30 and 40 ``hard`` frames (seeds 5 and 6) that took 705
-        and 839 evaluations with 60 and 52 factorisations, against 851 and 983 with 109 and 119 for
-        the tangent alone, to equilibria 2-3e-4 mm (largest node) from a solve to 1e-8 mm, where the
-        tangent alone stopped 4e-4 and 2e-3 mm from it.
+        their curvature along the path. On ``hard`` frames (the default seed, 36 frames; seeds 5, 6
+        and 7, 30, 40 and 40 frames) it took 802, 705, 839 and 969 evaluations with 45, 60, 52 and
+        76 factorisations, where the tangent alone (with halving backtracking, refactorised every
+        fifth step) took 910, 851, 983 and 1344 with 97, 109, 119 and 161: half the CPU per frame
+        (0.19 -> 0.10 s on the default seed). It stopped 2-4e-4 mm (largest node) from a solve to
+        1e-8 mm on seeds 5-7, where the tangent alone stopped 4e-4 to 2e-3 mm from it.
 
         Parameters
         ----------
