@@ -123,6 +123,14 @@ def test_bad_layers_are_refused():
         build_layer(m, np.ones(m.n_faces), np.ones(m.n_nodes), poisson=0.5)
     with pytest.raises(ValueError, match="positive"):
         build_layer(m, np.ones(m.n_faces), np.zeros(m.n_nodes))
+    L = build_layer(m, np.ones(m.n_faces), np.ones(m.n_nodes))
+    f = np.zeros_like(L.rest)
+    for kwargs, word in (({"maxiter": 0}, "maxiter"), ({"maxiter": 2.5}, "maxiter"), ({"tol": 0.0}, "tol"),
+                         ({"tol": float("nan")}, "tol"), ({"x0": L.rest[:5]}, "x0")):
+        with pytest.raises(ValueError, match=word):
+            L.solve(f, L.rest, **kwargs)
+    with pytest.raises(ValueError, match=r"force must be \(\d+, 3\)"):
+        L.solve(f[:, :2], L.rest)
 
 
 def test_the_layered_subject_moves_like_its_calibration_and_unlike_the_linear_model():

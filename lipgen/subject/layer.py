@@ -259,6 +259,16 @@ class Layer:
         active : (T, 3, 3) float, optional
             Inverse active strains (:func:`active_strain`): muscle contraction in the tissue.
         """
+        if isinstance(maxiter, bool) or not isinstance(maxiter, (int, np.integer)) or maxiter < 1:
+            raise ValueError(f"maxiter must be a positive integer (steps), got {maxiter!r}")
+        if not (isinstance(tol, (int, float, np.floating)) and np.isfinite(tol) and tol > 0):
+            raise ValueError(f"tol must be a positive number of mm (the smallest step), got {tol!r}")
+        shape = self.rest.shape
+        given = {"force": force, "prescribed": prescribed, "x0": x0, "gum_target": gum_target}
+        for name, value in given.items():
+            if value is not None and np.shape(value) != shape:
+                raise ValueError(f"{name} must be {shape} like the layer's nodes, got shape "
+                                 f"{np.shape(value)}")
         free = ~self.fixed
         x = (self.rest if x0 is None else np.asarray(x0, float)).copy()
         x[self.fixed] = prescribed[self.fixed]
