@@ -116,16 +116,28 @@ def test_the_positive_part_matches_an_eigendecomposition():
     assert np.array_equal(positive_part(special[:1]), np.zeros((1, 3, 3)))
 
 
-def test_a_factorisation_in_a_stored_order_solves_the_same_system(touching):
-    from lipgen.subject.layer_stiffness import fill_reducing_order, spd_solver
+@pytest.mark.parametrize("method", ["cholmod", "superlu"])
+def test_a_pattern_factorisation_solves_each_matrix_of_the_pattern(touching, method):
+    from lipgen.fem.solver import cholmod_available
+    from lipgen.subject.layer_stiffness import PatternCholesky, spd_solver
 
+    if method == "cholmod" and not cholmod_available():
+        pytest.skip("cvxopt is not installed: pip install 'lipgen[fast]'")
     L, x, _ = touching
     A = L.tangent(x, free_only=True)
-    order = fill_reducing_order(A)
-    assert sorted(order) == list(range(A.shape[0]))
+    chol = PatternCholesky(A, method)
+    assert chol.method == method
     B = L.tangent(L.rest + 0.5 * (x - L.rest), free_only=True)   # another matrix of the same pattern
     b = np.random.default_rng(9).normal(size=A.shape[0])
     for M in (A, B):
-        got = spd_solver(M, order)(b)
+        got = chol.factor(M)(b)
         assert np.allclose(got, spd_solver(M)(b), rtol=0, atol=1e-9 * np.abs(got).max())
         assert np.abs(M @ got - b).max() <= 1e-9 * np.abs(b).max()
+    dof = np.repeat(~L.fixed, 3)
+    exact = L.tangent(x, psd=False)[dof][:, dof]   # indefinite here (the test above): refused, not solved
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite"):
+        chol.factor(exact)
+    with pytest.raises(ValueError, match="pattern"):
+        chol.factor(A[:-3, :-3])
+    with pytest.raises(ValueError, match="method must be one of"):
+        PatternCholesky(A, "lu")

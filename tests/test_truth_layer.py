@@ -265,3 +265,20 @@ def test_the_solver_stops_near_the_equilibrium_of_a_large_load(small):
     assert np.abs(x - tight).max() < 1e-3
     g = L.energy_grad(tight, f)[1][~L.fixed]
     assert np.abs(g).max() < 1e-6 * np.abs(f).max()
+
+
+def test_the_layers_truth_does_not_depend_on_the_blas_thread_count(pucker_subject):
+    """The solver's supernodal factorisations (CHOLMOD's BLAS) would round differently on two
+    threads: the layer runs on one, always, so a dataset's truth does not depend on the machine."""
+    from lipgen._threads import blas_threads
+    from lipgen.subject.activation import ACTIONS, action_index
+    from lipgen.subject.truth import layer_displacements
+
+    A = np.zeros((3, len(ACTIONS)))
+    A[:, action_index("jaw_open")] = [0.3, 0.8, 0.5]
+    A[:, action_index("pucker")] = [0.0, 0.6, 1.0]
+    with blas_threads(1, always=True):
+        one = layer_displacements(pucker_subject, A)
+    with blas_threads(2, always=True):
+        two = layer_displacements(pucker_subject, A)
+    assert np.abs(one).max() > 1.0 and one.tobytes() == two.tobytes()

@@ -31,12 +31,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from lipgen.subject.layer_stiffness import (
+    PatternCholesky,
     StiffnessPattern,
+    _cofactors,
+    _determinant,
     deformation_gradients,
-    fill_reducing_order,
     rest_stiffness,
     spd_solver,
-    strain_state,
     tet_hessians,
 )
 
@@ -159,37 +160,46 @@ class Layer:
         return self._energy_grad(x, force, gum_target, self._kinematics(active))
 
     def _kinematics(self, active: np.ndarray | None):
-        """What one solve's evaluations share, for ``active`` (see :meth:`energy_grad`): the inverse
-        rest edge matrices composed with the active strain, the deformation gradients at rest, and
-        the sparse map ``G`` (9T, 6n) from node displacements to the change of ``F``
-        (``F = F_rest + G u``; the energy's gradient is ``G^T`` of the stresses). One sparse product
-        each way instead of gathers and per-tet products: F and the gradient take 0.3 ms against
-        1.3 ms on a 4,176-tet ``hard`` layer. Displacements, not positions, keep the sums small."""
+        """What one solve's evaluations share, for ``active`` (see :meth:`energy_grad`): the
+        deformation gradients at rest (9, T), the sparse map ``G`` (9T, 6n) from node displacements
+        to the change of ``F`` (``F = F_rest + G u``; the energy's gradient is ``G^T`` of the
+        stresses) and the shape gradients (4, 3, T). Rows are component-major (``F_ij`` of every
+        tet, then the next component), so that each component is a contiguous array of the tets:
+        the energy and the tangent then run over contiguous memory. Displacements, not positions,
+        keep the sums small."""
         from scipy.sparse import csr_matrix
 
         Dm_inv = self._dm_inv(active)
         T, N = len(self.tets), len(self.rest)
-        if "strain_pattern" not in self.cache:  # row (t, i, j) of F: node a's coordinate i, a = 0..3
-            cols = 3 * self.tets[:, None, None, :] + np.arange(3)[None, :, None, None]
-            self.cache["strain_pattern"] = (np.broadcast_to(cols, (T, 3, 3, 4)).ravel(),
+        gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1).transpose(1, 2, 0)
+        if "strain_pattern" not in self.cache:  # row (i, j, t) of F: node a's coordinate i, a = 0..3
+            cols = 3 * self.tets.T[None, None, :, :] + np.arange(3)[:, None, None, None]
+            self.cache["strain_pattern"] = (np.broadcast_to(cols, (3, 3, 4, T)).transpose(0, 1, 3, 2).ravel(),
                                             np.arange(0, 36 * T + 1, 4))
         indices, indptr = self.cache["strain_pattern"]
-        gN = np.concatenate([-Dm_inv.sum(axis=1, keepdims=True), Dm_inv], axis=1)  # (T, 4, 3)
-        data = np.broadcast_to(np.swapaxes(gN, 1, 2)[:, None], (T, 3, 3, 4)).ravel()
+        data = np.broadcast_to(gN.transpose(1, 2, 0)[None], (3, 3, T, 4)).ravel()
         G = csr_matrix((data, indices, indptr), shape=(9 * T, 3 * N))
-        return deformation_gradients(self.rest, self.tets, Dm_inv), G
+        F_rest = deformation_gradients(self.rest, self.tets, Dm_inv).transpose(1, 2, 0).reshape(9, T)
+        return np.ascontiguousarray(F_rest), G, np.ascontiguousarray(gN)
 
     def _energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None, kinematics):
         """:meth:`energy_grad` with :meth:`_kinematics` computed once per solve."""
-        F_rest, G = kinematics
+        F_rest, G, _ = kinematics
         T = len(self.tets)
-        F = F_rest + (G @ (x - self.rest).ravel()).reshape(T, 3, 3)
-        E, trE, S, cof, J = strain_state(F, self.mu, self.lam)
-        W = self.mu * np.sum(E * E, axis=(-2, -1)) + 0.5 * self.lam * trE**2
-        Wv = 0.5 * self.kappa * (J - 1.0) ** 2
-        stress = F @ S + (self.kappa * (J - 1.0))[:, None, None] * cof  # first Piola-Kirchhoff
-        g = (G.T @ (self.volume[:, None, None] * stress).ravel()).reshape(-1, 3)
-        energy = float(np.sum(self.volume * (W + Wv)))
+        F = (F_rest.ravel() + G @ (x - self.rest).ravel()).reshape(3, 3, T)
+        E = 0.5 * np.einsum("kat,kbt->abt", F, F)
+        for i in range(3):
+            E[i, i] -= 0.5
+        trE = E[0, 0] + E[1, 1] + E[2, 2]
+        S = (2.0 * self.mu) * E
+        for i in range(3):
+            S[i, i] += self.lam * trE
+        cof = _cofactors(F)
+        J1 = _determinant(F, cof) - 1.0
+        W = self.mu * np.einsum("abt,abt->t", E, E) + 0.5 * self.lam * trE**2 + 0.5 * self.kappa * J1**2
+        stress = np.einsum("ikt,kjt->ijt", F, S) + (self.kappa * J1) * cof   # first Piola-Kirchhoff
+        g = (G.T @ (self.volume * stress).ravel()).reshape(-1, 3)
+        energy = float(self.volume @ W)
         energy -= float(np.sum(force * (x - self.rest)))
         g -= force
         if self.gum.any():
@@ -207,22 +217,28 @@ class Layer:
         return energy, g
 
     def tangent(self, x: np.ndarray, psd: bool = True, active: np.ndarray | None = None,
-                free_only: bool = False):
+                free_only: bool = False, kinematics=None, shift: float = 0.0):
         """Sparse stiffness at ``x``: the tets' energy Hessians, or with ``psd`` their positive
         semi-definite parts (a descent direction;
         :func:`~lipgen.subject.layer_stiffness.stress_derivative`), plus the springs as in K0 (the
-        contact springs engaged where the lips touch); ``active`` as in :meth:`energy_grad`.
+        contact springs engaged where the lips touch); ``active`` as in :meth:`energy_grad`
+        (``kinematics``, :meth:`_kinematics` of it, if the caller has them). ``shift`` times the
+        diagonal of K0 is added to the diagonal (a relative regularisation).
 
-        (6n, 6n) CSC, or the free nodes' block if ``free_only`` (the solver's matrix).
+        (6n, 6n) CSC, or the free nodes' block if ``free_only`` (the solver's matrix). Its sparsity
+        pattern is the same at every ``x``: untouched contact springs are stored zeros.
         """
         key = "pattern_free" if free_only else "pattern_all"
         if key not in self.cache:
             on = np.repeat(~self.fixed, 3) if free_only else np.ones(3 * len(self.rest), bool)
             self.cache[key] = StiffnessPattern(self.tets, on, self.contact_pairs)
-        K = tet_hessians(x, self.tets, self._dm_inv(active), self.volume, self.mu, self.lam, self.kappa, psd)
+        F_rest, G, gN = self._kinematics(active) if kinematics is None else kinematics
+        F = (F_rest.ravel() + G @ (x - self.rest).ravel()).reshape(3, 3, len(self.tets))
+        K = tet_hessians(F, gN, self.volume, self.mu, self.lam, self.kappa, psd)
         up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
         touching = self.contact_stiffness * (x[up, 1] < x[lo, 1])
-        return self.cache[key].assemble(K, np.repeat(self.gum, 3), touching)
+        diagonal = np.repeat(self.gum, 3) + shift * self.K0.diagonal() if shift else np.repeat(self.gum, 3)
+        return self.cache[key].assemble(K, diagonal, touching)
 
     def solve(self, force: np.ndarray, prescribed: np.ndarray, x0: np.ndarray | None = None,
               gum_target: np.ndarray | None = None, tol: float = 1e-4, maxiter: int = 100,
@@ -302,7 +318,7 @@ class Layer:
             if alpha * np.abs(step).max() < tol:
                 break
             if alpha < 1.0:  # the tangent is stale: a new one, and a memory that starts from it
-                solve = self._factor(x, active)
+                solve = self._factor(x, kinematics)
                 self.cache["last"] = solve
                 memory.clear()
             elif (sy := float(s_k @ y_k)) > 1e-12 * float(s_k @ s_k):  # positive curvature only
@@ -314,13 +330,16 @@ class Layer:
         self.iterations.append(it + 1)
         return x
 
-    def _factor(self, x: np.ndarray | None = None, active: np.ndarray | None = None):
-        """A solver with the free block of K0 (``x`` None, cached) or of the tangent at ``x``."""
+    def _factor(self, x: np.ndarray | None = None, kinematics=None):
+        """A solver with the free block of K0 (``x`` None, cached) or of the positive semi-definite
+        tangent at ``x`` (:meth:`tangent`; ``kinematics`` as there), factorised in the order
+        analysed once per layer (:class:`~lipgen.subject.layer_stiffness.PatternCholesky`). A
+        tangent's solver is valid until the next tangent is factorised."""
         if x is not None:
-            K = self.tangent(x, active=active, free_only=True) + 1e-9 * self.cache["diag"]
-            if "order" not in self.cache:   # the pattern is fixed: order it once
-                self.cache["order"] = fill_reducing_order(K)
-            return spd_solver(K, self.cache["order"])
+            K = self.tangent(x, free_only=True, kinematics=kinematics, shift=1e-9)
+            if "cholesky" not in self.cache:   # the pattern is fixed: analyse it once
+                self.cache["cholesky"] = PatternCholesky(K)
+            return self.cache["cholesky"].factor(K)
         if "solve" not in self.cache:
             dof_free = np.repeat(~self.fixed, 3)
             self.cache["solve"] = spd_solver(self.K0[dof_free][:, dof_free])
@@ -400,11 +419,5 @@ def build_layer(mesh, young: np.ndarray, thickness: np.ndarray, poisson: float =
     Dm_inv, vol, kappa = np.linalg.inv(Dm), det / 6.0, kappa_ratio * mu
     # at rest the volume penalty adds kappa to lambda (d det F = tr dF)
     K0 = rest_stiffness(rest, tets, Dm_inv, vol, mu, lam + kappa, gum, pairs, float(contact_stiffness))
-    springs = rest_stiffness(rest, tets[:0], Dm_inv[:0], vol[:0], mu[:0], lam[:0], gum, pairs,
-                              float(contact_stiffness))
-    dof_free = np.repeat(~fixed, 3)
-    diag = K0.diagonal()[dof_free]
-    from scipy.sparse import diags
-
     return Layer(rest, tets, Dm_inv, vol, mu, lam, kappa, fixed, pairs, float(contact_stiffness), gum,
-                 K0, {"springs": springs, "diag": diags(diag)})
+                 K0)

@@ -27,6 +27,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from lipgen._threads import single_threaded
 from lipgen.subject.activation import ACTIONS, action_index
 
 __all__ = ["with_layer", "layer_displacements", "layer_active", "LAYER_THICKNESS_MM", "PUCKER_SHORTENING"]
@@ -93,6 +94,7 @@ def _node_thickness(mesh) -> np.ndarray:
     return t
 
 
+@single_threaded(always=True)
 def with_layer(subject, rng=None):
     """``subject`` with nonlinear truth physics: a :class:`~lipgen.subject.layer.Layer` and the
     per-action nodal forces (A, n, 3) calibrated on it.
@@ -104,6 +106,7 @@ def with_layer(subject, rng=None):
     region as the linear subject. The pucker actions also contract the orbicularis fibres (see the
     module docstring).
     """
+    from lipgen.fem.solver import cholmod_available
     from lipgen.subject.layer import build_layer
     from lipgen.subject.sources import ACTION_TARGETS_MM, _force_patterns, _region_nodes
 
@@ -162,14 +165,21 @@ def with_layer(subject, rng=None):
     forces.setflags(write=False)
     contraction.setflags(write=False)
     info = {"poisson": poisson, "kappa_ratio": kappa, "thickness_mm": dict(LAYER_THICKNESS_MM),
-            "pucker_shortening": PUCKER_SHORTENING}
+            "pucker_shortening": PUCKER_SHORTENING,
+            # the solver's factorisation: the truth agrees to ~1e-11 mm between the two, not bit for bit
+            "factorisation": "cholmod" if cholmod_available() else "superlu"}
     return replace(subject, layer=layer, layer_forces=forces, layer_info=info,
                    layer_active=(fibres, contraction))
 
 
+@single_threaded(always=True)
 def layer_displacements(subject, A: np.ndarray, progress: bool = False) -> np.ndarray:
     """(F, n, 3) displacements of the subject's surface for activations ``A`` (F, A), solved
-    frame by frame with the nonlinear layer (each frame warm-started from the previous one)."""
+    frame by frame with the nonlinear layer (each frame warm-started from the previous one).
+
+    One BLAS thread, always (as the linear subject's contact): the factorisations' supernodal BLAS
+    would otherwise round differently with the thread count, and the truth must not depend on
+    the machine; its calls are small, so a second thread only waits."""
     from tqdm import tqdm
 
     from lipgen.subject.sources import _jaw_rigid
@@ -183,6 +193,7 @@ def layer_displacements(subject, A: np.ndarray, progress: bool = False) -> np.nd
     bw = np.concatenate([subject.border_weight, subject.border_weight])
     out = np.zeros((len(A), n, 3))
     x = X2.copy()
+    layer.cache.pop("last", None)   # start from K0, not from another call's tangent: the same bytes every call
     for f in tqdm(range(len(A)), desc="truth physics", unit="frame", disable=not progress):
         force = np.zeros_like(X2)
         force[:n] = np.einsum("a,ani->ni", A[f], subject.layer_forces)
