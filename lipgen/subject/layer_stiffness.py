@@ -236,8 +236,9 @@ class StiffnessPattern:
         self.kept = [np.flatnonzero(k) for k in kept]
 
     def assemble(self, K: np.ndarray, diagonal: np.ndarray, contact: np.ndarray):
-        """(n, n) CSC matrix: the tets' Hessians ``K`` (12, 12, T) (:func:`tet_hessians`), plus ``diagonal`` (3N,) on the
-        diagonal and a spring of stiffness ``contact`` (p,) between each pair's y dofs."""
+        """(n, n) CSC matrix: the tets' Hessians ``K`` (12, 12, T) (:func:`tet_hessians`), plus
+        ``diagonal`` (3N,) on the diagonal and a spring of stiffness ``contact`` (p,) between each
+        pair's y dofs."""
         from scipy.sparse import csc_matrix
 
         pair = np.stack([contact, contact, -contact, -contact], axis=1).ravel()

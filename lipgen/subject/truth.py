@@ -193,7 +193,7 @@ def layer_displacements(subject, A: np.ndarray, progress: bool = False) -> np.nd
     bw = np.concatenate([subject.border_weight, subject.border_weight])
     out = np.zeros((len(A), n, 3))
     x = X2.copy()
-    layer.cache.pop("last", None)   # start from K0, not from another call's tangent: the same bytes every call
+    layer.cache.pop("last", None)   # start from K0, not another call's tangent: the same bytes every call
     for f in tqdm(range(len(A)), desc="truth physics", unit="frame", disable=not progress):
         force = np.zeros_like(X2)
         force[:n] = np.einsum("a,ani->ni", A[f], subject.layer_forces)
