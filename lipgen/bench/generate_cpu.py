@@ -29,7 +29,7 @@ default frames when that issue was filed (:data:`ISSUE15_BASE_COMMIT`, whose fra
 :data:`BASE_COMMIT`'s), is measured after the timed rounds of issue 22, in rounds of its own
 (``hard`` against ``base``, the same way): a hard frame is 2-3 times a default one, and in the same
 rounds it would weigh on the others' load. The hard run's truth is moved by the linear truth
-physics: the nonlinear tissue layer is a one-off simulation (about 0.1 s of CPU per frame) before
+physics: the nonlinear tissue layer is a one-off simulation (about 0.06 s of CPU per frame) before
 any frame is drawn, not the frame pipeline this measures. ``hard_over_new`` divides that figure by
 issue 22's median (today's default frames, which ``easy`` reproduces). ``hard_layer`` is the same
 run with the hard preset's own nonlinear truth physics, in the same rounds: what a user of

@@ -4,7 +4,7 @@ Issue 15's speed target: ``hard`` frames at no less than half of ``easy``'s (tod
 frames per second with pyrender. Both presets film the same moving subject: the hard preset's
 motion (its head motion and independent speech sources), simulated once with the linear truth
 physics, since the nonlinear tissue layer of ``hard`` is a one-off simulation before any frame is
-rendered (about 0.1 s of CPU per frame, not part of the frame pipeline). Each worker is set up as
+rendered (about 0.06 s of CPU per frame, not part of the frame pipeline). Each worker is set up as
 ``generate`` sets up its own (one BLAS thread, one GL context per preset), and the frames are
 interleaved: easy frame i, hard frame i, easy frame i + 1, ... Each frame is the whole per-frame
 job: render (every sub-frame instant of the exposure), form (lens, mirror, sensor, JPEG),

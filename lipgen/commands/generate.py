@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
     opt("--preset", default="easy", choices=("easy", "default", "hard"),
         help="difficulty: easy (the model's shape, dots on its nodes, linear truth; as before presets), "
         "default (the subject's own shape and hand-placed dots), hard (and nonlinear tissue physics, "
-        "about 0.1 s per frame; more head motion and noise). Default: easy. Flags below override the preset")
+        "about 0.06 s per frame; more head motion and noise). Default: easy. Flags below override the preset")
     opt("--subject-seed", type=int, default=None,
         help="seed of the subject's own lip shape and ink-dot placement (default: none, the model's "
         "shape with dots on its marker nodes)")

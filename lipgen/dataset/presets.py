@@ -16,7 +16,7 @@ frames are formed (:class:`FrameConditions`, whose lens, mirror, light and senso
   dataset, a real mirror, a low-noise sensor, high-quality JPEG; the subject has a head (cheeks,
   chin, nasolabial folds, a nose with nostrils), teeth and a tongue, and hand-drawn ink dots.
 - ``hard``: as ``default``, moved by the nonlinear truth physics (:mod:`lipgen.subject.layer`:
-  large deformation, near-incompressible, lip contact; about 0.1 s of CPU per frame), with more head
+  large deformation, near-incompressible, lip contact; about 0.06 s of CPU per frame), with more head
   motion, filmed by an ordinary camera: a wide lens with visible radial and tangential
   distortion, defocus (the mirror view is farther than the focus), 1/120 s exposure at 30
   frames/s (motion blur), light, exposure and white balance varying per dataset, a

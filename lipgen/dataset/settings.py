@@ -57,7 +57,7 @@ class GenerateSettings:
     the model's shape with the dots on its marker nodes (the data before subject seeds existed)."""
     truth_physics: str = "linear"
     """``"linear"`` (the linear truth subject) or ``"layer"`` (the nonlinear tissue layer,
-    :mod:`lipgen.subject.layer`; about 0.1 s of CPU per frame)."""
+    :mod:`lipgen.subject.layer`; about 0.06 s of CPU per frame)."""
     motion_sources: str = "gestures"
     """``"gestures"`` (:func:`lipgen.subject.activation.random_activations`, the motion before
     presets) or ``"independent"`` (:mod:`lipgen.subject.independent`: speech from independent
