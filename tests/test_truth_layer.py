@@ -282,3 +282,26 @@ def test_the_layers_truth_does_not_depend_on_the_blas_thread_count(pucker_subjec
     with blas_threads(2, always=True):
         two = layer_displacements(pucker_subject, A)
     assert np.abs(one).max() > 1.0 and one.tobytes() == two.tobytes()
+
+
+def test_without_cvxopt_the_layer_reaches_the_same_equilibria(pucker_subject, monkeypatch):
+    """SuperLU in a stored order stands in for CHOLMOD where cvxopt is not installed: the same
+    steps, the same equilibria to rounding (the factorisations differ only in their last bits)."""
+    import lipgen.fem.solver
+    from lipgen.subject.activation import ACTIONS, action_index
+    from lipgen.subject.truth import layer_displacements
+
+    A = np.zeros((2, len(ACTIONS)))
+    A[:, action_index("jaw_open")] = [0.4, 0.9]
+    A[:, action_index("lip_corner_puller_left")] = [0.5, 1.2]
+    layer = pucker_subject.layer
+    layer.cache.pop("cholesky", None)
+    fast = layer_displacements(pucker_subject, A)
+    steps = list(layer.iterations[-2:])
+    monkeypatch.setattr(lipgen.fem.solver, "cholmod_available", lambda: False)
+    layer.cache.pop("cholesky", None)
+    slow = layer_displacements(pucker_subject, A)
+    assert layer.cache["cholesky"].method == "superlu"
+    assert layer.iterations[-2:] == steps
+    assert np.abs(fast - slow).max() < 1e-8 and np.abs(fast).max() > 1.0
+    layer.cache.pop("cholesky", None)

@@ -33,9 +33,9 @@ import numpy as np
 from lipgen.subject.layer_stiffness import (
     PatternCholesky,
     StiffnessPattern,
-    _cofactors,
-    _determinant,
+    cofactors,
     deformation_gradients,
+    determinant,
     rest_stiffness,
     spd_solver,
     tet_hessians,
@@ -194,8 +194,8 @@ class Layer:
         S = (2.0 * self.mu) * E
         for i in range(3):
             S[i, i] += self.lam * trE
-        cof = _cofactors(F)
-        J1 = _determinant(F, cof) - 1.0
+        cof = cofactors(F)
+        J1 = determinant(F, cof) - 1.0
         W = self.mu * np.einsum("abt,abt->t", E, E) + 0.5 * self.lam * trE**2 + 0.5 * self.kappa * J1**2
         stress = np.einsum("ikt,kjt->ijt", F, S) + (self.kappa * J1) * cof   # first Piola-Kirchhoff
         g = (G.T @ (self.volume * stress).ravel()).reshape(-1, 3)

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["deformation_gradients", "strain_state", "symmetric_eigenvalues", "positive_part",
-           "stress_derivative", "tet_hessians", "StiffnessPattern", "PatternCholesky", "spd_solver",
-           "rest_stiffness"]
+__all__ = ["deformation_gradients", "cofactors", "determinant", "strain_state", "symmetric_eigenvalues",
+           "positive_part", "stress_derivative", "tet_hessians", "StiffnessPattern", "PatternCholesky",
+           "spd_solver", "rest_stiffness"]
 
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 for _i, _j, _k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
@@ -165,7 +165,7 @@ def tet_hessians(F: np.ndarray, gN: np.ndarray, volume: np.ndarray, mu, lam, kap
         S[i, i] += trace_term
     if psd:
         S = np.ascontiguousarray(positive_part(np.ascontiguousarray(S.transpose(2, 0, 1))).transpose(1, 2, 0))
-    cof = _cofactors(F)
+    cof = cofactors(F)
     q = np.einsum("mjt,ajt->amt", F, gN)
     r = np.einsum("mjt,ajt->amt", cof, gN)
     H = np.einsum("ajt,jlt,blt->abt", gN, volume * S, gN)
@@ -179,14 +179,14 @@ def tet_hessians(F: np.ndarray, gN: np.ndarray, volume: np.ndarray, mu, lam, kap
         K[:, m, :, m] += H
     if not psd:
         w = np.cross(gN[:, None], gN[None, :], axis=2)                     # (4, 4, 3, T): g_a x g_b
-        z = np.einsum("pqt,abqt->abpt", F, w) * (vol_kappa * (_determinant(F, cof) - 1.0))
+        z = np.einsum("pqt,abqt->abpt", F, w) * (vol_kappa * (determinant(F, cof) - 1.0))
         for m, n, p in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
             K[:, m, :, n] += z[:, :, p]
             K[:, n, :, m] -= z[:, :, p]
     return K.reshape(12, 12, T)
 
 
-def _cofactors(F: np.ndarray) -> np.ndarray:
+def cofactors(F: np.ndarray) -> np.ndarray:
     """(3, 3, T) cofactor matrices ``det(F) F^-T`` of ``F`` (3, 3, T): column ``c`` is the cross
     product of F's other two columns."""
     cof = np.empty_like(F)
@@ -198,7 +198,7 @@ def _cofactors(F: np.ndarray) -> np.ndarray:
     return cof
 
 
-def _determinant(F: np.ndarray, cof: np.ndarray) -> np.ndarray:
+def determinant(F: np.ndarray, cof: np.ndarray) -> np.ndarray:
     """(T,) ``det F`` from ``F`` and its cofactors (3, 3, T)."""
     return F[0, 0] * cof[0, 0] + F[1, 0] * cof[1, 0] + F[2, 0] * cof[2, 0]
 
