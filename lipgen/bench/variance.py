@@ -22,6 +22,13 @@ frames per CPU second with 19.1 steps per frame, 927-933 times the linear subjec
 the code before (each tet's 12 x 12 Hessian eigen-clipped, the tangent assembled through COO and
 sliced, SuperLU's general ordering) made 2.29-2.32 frames per CPU second with 26.7 steps, 2208-2317
 times the linear subject's.
+
+Measured again after speed33's L-BFGS and speed34's CHOLMOD factorisations and node-form tangent
+(2026-12-06, load 1.5-1.7, the code before run first): 16.6 layer frames per CPU second (17.5 per
+wall second) with 16.9 steps per frame, 140 times the linear subject's CPU per frame; the code
+before (008a81c) 5.10 per CPU second (9.0 per wall second: its BLAS ran on two threads) with 17.8
+steps, 309 times. The steps differ because each call now starts from the rest stiffness, not from
+the previous round's last tangent.
 """
 
 from __future__ import annotations
