@@ -305,3 +305,25 @@ def test_without_cvxopt_the_layer_reaches_the_same_equilibria(pucker_subject, mo
     assert layer.iterations[-2:] == steps
     assert np.abs(fast - slow).max() < 1e-8 and np.abs(fast).max() > 1.0
     layer.cache.pop("cholesky", None)
+
+
+def test_a_tangent_that_fails_to_factorise_falls_back_to_the_rest_stiffness(small, monkeypatch, caplog):
+    """A tangent that is not positive definite (rounding, in principle) is not solved: the step
+    starts from K0 instead, with a warning, and the solver still reaches the equilibrium."""
+    from lipgen.subject.layer_stiffness import PatternCholesky
+
+    _, L = small
+    f = np.zeros_like(L.rest)
+    f[~L.fixed] = 0.3 * np.random.default_rng(5).normal(size=((~L.fixed).sum(), 3))
+    want = L.solve(f, L.rest, tol=1e-9)
+
+    def refuse(self, A):
+        raise np.linalg.LinAlgError("the matrix is not positive definite (a test)")
+
+    monkeypatch.setattr(PatternCholesky, "factor", refuse)
+    L.cache.pop("last", None)
+    with caplog.at_level("WARNING", logger="lipgen.subject.layer"):
+        got = L.solve(f, L.rest, tol=1e-9, maxiter=1000)
+    assert "starts from the rest stiffness" in caplog.text and "no equilibrium" not in caplog.text
+    assert np.abs(got - want).max() < 1e-6 < np.abs(want - L.rest).max()
+    L.cache.pop("last", None)

@@ -346,7 +346,10 @@ class Layer:
             K = self.tangent(x, free_only=True, kinematics=kinematics, shift=1e-9)
             if "cholesky" not in self.cache:   # the pattern is fixed: analyse it once
                 self.cache["cholesky"] = PatternCholesky(K)
-            return self.cache["cholesky"].factor(K)
+            try:
+                return self.cache["cholesky"].factor(K)
+            except np.linalg.LinAlgError as exc:   # rounding in a nearly singular tangent: any SPD start will do
+                log.warning("truth layer: %s; this step starts from the rest stiffness", exc)
         if "solve" not in self.cache:
             dof_free = np.repeat(~self.fixed, 3)
             self.cache["solve"] = spd_solver(self.K0[dof_free][:, dof_free])
