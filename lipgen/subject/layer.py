@@ -348,7 +348,7 @@ class Layer:
                 self.cache["cholesky"] = PatternCholesky(K)
             try:
                 return self.cache["cholesky"].factor(K)
-            except np.linalg.LinAlgError as exc:   # rounding in a nearly singular tangent: any SPD start will do
+            except np.linalg.LinAlgError as exc:   # rounding in a nearly singular tangent: any SPD start does
                 log.warning("truth layer: %s; this step starts from the rest stiffness", exc)
         if "solve" not in self.cache:
             dof_free = np.repeat(~self.fixed, 3)
