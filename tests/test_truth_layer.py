@@ -327,3 +327,17 @@ def test_a_tangent_that_fails_to_factorise_falls_back_to_the_rest_stiffness(smal
     assert "starts from the rest stiffness" in caplog.text and "no equilibrium" not in caplog.text
     assert np.abs(got - want).max() < 1e-6 < np.abs(want - L.rest).max()
     L.cache.pop("last", None)
+
+
+def test_the_factorisation_can_be_chosen_and_a_bad_choice_is_refused(small):
+    _, L = small
+    f = np.zeros_like(L.rest)
+    f[~L.fixed] = 0.2
+    L.use_factorisation("superlu")
+    lu = L.solve(f, L.rest)
+    assert L.cache["cholesky"].method == "superlu"
+    L.use_factorisation("auto")
+    assert "cholesky" not in L.cache and "last" not in L.cache
+    assert np.abs(L.solve(f, L.rest) - lu).max() < 1e-8
+    with pytest.raises(ValueError, match="method must be one of"):
+        L.use_factorisation("lu")

@@ -14,8 +14,9 @@ tissue layer of :mod:`lipgen.subject.truth`, solved frame after frame with warm 
 speech clip, against two baselines timed on the same activations in the same rounds,
 interleaved: the linear truth subject (the ``default`` preset's physics: precomputed elastic
 responses, the jaw's solve and the contact LCP), and the reconstruction model's linear solve
-(``Physics(lip_mesh(0)).reach`` of the 16 dots' displacements). Ratios are medians of per-round
-ratios, in CPU time and in wall time, with the load average.
+(``Physics(lip_mesh(0)).reach`` of the 16 dots' displacements); and the same layer with its
+tangents factorised by SuperLU instead of CHOLMOD (``layer_over_layer_superlu``: what cvxopt buys).
+Ratios are medians of per-round ratios, in CPU time and in wall time, with the load average.
 
 Measured (2026-12-06, 2 cores, load 1-2, the two trees run alternately twice): 5.44-5.48 layer
 frames per CPU second with 19.1 steps per frame, 927-933 times the linear subject's CPU per frame;
@@ -35,6 +36,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -89,6 +91,8 @@ def _solver_speed(quick: bool) -> dict:
     seed = 0
     linear = default_subject(seed, 1, subject_seed=seed)
     layered = with_layer(linear)
+    superlu = replace(layered, layer=replace(layered.layer, cache={}, iterations=[]))
+    superlu.layer.use_factorisation("superlu")   # the same run's baseline for CHOLMOD (speed34)
     A = independent_activations(n_frames, seed)
     mesh = lip_mesh(0)
     physics = Physics(mesh)
@@ -97,7 +101,8 @@ def _solver_speed(quick: bool) -> dict:
     observed = dofs(mesh.markers)
     fns = {"model_reach": lambda: physics.reach(observed, goals),
            "linear_subject": lambda: simulate(linear, A),
-           "layer": lambda: layer_displacements(layered, A)}
+           "layer": lambda: layer_displacements(layered, A),
+           "layer_superlu": lambda: layer_displacements(superlu, A)}
     for fn in fns.values():  # warm-up: factorisations and caches
         fn()
     cpu = {k: [] for k in fns}
@@ -114,11 +119,12 @@ def _solver_speed(quick: bool) -> dict:
     out = {"n_frames": n_frames, "rounds": rounds, "truth_nodes": linear.mesh.n_nodes,
            "layer_tetrahedra": len(layered.layer.tets), "model_nodes": mesh.n_nodes,
            "layer_info": {k: v for k, v in layered.layer_info.items() if k != "thickness_mm"},
+           "layer_factorisation": layered.layer.cache["cholesky"].method,
            "layer_steps_per_frame": float(np.mean(iters)), "load_average": loads}
     for k in fns:
         out[f"{k}_frames_per_cpu_s"] = n_frames / float(np.median(cpu[k]))
         out[f"{k}_frames_per_wall_s"] = n_frames / float(np.median(wall[k]))
-    for base in ("linear_subject", "model_reach"):
+    for base in ("linear_subject", "model_reach", "layer_superlu"):
         out[f"layer_over_{base}_cpu"] = float(np.median(np.array(cpu["layer"]) / np.array(cpu[base])))
         out[f"layer_over_{base}_wall"] = float(np.median(np.array(wall["layer"]) / np.array(wall[base])))
     return out

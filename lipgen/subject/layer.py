@@ -337,6 +337,16 @@ class Layer:
         self.iterations.append(it + 1)
         return x
 
+    def use_factorisation(self, method: str) -> None:
+        """Factorise the tangents by ``method`` from now on (``"auto"``, ``"cholmod"`` or ``"superlu"``;
+        :class:`~lipgen.subject.layer_stiffness.PatternCholesky`): to compare them, or to leave out
+        GPL code at run time. The equilibria agree to rounding; the bytes do not."""
+        if method not in PatternCholesky.METHODS:
+            raise ValueError(f"method must be one of {PatternCholesky.METHODS}, got {method!r}")
+        self.cache["factorisation"] = method
+        for key in ("cholesky", "last"):
+            self.cache.pop(key, None)
+
     def _factor(self, x: np.ndarray | None = None, kinematics=None):
         """A solver with the free block of K0 (``x`` None, cached) or of the positive semi-definite
         tangent at ``x`` (:meth:`tangent`; ``kinematics`` as there), factorised in the order
@@ -345,7 +355,7 @@ class Layer:
         if x is not None:
             K = self.tangent(x, free_only=True, kinematics=kinematics, shift=1e-9)
             if "cholesky" not in self.cache:   # the pattern is fixed: analyse it once
-                self.cache["cholesky"] = PatternCholesky(K)
+                self.cache["cholesky"] = PatternCholesky(K, self.cache.get("factorisation", "auto"))
             try:
                 return self.cache["cholesky"].factor(K)
             except np.linalg.LinAlgError as exc:   # rounding in a nearly singular tangent: any SPD start does
