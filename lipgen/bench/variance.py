@@ -29,7 +29,8 @@ Measured again after speed33's L-BFGS and speed34's CHOLMOD factorisations and n
 wall second) with 16.9 steps per frame, 140 times the linear subject's CPU per frame; the code
 before (008a81c) 5.10 per CPU second (9.0 per wall second: its BLAS ran on two threads) with 17.8
 steps, 309 times. The steps differ because each call now starts from the rest stiffness, not from
-the previous round's last tangent.
+the previous round's last tangent. With the SuperLU baseline in the same rounds (load 2.9): 20.9
+layer frames per CPU second against 11.9 with SuperLU, ``layer_over_layer_superlu`` 0.57.
 """
 
 from __future__ import annotations
