@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from lipgen.mesh.procedural import lip_mesh
-from lipgen.subject.layer import build_layer
+from lipgen.subject.layer_build import build_layer
 from lipgen.subject.layer_stiffness import stress_derivative
 
 

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from lipgen.mesh.procedural import lip_mesh
-from lipgen.subject.layer import build_layer, stvk_energy_density
+from lipgen.subject.layer import stvk_energy_density
+from lipgen.subject.layer_build import build_layer
 
 
 @pytest.fixture(scope="module")

@@ -107,7 +107,7 @@ def with_layer(subject, rng=None):
     module docstring).
     """
     from lipgen.fem.solver import cholmod_available
-    from lipgen.subject.layer import build_layer
+    from lipgen.subject.layer_build import build_layer
     from lipgen.subject.sources import ACTION_TARGETS_MM, _force_patterns, _region_nodes
 
     rng = np.random.default_rng(subject.seed if rng is None else rng)
