@@ -35,6 +35,7 @@ Nothing here forms a dense inverse.
 from __future__ import annotations
 
 import logging
+from contextlib import contextmanager
 
 import numpy as np
 import scipy.sparse as sp
@@ -43,7 +44,7 @@ import scipy.sparse.linalg as spla
 from lipgen.errors import SingularStiffnessError
 from lipgen.tol import tol
 
-__all__ = ["SOLVERS", "Factor", "factorize", "cholmod_available", "cholespy_available"]
+__all__ = ["SOLVERS", "Factor", "factorize", "cholmod_available", "cholmod_supernodal", "cholespy_available"]
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +68,21 @@ def cholmod_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+@contextmanager
+def cholmod_supernodal():
+    """CHOLMOD's options set for a supernodal LLᵀ (BLAS-3; ``cholmod.diag`` needs it) inside the
+    ``with`` block and restored after it: cvxopt keeps them in one dict for the whole process."""
+    from cvxopt import cholmod
+
+    saved = dict(cholmod.options)
+    cholmod.options["supernodal"] = 2
+    try:
+        yield
+    finally:
+        cholmod.options.clear()
+        cholmod.options.update(saved)
 
 
 def cholespy_available() -> bool:
@@ -115,18 +131,14 @@ class Factor:
         M = cvxopt.spmatrix(cvxopt.matrix(low.data.astype(np.float64)),
                             cvxopt.matrix(low.row.astype(np.int64)),
                             cvxopt.matrix(low.col.astype(np.int64)), A.shape)
-        saved = dict(cholmod.options)
-        cholmod.options["supernodal"] = 2  # supernodal LLᵀ (BLAS-3); diag() needs it
         try:
-            F = cholmod.symbolic(M, uplo="L")
-            cholmod.numeric(M, F)
+            with cholmod_supernodal():
+                F = cholmod.symbolic(M, uplo="L")
+                cholmod.numeric(M, F)
         except ArithmeticError as exc:
             raise SingularStiffnessError(
                 f"the grounded stiffness ({self.size} DOFs) is not positive definite: CHOLMOD "
                 f"met a non-positive pivot ({exc}). {_HINT}") from exc
-        finally:
-            cholmod.options.clear()
-            cholmod.options.update(saved)
         self._F = F
         d = np.array(cholmod.diag(F)).ravel() ** 2
         self.pivot_ratio = float(d.min() / d.max())

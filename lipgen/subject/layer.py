@@ -37,6 +37,7 @@ from lipgen.subject.layer_stiffness import (
     cofactors,
     deformation_gradients,
     determinant,
+    green_strain_stress,
     spd_solver,
     tet_hessians,
 )
@@ -164,23 +165,20 @@ class Layer:
         F_rest = deformation_gradients(self.rest, self.tets, Dm_inv).transpose(1, 2, 0).reshape(9, T)
         return np.ascontiguousarray(F_rest), G, np.ascontiguousarray(gN)
 
+    def _deformation(self, x: np.ndarray, kinematics) -> np.ndarray:
+        """(3, 3, T) deformation gradients at positions ``x`` (2n, 3), tets last."""
+        F_rest, G, _ = kinematics
+        return (F_rest.ravel() + G @ (x - self.rest).ravel()).reshape(3, 3, len(self.tets))
+
     def _energy_grad(self, x: np.ndarray, force: np.ndarray, gum_target: np.ndarray | None, kinematics):
         """:meth:`energy_grad` with :meth:`_kinematics` computed once per solve."""
-        F_rest, G, _ = kinematics
-        T = len(self.tets)
-        F = (F_rest.ravel() + G @ (x - self.rest).ravel()).reshape(3, 3, T)
-        E = 0.5 * np.einsum("kat,kbt->abt", F, F)
-        for i in range(3):
-            E[i, i] -= 0.5
-        trE = E[0, 0] + E[1, 1] + E[2, 2]
-        S = (2.0 * self.mu) * E
-        for i in range(3):
-            S[i, i] += self.lam * trE
+        F = self._deformation(x, kinematics)
+        E, trE, S = green_strain_stress(F, self.mu, self.lam)
         cof = cofactors(F)
         J1 = determinant(F, cof) - 1.0
         W = self.mu * np.einsum("abt,abt->t", E, E) + 0.5 * self.lam * trE**2 + 0.5 * self.kappa * J1**2
         stress = np.einsum("ikt,kjt->ijt", F, S) + (self.kappa * J1) * cof   # first Piola-Kirchhoff
-        g = (G.T @ (self.volume * stress).ravel()).reshape(-1, 3)
+        g = (kinematics[1].T @ (self.volume * stress).ravel()).reshape(-1, 3)
         energy = float(self.volume @ W)
         energy -= float(np.sum(force * (x - self.rest)))
         g -= force
@@ -214,12 +212,14 @@ class Layer:
         if key not in self.cache:
             on = np.repeat(~self.fixed, 3) if free_only else np.ones(3 * len(self.rest), bool)
             self.cache[key] = StiffnessPattern(self.tets, on, self.contact_pairs)
-        F_rest, G, gN = self._kinematics(active) if kinematics is None else kinematics
-        F = (F_rest.ravel() + G @ (x - self.rest).ravel()).reshape(3, 3, len(self.tets))
-        K = tet_hessians(F, gN, self.volume, self.mu, self.lam, self.kappa, psd)
+        kinematics = self._kinematics(active) if kinematics is None else kinematics
+        K = tet_hessians(self._deformation(x, kinematics), kinematics[2], self.volume, self.mu, self.lam,
+                         self.kappa, psd)
         up, lo = self.contact_pairs[:, 0], self.contact_pairs[:, 1]
         touching = self.contact_stiffness * (x[up, 1] < x[lo, 1])
-        diagonal = np.repeat(self.gum, 3) + shift * self.K0.diagonal() if shift else np.repeat(self.gum, 3)
+        diagonal = np.repeat(self.gum, 3)
+        if shift:
+            diagonal = diagonal + shift * self.K0.diagonal()
         return self.cache[key].assemble(K, diagonal, touching)
 
     def solve(self, force: np.ndarray, prescribed: np.ndarray, x0: np.ndarray | None = None,
@@ -326,8 +326,13 @@ class Layer:
         if method not in PatternCholesky.METHODS:
             raise ValueError(f"method must be one of {PatternCholesky.METHODS}, got {method!r}")
         self.cache["factorisation"] = method
-        for key in ("cholesky", "last"):
-            self.cache.pop(key, None)
+        self.cache.pop("cholesky", None)
+        self.restart()
+
+    def restart(self) -> None:
+        """The next :meth:`solve` starts from the rest stiffness, not from the last call's tangent: a
+        sequence solved after it gives the same bytes however many were solved before."""
+        self.cache.pop("last", None)
 
     def _factor(self, x: np.ndarray | None = None, kinematics=None):
         """A solver with the free block of K0 (``x`` None, cached) or of the positive semi-definite

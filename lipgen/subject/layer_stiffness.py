@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["deformation_gradients", "cofactors", "determinant", "strain_state", "symmetric_eigenvalues",
+__all__ = ["deformation_gradients", "green_strain_stress", "cofactors", "determinant", "strain_state",
+           "symmetric_eigenvalues",
            "positive_part", "stress_derivative", "tet_hessians", "StiffnessPattern", "PatternCholesky",
            "spd_solver", "rest_stiffness"]
 
@@ -155,14 +156,7 @@ def tet_hessians(F: np.ndarray, gN: np.ndarray, volume: np.ndarray, mu, lam, kap
     """
     T = F.shape[-1]
     vol_mu, vol_lam, vol_kappa = volume * mu, volume * lam, volume * kappa
-    E = 0.5 * np.einsum("kat,kbt->abt", F, F)
-    E[0, 0] -= 0.5
-    E[1, 1] -= 0.5
-    E[2, 2] -= 0.5
-    S = 2.0 * mu * E
-    trace_term = lam * (E[0, 0] + E[1, 1] + E[2, 2])
-    for i in range(3):
-        S[i, i] += trace_term
+    _, _, S = green_strain_stress(F, mu, lam)
     if psd:
         S = np.ascontiguousarray(positive_part(np.ascontiguousarray(S.transpose(2, 0, 1))).transpose(1, 2, 0))
     cof = cofactors(F)
@@ -184,6 +178,20 @@ def tet_hessians(F: np.ndarray, gN: np.ndarray, volume: np.ndarray, mu, lam, kap
             K[:, m, :, n] += z[:, :, p]
             K[:, n, :, m] -= z[:, :, p]
     return K.reshape(12, 12, T)
+
+
+def green_strain_stress(F: np.ndarray, mu, lam):
+    """The Green strain ``E`` (3, 3, T), its trace (T,) and the St Venant-Kirchhoff second
+    Piola-Kirchhoff stress ``S = 2 mu E + lam tr(E) I`` (3, 3, T) of ``F`` (3, 3, T), tets last
+    (:func:`strain_state` with the tets first)."""
+    E = 0.5 * np.einsum("kat,kbt->abt", F, F)
+    for i in range(3):
+        E[i, i] -= 0.5
+    trE = E[0, 0] + E[1, 1] + E[2, 2]
+    S = (2.0 * mu) * E
+    for i in range(3):
+        S[i, i] += lam * trE
+    return E, trE, S
 
 
 def cofactors(F: np.ndarray) -> np.ndarray:
@@ -267,12 +275,13 @@ class PatternCholesky:
     METHODS = ("auto", "cholmod", "superlu")
 
     def __init__(self, A, method: str = "auto"):
-        from lipgen.fem.solver import cholmod_available
+        from lipgen.fem.solver import cholmod_available, cholmod_supernodal
 
         if method not in self.METHODS:
             raise ValueError(f"method must be one of {self.METHODS}, got {method!r}")
-        self.method = ("cholmod" if cholmod_available() else "superlu") if method == "auto" else method
-        if self.method == "cholmod" and not cholmod_available():
+        available = cholmod_available()
+        self.method = ("cholmod" if available else "superlu") if method == "auto" else method
+        if self.method == "cholmod" and not available:
             raise ImportError("method 'cholmod' needs cvxopt: pip install 'lipgen[fast]' (or method 'auto')")
         A = A.tocsc()
         A.sort_indices()
@@ -287,7 +296,7 @@ class PatternCholesky:
             self._M = cvxopt.spmatrix(cvxopt.matrix(A.data[self._lower]),
                                       cvxopt.matrix(A.indices[self._lower].astype(np.int64)),
                                       cvxopt.matrix(cols[self._lower].astype(np.int64)), A.shape)
-            with _cholmod_supernodal(cholmod):
+            with cholmod_supernodal():
                 self._symbolic = cholmod.symbolic(self._M, uplo="L")
         else:
             from scipy.sparse.linalg import splu
@@ -320,8 +329,10 @@ class PatternCholesky:
         import cvxopt
         from cvxopt import cholmod
 
+        from lipgen.fem.solver import cholmod_supernodal
+
         self._M.V = cvxopt.matrix(A.data[self._lower])
-        with _cholmod_supernodal(cholmod):
+        with cholmod_supernodal():
             try:
                 cholmod.numeric(self._M, self._symbolic)
             except ArithmeticError as exc:
@@ -357,22 +368,6 @@ class PatternCholesky:
 _SUPERLU_SPD = {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}}
 """SuperLU for a symmetric positive definite matrix: diagonal pivots, a symmetric order (2.5x
 faster than its general LU)."""
-
-
-class _cholmod_supernodal:
-    """CHOLMOD's options as this module needs them (supernodal LL^T), restored afterwards: they are
-    one dict for the whole process (:mod:`lipgen.fem.solver` sets them the same way)."""
-
-    def __init__(self, cholmod):
-        self.options = cholmod.options
-
-    def __enter__(self):
-        self.saved = dict(self.options)
-        self.options["supernodal"] = 2
-
-    def __exit__(self, *exc):
-        self.options.clear()
-        self.options.update(self.saved)
 
 
 def spd_solver(A):

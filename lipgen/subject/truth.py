@@ -106,7 +106,6 @@ def with_layer(subject, rng=None):
     region as the linear subject. The pucker actions also contract the orbicularis fibres (see the
     module docstring).
     """
-    from lipgen.fem.solver import cholmod_available
     from lipgen.subject.layer_build import build_layer
     from lipgen.subject.sources import ACTION_TARGETS_MM, _force_patterns, _region_nodes
 
@@ -165,9 +164,7 @@ def with_layer(subject, rng=None):
     forces.setflags(write=False)
     contraction.setflags(write=False)
     info = {"poisson": poisson, "kappa_ratio": kappa, "thickness_mm": dict(LAYER_THICKNESS_MM),
-            "pucker_shortening": PUCKER_SHORTENING,
-            # the solver's factorisation: the truth agrees to ~1e-11 mm between the two, not bit for bit
-            "factorisation": "cholmod" if cholmod_available() else "superlu"}
+            "pucker_shortening": PUCKER_SHORTENING}
     return replace(subject, layer=layer, layer_forces=forces, layer_info=info,
                    layer_active=(fibres, contraction))
 
@@ -193,7 +190,7 @@ def layer_displacements(subject, A: np.ndarray, progress: bool = False) -> np.nd
     bw = np.concatenate([subject.border_weight, subject.border_weight])
     out = np.zeros((len(A), n, 3))
     x = X2.copy()
-    layer.cache.pop("last", None)   # start from K0, not another call's tangent: the same bytes every call
+    layer.restart()   # from K0, not another call's tangent: the same bytes every call
     for f in tqdm(range(len(A)), desc="truth physics", unit="frame", disable=not progress):
         force = np.zeros_like(X2)
         force[:n] = np.einsum("a,ani->ni", A[f], subject.layer_forces)
