@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from lipgen.fem import solver as fem_solver  # its cholmod_available is looked up per call (tests patch it)
+
 __all__ = ["deformation_gradients", "green_strain_stress", "cofactors", "determinant", "strain_state",
            "symmetric_eigenvalues",
            "positive_part", "stress_derivative", "tet_hessians", "StiffnessPattern", "PatternCholesky",
@@ -35,14 +37,13 @@ def deformation_gradients(x: np.ndarray, tets: np.ndarray, Dm_inv: np.ndarray) -
 def strain_state(F: np.ndarray, mu, lam):
     """The Green strain ``E`` (T, 3, 3), its trace (T,), the St Venant-Kirchhoff second
     Piola-Kirchhoff stress ``S`` (T, 3, 3), the cofactor matrix ``det(F) F^-T`` (T, 3, 3) and
-    ``J = det F`` (T,) of deformation gradients ``F`` (T, 3, 3)."""
-    E = 0.5 * (np.swapaxes(F, -1, -2) @ F - np.eye(3))
-    trE = np.trace(E, axis1=-2, axis2=-1)
-    S = 2 * mu[:, None, None] * E + (lam * trE)[:, None, None] * np.eye(3)
-    f0, f1, f2 = F[..., 0], F[..., 1], F[..., 2]
-    cof = np.stack([np.cross(f1, f2), np.cross(f2, f0), np.cross(f0, f1)], axis=-1)
-    J = np.sum(f0 * cof[..., 0], axis=-1)
-    return E, trE, S, cof, J
+    ``J = det F`` (T,) of deformation gradients ``F`` (T, 3, 3): :func:`green_strain_stress`,
+    :func:`cofactors` and :func:`determinant` with the tets first."""
+    F_last = np.ascontiguousarray(np.moveaxis(F, 0, -1))
+    E, trE, S = green_strain_stress(F_last, mu, lam)
+    cof = cofactors(F_last)
+    return (np.moveaxis(E, -1, 0), trE, np.moveaxis(S, -1, 0), np.moveaxis(cof, -1, 0),
+            determinant(F_last, cof))
 
 
 def symmetric_eigenvalues(A: np.ndarray) -> np.ndarray:
@@ -183,7 +184,7 @@ def tet_hessians(F: np.ndarray, gN: np.ndarray, volume: np.ndarray, mu, lam, kap
 def green_strain_stress(F: np.ndarray, mu, lam):
     """The Green strain ``E`` (3, 3, T), its trace (T,) and the St Venant-Kirchhoff second
     Piola-Kirchhoff stress ``S = 2 mu E + lam tr(E) I`` (3, 3, T) of ``F`` (3, 3, T), tets last
-    (:func:`strain_state` with the tets first)."""
+    (:func:`strain_state` gives the same with the tets first)."""
     E = 0.5 * np.einsum("kat,kbt->abt", F, F)
     for i in range(3):
         E[i, i] -= 0.5
@@ -275,11 +276,9 @@ class PatternCholesky:
     METHODS = ("auto", "cholmod", "superlu")
 
     def __init__(self, A, method: str = "auto"):
-        from lipgen.fem.solver import cholmod_available, cholmod_supernodal
-
         if method not in self.METHODS:
             raise ValueError(f"method must be one of {self.METHODS}, got {method!r}")
-        available = cholmod_available()
+        available = fem_solver.cholmod_available()
         self.method = ("cholmod" if available else "superlu") if method == "auto" else method
         if self.method == "cholmod" and not available:
             raise ImportError("method 'cholmod' needs cvxopt: pip install 'lipgen[fast]' (or method 'auto')")
@@ -296,7 +295,7 @@ class PatternCholesky:
             self._M = cvxopt.spmatrix(cvxopt.matrix(A.data[self._lower]),
                                       cvxopt.matrix(A.indices[self._lower].astype(np.int64)),
                                       cvxopt.matrix(cols[self._lower].astype(np.int64)), A.shape)
-            with cholmod_supernodal():
+            with fem_solver.cholmod_supernodal():
                 self._symbolic = cholmod.symbolic(self._M, uplo="L")
         else:
             from scipy.sparse.linalg import splu
@@ -329,10 +328,8 @@ class PatternCholesky:
         import cvxopt
         from cvxopt import cholmod
 
-        from lipgen.fem.solver import cholmod_supernodal
-
         self._M.V = cvxopt.matrix(A.data[self._lower])
-        with cholmod_supernodal():
+        with fem_solver.cholmod_supernodal():
             try:
                 cholmod.numeric(self._M, self._symbolic)
             except ArithmeticError as exc:
