@@ -382,3 +382,49 @@ def test_the_cross_check_tracks_the_clip_again_from_its_end_and_keeps_what_both_
     single = reconstruct_dataset(dataset, settings=ReconstructSettings(cross_check=False))
     assert single.info["cross_check"] is None
     assert accepted_sightings(recon).sum() >= accepted_sightings(single).sum()
+
+
+def _nose_never_tracked(monkeypatch):
+    """The tracker loses the nose mark in both views in every frame of both runs (as on ``hard`` 111, where
+    its first frame took a shading spot on the nose's outline)."""
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.recon.association import LOST
+
+    track = pipeline.track_raw_frames
+
+    def without_nose(*args, **kwargs):
+        tracks = track(*args, **kwargs)
+        for t in tracks:
+            t.uv[:, -1], t.status[:, -1], t.visible[:, -1] = np.nan, LOST, False
+        return tracks
+
+    monkeypatch.setattr(pipeline, "track_raw_frames", without_nose)
+
+
+def test_a_nose_the_tracker_never_held_is_found_again_from_the_lips(dataset, recon, monkeypatch):
+    from lipgen.dataset.layout import Dataset
+    from lipgen.evaluate.scoring import load_truth
+
+    _nose_never_tracked(monkeypatch)
+    found = reconstruct_dataset(dataset)
+    assert found.info["nose"] == {"searched": FRAMES, "found": FRAMES, "stand_in": False}
+    from lipgen.recon.crosscheck import tracking_lines
+
+    assert any("The nose mark lacked a pair in 12 frame(s)" in line for line in tracking_lines(found.info))
+    truth = load_truth(Dataset(dataset))["uv"][:, :, -1]          # (F, 2, 2)
+    assert np.abs(found.uv[:, :, -1] - truth.transpose(1, 0, 2)).max() < 0.5
+    assert recon.info["nose"] == {"searched": 0, "found": 0, "stand_in": False}   # held: no search
+    np.testing.assert_allclose(found.markers, recon.markers, atol=0.05)
+
+
+def test_without_the_nose_the_lips_carry_the_models_and_the_reconstruction_says_so(dataset, recon,
+                                                                                    monkeypatch, caplog):
+    from lipgen.recon.settings import ReconstructSettings
+
+    _nose_never_tracked(monkeypatch)
+    with caplog.at_level("WARNING", logger="lipgen.recon.nose"):
+        carried = reconstruct_dataset(dataset, settings=ReconstructSettings(nose_search=False))
+    assert carried.info["nose"] == {"searched": 0, "found": 0, "stand_in": True}
+    assert "never seen in both views" in caplog.text and "carried by the lip markers" in caplog.text
+    assert np.isfinite(carried.fields).all() and np.isfinite(carried.lab_points[:, -1]).all()
+    assert (carried.visible == recon.visible).all()               # the lips are the tracker's

@@ -36,6 +36,7 @@ from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
+from lipgen.recon.nose import settle_nose
 from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
     ReconstructSettings,
@@ -320,12 +321,18 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     points, gap, vis, max_gap = triangulate_within_limit(lab.views, tracks, settings)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
+    try:
+        with blas_threads(1):
+            tracks, points, gap, vis, nose_record = settle_nose(
+                lambda i: ds.rig.split_views(np.asarray(ds[i].image)), tracks, points, gap, vis, lab.views,
+                marks_rest, max_gap, settings.tracker.dots, settings.tracker.floor_min, settings.nose_search)
+    except ValueError as exc:
+        raise DatasetError(f"{path}: the nose mark was never seen in both views, and {exc}; cannot normalise"
+                           ) from None
     nose_seen = vis[:, P]
-    if not nose_seen.all():
-        # The nose is the translation reference; where it is lost, carry it with the upper lip.
+    if nose_seen.any() and not nose_seen.all():
+        # Where the nose is lost, interpolate it in time (where never seen, settle_nose stood in for it).
         good = np.flatnonzero(nose_seen)
-        if len(good) == 0:
-            raise DatasetError(f"{path}: the nose mark was never seen in both views; cannot normalise")
         log.warning("nose lost in %d frame(s): interpolated", int((~nose_seen).sum()))
         for a in range(3):
             points[~nose_seen, P, a] = np.interp(np.flatnonzero(~nose_seen), good, points[good, P, a])
@@ -356,7 +363,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "topology_id": mesh.topology_id,
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
-        "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed,
+        "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed, "nose": nose_record,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

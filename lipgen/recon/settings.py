@@ -269,6 +269,11 @@ class ReconstructSettings:
         where the other view sees the marker in the same image
         (:func:`lipgen.recon.viewcheck.confirm_blobs`): alone, a fold's shadow or a half-hidden
         neighbour's dot passes for one (bh25, ``renders/examples/tracking/bh25.md``).
+    nose_search : bool
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` looks for the nose mark again in the frames
+        where it lacks a pair, from where the lip markers place the model's nose
+        (:func:`lipgen.recon.nose.search_nose`).
+        Default True (``renders/examples/tracking/nose36.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -309,10 +314,11 @@ class ReconstructSettings:
     cross_check_arbitrate: bool = True
     cross_check_keep: bool = True
     confirm_blobs: bool = True
+    nose_search: bool = True
 
     def __post_init__(self):
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
-                     "cross_check_arbitrate", "cross_check_keep"):
+                     "cross_check_arbitrate", "cross_check_keep", "nose_search"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
         share = self.epipolar_blob_share
