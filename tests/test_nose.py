@@ -106,3 +106,10 @@ def test_the_line_says_where_the_nose_came_from():
     assert nose_line({"searched": 40, "found": 40, "stand_in": False}).endswith("in 40.")
     assert "interpolated in the others" in nose_line({"searched": 5, "found": 3, "stand_in": False})
     assert "carried by the lip markers" in nose_line({"searched": 40, "found": 0, "stand_in": True})
+
+
+def test_the_setting_is_a_bool():
+    from lipgen.recon.settings import ReconstructSettings
+
+    with pytest.raises(ValueError, match="nose_search must be True or False, got 'yes'"):
+        ReconstructSettings(nose_search="yes")

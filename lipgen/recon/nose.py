@@ -11,7 +11,7 @@ and 104 before), with the lips tracked.
 :func:`search_nose` looks for the mark again where it lacks a pair:
 
 * the lip markers seen in both views place the model's layout by a similarity, which puts the nose
-  within 3.2-7.9 mm of the truth (median per set; at most 10.9 mm) on 19 development sets: the lips
+  within 3.2-7.8 mm of the truth (median per set; at most 10.9 mm) on 19 development sets: the lips
   deform, and a subject's nose is not the model's;
 * each view's dots near that place are paired with the other view's (rays within the clip's limit)
   into 3-D candidates within ``radius`` mm of it;
