@@ -6,7 +6,14 @@ from synthetic_images import background, frame
 
 from lipgen._rotation import rotation_matrix
 from lipgen.recon.dots import DotSettings
-from lipgen.recon.nose import carried_nose, choose_path, nose_candidates, nose_line, predict_nose
+from lipgen.recon.nose import (
+    NoseNeverSeen,
+    carried_nose,
+    choose_path,
+    nose_candidates,
+    nose_line,
+    predict_nose,
+)
 
 RNG = np.random.default_rng(11)
 REST = np.vstack([np.c_[RNG.uniform(-25, 25, (12, 2)), RNG.uniform(-4, 4, 12)], [[0.0, 35.0, 12.0]]])
@@ -33,7 +40,7 @@ def test_the_stand_in_is_interpolated_where_too_few_lips_are_seen_and_refused_wi
     visible[1] = False
     nose = carried_nose(points[:, :12], visible, REST)
     np.testing.assert_allclose(nose, points[:, 12], atol=1e-9)   # frame 1 halfway, as the truth
-    with pytest.raises(ValueError, match="4 lip markers"):
+    with pytest.raises(NoseNeverSeen, match="4 lip markers"):
         carried_nose(points[:, :12], np.zeros((3, 12), bool), REST)
 
 

@@ -37,13 +37,17 @@ from lipgen.recon.similarity import umeyama
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["predict_nose", "nose_candidates", "choose_path", "search_nose", "carried_nose", "settle_nose",
-           "nose_line"]
+__all__ = ["NoseNeverSeen", "predict_nose", "nose_candidates", "choose_path", "search_nose", "carried_nose",
+           "settle_nose", "nose_line"]
 
 log = logging.getLogger(__name__)
 
 MIN_LIP_MARKERS = 4
 """Least lip markers seen in both views that place the layout (a similarity: 7 parameters)."""
+
+
+class NoseNeverSeen(ValueError):
+    """No frame has the nose mark, nor enough lip markers to carry the model's (:func:`carried_nose`)."""
 
 
 def predict_nose(points: np.ndarray, visible: np.ndarray, rest: np.ndarray) -> np.ndarray:
@@ -282,13 +286,14 @@ def carried_nose(points: np.ndarray, visible: np.ndarray, rest: np.ndarray) -> n
 
     Raises
     ------
-    ValueError
+    NoseNeverSeen
         When no frame has :data:`MIN_LIP_MARKERS` lip markers seen.
     """
     nose = predict_nose(points, visible, rest)
     good = np.flatnonzero(np.all(np.isfinite(nose), axis=1))
     if len(good) == 0:
-        raise ValueError(f"no frame has {MIN_LIP_MARKERS} lip markers seen in both views to carry the nose")
+        raise NoseNeverSeen(f"no frame has {MIN_LIP_MARKERS} lip markers seen in both views to carry the "
+                            "nose")
     for a in range(3):
         nose[:, a] = np.interp(np.arange(len(nose)), good, nose[good, a])
     return nose
@@ -321,7 +326,7 @@ def settle_nose(frame_views, tracks: tuple[Tracks, Tracks], points: np.ndarray, 
 
     Raises
     ------
-    ValueError
+    NoseNeverSeen
         When the stand-in is needed and no frame has enough lip markers to carry it.
     """
     points, gap, visible = points.copy(), gap.copy(), visible.copy()

@@ -36,7 +36,7 @@ from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
-from lipgen.recon.nose import settle_nose
+from lipgen.recon.nose import NoseNeverSeen, settle_nose
 from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
     ReconstructSettings,
@@ -326,7 +326,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             tracks, points, gap, vis, nose_record = settle_nose(
                 lambda i: ds.rig.split_views(np.asarray(ds[i].image)), tracks, points, gap, vis, lab.views,
                 marks_rest, max_gap, settings.tracker.dots, settings.tracker.floor_min, settings.nose_search)
-    except ValueError as exc:
+    except NoseNeverSeen as exc:
         raise DatasetError(f"{path}: the nose mark was never seen in both views, and {exc}; cannot normalise"
                            ) from None
     nose_seen = vis[:, P]
