@@ -100,15 +100,16 @@ def nose_candidates(views, cameras, guess: np.ndarray, radius: float, max_gap: f
     """
     found = []
     for img, cam in zip(views, cameras, strict=True):
+        img = np.asarray(img)
         c = cam.project(guess[None])[0]
         # The window: the projection of the search ball, with a margin for the detector's filters.
         reach = np.max(np.linalg.norm(cam.project(guess + radius * np.eye(3)) - c, axis=1)) + 4 * dots.sigma
-        h, w = np.asarray(img).shape[:2]
+        h, w = img.shape[:2]
         lo = np.clip(np.floor(c - reach).astype(int), 0, [w, h])
         hi = np.clip(np.ceil(c + reach).astype(int) + 1, 0, [w, h])
         if np.any(hi - lo < 4 * dots.sigma):
             return np.zeros((0, 3)), np.zeros((0, 2, 2))
-        uv, _ = detect_dots(np.asarray(img)[lo[1]:hi[1], lo[0]:hi[0]], dots)
+        uv, _ = detect_dots(img[lo[1]:hi[1], lo[0]:hi[0]], dots)
         found.append(uv + lo)
     a, b = np.meshgrid(np.arange(len(found[0])), np.arange(len(found[1])), indexing="ij")
     a, b = a.ravel(), b.ravel()
@@ -165,11 +166,10 @@ def choose_path(candidates: list[np.ndarray], guess: np.ndarray, held: np.ndarra
         if prev is None:
             cost[f], back[f] = emit, np.full(len(emit), -1)
         else:
-            Xp = prev
-            trans = np.full((len(Xp) + 1, len(X) + 1), switch)
+            trans = np.full((len(prev) + 1, len(X) + 1), switch)
             trans[-1, -1] = 0.0
-            if len(Xp) and len(X):
-                trans[:-1, :-1] = 0.5 * (np.linalg.norm(Xp[:, None] - X[None], axis=2) / step_sd) ** 2
+            if len(prev) and len(X):
+                trans[:-1, :-1] = 0.5 * (np.linalg.norm(prev[:, None] - X[None], axis=2) / step_sd) ** 2
             total = cost[f - 1][:, None] + trans
             back[f] = np.argmin(total, axis=0)
             cost[f] = total[back[f], np.arange(len(X) + 1)] + emit
@@ -240,7 +240,7 @@ def search_nose(frame_views, tracks: tuple[Tracks, Tracks], points: np.ndarray, 
     found : (F,) bool
         The frames given a pair.
     """
-    F, n = visible.shape
+    F = len(visible)
     held = visible[:, -1].copy()
     guess = predict_nose(points[:, :-1], visible[:, :-1], rest)
     detector = replace(dots, min_contrast=min(floor, dots.min_contrast))
