@@ -428,3 +428,28 @@ def test_without_the_nose_the_lips_carry_the_models_and_the_reconstruction_says_
     assert "never seen in both views" in caplog.text and "carried by the lip markers" in caplog.text
     assert np.isfinite(carried.fields).all() and np.isfinite(carried.lab_points[:, -1]).all()
     assert (carried.visible == recon.visible).all()               # the lips are the tracker's
+
+
+def test_a_marker_held_on_its_neighbours_dot_is_taken_back_and_the_reconstruction_says_so(dataset, recon,
+                                                                                         monkeypatch):
+    """Both runs hold ``lower_corner_right`` on ``corner_right``'s dot in both views (as on ``hard`` 119)."""
+    import lipgen.recon.pipeline as pipeline
+
+    names = recon.info["marker_names"]
+    owner, intruder = names.index("corner_right"), names.index("lower_corner_right")
+    track = pipeline.track_raw_frames
+
+    def intruding(*args, **kwargs):
+        tracks = track(*args, **kwargs)
+        for t in tracks:
+            t.uv[:, intruder], t.status[:, intruder] = t.uv[:, owner], t.status[:, owner]
+            t.visible[:, intruder] = t.visible[:, owner]
+        return tracks
+
+    monkeypatch.setattr(pipeline, "track_raw_frames", intruding)
+    found = reconstruct_dataset(dataset)
+    [span] = found.info["shared_dots"]
+    assert span["markers"] == (owner, intruder) and span["owner"] == owner and span["frames"] == (0, FRAMES)
+    assert not found.visible[:, intruder].any() and (found.visible[:, owner] == recon.visible[:, owner]).all()
+    assert recon.info["shared_dots"] == []
+    np.testing.assert_array_equal(found.uv[:, :, owner], recon.uv[:, :, owner])

@@ -37,6 +37,7 @@ from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.nose import NoseNeverSeen, settle_nose
+from lipgen.recon.shareddot import take_back_shared
 from lipgen.recon.split import training_candidates
 from lipgen.recon.steps import (
     ReconstructSettings,
@@ -302,7 +303,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks, anchor = track_from_anchor(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                            (lambda _: bar.update()) if bar else None)
-        crossed = None
+        crossed, shared = None, []
         if settings.cross_check:
             second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                         (lambda _: bar.update()) if bar else None)
@@ -314,6 +315,9 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             tracks, crossed = cross_check(tracks, second, tol, settings.cross_check_fill, judge,
                                           settings.cross_check_keep)
             crossed = crossed | {"anchor": back}
+        if settings.shared_dot_check:   # two markers on one dot: at most one stays
+            one_dot = settings.tracker.dots.separation / 2
+            tracks, shared = take_back_shared(tracks, lab.views, marks_rest, one_dot, layout_cov, names)
     if bar is not None:
         bar.close()
     t_track, c_track = time.perf_counter(), time.process_time()
@@ -364,6 +368,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed, "nose": nose_record,
+        "shared_dots": shared,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

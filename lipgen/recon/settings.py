@@ -274,6 +274,10 @@ class ReconstructSettings:
         where it lacks a pair, from where the lip markers place the model's nose
         (:func:`lipgen.recon.nose.search_nose`).
         Default True (``renders/examples/tracking/nose36.md``).
+    shared_dot_check : bool
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` takes back one of two markers that hold one
+        dot in both views, the one the 3-D layout places farther from it, or both where it cannot
+        tell (:mod:`lipgen.recon.shareddot`). Default True (``renders/examples/tracking/dup37.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -315,10 +319,12 @@ class ReconstructSettings:
     cross_check_keep: bool = True
     confirm_blobs: bool = True
     nose_search: bool = True
+    shared_dot_check: bool = True
 
     def __post_init__(self):
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
-                     "cross_check_arbitrate", "cross_check_keep", "nose_search"):
+                     "cross_check_arbitrate", "cross_check_keep", "nose_search",
+                     "shared_dot_check"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
         share = self.epipolar_blob_share
