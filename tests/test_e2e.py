@@ -452,4 +452,8 @@ def test_a_marker_held_on_its_neighbours_dot_is_taken_back_and_the_reconstructio
     assert span["markers"] == (owner, intruder) and span["owner"] == owner and span["frames"] == (0, FRAMES)
     assert not found.visible[:, intruder].any() and (found.visible[:, owner] == recon.visible[:, owner]).all()
     assert recon.info["shared_dots"] == []
+    from lipgen.recon.crosscheck import tracking_lines
+
+    assert ("Two markers held one dot in both views: lower_corner_right on corner_right's in frames "
+            f"0-{FRAMES - 1}, taken back.") in tracking_lines(found.info)
     np.testing.assert_array_equal(found.uv[:, :, owner], recon.uv[:, :, owner])

@@ -12,7 +12,7 @@ import pytest
 from test_motioncheck import _layout, _marks, _smooth_covariance
 from test_raygap import _two_views
 
-from lipgen.recon.shareddot import shared_dots, take_back_shared
+from lipgen.recon.shareddot import shared_dot_line, shared_dots, take_back_shared
 from lipgen.recon.track import LOST, TRACKED
 from lipgen.recon.tracks import Tracks
 
@@ -97,11 +97,21 @@ def test_a_span_without_a_prediction_is_taken_back_from_both():
     assert taken[4, [OWNER, INTRUDER]].all() and taken.sum() == 2
 
 
-@pytest.mark.parametrize("kwargs, match", [({"tol": 0.0}, "tol must be > 0"), ({"tol": np.nan}, "tol must be > 0"),
-                                           ({"tol": 1.0, "ratio": 1.5}, "ratio in"),
-                                           ({"tol": 1.0, "rest_points": np.zeros((13, 3))}, r"rest_points \(13, 3\)")])
+@pytest.mark.parametrize("kwargs, match", [
+    ({"tol": 0.0}, "tol must be > 0"), ({"tol": np.nan}, "tol must be > 0"),
+    ({"tol": 1.0, "ratio": 1.5}, "ratio in"),
+    ({"tol": 1.0, "rest_points": np.zeros((13, 3))}, r"rest_points \(13, 3\)")])
 def test_bad_settings_and_shapes_are_named(kwargs, match):
     tracks, cams = _tracks()
     kwargs = {"rest_points": _layout()} | kwargs
     with pytest.raises(ValueError, match=match):
         shared_dots(tracks, cams, **kwargs)
+
+
+def test_the_line_names_who_kept_the_dot_and_who_was_taken_back():
+    names = ["a", "b", "c"]
+    assert shared_dot_line([], names) is None and shared_dot_line(None, names) is None
+    line = shared_dot_line([{"markers": [0, 2], "frames": [0, 25], "owner": 0, "distance": [1.0, 4.0]},
+                            {"markers": [1, 2], "frames": [30, 31], "owner": -1, "distance": None}], names)
+    assert line == ("Two markers held one dot in both views: c on a's in frames 0-24, taken back; b and c in "
+                    "frame 30, both taken back (the layout could not tell whose).")

@@ -40,6 +40,7 @@ import numpy as np
 from lipgen.recon.anchor import TrackFn, anchor_line, track_from_anchor
 from lipgen.recon.association import LOST
 from lipgen.recon.nose import nose_line
+from lipgen.recon.shareddot import shared_dot_line
 from lipgen.recon.tracks import Tracks
 
 __all__ = ["reversed_run", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
@@ -225,10 +226,12 @@ def cross_check_line(record: dict | None) -> str | None:
 
 
 def tracking_lines(info: dict) -> list[str]:
-    """The sentences on where tracking started, what its second run changed and where the nose was found
-    again (:func:`anchor_line`, :func:`cross_check_line`, :func:`lipgen.recon.nose.nose_line`) for a
+    """The sentences on where tracking started, what its second run changed, which markers shared a dot
+    and where the nose was found again (:func:`anchor_line`, :func:`cross_check_line`,
+    :func:`lipgen.recon.shareddot.shared_dot_line`, :func:`lipgen.recon.nose.nose_line`) for a
     reconstruction's ``info``, the ones that apply: for
     ``lipgen reconstruct``'s output and ``lipgen evaluate``'s report."""
+    names = [*info.get("marker_names", []), "nose"]
     lines = (anchor_line(info.get("tracking_anchor")), cross_check_line(info.get("cross_check")),
-             nose_line(info.get("nose")))
+             shared_dot_line(info.get("shared_dots"), names), nose_line(info.get("nose")))
     return [line for line in lines if line]

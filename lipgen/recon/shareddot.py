@@ -28,7 +28,7 @@ from lipgen.recon.outofplace import take_back
 from lipgen.recon.track import LOST
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["shared_dots", "take_back_shared"]
+__all__ = ["shared_dots", "take_back_shared", "shared_dot_line"]
 
 log = logging.getLogger(__name__)
 
@@ -136,3 +136,22 @@ def take_back_shared(tracks: tuple[Tracks, Tracks], cameras, rest_points, tol: f
                  "neither kept" if owner < 0 else f"{name(owner)} keeps it, {name(j if owner == i else i)} "
                  "taken back")
     return take_back(tracks, taken), spans
+
+
+def shared_dot_line(spans: list[dict] | None, names) -> str | None:
+    """One sentence on what :func:`take_back_shared` did, for ``lipgen reconstruct``'s output and the
+    report; None where no two markers shared a dot (or the reconstruction predates the check).
+    ``names``: the markers' names, indexed as in ``spans``."""
+    if not spans:
+        return None
+    parts = []
+    for s in spans[:4]:
+        (i, j), (start, stop), owner = s["markers"], s["frames"], s["owner"]
+        frames = f"frame {start}" if stop - start == 1 else f"frames {start}-{stop - 1}"
+        if owner < 0:
+            parts.append(f"{names[i]} and {names[j]} in {frames}, both taken back (the layout could not "
+                         "tell whose)")
+        else:
+            parts.append(f"{names[j if owner == i else i]} on {names[owner]}'s in {frames}, taken back")
+    more = f"; and {len(spans) - 4} more span(s)" if len(spans) > 4 else ""
+    return "Two markers held one dot in both views: " + "; ".join(parts) + more + "."
