@@ -315,9 +315,9 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             tracks, crossed = cross_check(tracks, second, tol, settings.cross_check_fill, judge,
                                           settings.cross_check_keep)
             crossed = crossed | {"anchor": back}
-        if settings.shared_dot_check:   # two markers on one dot: at most one stays
+        if settings.shared_dot_check:   # two markers on one dot: neither is trusted
             one_dot = settings.tracker.dots.separation / 2
-            tracks, shared = take_back_shared(tracks, lab.views, marks_rest, one_dot, layout_cov, names)
+            tracks, shared = take_back_shared(tracks, one_dot, names)
     if bar is not None:
         bar.close()
     t_track, c_track = time.perf_counter(), time.process_time()

@@ -275,9 +275,9 @@ class ReconstructSettings:
         (:func:`lipgen.recon.nose.search_nose`).
         Default True (``renders/examples/tracking/nose36.md``).
     shared_dot_check : bool
-        :func:`lipgen.recon.pipeline.reconstruct_dataset` takes back one of two markers that hold one
-        dot in both views, the one the 3-D layout places farther from it, or both where it cannot
-        tell (:mod:`lipgen.recon.shareddot`). Default True (``renders/examples/tracking/dup37.md``).
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` takes back both of two markers that hold one
+        dot in both views (:mod:`lipgen.recon.shareddot`). Default True
+        (``renders/examples/tracking/dup37.md``).
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
