@@ -4,7 +4,7 @@ from lipgen.evaluate.scoring import load_truth
 from lipgen.recon.pipeline import Reconstruction
 name, f = sys.argv[1], int(sys.argv[2]); marks = [int(x) for x in sys.argv[3].split(",")]
 ds = Dataset(f"/work/sets/{name}"); t = load_truth(ds)
-r = Reconstruction.load(f"/work/b35/rec/{name}.main.npz")
+r = Reconstruction.load(sys.argv[4])   # the reconstruction to draw
 views = ds.rig.split_views(np.asarray(ds[f].image))
 tiles = []
 for v in range(2):

@@ -1,4 +1,4 @@
-"""On main's final tracks: each shared span's gain (score) under judges: layout (shared_dots), both, continuity."""
+"""Ran on commit 7fc722e (shared_dots with the layout judge, before B). On main's final tracks: each shared span's gain (score) under judges: layout (shared_dots), both, continuity."""
 import sys, numpy as np
 from lipgen.evaluate.scoring import load_truth, sighting_errors
 from lipgen.dataset.layout import Dataset

@@ -1,4 +1,4 @@
-"""Apply shared_dots to saved reconstructions' final tracks; score the decisions against the truth."""
+"""Ran on commit 7fc722e (shared_dots with the layout judge, before B). Apply shared_dots to saved reconstructions' final tracks; score the decisions against the truth."""
 import sys, numpy as np
 from lipgen.evaluate.scoring import load_truth, sighting_errors
 from lipgen.dataset.layout import Dataset

@@ -1,11 +1,14 @@
-import json, collections
-rows = [json.loads(l) for l in open("/work/b37/ho.jsonl")]
-N = {r["set"]: r for r in rows if r["variant"] == "N"}; M = {r["set"]: r for r in rows if r["variant"] == "main"}
+"""Per set, the candidate's score against main's (main not run where the candidate found no span: equal by
+construction). usage: tally.py ROWS.jsonl CANDIDATE  (ho_N.jsonl N, ho_B.jsonl B)"""
+import sys, json, collections
+rows = [json.loads(l) for l in open(sys.argv[1])]; tag = sys.argv[2]
+C = {r["set"]: r for r in rows if r["variant"] == tag}; M = {r["set"]: r for r in rows if r["variant"] == "main"}
 tot = collections.Counter()
-for s in sorted(N, key=lambda x: (x[:4], int(x[4:]) if x[4:].isdigit() else 0)):
-    n = N[s]; m = M.get(s)
-    ms = m["score"] if m else (n["score"] if not n.get("shared") else None)
+for s in sorted(C, key=lambda x: (x.rstrip("0123456789"), int(x.lstrip("abcdefghijklmnopqrstuvwxyz")))):
+    c, m = C[s], M.get(s)
+    ms = m["score"] if m else (c["score"] if not c.get("shared") else None)
     pre = s.rstrip("0123456789")
-    tot[(pre, "N")] += n["score"]; tot[(pre, "main")] += ms if ms is not None else 0
-    print(s, "N", n["score"], "main", ms, "" if m else "(same: no span)" if not n.get("shared") else "MISSING", "diff", None if ms is None else n["score"] - ms, "spans", len(n.get("shared") or []))
+    tot[(pre, tag)] += c["score"]; tot[(pre, "main")] += ms or 0
+    print(s, tag, c["score"], "main", ms, "" if m else "(same: no span)" if not c.get("shared") else "MISSING",
+          "diff", None if ms is None else c["score"] - ms, "spans", len(c.get("shared") or []))
 print(dict(tot))
