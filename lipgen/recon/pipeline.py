@@ -34,6 +34,7 @@ from lipgen.recon.anchor import track_from_anchor
 from lipgen.recon.calibcache import calibrated
 from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
+from lipgen.recon.gapfill import fill_short_gaps, runs_agree
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.nose import NoseNeverSeen, settle_nose
@@ -44,6 +45,7 @@ from lipgen.recon.steps import (
     expected_projections,
     reach_fields,
     track_raw_frames,
+    triangulate_tracks,
     triangulate_within_limit,
 )
 from lipgen.rig.camera import VIEWS
@@ -303,7 +305,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     with blas_threads(1):  # per-frame work of tiny BLAS calls (lipgen._threads)
         tracks, anchor = track_from_anchor(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                            (lambda _: bar.update()) if bar else None)
-        crossed, shared = None, []
+        crossed, shared, sure = None, [], None
         if settings.cross_check:
             second, back = reversed_run(lambda i: ds[i].image, len(ds), track, settings.anchor_step,
                                         (lambda _: bar.update()) if bar else None)
@@ -312,6 +314,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             if settings.cross_check_arbitrate:
                 def judge(a, b, disputed):
                     return arbitrate(a, b, disputed, lab.views, marks_rest, layout_cov)
+            if settings.gap_fill_sure:
+                sure = runs_agree(tracks, second, tol)
             tracks, crossed = cross_check(tracks, second, tol, settings.cross_check_fill, judge,
                                           settings.cross_check_keep)
             crossed = crossed | {"anchor": back}
@@ -323,6 +327,20 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     t_track, c_track = time.perf_counter(), time.process_time()
     # The views disagree beyond a limit measured from this sequence's own ray gaps (recon.raygap).
     points, gap, vis, max_gap = triangulate_within_limit(lab.views, tracks, settings)
+    gaps = None
+    if settings.gap_fill:
+        def views_at(f):
+            return ds.rig.split_views(np.asarray(ds[f].image))
+
+        barred = np.zeros(vis.shape, dtype=bool)
+        for span in shared:   # the shared-dot check's: neither marker is trusted there
+            barred[slice(*span["frames"]), list(span["markers"])] = True
+        if settings.gap_fill_sure and sure is None:   # no second run: nothing is sure
+            sure = np.zeros(vis.shape, dtype=bool)
+        with blas_threads(1):
+            tracks, gaps = fill_short_gaps(tracks, views_at, lab.views, vis, settings.tracker.dots,
+                                           settings.tracker.floor_min, max_gap, settings.gap_fill, sure, barred)
+        points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
     try:
@@ -368,7 +386,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed, "nose": nose_record,
-        "shared_dots": shared,
+        "shared_dots": shared, "gap_fill": gaps,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

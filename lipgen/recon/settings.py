@@ -9,6 +9,7 @@ import numbers
 from dataclasses import dataclass, field
 
 from lipgen.recon.anchor import ANCHOR_STEP
+from lipgen.recon.gapfill import GAP_FILL_FRAMES
 from lipgen.recon.raygap import RayGapLimit, px_per_mm
 from lipgen.recon.track import TrackerSettings
 
@@ -278,6 +279,13 @@ class ReconstructSettings:
         :func:`lipgen.recon.pipeline.reconstruct_dataset` takes back both of two markers that hold one
         dot in both views (:mod:`lipgen.recon.shareddot`). Default True
         (``renders/examples/tracking/dup37.md``).
+    gap_fill : int or None
+        :func:`lipgen.recon.pipeline.reconstruct_dataset` fills each marker's gaps of at most this many
+        frames between two accepted sightings, where both views show a dot near the position
+        interpolated between them (:mod:`lipgen.recon.gapfill`). None: no fill.
+    gap_fill_sure : bool
+        The fill fills a gap only where both framing sightings are ones the two tracking runs of the
+        cross-check agree on (:func:`lipgen.recon.gapfill.runs_agree`); without the cross-check, none.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -320,11 +328,17 @@ class ReconstructSettings:
     confirm_blobs: bool = True
     nose_search: bool = True
     shared_dot_check: bool = True
+    gap_fill: int | None = GAP_FILL_FRAMES
+    gap_fill_sure: bool = True
 
     def __post_init__(self):
+        fill = self.gap_fill
+        if fill is not None and (isinstance(fill, bool) or not isinstance(fill, numbers.Integral)
+                                 or fill < 1):
+            raise ValueError(f"settings.gap_fill must be None or a whole number of frames >= 1, got {fill!r}")
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
                      "cross_check_arbitrate", "cross_check_keep", "nose_search",
-                     "shared_dot_check"):
+                     "shared_dot_check", "gap_fill_sure"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
         share = self.epipolar_blob_share
