@@ -9,7 +9,7 @@ from test_raygap import _two_views
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED
 from lipgen.recon.dots import DotSettings
-from lipgen.recon.gapfill import fill_short_gaps, short_gaps
+from lipgen.recon.gapfill import fill_short_gaps, runs_agree, short_gaps
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import triangulate
@@ -119,3 +119,68 @@ def test_the_setting_is_checked():
     for bad in (0, -1, 1.5, True, "3"):
         with pytest.raises(ValueError, match="gap_fill"):
             ReconstructSettings(gap_fill=bad)
+    assert ReconstructSettings().gap_fill_sure is True
+    with pytest.raises(ValueError, match="gap_fill_sure"):
+        ReconstructSettings(gap_fill_sure=1)
+
+
+def _copy(tracks):
+    return [Tracks(uv=t.uv.copy(), visible=t.visible.copy(), status=t.status.copy(), score=t.score.copy())
+            for t in tracks]
+
+
+def test_runs_agree_where_both_runs_hold_one_dot_in_both_views():
+    _, uv, _, first = _clip()
+    second = _copy(first)
+    second[0].uv[2, 1] += [3.0, 0.0]     # another dot in one view: not agreed
+    second[1].uv[5, 4] += [0.5, 0.0]     # within the tolerance: agreed
+    _lose(second, [7], 6, views=(1,))     # one run lost it in one view: not agreed
+    agree = runs_agree(first, second, 1.0)
+    expect = np.ones((F, P), dtype=bool)
+    expect[2, 1] = expect[7, 6] = False
+    assert agree.shape == (F, P) and np.array_equal(agree, expect)
+    with pytest.raises(ValueError, match="tol"):
+        runs_agree(first, second, 0.0)
+    with pytest.raises(ValueError, match="differ in shape"):
+        runs_agree(first, [Tracks(uv=t.uv[:5], visible=t.visible[:5], status=t.status[:5], score=t.score[:5])
+                           for t in second], 1.0)
+
+
+def test_with_sure_a_gap_is_filled_only_between_agreed_sightings():
+    cams, uv, images, tracks = _clip()
+    _lose(tracks, [4], 5)
+    _lose(tracks, [8], 2)
+    sure = np.ones((F, P), dtype=bool)
+    sure[9, 2] = False                   # marker 2's sighting after its gap: the runs disagreed
+    out, record = fill_short_gaps(tracks, lambda f: images[f], cams, _accepted(tracks), DOTS, 0.05, 1.0,
+                                  sure=sure)
+    assert record == {"gaps": 2, "filled": 1, "unsure": 1}
+    assert out[0].status[4, 5] == RECOVERED and out[0].status[8, 2] == LOST
+    assert np.allclose(out[0].uv[4, 5], uv[0, 4, 5], atol=0.3)
+    with pytest.raises(ValueError, match="sure must have shape"):
+        fill_short_gaps(tracks, lambda f: images[f], cams, _accepted(tracks), DOTS, 0.05, 1.0, sure=sure[1:])
+
+
+def test_a_barred_frame_is_never_filled():
+    cams, uv, images, tracks = _clip()
+    _lose(tracks, [4, 5], 5)
+    barred = np.zeros((F, P), dtype=bool)
+    barred[4, 5] = True                  # the shared-dot check took it back there
+    out, record = fill_short_gaps(tracks, lambda f: images[f], cams, _accepted(tracks), DOTS, 0.05, 1.0,
+                                  barred=barred)
+    assert record["filled"] == 1 and out[0].status[4, 5] == LOST and out[0].status[5, 5] == RECOVERED
+    with pytest.raises(ValueError, match="barred must have shape"):
+        fill_short_gaps(tracks, lambda f: images[f], cams, _accepted(tracks), DOTS, 0.05, 1.0,
+                        barred=barred[:, 1:])
+
+
+def test_the_reconstructions_sentence_says_what_was_filled():
+    from lipgen.recon.crosscheck import tracking_lines
+    from lipgen.recon.gapfill import gap_fill_line
+
+    assert gap_fill_line(None) is None
+    line = gap_fill_line({"gaps": 7, "filled": 3, "unsure": 2})
+    assert "Filled 3 of 7" in line and "2 more" in line
+    assert "more" not in gap_fill_line({"gaps": 7, "filled": 3, "unsure": 0})
+    assert line in tracking_lines({"gap_fill": {"gaps": 7, "filled": 3, "unsure": 2}})
+    assert tracking_lines({}) == []

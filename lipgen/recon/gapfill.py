@@ -203,3 +203,15 @@ def fill_short_gaps(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tup
     out = tuple(replace(t, uv=uv[v], status=status[v], visible=status[v] != LOST)
                 for v, t in enumerate(tracks))
     return out, {"gaps": int(sum(len(w) for w in todo.values())) + unsure, "filled": filled, "unsure": unsure}
+
+
+def gap_fill_line(record: dict | None) -> str | None:
+    """One sentence on what :func:`fill_short_gaps` did, for the command's output and the report; None when
+    it did not run (``record`` None: ``gap_fill`` off, or a reconstruction made before it)."""
+    if not record:
+        return None
+    unsure = record.get("unsure", 0)
+    tail = (f"; {unsure} more lay between sightings the two tracking runs did not agree on, and were left"
+            if unsure else "")
+    return (f"Filled {record['filled']} of {record['gaps']} marker sighting(s) lost in short gaps between "
+            f"accepted sightings, where both views show a dot near the interpolated position{tail}.")

@@ -339,7 +339,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             sure = np.zeros(vis.shape, dtype=bool)
         with blas_threads(1):
             tracks, gaps = fill_short_gaps(tracks, views_at, lab.views, vis, settings.tracker.dots,
-                                           settings.tracker.floor_min, max_gap, settings.gap_fill, sure, barred)
+                                           settings.tracker.floor_min, max_gap, settings.gap_fill,
+                                           sure=sure, barred=barred)
         points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
