@@ -3,10 +3,11 @@ from lipgen.evaluate.scoring import load_truth, sighting_errors
 from lipgen.dataset.layout import Dataset
 from lipgen.recon.pipeline import Reconstruction
 var = sys.argv[1]; fallback = sys.argv[2]
+REC = os.environ.get("REC", "/work/b37/rec")   # the folder of SET.VARIANT.npz (g38: REC=/work/b38/rec)
 vis = acc = over = 0; err = {"virtual": [], "real": []}
 for s in sys.argv[3:]:
-    p = f"/work/b37/rec/{s}.{var}.npz"
-    if not os.path.exists(p): p = f"/work/b37/rec/{s}.{fallback}.npz"
+    p = f"{REC}/{s}.{var}.npz"
+    if not os.path.exists(p): p = f"{REC}/{s}.{fallback}.npz"
     e = sighting_errors(load_truth(Dataset(f"/work/sets/{s}")), Reconstruction.load(p))
     for k, v in e.items():
         vis += int(v["truly"].sum()); acc += int(v["ok"].sum()); over += int((v["err"][v["ok"]] > 3).sum()); err[k] += list(v["err"][v["ok"]])
