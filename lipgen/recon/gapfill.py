@@ -45,7 +45,7 @@ from lipgen.recon.dots import DotSettings, detect_dots, ink_gray, refine_centroi
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["GAP_FILL_FRAMES", "short_gaps", "fill_short_gaps"]
+__all__ = ["GAP_FILL_FRAMES", "short_gaps", "runs_agree", "fill_short_gaps", "gap_fill_line"]
 
 GAP_FILL_FRAMES = 3
 """Longest gap filled, in frames."""
@@ -148,7 +148,8 @@ def fill_short_gaps(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tup
     (virtual, real) : Tracks
         Copies, with the filled sightings.
     record : dict
-        ``gaps`` (frame-marker pairs in short gaps) and ``filled`` (of them, filled).
+        ``gaps`` (frame-marker pairs in short gaps, barred ones left out), ``filled`` (of them,
+        filled) and ``unsure`` (of them, not tried: a framing sighting is not in ``sure``).
     """
     F, P = tracks[0].uv.shape[:2]
     accepted = np.asarray(accepted, dtype=bool)
