@@ -24,7 +24,8 @@ def test_shipped_default_lips_are_what_the_code_builds(fresh):
     model, mesh, motion = fresh
     s_model, s_mesh, s_motion = load_default_lips()
     assert s_mesh.topology_id == mesh.topology_id, REGENERATE
-    assert np.array_equal(s_mesh.vertices, mesh.vertices), REGENERATE
+    # to rounding: other numpy/scipy builds differ in the last bit (7e-15 mm on 2026-12-07's rebuilt venv)
+    assert np.allclose(s_mesh.vertices, mesh.vertices, rtol=0, atol=1e-12), REGENERATE
     for name in ("faces", "regions", "anchors", "markers", "nose"):
         assert np.array_equal(getattr(s_mesh, name), getattr(mesh, name)), (name, REGENERATE)
     assert s_model.topology_id_ == model.topology_id_ and s_model.n_frames_ == model.n_frames_
