@@ -8,8 +8,9 @@ from synthetic_images import frame, swaying_views
 from test_raygap import _two_views
 
 from lipgen.recon.association import LOST, RECOVERED, TRACKED
+from lipgen.recon.crosscheck import runs_agree
 from lipgen.recon.dots import DotSettings
-from lipgen.recon.gapfill import fill_short_gaps, runs_agree, short_gaps
+from lipgen.recon.gapfill import fill_short_gaps, short_gaps
 from lipgen.recon.settings import ReconstructSettings
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import triangulate

@@ -44,7 +44,7 @@ from lipgen.recon.nose import nose_line
 from lipgen.recon.shareddot import shared_dot_line
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["reversed_run", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
+__all__ = ["reversed_run", "runs_agree", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
 
 
 def _reversed(tracks: Tracks) -> Tracks:
@@ -79,6 +79,41 @@ def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: Tr
 
 def _seen(t: Tracks) -> np.ndarray:
     return (t.status != LOST) & np.all(np.isfinite(t.uv), axis=-1)
+
+
+def _compare(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each run's seen masks and the runs' distances, (2, F, P) each; ``tol`` and the shapes checked."""
+    if not tol > 0:
+        raise ValueError(f"tol must be a positive distance in pixels, got {tol!r}")
+    for a, b in zip(first, second, strict=True):
+        if a.uv.shape != b.uv.shape:
+            raise ValueError(f"the two runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
+    seen_a = np.stack([_seen(t) for t in first])
+    seen_b = np.stack([_seen(t) for t in second])
+    dist = np.stack([np.linalg.norm(a.uv - b.uv, axis=-1) for a, b in zip(first, second, strict=True)])
+    return seen_a, seen_b, dist
+
+
+def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float) -> np.ndarray:
+    """Where two tracking runs put a marker on the same dot in both views: among the markers both runs
+    see in both views, those :func:`cross_check` does not dispute.
+
+    Parameters
+    ----------
+    first, second : (virtual, real) Tracks
+        The same clip, each (F, P).
+    tol : float
+        Pixels: sightings nearer than this are one dot.
+
+    Returns
+    -------
+    (F, P) bool
+        Both runs see the marker in both views, within ``tol`` of each other in each.
+    """
+    seen_a, seen_b, dist = _compare(first, second, tol)
+    with np.errstate(invalid="ignore"):
+        return (seen_a & seen_b & (dist <= tol)).all(axis=0)
 
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
@@ -174,14 +209,7 @@ def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol
         Frame-marker pairs ``dropped``, ``kept`` (disputed, the first run's), ``swapped`` (disputed, the
         second run's) and ``filled``; and ``tol``.
     """
-    if not tol > 0:
-        raise ValueError(f"tol must be a positive distance in pixels, got {tol!r}")
-    for a, b in zip(first, second, strict=True):
-        if a.uv.shape != b.uv.shape:
-            raise ValueError(f"the two runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
-    seen_a = np.stack([_seen(t) for t in first])
-    seen_b = np.stack([_seen(t) for t in second])
-    dist = np.stack([np.linalg.norm(a.uv - b.uv, axis=-1) for a, b in zip(first, second, strict=True)])
+    seen_a, seen_b, dist = _compare(first, second, tol)
     with np.errstate(invalid="ignore"):
         differ = seen_a & seen_b & (dist > tol)          # (2, F, P)
     drop = differ.any(axis=0)                            # (F, P): one view's disagreement is the pair's

@@ -22,8 +22,9 @@ A filled sighting is ``RECOVERED``. A gap is filled only between two accepted si
 label changes: where the marker's identity is wrong on both sides, the fill carries that (all 3
 wrong fills of ``hard`` 83 and 97 lay there). So with ``sure`` (the pipeline's default) a gap is
 filled only where both framing sightings are ones the two tracking runs agree on
-(:func:`runs_agree`): each run labelled the dots afresh from its own end of the clip, and reached
-the same dot. A frame in ``barred`` (a sighting the shared-dot check took back) is never filled.
+(:func:`lipgen.recon.crosscheck.runs_agree`): each run labelled the dots afresh from its own end of
+the clip, and reached the same dot. A frame in ``barred`` (a sighting the shared-dot check took
+back) is never filled.
 
 Measured (``renders/examples/tracking/g38.md``; score = accepted within 3 px - 10 x accepted over
 3 px). Without ``sure`` the fill won on development (+119 on ``hard`` 83-102) but failed held-out
@@ -45,7 +46,7 @@ from lipgen.recon.dots import DotSettings, detect_dots, ink_gray, refine_centroi
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["GAP_FILL_FRAMES", "short_gaps", "runs_agree", "fill_short_gaps", "gap_fill_line"]
+__all__ = ["GAP_FILL_FRAMES", "short_gaps", "fill_short_gaps", "gap_fill_line"]
 
 GAP_FILL_FRAMES = 3
 """Longest gap filled, in frames."""
@@ -76,35 +77,6 @@ def short_gaps(accepted: np.ndarray, max_len: int) -> list[tuple[int, int, int]]
         for start, stop in zip(edges[::2], edges[1::2], strict=True):
             if start >= 1 and stop <= accepted.shape[0] - 1 and stop - start <= max_len:
                 out.append((i, int(start), int(stop)))
-    return out
-
-
-def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float) -> np.ndarray:
-    """Where two tracking runs put a marker on the same dot in both views.
-
-    Parameters
-    ----------
-    first, second : (virtual, real) Tracks
-        The same clip, each (F, P).
-    tol : float
-        Pixels: sightings nearer than this are one dot.
-
-    Returns
-    -------
-    (F, P) bool
-        Both runs see the marker in both views, within ``tol`` of each other in each.
-    """
-    if not tol > 0:
-        raise ValueError(f"tol must be a positive number of pixels, got {tol!r}")
-    out = None
-    for a, b in zip(first, second, strict=True):
-        if a.uv.shape != b.uv.shape:
-            raise ValueError(f"the runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
-        seen = (a.status != LOST) & (b.status != LOST)
-        with np.errstate(invalid="ignore"):
-            near = np.linalg.norm(a.uv - b.uv, axis=-1) <= tol
-        here = seen & near
-        out = here if out is None else out & here
     return out
 
 
@@ -139,7 +111,8 @@ def fill_short_gaps(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tup
     max_len : int
         Longest gap filled, frames.
     sure : (F, P) bool, optional
-        Sightings whose label is sure (:func:`runs_agree`): a gap is filled only between two of them.
+        Sightings whose label is sure (:func:`lipgen.recon.crosscheck.runs_agree`): a gap is filled
+        only between two of them.
     barred : (F, P) bool, optional
         Frame-marker pairs never filled.
 

@@ -33,8 +33,8 @@ from lipgen.recon.account import sighting_account
 from lipgen.recon.anchor import track_from_anchor
 from lipgen.recon.calibcache import calibrated
 from lipgen.recon.calibrate import RigCalibration
-from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run
-from lipgen.recon.gapfill import fill_short_gaps, runs_agree
+from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run, runs_agree
+from lipgen.recon.gapfill import fill_short_gaps
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.nose import NoseNeverSeen, settle_nose
@@ -327,11 +327,12 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     t_track, c_track = time.perf_counter(), time.process_time()
     # The views disagree beyond a limit measured from this sequence's own ray gaps (recon.raygap).
     points, gap, vis, max_gap = triangulate_within_limit(lab.views, tracks, settings)
+
+    def views_at(f):   # frame f's (virtual, real) images, for the steps that look again
+        return ds.rig.split_views(np.asarray(ds[f].image))
+
     gaps = None
     if settings.gap_fill:
-        def views_at(f):
-            return ds.rig.split_views(np.asarray(ds[f].image))
-
         barred = np.zeros(vis.shape, dtype=bool)
         for span in shared:   # the shared-dot check's: neither marker is trusted there
             barred[slice(*span["frames"]), list(span["markers"])] = True
@@ -347,7 +348,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     try:
         with blas_threads(1):
             tracks, points, gap, vis, nose_record = settle_nose(
-                lambda i: ds.rig.split_views(np.asarray(ds[i].image)), tracks, points, gap, vis, lab.views,
+                views_at, tracks, points, gap, vis, lab.views,
                 marks_rest, max_gap, settings.tracker.dots, settings.tracker.floor_min, settings.nose_search)
     except NoseNeverSeen as exc:
         raise DatasetError(f"{path}: the nose mark was never seen in both views, and {exc}; cannot normalise"

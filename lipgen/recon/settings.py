@@ -286,7 +286,7 @@ class ReconstructSettings:
         ``gap_fill_sure`` (``renders/examples/tracking/g38.md``).
     gap_fill_sure : bool
         The fill fills a gap only where both framing sightings are ones the two tracking runs of the
-        cross-check agree on (:func:`lipgen.recon.gapfill.runs_agree`); without the cross-check, none.
+        cross-check agree on (:func:`lipgen.recon.crosscheck.runs_agree`); without the cross-check, none.
         Default True: without it the fill also carries wrong labels into their gaps, and failed held-out
         ``hard`` 171-182 (-43; over 3 px 374 -> 403); with it, it passed its own fresh ``hard`` 183-190 (+26)
         and ``default`` 178-179 (+28), no sighting over 3 px added.
