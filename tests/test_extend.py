@@ -94,6 +94,7 @@ def test_bad_inputs_are_refused_with_the_value_named():
     for bad in (0, 1.5, True):
         with pytest.raises(ValueError, match="min_run"):
             extend_tracks(tracks, lambda f: images[f], cams, acc, ref, DOTS, 0.05, 1.0, 3.0, min_run=bad)
+    assert ReconstructSettings().walk_on is True
     with pytest.raises(ValueError, match="walk_on"):
         ReconstructSettings(walk_on=1)
 

@@ -293,7 +293,9 @@ class ReconstructSettings:
     walk_on : bool
         After the gap fill, each marker's accepted track (``walk_frames`` accepted frames in a row) is walked
         on, frame by frame, into the frames where it is not accepted: a dot in both views where its
-        neighbours' motion puts it, unambiguous, the rays meeting (:mod:`lipgen.recon.extend`).
+        neighbours' motion puts it, unambiguous, the rays meeting (:mod:`lipgen.recon.extend`). Default True
+        (``renders/examples/tracking/w39.md``): on fresh held-out ``hard`` 191-198 accepted 89.4 -> 92.6 %,
+        over 3 px 64 -> 65, the score +337 with no set down; ``default`` 180-181 +50, none over 3 px.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -338,7 +340,7 @@ class ReconstructSettings:
     shared_dot_check: bool = True
     gap_fill: int | None = GAP_FILL_FRAMES
     gap_fill_sure: bool = True
-    walk_on: bool = False
+    walk_on: bool = True
 
     def __post_init__(self):
         fill = self.gap_fill
