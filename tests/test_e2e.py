@@ -489,6 +489,39 @@ def test_a_marker_lost_for_a_frame_between_agreed_sightings_is_filled_and_the_re
     np.testing.assert_allclose(found.lab_points[f, i], recon.lab_points[f, i], atol=0.1)
     assert any(line.startswith("Filled 1 of 1") for line in tracking_lines(found.info))
     alone = reconstruct_dataset(dataset, settings=ReconstructSettings(cross_check=False))
-    assert alone.info["gap_fill"] == {"gaps": 1, "filled": 0, "unsure": 1} and not alone.visible[f, i]
-    off = reconstruct_dataset(dataset, settings=ReconstructSettings(gap_fill=None))
+    assert alone.info["gap_fill"] == {"gaps": 1, "filled": 0, "unsure": 1}
+    # the walk-on needs no second run: it walks upper_mid on into the frame from the frames before it
+    assert alone.info["walk_on"]["walked"] == 1 and alone.visible[f, i]
+    off = reconstruct_dataset(dataset, settings=ReconstructSettings(gap_fill=None, walk_on=False))
     assert off.info["gap_fill"] is None and not off.visible[f, i]
+
+
+def test_a_marker_lost_to_the_clips_end_is_walked_on_and_the_reconstruction_says_so(dataset, recon,
+                                                                                     monkeypatch):
+    """Both tracking runs lose ``lower_mid`` from the middle of the clip to its end, in both views: no gap
+    is framed, so the gap fill cannot fill it; the walk-on follows it from its accepted track onto its own
+    dots."""
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.recon.association import LOST
+    from lipgen.recon.crosscheck import tracking_lines
+    from lipgen.recon.settings import ReconstructSettings
+
+    i, f = recon.info["marker_names"].index("lower_mid"), FRAMES // 2
+    assert recon.visible[f - 3:, i].all()
+
+    def losing(run):
+        def lose(*args, **kwargs):
+            tracks, record = run(*args, **kwargs)
+            for t in tracks:
+                t.uv[f:, i], t.status[f:, i], t.visible[f:, i] = np.nan, LOST, False
+            return tracks, record
+        return lose
+
+    monkeypatch.setattr(pipeline, "track_from_anchor", losing(pipeline.track_from_anchor))
+    monkeypatch.setattr(pipeline, "reversed_run", losing(pipeline.reversed_run))
+    found = reconstruct_dataset(dataset)   # walk_on is the default
+    assert found.info["walk_on"]["walked"] == FRAMES - f and found.visible[f:, i].all()
+    np.testing.assert_allclose(found.lab_points[f:, i], recon.lab_points[f:, i], atol=0.1)
+    assert any(line.startswith(f"Walked {FRAMES - f} marker") for line in tracking_lines(found.info))
+    off = reconstruct_dataset(dataset, settings=ReconstructSettings(walk_on=False))
+    assert off.info["walk_on"] is None and not off.visible[f:, i].any()

@@ -46,7 +46,7 @@ from lipgen.recon.dots import DotSettings, detect_dots, ink_gray, refine_centroi
 from lipgen.recon.tracks import Tracks
 from lipgen.rig.pinhole import PinholeCamera, triangulate
 
-__all__ = ["GAP_FILL_FRAMES", "short_gaps", "fill_short_gaps", "gap_fill_line"]
+__all__ = ["GAP_FILL_FRAMES", "short_gaps", "view_peaks", "fill_short_gaps", "gap_fill_line"]
 
 GAP_FILL_FRAMES = 3
 """Longest gap filled, in frames."""
@@ -80,7 +80,7 @@ def short_gaps(accepted: np.ndarray, max_len: int) -> list[tuple[int, int, int]]
     return out
 
 
-def _candidates(image, dots: DotSettings, floor: float) -> tuple[np.ndarray, np.ndarray]:
+def view_peaks(image, dots: DotSettings, floor: float) -> tuple[np.ndarray, np.ndarray]:
     """One view's peaks (k, 2): the detector's at ``floor``, then the curvature detector's; and its gray."""
     gray = ink_gray(image)
     uv, _ = detect_dots(image, replace(dots, min_contrast=floor))
@@ -147,7 +147,7 @@ def fill_short_gaps(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tup
     filled = 0
     for f in sorted(todo):
         images = frame_at(f)
-        found = [_candidates(images[v], dots, floor) for v in range(2)]
+        found = [view_peaks(images[v], dots, floor) for v in range(2)]
         for i, alpha, before, after in todo[f]:
             pair = []
             for v in range(2):

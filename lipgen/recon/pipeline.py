@@ -34,6 +34,7 @@ from lipgen.recon.anchor import track_from_anchor
 from lipgen.recon.calibcache import calibrated
 from lipgen.recon.calibrate import RigCalibration
 from lipgen.recon.crosscheck import arbitrate, cross_check, reversed_run, runs_agree
+from lipgen.recon.extend import extend_tracks
 from lipgen.recon.gapfill import fill_short_gaps
 from lipgen.recon.modelmesh import model_mesh
 from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
@@ -343,6 +344,15 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
                                            settings.tracker.floor_min, max_gap, settings.gap_fill,
                                            sure=sure, barred=barred)
         points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
+    walks = None
+    if settings.walk_on:
+        start = vis.copy()
+        start[:, len(mesh.markers)] = False   # the nose has no near neighbours: settle_nose looks for it
+        with blas_threads(1):
+            tracks, walks = extend_tracks(tracks, views_at, lab.views, vis, expected, settings.tracker.dots,
+                                          settings.tracker.floor_min, max_gap, settings.tracker.gate,
+                                          start=start, min_run=settings.walk_frames)
+        points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     P = len(mesh.markers)
     upper, lower = lip_subsets(mesh.marker_names)
     try:
@@ -388,7 +398,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed, "nose": nose_record,
-        "shared_dots": shared, "gap_fill": gaps,
+        "shared_dots": shared, "gap_fill": gaps, "walk_on": walks,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

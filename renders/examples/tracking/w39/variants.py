@@ -1,0 +1,1 @@
+VARIANTS = {"W": dict(walk_on=True)}
