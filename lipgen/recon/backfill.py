@@ -31,7 +31,7 @@ from lipgen.recon.track import LOST, RECOVERED, MarkerTracker
 from lipgen.rig.camera import VIEWS
 from lipgen.rig.pinhole import triangulate
 
-__all__ = ["WalkQueue", "backfill", "rewalk", "walk_back", "neighbour_motion"]
+__all__ = ["WalkQueue", "backfill", "rewalk", "walk_back", "neighbour_motion", "nearest_free_dot"]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +71,49 @@ def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarr
     return (w @ (uv_to[ok] - uv_from[ok])) / w.sum()
 
 
+def nearest_free_dot(dots: np.ndarray, pred: np.ndarray, taken: np.ndarray, gate: float, ratio: float,
+                     held: float, usable: np.ndarray | None = None,
+                     rivals: np.ndarray | None = None) -> int | None:
+    """The index of the dot nearest ``pred`` within ``gate`` that no other marker holds, if unambiguous.
+
+    Parameters
+    ----------
+    dots : (k, 2) float
+        Candidate dots, pixels.
+    pred : (2,) float
+        Where the marker is predicted.
+    taken : (m, 2) float
+        Other markers' sightings: a dot within ``held`` pixels of one is held.
+    gate, ratio, held : float
+        Pixels; the unambiguity ratio; pixels.
+    usable : (k,) bool, optional
+        Dots that may be taken at all (e.g. dark enough).
+    rivals : (n, 2) float, optional
+        Positions the dot must be nearer ``pred`` than ``1 / ratio`` times; default ``taken``.
+
+    Returns
+    -------
+    int or None
+        None where no free dot lies within ``gate``, or another dot, or a rival, is nearly as near.
+    """
+    rivals = taken if rivals is None else rivals
+    free = np.ones(len(dots), dtype=bool) if usable is None else np.asarray(usable, dtype=bool).copy()
+    if len(taken):
+        free &= np.linalg.norm(dots[:, None] - taken[None], axis=2).min(1) >= held
+    r = np.linalg.norm(dots - pred, axis=1)
+    if not free.any():
+        return None
+    j = int(np.argmin(np.where(free, r, np.inf)))
+    if r[j] > gate:
+        return None
+    rest = np.delete(r, j)
+    if len(rest) and r[j] >= ratio * rest.min():       # another dot nearly as near
+        return None
+    if len(rivals) and r[j] >= ratio * np.linalg.norm(rivals - dots[j], axis=1).min():
+        return None
+    return j
+
+
 def _candidate(tracker: MarkerTracker, t: int, i: int, pred: np.ndarray, gate: float) -> np.ndarray | None:
     """The free, dark, unambiguous dot of frame ``t`` nearest ``pred`` within ``gate``, or None."""
     cfg = tracker.cfg
@@ -80,23 +123,11 @@ def _candidate(tracker: MarkerTracker, t: int, i: int, pred: np.ndarray, gate: f
     dots, strength = hist
     uv, status, _ = tracker._out[t]
     taken = uv[(status != LOST) & (np.arange(len(uv)) != i)]
-    free = np.ones(len(dots), dtype=bool)
-    if len(taken):
-        free = np.linalg.norm(dots[:, None] - taken[None], axis=2).min(1) >= cfg.dots.separation / 2
+    usable = None
     if np.isfinite(tracker.strength[i]):
-        free &= strength >= cfg.min_strength_ratio * tracker.strength[i]
-    r = np.linalg.norm(dots - pred, axis=1)
-    if not free.any():
-        return None
-    j = int(np.argmin(np.where(free, r, np.inf)))
-    if r[j] > gate:
-        return None
-    rest = np.delete(r, j)
-    if len(rest) and r[j] >= cfg.acquire_ratio * rest.min():       # another dot nearly as near
-        return None
-    if len(taken) and r[j] >= cfg.acquire_ratio * np.linalg.norm(taken - dots[j], axis=1).min():
-        return None
-    return dots[j]
+        usable = strength >= cfg.min_strength_ratio * tracker.strength[i]
+    j = nearest_free_dot(dots, pred, taken, gate, cfg.acquire_ratio, cfg.dots.separation / 2, usable)
+    return None if j is None else dots[j]
 
 
 class WalkQueue:

@@ -45,7 +45,7 @@ from dataclasses import replace
 import numpy as np
 
 from lipgen.recon.association import LOST, RECOVERED
-from lipgen.recon.backfill import neighbour_motion
+from lipgen.recon.backfill import nearest_free_dot, neighbour_motion
 from lipgen.recon.dots import DotSettings, refine_centroids
 from lipgen.recon.gapfill import view_peaks
 from lipgen.recon.pointreg import layout_spacing
@@ -178,19 +178,8 @@ def _pick(found, pred, held_f, i, gate, ratio, held_r, dots) -> np.ndarray | Non
     others = np.delete(np.arange(len(held_f)), i)
     held = held_f[others][np.all(np.isfinite(held_f[others]), axis=1)]
     rivals = np.vstack([held, pred[others][np.all(np.isfinite(pred[others]), axis=1)]])
-    free = np.ones(len(cand), dtype=bool)
-    if len(held):
-        free = np.linalg.norm(cand[:, None] - held[None], axis=2).min(1) >= held_r
-    d = np.linalg.norm(cand - pred[i], axis=1)
-    if not free.any():
-        return None
-    j = int(np.argmin(np.where(free, d, np.inf)))
-    if d[j] > gate:
-        return None
-    rest = np.delete(d, j)
-    if len(rest) and d[j] >= ratio * rest.min():
-        return None
-    if len(rivals) and d[j] >= ratio * np.linalg.norm(rivals - cand[j], axis=1).min():
+    j = nearest_free_dot(cand, pred[i], held, gate, ratio, held_r, rivals=rivals)
+    if j is None:
         return None
     got = refine_centroids(gray, cand[j][None], dots.sigma, window=dots.window)[0]
     return got if np.linalg.norm(got - pred[i]) <= gate else None
