@@ -1,30 +1,17 @@
-"""usage: run.py OUT.jsonl VARIANT[,VARIANT] SET...  (PYTHONPATH = the worktree; variants in VARIANTS)"""
-import sys, json, time, os
+"""w39 runner: run.py OUT.jsonl VARIANT[,VARIANT] SET...  (PYTHONPATH = the worktree; variants: main and
+variants.py's). Each set's tracking comes from the disk cache (cached.py), so the variants differ only after
+it; each row is trackscore.run_and_score's, the reconstruction saved to /work/b39/rec/SET.VARIANT.npz."""
+import sys, json
 sys.path.insert(0, "/work/main/renders/examples/tracking"); sys.path.insert(0, "/work/b39")
 import cached
-from trackscore import score_row
-import lipgen.recon.pipeline as pl
-from lipgen.dataset.layout import Dataset
+from trackscore import run_and_score
 from lipgen.recon.settings import ReconstructSettings
-from lipgen._threads import blas_threads
-from lipgen.errors import DatasetError
-VARIANTS = {"main": {}}
-try:
-    from variants import VARIANTS as V2; VARIANTS.update(V2)
-except ImportError:
-    pass
-out, tags = open(sys.argv[1], "a"), sys.argv[2].split(",")
-for name in sys.argv[3:]:
-    cached.use(name)
-    path = f"/work/sets/{name}"
-    for tag in tags:
-        t = time.process_time()
-        try:
-            with blas_threads(1):
-                rec = pl.reconstruct_dataset(path, settings=ReconstructSettings(**VARIANTS[tag]))
-        except (DatasetError, ValueError) as exc:
-            print(json.dumps({"set": name, "variant": tag, "stopped": str(exc), "score": 0}), file=out, flush=True)
-            continue
-        rec.save(f"/work/b39/rec/{name}.{tag}.npz")
-        extra = {"gap_fill": rec.info.get("gap_fill"), "shared": len(rec.info.get("shared_dots") or [])}
-        print(json.dumps(score_row(Dataset(path), rec, name, tag, time.process_time() - t) | extra), file=out, flush=True)
+from variants import VARIANTS
+VARIANTS = {"main": {}} | VARIANTS
+with open(sys.argv[1], "a") as out:
+    for name in sys.argv[3:]:
+        cached.use(name)
+        for tag in sys.argv[2].split(","):
+            row = run_and_score(f"/work/sets/{name}", tag, ReconstructSettings(**VARIANTS[tag]),
+                                f"/work/b39/rec/{name}.{tag}.npz")
+            print(json.dumps(row), file=out, flush=True)
