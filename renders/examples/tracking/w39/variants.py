@@ -1,1 +1,3 @@
-VARIANTS = {"W": dict(walk_on=True)}
+# The held-out pair (walk_on became the default after it). On development, "W-sure" started walks only from
+# sightings both tracking runs agree on (a setting removed before the freeze), and "W0" was W.
+VARIANTS = {"main": dict(walk_on=False), "W": dict(walk_on=True)}
