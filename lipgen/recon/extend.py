@@ -55,7 +55,9 @@ from lipgen.rig.pinhole import PinholeCamera, triangulate
 __all__ = ["extend_tracks", "extend_line"]
 
 
-def _check(F: int, P: int, accepted, start, reference, gate, ratio) -> None:
+def _check(F: int, P: int, accepted, start, reference, gate, ratio, min_run) -> None:
+    if isinstance(min_run, bool) or int(min_run) != min_run or min_run < 1:
+        raise ValueError(f"min_run must be a whole number of frames >= 1, got {min_run!r}")
     for name, mask in (("accepted", accepted), ("start", start)):
         if mask is not None and np.shape(mask) != (F, P):
             raise ValueError(f"{name} must have shape {(F, P)} (frames, markers), got {np.shape(mask)}")
@@ -109,15 +111,12 @@ def extend_tracks(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tuple
         ``walked`` (frame-marker pairs written).
     """
     F, P = tracks[0].uv.shape[:2]
-    _check(F, P, accepted, start, reference, gate, ratio)
-    if isinstance(min_run, bool) or int(min_run) != min_run or min_run < 1:
-        raise ValueError(f"min_run must be a whole number of frames >= 1, got {min_run!r}")
+    _check(F, P, accepted, start, reference, gate, ratio, min_run)
     ok = np.asarray(accepted, dtype=bool).copy()
     allowed = ok & (np.ones_like(ok) if start is None else np.asarray(start, dtype=bool))
     uv = [t.uv.copy() for t in tracks]
     status = [t.status.copy() for t in tracks]
     width = [layout_spacing(reference[v]) for v in range(2)]
-    peaks: dict[int, list] = {}
     held_r = dots.separation / 2
     walks, walked = 0, 0
     for step in (1, -1):
@@ -131,8 +130,9 @@ def extend_tracks(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tuple
             if len(walkers) == 0:
                 continue
             walks += int(np.sum(begin[prev, walkers]))
-            if f not in peaks:
-                peaks[f] = [view_peaks(img, dots, floor) for img in frame_at(f)]
+            # looked for afresh in each pass: keeping every walked frame's images for the other pass
+            # would hold up to 2 F grey images
+            peaks = [view_peaks(img, dots, floor) for img in frame_at(f)]
             both = ok[prev] & ok[f]
             pred = np.full((2, P, 2), np.nan)
             for v in range(2):
@@ -142,7 +142,7 @@ def extend_tracks(tracks: tuple[Tracks, Tracks], frame_at: Callable[[int], tuple
                         pred[v, i] = uv[v][prev, i] + move
             for i in walkers:
                 held = [np.where(ok[f][:, None], uv[v][f], np.nan) for v in range(2)]
-                pair = [_pick(peaks[f][v], pred[v], held[v], i, gate, ratio, held_r, dots) for v in range(2)]
+                pair = [_pick(peaks[v], pred[v], held[v], i, gate, ratio, held_r, dots) for v in range(2)]
                 if pair[0] is None or pair[1] is None:
                     continue
                 if not triangulate(cameras[1], pair[1][None], cameras[0], pair[0][None])[1][0] <= max_gap:
