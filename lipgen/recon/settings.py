@@ -296,6 +296,10 @@ class ReconstructSettings:
         neighbours' motion puts it, unambiguous, the rays meeting (:mod:`lipgen.recon.extend`). Default True
         (``renders/examples/tracking/w39.md``): on fresh held-out ``hard`` 191-198 accepted 89.4 -> 92.6 %,
         over 3 px 64 -> 65, the score +337 with no set down; ``default`` 180-181 +50, none over 3 px.
+    split_runs : float or None
+        Before the gap fill, a marker whose accepted track jumps (its move between two accepted frames differs
+        from its neighbours' by more than this many pixels in both views) keeps only its longest agreeing
+        track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -341,6 +345,7 @@ class ReconstructSettings:
     gap_fill: int | None = GAP_FILL_FRAMES
     gap_fill_sure: bool = True
     walk_on: bool = True
+    split_runs: float | None = None
 
     def __post_init__(self):
         fill = self.gap_fill
@@ -352,6 +357,10 @@ class ReconstructSettings:
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
+        jump = self.split_runs
+        if jump is not None and (isinstance(jump, bool) or not isinstance(jump, numbers.Real)
+                                 or not math.isfinite(jump) or jump <= 0):
+            raise ValueError(f"settings.split_runs must be None or a positive number of pixels, got {jump!r}")
         share = self.epipolar_blob_share
         if isinstance(share, bool) or not (isinstance(share, numbers.Real) and 0 < share <= 1):
             raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "
