@@ -27,7 +27,8 @@ def _tracks(lure=(), lost=()):
     Returns the tracks, the accepted sightings (F, P) and the layout in each view (2, P, 2)."""
     cams = _two_views()
     t = np.arange(F)[:, None]
-    marks = _marks() + (np.hstack([6 * np.sin(1.3 * t), 5 * np.cos(0.9 * t), 0 * t]))[:, None]   # the head moves
+    head = np.hstack([6 * np.sin(1.3 * t), 5 * np.cos(0.9 * t), 0 * t])   # the head moves, mm
+    marks = _marks() + head[:, None]
     rng = np.random.default_rng(3)
     uv = np.stack([np.stack([c.project(m) for m in marks]) for c in cams])
     reference = uv[:, 0].copy()
@@ -97,8 +98,8 @@ def test_take_back_returns_new_tracks_and_logs(caplog):
         np.testing.assert_array_equal(new[v].uv[5:], tracks[v].uv[5:])
         assert np.isfinite(tracks[v].uv[:3, M]).all(), "the tracks given are not changed"
     assert "m4 jumps between its accepted frames: 5 frame(s) kept, 3 taken back (0, 1, 2)" in caplog.text
-    assert split_runs_line(groups) == ("Split tracks: 1 marker(s) jumped between accepted frames; the shorter "
-                                       "track's 3 sighting(s) taken back.")
+    assert split_runs_line(groups) == ("Split tracks: 1 marker(s) jumped between accepted frames; the "
+                                       "shorter track's 3 sighting(s) taken back.")
     assert split_runs_line(None) is None
 
 
