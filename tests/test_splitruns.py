@@ -114,3 +114,10 @@ def test_bad_inputs_are_refused_with_the_value_named(bad, match):
     args = dict(accepted=accepted, reference=ref, jump=5.0) | bad
     with pytest.raises(ValueError, match=match):
         disagreeing_runs(tracks, **args)
+
+
+@pytest.mark.parametrize("value", [0, -1.0, True, "5", np.inf])
+def test_the_setting_is_checked(value):
+    from lipgen.recon.settings import ReconstructSettings
+    with pytest.raises(ValueError, match=r"settings.split_runs must be None or a positive number of pixels"):
+        ReconstructSettings(split_runs=value)
