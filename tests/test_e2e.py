@@ -558,8 +558,8 @@ def test_a_marker_that_jumps_off_a_lure_keeps_its_longer_track_and_the_reconstru
     j = recon.info["marker_names"].index("lower_border_mid")
     assert found.info["split_runs"] == [{"marker": m, "kept": list(range(3, FRAMES)), "taken": [0, 1, 2]}
                                         for m in sorted((i, j))]
-    assert found.visible[list(lure)][:, [i, j]].all(), "walked back onto their own dots"
-    np.testing.assert_allclose(found.lab_points[list(lure)][:, [i, j]], recon.lab_points[list(lure)][:, [i, j]],
-                               atol=0.1)
+    lured = np.ix_(list(lure), [i, j])
+    assert found.visible[lured].all(), "walked back onto their own dots"
+    np.testing.assert_allclose(found.lab_points[lured], recon.lab_points[lured], atol=0.1)
     assert any(line.startswith("Split tracks: 2 marker(s)") for line in tracking_lines(found.info))
     assert recon.info["split_runs"] in (None, [])
