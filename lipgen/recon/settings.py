@@ -300,6 +300,9 @@ class ReconstructSettings:
         Before the gap fill, a marker whose accepted track jumps (its move between two accepted frames differs
         from its neighbours' by more than this many pixels in both views) keeps only its longest agreeing
         track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None.
+    split_runs_ratio : float
+        The longest track stands only when it has more than this many times the frames of the next;
+        otherwise all are taken back. Default 1.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -346,6 +349,7 @@ class ReconstructSettings:
     gap_fill_sure: bool = True
     walk_on: bool = True
     split_runs: float | None = None
+    split_runs_ratio: float = 1.0
 
     def __post_init__(self):
         fill = self.gap_fill
@@ -361,6 +365,9 @@ class ReconstructSettings:
         if jump is not None and (isinstance(jump, bool) or not isinstance(jump, numbers.Real)
                                  or not math.isfinite(jump) or jump <= 0):
             raise ValueError(f"settings.split_runs must be None or a positive number of pixels, got {jump!r}")
+        r = self.split_runs_ratio
+        if isinstance(r, bool) or not isinstance(r, numbers.Real) or not math.isfinite(r) or r < 1:
+            raise ValueError(f"settings.split_runs_ratio must be a number >= 1, got {r!r}")
         share = self.epipolar_blob_share
         if isinstance(share, bool) or not (isinstance(share, numbers.Real) and 0 < share <= 1):
             raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "

@@ -43,7 +43,7 @@ def _jump(tracks, reference, spacing, accepted, m: int, a: int, b: int) -> float
 
 
 def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float,
-                     markers=None) -> tuple[np.ndarray, list[dict]]:
+                     markers=None, ratio: float = 1.0) -> tuple[np.ndarray, list[dict]]:
     """The accepted sightings to take back where a marker's track jumps (see the module docstring).
 
     Parameters
@@ -58,6 +58,9 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
         Pixels by which a marker's move may differ from its neighbours' in the better view.
     markers : (P,) bool, optional
         The markers judged (default: all); the others still count as neighbours.
+    ratio : float
+        The longest track stands only when it has more than ``ratio`` times the frames of the next;
+        otherwise every track of the marker is taken back. At least 1.
 
     Returns
     -------
@@ -75,6 +78,8 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
         raise ValueError(f"reference must be (2, {P}, 2), got shape {reference.shape}")
     if not (np.isfinite(jump) and jump > 0):
         raise ValueError(f"jump must be a positive number of pixels, got {jump!r}")
+    if not (np.isfinite(ratio) and ratio >= 1):
+        raise ValueError(f"ratio must be a number >= 1, got {ratio!r}")
     judged = np.ones(P, dtype=bool) if markers is None else np.asarray(markers, dtype=bool)
     spacing = [layout_spacing(reference[v][np.all(np.isfinite(reference[v]), axis=1)]) for v in range(2)]
     taken = np.zeros((F, P), dtype=bool)
@@ -96,7 +101,7 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
         if len(chains) < 2:
             continue
         sizes = sorted((len(c) for c in chains), reverse=True)
-        keep = max(chains, key=len) if sizes[0] > sizes[1] else None
+        keep = max(chains, key=len) if sizes[0] > ratio * sizes[1] else None
         out = [f for c in chains if c is not keep for f in c]
         taken[out, m] = True
         groups.append({"marker": int(m), "kept": [] if keep is None else [int(f) for f in keep],
@@ -105,10 +110,10 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
 
 
 def take_back_disagreeing(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float, markers=None,
-                          names=None) -> tuple[tuple[Tracks, Tracks], list[dict]]:
+                          names=None, ratio: float = 1.0) -> tuple[tuple[Tracks, Tracks], list[dict]]:
     """The tracks with :func:`disagreeing_runs`' sightings taken back in both views (NaN, ``LOST``, marked
     ``rejected``), and its groups; ``names`` (marker names) are for the log."""
-    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers)
+    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers, ratio)
     for g in groups:
         m = g["marker"]
         log.info("%s jumps between its accepted frames: %d frame(s) kept, %d taken back (%s)",
