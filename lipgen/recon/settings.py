@@ -299,7 +299,10 @@ class ReconstructSettings:
     split_runs : float or None
         Before the gap fill, a marker whose accepted track jumps (its move between two accepted frames differs
         from its neighbours' by more than this many pixels in both views) keeps only its longest agreeing
-        track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None.
+        track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None:
+        at 5 px with ``split_runs_ratio=1.5`` it passed fresh held-out ``hard`` 207-214 (+348, over 3 px
+        179 -> 145, no set down) and failed ``default`` 184-185 (-482: right markers that move fast against
+        their neighbours split; ``renders/examples/tracking/s40.md``).
     split_runs_ratio : float
         The longest track stands only when it has more than this many times the frames of the next;
         otherwise all are taken back. Default 1.
