@@ -525,3 +525,41 @@ def test_a_marker_lost_to_the_clips_end_is_walked_on_and_the_reconstruction_says
     assert any(line.startswith(f"Walked {FRAMES - f} marker") for line in tracking_lines(found.info))
     off = reconstruct_dataset(dataset, settings=ReconstructSettings(walk_on=False))
     assert off.info["walk_on"] is None and not off.visible[f:, i].any()
+
+
+def test_a_marker_that_jumps_off_a_lure_keeps_its_longer_track_and_the_reconstruction_says_so(
+        dataset, recon, monkeypatch):
+    """Both tracking runs hold ``lower_mid`` in frames 0-2 on where it will be in frames 9-11, a real point
+    (the rays meet) that does not move with its neighbours; the split takes those frames back, and the walk-on
+    then finds its own dots there. Its nearest neighbour ``lower_border_mid`` is split too: the lure moves the
+    neighbours' mean motion it is judged by (a known cost, undone here by the walk-on)."""
+    import lipgen.recon.pipeline as pipeline
+    from lipgen.recon.crosscheck import tracking_lines
+    from lipgen.recon.settings import ReconstructSettings
+
+    i = recon.info["marker_names"].index("lower_mid")
+    assert recon.visible[:, i].all()
+    lure = range(3)
+
+    def luring(run):
+        def lure_it(*args, **kwargs):
+            tracks, record = run(*args, **kwargs)
+            for t in tracks:
+                t.uv[list(lure), i] = t.uv[[FRAMES - 3 + f for f in lure], i]
+            return tracks, record
+        return lure_it
+
+    monkeypatch.setattr(pipeline, "track_from_anchor", luring(pipeline.track_from_anchor))
+    monkeypatch.setattr(pipeline, "reversed_run", luring(pipeline.reversed_run))
+    kept = reconstruct_dataset(dataset, settings=ReconstructSettings(split_runs=None))
+    off = np.linalg.norm(kept.uv[:, list(lure), i] - recon.uv[:, list(lure), i], axis=-1)
+    assert kept.visible[list(lure), i].all() and off.min() > 8, "accepted, and far off its own dots"
+    found = reconstruct_dataset(dataset, settings=ReconstructSettings(split_runs=5.0))
+    j = recon.info["marker_names"].index("lower_border_mid")
+    assert found.info["split_runs"] == [{"marker": m, "kept": list(range(3, FRAMES)), "taken": [0, 1, 2]}
+                                        for m in sorted((i, j))]
+    lured = np.ix_(list(lure), [i, j])
+    assert found.visible[lured].all(), "walked back onto their own dots"
+    np.testing.assert_allclose(found.lab_points[lured], recon.lab_points[lured], atol=0.1)
+    assert any(line.startswith("Split tracks: 2 marker(s)") for line in tracking_lines(found.info))
+    assert recon.info["split_runs"] in (None, [])

@@ -43,6 +43,7 @@ from lipgen.recon.extend import extend_line
 from lipgen.recon.gapfill import gap_fill_line
 from lipgen.recon.nose import nose_line
 from lipgen.recon.shareddot import shared_dot_line
+from lipgen.recon.splitruns import split_runs_line
 from lipgen.recon.tracks import Tracks
 
 __all__ = ["reversed_run", "runs_agree", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
@@ -257,14 +258,16 @@ def cross_check_line(record: dict | None) -> str | None:
 
 def tracking_lines(info: dict) -> list[str]:
     """The sentences on where tracking started, what its second run changed, which markers shared a dot,
-    what the gap fill and the walk-on added and where the nose was found again (:func:`anchor_line`,
-    :func:`cross_check_line`, :func:`lipgen.recon.shareddot.shared_dot_line`,
+    which tracks were split, what the gap fill and the walk-on added and where the nose was found again
+    (:func:`anchor_line`, :func:`cross_check_line`, :func:`lipgen.recon.shareddot.shared_dot_line`,
+    :func:`lipgen.recon.splitruns.split_runs_line`,
     :func:`lipgen.recon.gapfill.gap_fill_line`, :func:`lipgen.recon.extend.extend_line`,
     :func:`lipgen.recon.nose.nose_line`) for a
     reconstruction's ``info``, the ones that apply: for
     ``lipgen reconstruct``'s output and ``lipgen evaluate``'s report."""
     names = [*info.get("marker_names", []), "nose"]
     lines = (anchor_line(info.get("tracking_anchor")), cross_check_line(info.get("cross_check")),
-             shared_dot_line(info.get("shared_dots"), names), gap_fill_line(info.get("gap_fill")),
+             shared_dot_line(info.get("shared_dots"), names), split_runs_line(info.get("split_runs")),
+             gap_fill_line(info.get("gap_fill")),
              extend_line(info.get("walk_on")), nose_line(info.get("nose")))
     return [line for line in lines if line]

@@ -41,6 +41,7 @@ from lipgen.recon.normalize import METHODS, lip_subsets, normalize_markers
 from lipgen.recon.nose import NoseNeverSeen, settle_nose
 from lipgen.recon.shareddot import take_back_shared
 from lipgen.recon.split import training_candidates
+from lipgen.recon.splitruns import take_back_disagreeing
 from lipgen.recon.steps import (
     ReconstructSettings,
     expected_projections,
@@ -332,6 +333,14 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
     def views_at(f):   # frame f's (virtual, real) images, for the steps that look again
         return ds.rig.split_views(np.asarray(ds[f].image))
 
+    split = None
+    if settings.split_runs is not None:
+        judged = np.ones(vis.shape[1], dtype=bool)
+        judged[len(mesh.markers):] = False   # the nose has no near neighbours to move with
+        with blas_threads(1):
+            tracks, split = take_back_disagreeing(tracks, vis, expected, settings.split_runs, judged,
+                                                  mesh.marker_names, settings.split_runs_ratio)
+        points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     gaps = None
     if settings.gap_fill:
         barred = np.zeros(vis.shape, dtype=bool)
@@ -398,7 +407,7 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         "n_nodes": mesh.n_nodes, "marker_names": list(mesh.marker_names), "views": list(VIEWS),
         "calibration": cal.to_dict(), "settings": json.loads(json.dumps(asdict(settings))),
         "ray_gap_limit_mm": max_gap, "tracking_anchor": anchor, "cross_check": crossed, "nose": nose_record,
-        "shared_dots": shared, "gap_fill": gaps, "walk_on": walks,
+        "shared_dots": shared, "gap_fill": gaps, "walk_on": walks, "split_runs": split,
         "normalisation": {"method": norm.method, "fit_rms_mm": norm.fit_rms, "scale": norm.similarity.scale,
                           "reference_frame": norm.reference_frame,
                           "reference_from": (f"frames 0-{int(candidates.max())} (training frames)"

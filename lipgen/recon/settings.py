@@ -296,6 +296,16 @@ class ReconstructSettings:
         neighbours' motion puts it, unambiguous, the rays meeting (:mod:`lipgen.recon.extend`). Default True
         (``renders/examples/tracking/w39.md``): on fresh held-out ``hard`` 191-198 accepted 89.4 -> 92.6 %,
         over 3 px 64 -> 65, the score +337 with no set down; ``default`` 180-181 +50, none over 3 px.
+    split_runs : float or None
+        Before the gap fill, a marker whose accepted track jumps (its move between two accepted frames differs
+        from its neighbours' by more than this many pixels in both views) keeps only its longest agreeing
+        track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None:
+        at 5 px with ``split_runs_ratio=1.5`` it passed fresh held-out ``hard`` 207-214 (+348, over 3 px
+        179 -> 145, no set down) and failed ``default`` 184-185 (-482: right markers that move fast against
+        their neighbours split; ``renders/examples/tracking/s40.md``).
+    split_runs_ratio : float
+        The longest track stands only when it has more than this many times the frames of the next;
+        otherwise all are taken back. Default 1.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -341,6 +351,8 @@ class ReconstructSettings:
     gap_fill: int | None = GAP_FILL_FRAMES
     gap_fill_sure: bool = True
     walk_on: bool = True
+    split_runs: float | None = None
+    split_runs_ratio: float = 1.0
 
     def __post_init__(self):
         fill = self.gap_fill
@@ -352,6 +364,13 @@ class ReconstructSettings:
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
+        jump = self.split_runs
+        if jump is not None and (isinstance(jump, bool) or not isinstance(jump, numbers.Real)
+                                 or not math.isfinite(jump) or jump <= 0):
+            raise ValueError(f"settings.split_runs must be None or a positive number of pixels, got {jump!r}")
+        r = self.split_runs_ratio
+        if isinstance(r, bool) or not isinstance(r, numbers.Real) or not math.isfinite(r) or r < 1:
+            raise ValueError(f"settings.split_runs_ratio must be a number >= 1, got {r!r}")
         share = self.epipolar_blob_share
         if isinstance(share, bool) or not (isinstance(share, numbers.Real) and 0 < share <= 1):
             raise ValueError(f"settings.epipolar_blob_share must be in (0, 1] (1: as a peak), "
