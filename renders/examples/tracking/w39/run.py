@@ -1,8 +1,11 @@
-"""w39 runner: run.py OUT.jsonl VARIANT[,VARIANT] SET...  (PYTHONPATH = the worktree; variants: main and
-variants.py's). Each set's tracking comes from the disk cache (cached.py), so the variants differ only after
-it; each row is trackscore.run_and_score's, the reconstruction saved to /work/b39/rec/SET.VARIANT.npz."""
-import sys, json
-sys.path.insert(0, "/work/main/renders/examples/tracking"); sys.path.insert(0, "/work/b39")
+"""w39/s40 runner: run.py OUT.jsonl VARIANT[,VARIANT] SET...  (TREE = the lipgen tree, default /work/main;
+MEMO_DIR = the memo's root, default /work/b39; VARIANTS_DIR = where variants.py is, default MEMO_DIR). Each set's
+tracking comes from the disk memo (cached.py), so the variants differ only after it; each row is
+trackscore.run_and_score's, the reconstruction saved to $MEMO_DIR/rec/SET.VARIANT.npz."""
+import os, sys, json
+ROOT = os.environ.get("MEMO_DIR", "/work/b39")
+sys.path[:0] = [os.environ.get("VARIANTS_DIR", ROOT), os.environ.get("TREE", "/work/main"),
+                "/work/main/renders/examples/tracking", os.path.dirname(os.path.abspath(__file__))]
 import cached
 from trackscore import run_and_score
 from lipgen.recon.settings import ReconstructSettings
@@ -13,5 +16,5 @@ with open(sys.argv[1], "a") as out:
         cached.use(name)
         for tag in sys.argv[2].split(","):
             row = run_and_score(f"/work/sets/{name}", tag, ReconstructSettings(**VARIANTS[tag]),
-                                f"/work/b39/rec/{name}.{tag}.npz")
+                                f"{ROOT}/rec/{name}.{tag}.npz")
             print(json.dumps(row), file=out, flush=True)
