@@ -353,6 +353,7 @@ class ReconstructSettings:
     walk_on: bool = True
     split_runs: float | None = None
     split_runs_ratio: float = 1.0
+    split_runs_spread: float = 0.0
 
     def __post_init__(self):
         fill = self.gap_fill

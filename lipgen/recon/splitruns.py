@@ -25,7 +25,7 @@ import logging
 
 import numpy as np
 
-from lipgen.recon.backfill import neighbour_motion
+from lipgen.recon.backfill import neighbour_moves
 from lipgen.recon.outofplace import take_back
 from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.tracks import Tracks
@@ -35,22 +35,23 @@ __all__ = ["disagreeing_runs", "take_back_disagreeing", "split_runs_line"]
 log = logging.getLogger(__name__)
 
 
-def _jump(tracks, reference, spacing, accepted, m: int, a: int, b: int) -> float:
-    """The smaller over the views of marker ``m``'s move from frame ``a`` to ``b`` less its neighbours'
-    (NaN where a view has no neighbour seen in both frames)."""
+def _jump(tracks, reference, spacing, accepted, m: int, a: int, b: int, spread: float = 0.0) -> float:
+    """The smaller over the views of marker ``m``'s move from frame ``a`` to ``b`` less its neighbours', less
+    ``spread`` times the spread of the neighbours' own moves (NaN where a view has no neighbour seen in both
+    frames)."""
     ok = accepted[a] & accepted[b]
     out = []
     for v in range(2):
         uv = tracks[v].uv
-        move = neighbour_motion(reference[v], uv[a], uv[b], ok, m, spacing[v])
-        if move is None:
+        got = neighbour_moves(reference[v], uv[a], uv[b], ok, m, spacing[v])
+        if got is None:
             return np.nan
-        out.append(float(np.linalg.norm(uv[b, m] - uv[a, m] - move)))
+        out.append(float(np.linalg.norm(uv[b, m] - uv[a, m] - got[0])) - spread * got[1])
     return min(out)
 
 
 def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float,
-                     markers=None, ratio: float = 1.0) -> tuple[np.ndarray, list[dict]]:
+                     markers=None, ratio: float = 1.0, spread: float = 0.0) -> tuple[np.ndarray, list[dict]]:
     """The accepted sightings to take back where a marker's track jumps (see the module docstring).
 
     Parameters
@@ -98,7 +99,7 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
             # A frame joins the chain whose latest frame it continues best (within ``jump``).
             best, best_j = None, jump
             for c in chains:
-                j = _jump(tracks, reference, spacing, accepted, m, c[-1], f)
+                j = _jump(tracks, reference, spacing, accepted, m, c[-1], f, spread)
                 if j <= best_j:
                     best, best_j = c, j
             if best is None:
@@ -117,10 +118,11 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
 
 
 def take_back_disagreeing(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float, markers=None,
-                          names=None, ratio: float = 1.0) -> tuple[tuple[Tracks, Tracks], list[dict]]:
+                          names=None, ratio: float = 1.0, spread: float = 0.0
+                          ) -> tuple[tuple[Tracks, Tracks], list[dict]]:
     """The tracks with :func:`disagreeing_runs`' sightings taken back in both views (NaN, ``LOST``, marked
     ``rejected``), and its groups; ``names`` (marker names) are for the log."""
-    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers, ratio)
+    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers, ratio, spread)
     for g in groups:
         m = g["marker"]
         log.info("%s jumps between its accepted frames: %d frame(s) kept, %d taken back (%s)",
