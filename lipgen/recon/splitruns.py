@@ -5,11 +5,12 @@ so its rays meet) and then re-acquire it on its own dot: on development ``hard``
 read for the diagnosis only) ``upper_corner_right``, ``corner_left`` and ``upper_corner_left`` sat 8-14 px
 off in both views for 6-8 accepted frames, then jumped onto their dots and held them to the clip's end.
 Between two frames the marker is accepted in, its move is compared with its neighbours' move
-(:func:`lipgen.recon.backfill.neighbour_motion`): where it differs by more than ``jump`` pixels in both
-views, the two frames hold different things. The accepted frames are grouped into tracks that agree
-with each other (a run joins the group whose latest frame it continues); the group with the most
-frames stands when it has more than ``ratio`` times the frames of the next, and the others are taken back
-in both views; otherwise every group is taken back. The walk-on (:mod:`lipgen.recon.extend`) then walks a
+(:func:`lipgen.recon.backfill.neighbour_motion`): where it differs by more than ``jump`` pixels (plus
+``spread`` times the spread of the neighbours' own moves) in both views, the two frames hold different
+things. The accepted frames are grouped into tracks that agree with each other (a run joins the group
+whose latest frame it continues); the group with the most frames stands when it has more than ``ratio``
+times the frames of the next, and the others are taken back in both views; otherwise every group is taken
+back. The walk-on (:mod:`lipgen.recon.extend`) then walks a
 kept track into the frames taken back.
 
 The longer track is not always the right one: on ``hard`` 199 the tracker held ``upper_corner_left`` on
@@ -69,6 +70,9 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
     ratio : float
         The longest track stands only when it has more than ``ratio`` times the frames of the next;
         otherwise every track of the marker is taken back. At least 1.
+    spread : float
+        The limit is ``jump`` plus ``spread`` times the spread of the neighbours' own moves between the two
+        frames (:func:`lipgen.recon.backfill.neighbour_moves`). At least 0.
 
     Returns
     -------
@@ -88,6 +92,8 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
         raise ValueError(f"jump must be a positive number of pixels, got {jump!r}")
     if not (np.isfinite(ratio) and ratio >= 1):
         raise ValueError(f"ratio must be a number >= 1, got {ratio!r}")
+    if not (np.isfinite(spread) and spread >= 0):
+        raise ValueError(f"spread must be a number >= 0, got {spread!r}")
     judged = np.ones(P, dtype=bool) if markers is None else np.asarray(markers, dtype=bool)
     spacing = [layout_spacing(reference[v][np.all(np.isfinite(reference[v]), axis=1)]) for v in range(2)]
     taken = np.zeros((F, P), dtype=bool)
