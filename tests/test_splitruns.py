@@ -80,6 +80,22 @@ def test_a_move_within_the_limit_is_not_a_jump():
     assert not disagreeing_runs(tracks, accepted, ref, 9.0)[0].any(), "7.8 px is within 9"
 
 
+def test_a_lip_that_deforms_fast_widens_the_limit_by_the_neighbours_spread():
+    """From frame 5 every mark also moves 6 px a frame its own way (the lips deforming fast, unlike the
+    head): the neighbours disagree on where M goes by about as much as M's move differs from their mean."""
+    tracks, accepted, ref = _tracks()
+    rng = np.random.default_rng(8)
+    own = rng.standard_normal((F, accepted.shape[1], 2))
+    own *= 6.0 / np.linalg.norm(own, axis=-1, keepdims=True)
+    own[:5] = 0
+    for v in range(2):
+        tracks[v].uv[:] += np.cumsum(own, axis=0)
+    assert disagreeing_runs(tracks, accepted, ref, 5.0)[0].any(), "split at a fixed 5 px"
+    assert not disagreeing_runs(tracks, accepted, ref, 5.0, spread=2.0)[0].any()
+    lured, seen, _ = _tracks(lure=range(3), lost=[3, 4])
+    assert disagreeing_runs(lured, seen, ref, 5.0, spread=2.0)[0][:3, M].all(), "a rigid move: lure found"
+
+
 def test_only_the_markers_judged_are_split():
     tracks, accepted, ref = _tracks(lure=range(3))
     judged = np.ones(accepted.shape[1], dtype=bool)
@@ -108,6 +124,8 @@ def test_take_back_returns_new_tracks_and_logs(caplog):
     (dict(jump=np.nan), "jump must be a positive number"),
     (dict(accepted=np.ones((3, 14), dtype=bool)), r"accepted has shape \(3, 14\)"),
     (dict(reference=np.zeros((14, 2))), r"reference must be \(2, 14, 2\), got shape \(14, 2\)"),
+    (dict(spread=-1.0), "spread must be a number >= 0, got -1.0"),
+    (dict(ratio=0.5), "ratio must be a number >= 1, got 0.5"),
 ])
 def test_bad_inputs_are_refused_with_the_value_named(bad, match):
     tracks, accepted, ref = _tracks()
@@ -121,3 +139,14 @@ def test_the_setting_is_checked(value):
     from lipgen.recon.settings import ReconstructSettings
     with pytest.raises(ValueError, match=r"settings.split_runs must be None or a positive number of pixels"):
         ReconstructSettings(split_runs=value)
+
+
+
+@pytest.mark.parametrize("name, value, match", [("split_runs_ratio", 0.5, "a number >= 1"),
+                                                 ("split_runs_ratio", True, "a number >= 1"),
+                                                 ("split_runs_spread", -1.0, "a number >= 0"),
+                                                 ("split_runs_spread", "2", "a number >= 0")])
+def test_the_ratio_and_spread_settings_are_checked(name, value, match):
+    from lipgen.recon.settings import ReconstructSettings
+    with pytest.raises(ValueError, match=f"settings.{name} must be {match}, got {value!r}"):
+        ReconstructSettings(**{name: value})

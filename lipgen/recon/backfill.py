@@ -59,6 +59,14 @@ def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarr
     (2,) float or None
         The weighted mean of ``uv_to - uv_from`` over the neighbours; None when none is seen.
     """
+    got = neighbour_moves(reference, uv_from, uv_to, ok, i, width)
+    return None if got is None else got[0]
+
+
+def neighbour_moves(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarray, ok: np.ndarray,
+                    i: int, width: float | None = None) -> tuple[np.ndarray, float] | None:
+    """:func:`neighbour_motion`'s mean move ``(2,)`` and the weighted RMS spread (px) of the neighbours' own
+    moves about it: how far they disagree on where ``i`` goes. None when no neighbour is seen."""
     ok = np.asarray(ok, dtype=bool).copy()
     ok[i] = False
     if not ok.any():
@@ -68,7 +76,9 @@ def neighbour_motion(reference: np.ndarray, uv_from: np.ndarray, uv_to: np.ndarr
     w = np.exp(-0.5 * (np.linalg.norm(reference[ok] - reference[i], axis=1) / width) ** 2)
     if w.sum() <= 1e-12:
         return None
-    return (w @ (uv_to[ok] - uv_from[ok])) / w.sum()
+    moves = uv_to[ok] - uv_from[ok]
+    mean = (w @ moves) / w.sum()
+    return mean, float(np.sqrt((w @ np.sum((moves - mean) ** 2, axis=1)) / w.sum()))
 
 
 def nearest_free_dot(dots: np.ndarray, pred: np.ndarray, taken: np.ndarray, gate: float, ratio: float,

@@ -339,7 +339,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
         judged[len(mesh.markers):] = False   # the nose has no near neighbours to move with
         with blas_threads(1):
             tracks, split = take_back_disagreeing(tracks, vis, expected, settings.split_runs, judged,
-                                                  mesh.marker_names, settings.split_runs_ratio)
+                                                  mesh.marker_names, settings.split_runs_ratio,
+                                                  settings.split_runs_spread)
         points, gap, vis = triangulate_tracks(lab.views, tracks, max_gap)
     gaps = None
     if settings.gap_fill:

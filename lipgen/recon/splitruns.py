@@ -5,11 +5,12 @@ so its rays meet) and then re-acquire it on its own dot: on development ``hard``
 read for the diagnosis only) ``upper_corner_right``, ``corner_left`` and ``upper_corner_left`` sat 8-14 px
 off in both views for 6-8 accepted frames, then jumped onto their dots and held them to the clip's end.
 Between two frames the marker is accepted in, its move is compared with its neighbours' move
-(:func:`lipgen.recon.backfill.neighbour_motion`): where it differs by more than ``jump`` pixels in both
-views, the two frames hold different things. The accepted frames are grouped into tracks that agree
-with each other (a run joins the group whose latest frame it continues); the group with the most
-frames stands when it has more than ``ratio`` times the frames of the next, and the others are taken back
-in both views; otherwise every group is taken back. The walk-on (:mod:`lipgen.recon.extend`) then walks a
+(:func:`lipgen.recon.backfill.neighbour_motion`): where it differs by more than ``jump`` pixels (plus
+``spread`` times the spread of the neighbours' own moves) in both views, the two frames hold different
+things. The accepted frames are grouped into tracks that agree with each other (a run joins the group
+whose latest frame it continues); the group with the most frames stands when it has more than ``ratio``
+times the frames of the next, and the others are taken back in both views; otherwise every group is taken
+back. The walk-on (:mod:`lipgen.recon.extend`) then walks a
 kept track into the frames taken back.
 
 The longer track is not always the right one: on ``hard`` 199 the tracker held ``upper_corner_left`` on
@@ -25,7 +26,7 @@ import logging
 
 import numpy as np
 
-from lipgen.recon.backfill import neighbour_motion
+from lipgen.recon.backfill import neighbour_moves
 from lipgen.recon.outofplace import take_back
 from lipgen.recon.pointreg import layout_spacing
 from lipgen.recon.tracks import Tracks
@@ -35,22 +36,23 @@ __all__ = ["disagreeing_runs", "take_back_disagreeing", "split_runs_line"]
 log = logging.getLogger(__name__)
 
 
-def _jump(tracks, reference, spacing, accepted, m: int, a: int, b: int) -> float:
-    """The smaller over the views of marker ``m``'s move from frame ``a`` to ``b`` less its neighbours'
-    (NaN where a view has no neighbour seen in both frames)."""
+def _jump(tracks, reference, spacing, accepted, m: int, a: int, b: int, spread: float = 0.0) -> float:
+    """The smaller over the views of marker ``m``'s move from frame ``a`` to ``b`` less its neighbours', less
+    ``spread`` times the spread of the neighbours' own moves (NaN where a view has no neighbour seen in both
+    frames)."""
     ok = accepted[a] & accepted[b]
     out = []
     for v in range(2):
         uv = tracks[v].uv
-        move = neighbour_motion(reference[v], uv[a], uv[b], ok, m, spacing[v])
-        if move is None:
+        got = neighbour_moves(reference[v], uv[a], uv[b], ok, m, spacing[v])
+        if got is None:
             return np.nan
-        out.append(float(np.linalg.norm(uv[b, m] - uv[a, m] - move)))
+        out.append(float(np.linalg.norm(uv[b, m] - uv[a, m] - got[0])) - spread * got[1])
     return min(out)
 
 
 def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float,
-                     markers=None, ratio: float = 1.0) -> tuple[np.ndarray, list[dict]]:
+                     markers=None, ratio: float = 1.0, spread: float = 0.0) -> tuple[np.ndarray, list[dict]]:
     """The accepted sightings to take back where a marker's track jumps (see the module docstring).
 
     Parameters
@@ -68,6 +70,9 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
     ratio : float
         The longest track stands only when it has more than ``ratio`` times the frames of the next;
         otherwise every track of the marker is taken back. At least 1.
+    spread : float
+        The limit is ``jump`` plus ``spread`` times the spread of the neighbours' own moves between the two
+        frames (:func:`lipgen.recon.backfill.neighbour_moves`). At least 0.
 
     Returns
     -------
@@ -87,6 +92,8 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
         raise ValueError(f"jump must be a positive number of pixels, got {jump!r}")
     if not (np.isfinite(ratio) and ratio >= 1):
         raise ValueError(f"ratio must be a number >= 1, got {ratio!r}")
+    if not (np.isfinite(spread) and spread >= 0):
+        raise ValueError(f"spread must be a number >= 0, got {spread!r}")
     judged = np.ones(P, dtype=bool) if markers is None else np.asarray(markers, dtype=bool)
     spacing = [layout_spacing(reference[v][np.all(np.isfinite(reference[v]), axis=1)]) for v in range(2)]
     taken = np.zeros((F, P), dtype=bool)
@@ -98,7 +105,7 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
             # A frame joins the chain whose latest frame it continues best (within ``jump``).
             best, best_j = None, jump
             for c in chains:
-                j = _jump(tracks, reference, spacing, accepted, m, c[-1], f)
+                j = _jump(tracks, reference, spacing, accepted, m, c[-1], f, spread)
                 if j <= best_j:
                     best, best_j = c, j
             if best is None:
@@ -117,10 +124,11 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
 
 
 def take_back_disagreeing(tracks: tuple[Tracks, Tracks], accepted, reference, jump: float, markers=None,
-                          names=None, ratio: float = 1.0) -> tuple[tuple[Tracks, Tracks], list[dict]]:
+                          names=None, ratio: float = 1.0, spread: float = 0.0
+                          ) -> tuple[tuple[Tracks, Tracks], list[dict]]:
     """The tracks with :func:`disagreeing_runs`' sightings taken back in both views (NaN, ``LOST``, marked
     ``rejected``), and its groups; ``names`` (marker names) are for the log."""
-    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers, ratio)
+    taken, groups = disagreeing_runs(tracks, accepted, reference, jump, markers, ratio, spread)
     for g in groups:
         m = g["marker"]
         log.info("%s jumps between its accepted frames: %d frame(s) kept, %d taken back (%s)",
