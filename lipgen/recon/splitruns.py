@@ -10,8 +10,7 @@ Between two frames the marker is accepted in, its move is compared with its neig
 things. The accepted frames are grouped into tracks that agree with each other (a run joins the group
 whose latest frame it continues); the group with the most frames stands when it has more than ``ratio``
 times the frames of the next, and the others are taken back in both views; otherwise every group is taken
-back. The walk-on (:mod:`lipgen.recon.extend`) then walks a
-kept track into the frames taken back.
+back. The walk-on (:mod:`lipgen.recon.extend`) then walks a kept track into the frames taken back.
 
 The longer track is not always the right one: on ``hard`` 199 the tracker held ``upper_corner_left`` on
 a lure for 17 accepted frames and on its dot for 14, alternating, and keeping the longer lost 102 on the
@@ -114,8 +113,8 @@ def disagreeing_runs(tracks: tuple[Tracks, Tracks], accepted, reference, jump: f
                 best.append(f)
         if len(chains) < 2:
             continue
-        sizes = sorted((len(c) for c in chains), reverse=True)
-        keep = max(chains, key=len) if sizes[0] > ratio * sizes[1] else None
+        chains.sort(key=len, reverse=True)
+        keep = chains[0] if len(chains[0]) > ratio * len(chains[1]) else None
         out = [f for c in chains if c is not keep for f in c]
         taken[out, m] = True
         groups.append({"marker": int(m), "kept": [] if keep is None else [int(f) for f in keep],
