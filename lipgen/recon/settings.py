@@ -298,19 +298,19 @@ class ReconstructSettings:
         over 3 px 64 -> 65, the score +337 with no set down; ``default`` 180-181 +50, none over 3 px.
     split_runs : float or None
         Before the gap fill, a marker whose accepted track jumps (its move between two accepted frames differs
-        from its neighbours' by more than this many pixels in both views) keeps only its longest agreeing
-        track; the others are taken back (:mod:`lipgen.recon.splitruns`). None: not checked. Default None:
-        at 5 px with ``split_runs_ratio=1.5`` it passed fresh held-out ``hard`` 207-214 (+348, over 3 px
-        179 -> 145, no set down) and failed ``default`` 184-185 (-482: right markers that move fast against
-        their neighbours split; ``renders/examples/tracking/s40.md``).
+        from its neighbours' by more than the jump limit in both views) keeps only its longest agreeing
+        track; the others are taken back (:mod:`lipgen.recon.splitruns`). The limit is this many pixels,
+        widened by ``split_runs_spread``. None: not checked. Default 5, with ratio 1.5 and spread 2
+        (``renders/examples/tracking/s41.md``): on fresh held-out ``hard`` 215-222 the score +72 (over 3 px
+        65 -> 57, accepted 94.9 -> 94.7 %, no set down by more than 8); ``default`` 186-188 unchanged.
+        At 5 px alone it failed held-out ``default`` 184-185 (-482; ``s40.md``).
     split_runs_ratio : float
         The longest track stands only when it has more than this many times the frames of the next;
-        otherwise all are taken back. Default 1.
+        otherwise all are taken back. Default 1.5.
     split_runs_spread : float
         The jump limit is ``split_runs`` plus this many times the spread of the neighbours' own moves
-        between the two frames (where the lips deform fast they disagree on where the marker goes).
-        Default 0. Development only so far (``s40.md``): at 2 it split no right marker on spent
-        ``default`` 182-185 and kept most of the ``hard`` gains.
+        between the two frames (where the lips deform fast they disagree on where the marker goes), so
+        right markers that move fast with an opening mouth are not split. Default 2.
     """
 
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
@@ -356,9 +356,9 @@ class ReconstructSettings:
     gap_fill: int | None = GAP_FILL_FRAMES
     gap_fill_sure: bool = True
     walk_on: bool = True
-    split_runs: float | None = None
-    split_runs_ratio: float = 1.0
-    split_runs_spread: float = 0.0
+    split_runs: float | None = 5.0
+    split_runs_ratio: float = 1.5
+    split_runs_spread: float = 2.0
 
     def __post_init__(self):
         fill = self.gap_fill
