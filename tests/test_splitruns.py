@@ -114,8 +114,13 @@ def test_take_back_returns_new_tracks_and_logs(caplog):
         np.testing.assert_array_equal(new[v].uv[5:], tracks[v].uv[5:])
         assert np.isfinite(tracks[v].uv[:3, M]).all(), "the tracks given are not changed"
     assert "m4 jumps between its accepted frames: 5 frame(s) kept, 3 taken back (0, 1, 2)" in caplog.text
-    assert split_runs_line(groups) == ("Split tracks: 1 marker(s) jumped between accepted frames; the "
-                                       "shorter track's 3 sighting(s) taken back.")
+    assert split_runs_line(groups) == ("Split tracks: 1 marker(s) jumped between accepted frames; 3 "
+                                       "sighting(s) off the kept tracks taken back.")
+    assert split_runs_line([]) == "Split tracks: no marker's track jumped between accepted frames."
+    tie = [{"marker": M, "kept": [], "taken": [0, 1, 2, 3]}]
+    assert split_runs_line(tie) == ("Split tracks: 1 marker(s) jumped between accepted frames (1 of them "
+                                    "with no track long enough to keep); 4 sighting(s) off the kept tracks "
+                                    "taken back.")
     assert split_runs_line(None) is None
 
 

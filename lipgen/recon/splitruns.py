@@ -140,6 +140,10 @@ def split_runs_line(groups: list[dict] | None) -> str | None:
     """One sentence for the report: how many sightings were taken back where a track jumps (None: not run)."""
     if groups is None:
         return None
+    if not groups:
+        return "Split tracks: no marker's track jumped between accepted frames."
     n = sum(len(g["taken"]) for g in groups)
-    return (f"Split tracks: {len(groups)} marker(s) jumped between accepted frames; the shorter track's "
-            f"{n} sighting(s) taken back.")
+    ties = sum(not g["kept"] for g in groups)   # no track long enough to stand: all taken back
+    tail = f" ({ties} of them with no track long enough to keep)" if ties else ""
+    return (f"Split tracks: {len(groups)} marker(s) jumped between accepted frames{tail}; {n} sighting(s) "
+            f"off the kept tracks taken back.")
