@@ -1,6 +1,6 @@
 """Classify accepted sightings over 3 px: set, marker, view, frames, error, whose true dot it sits on, and
-whether the marker was wrong from its first accepted frame."""
-import sys, numpy as np, collections
+whether the marker was wrong from its first accepted frame. REC_DIR: the recs (default /work/b40/rec)."""
+import os, sys, numpy as np, collections
 from lipgen.dataset.layout import Dataset
 from lipgen.evaluate.scoring import load_truth, accepted_sightings
 from lipgen.recon.pipeline import Reconstruction
@@ -9,7 +9,7 @@ names = [*model_mesh("lip_mesh(0)").marker_names, "nose"]
 var = sys.argv[1]
 for name in sys.argv[2:]:
     t = load_truth(Dataset(f"/work/sets/{name}"))
-    rec = Reconstruction.load(f"/work/b40/rec/{name}.{var}.npz")
+    rec = Reconstruction.load(f"{os.environ.get('REC_DIR', '/work/b40/rec')}/{name}.{var}.npz")
     acc = accepted_sightings(rec)
     tuv = np.moveaxis(t["uv"], 1, 0); vis = np.moveaxis(t["visible"], 1, 0).astype(bool)
     P = rec.visible.shape[1]

@@ -1,24 +1,16 @@
 """Markers wrong from their first accepted frame (over 3 px in both views there): at that frame, the
 detector's peak nearest the true dot and the peak the marker took, per view (truth read; spent sets)."""
-import sys, pickle, numpy as np
-from dataclasses import replace
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, accepted_sightings
-from lipgen.recon.pipeline import Reconstruction, dot_sigma_px, lab_frame
+import sys, os, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from spent import spent
 from lipgen.recon.dots import as_gray, dot_peaks
-from lipgen.recon.settings import ReconstructSettings
 root, var = sys.argv[1], sys.argv[2]
 for name in sys.argv[3:]:
-    ds = Dataset(f"/work/sets/{name}"); t = load_truth(ds)
-    rec = Reconstruction.load(f"{root}/rec/{name}.{var}.npz"); names = rec.info["marker_names"]
-    acc = accepted_sightings(rec)
-    tuv = np.moveaxis(t["uv"], 1, 0)
-    err = np.linalg.norm(rec.uv - tuv, axis=-1)
-    import os
-    if not os.path.exists(f"{root}/cache/{name}.calib.pkl"):
+    d = spent(root, name, var)
+    if d is None:
         continue
-    cal = pickle.load(open(f"{root}/cache/{name}.calib.pkl", "rb"))
-    st = replace(ReconstructSettings().tracker.dots, sigma=dot_sigma_px(cal, lab_frame(cal), float(ds.settings.dot_diameter)))
+    ds, rec, acc, tuv, err, st = (d[k] for k in ("ds", "rec", "acc", "tuv", "err", "dots"))
+    names = rec.info["marker_names"]
     right = []
     views0 = ds.rig.split_views(np.asarray(ds[0].image))
     for v in range(2):

@@ -2,27 +2,20 @@
 it -- a direct-view peak no marker holds within R px, with a mirror peak or blob no marker holds within R px of
 the marker's mirror sighting, their rays meeting within the sequence's accepted ray gaps (95th pct)?
 Rates for right (< 1.5 px both views) and wrong (> 3 px both views) sightings."""
-import sys, os, pickle, numpy as np
-from dataclasses import replace
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, accepted_sightings
-from lipgen.recon.pipeline import Reconstruction, dot_sigma_px, lab_frame
+import sys, os, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from spent import spent
 from lipgen.recon.dots import as_gray, dot_peaks
 from lipgen.recon.blobs import blob_peaks
-from lipgen.recon.settings import ReconstructSettings
 from lipgen.rig.pinhole import triangulate
 root, var, R = sys.argv[1], sys.argv[2], float(sys.argv[3])
 tot = {"right": [0, 0], "wrong": [0, 0]}
 for name in sys.argv[4:]:
-    if not os.path.exists(f"{root}/cache/{name}.calib.pkl"):
+    d = spent(root, name, var)
+    if d is None:
         continue
-    ds = Dataset(f"/work/sets/{name}"); t = load_truth(ds)
-    rec = Reconstruction.load(f"{root}/rec/{name}.{var}.npz")
-    acc = accepted_sightings(rec); tuv = np.moveaxis(t["uv"], 1, 0)
-    err = np.linalg.norm(rec.uv - tuv, axis=-1)
-    cal = pickle.load(open(f"{root}/cache/{name}.calib.pkl", "rb"))
-    T = lab_frame(cal); lab = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]); cams = lab.views
-    st = replace(ReconstructSettings().tracker.dots, sigma=dot_sigma_px(cal, T, float(ds.settings.dot_diameter)))
+    ds, rec, acc, err, cal, T, st = (d[k] for k in ("ds", "rec", "acc", "err", "cal", "T", "dots"))
+    cams = cal.in_frame(T[:3, :3].T, -T[:3, :3].T @ T[:3, 3]).views
     lim = np.nanpercentile(rec.ray_gap[acc], 95)
     cnt = {"right": [0, 0], "wrong": [0, 0]}
     for f in range(acc.shape[0]):

@@ -1,22 +1,15 @@
 """For every accepted sighting: the distance (direct view) to the nearest detector peak that no accepted marker
 holds, split by right (< 1.5 px in both views) and wrong (> 3 px in both) -- truth read; spent sets."""
-import sys, os, pickle, numpy as np
-from dataclasses import replace
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth, accepted_sightings
-from lipgen.recon.pipeline import Reconstruction, dot_sigma_px, lab_frame
+import sys, os, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from spent import spent
 from lipgen.recon.dots import as_gray, dot_peaks
-from lipgen.recon.settings import ReconstructSettings
 root, var, view = sys.argv[1], sys.argv[2], int(sys.argv[3])
 for name in sys.argv[4:]:
-    if not os.path.exists(f"{root}/cache/{name}.calib.pkl"):
+    d = spent(root, name, var)
+    if d is None:
         continue
-    ds = Dataset(f"/work/sets/{name}"); t = load_truth(ds)
-    rec = Reconstruction.load(f"{root}/rec/{name}.{var}.npz")
-    acc = accepted_sightings(rec); tuv = np.moveaxis(t["uv"], 1, 0)
-    err = np.linalg.norm(rec.uv - tuv, axis=-1)
-    cal = pickle.load(open(f"{root}/cache/{name}.calib.pkl", "rb"))
-    st = replace(ReconstructSettings().tracker.dots, sigma=dot_sigma_px(cal, lab_frame(cal), float(ds.settings.dot_diameter)))
+    ds, rec, acc, err, st = d["ds"], d["rec"], d["acc"], d["err"], d["dots"]
     right, wrong = [], []
     for f in range(acc.shape[0]):
         uv, s, r = dot_peaks(as_gray(ds.rig.split_views(np.asarray(ds[f].image))[view]), st)
