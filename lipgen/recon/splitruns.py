@@ -15,8 +15,9 @@ back. The walk-on (:mod:`lipgen.recon.extend`) then walks a kept track into the 
 The longer track is not always the right one: on ``hard`` 199 the tracker held ``upper_corner_left`` on
 a lure for 17 accepted frames and on its dot for 14, alternating, and keeping the longer lost 102 on the
 score (``renders/examples/tracking/s40.md``). A lost sighting costs a tenth of a wrong one, hence the ratio.
-It is off by default (:attr:`lipgen.recon.settings.ReconstructSettings.split_runs`): where the lips deform
-fast (``default`` 182-185) right markers move 5+ px against their neighbours' mean and are split too.
+Where the lips deform fast (``default`` 182-185) right markers move 5+ px against their neighbours' mean;
+the neighbours then disagree with each other too, hence ``spread``. The pipeline's defaults (5 px, ratio 1.5,
+spread 2) are :attr:`lipgen.recon.settings.ReconstructSettings.split_runs`'s (``s41.md``).
 """
 
 from __future__ import annotations
