@@ -119,7 +119,7 @@ def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol:
 
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
-              rest_points, covariance=None, ratio: float = 0.6) -> np.ndarray:
+              rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False) -> np.ndarray:
     """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
 
     In every disputed frame both runs' pairs are triangulated and compared with the marker's position
@@ -127,6 +127,12 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     the physics prior with ``covariance``). Over the span, the run whose points lie nearer the prediction
     on average wins when it is nearer than ``ratio`` times the other (the first frame's replacement rule);
     otherwise neither does.
+
+    With ``pairs``, a disputed frame the layout could not judge in 3-D, because only one run sees the marker
+    in both views, is judged in 2-D (:func:`_pair_over_single`): that run's pair wins where its sighting
+    lies nearer the prediction's projection than ``ratio`` times the other run's, in the view(s) the other
+    run sees. A sighting in one view is never accepted on its own; the pair's rays are checked later.
+    Frames without a prediction, and frames the layout judged in 3-D, keep the span's verdict.
 
     Parameters
     ----------
@@ -137,6 +143,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         The markers at rest in the frame of ``cameras``, mm.
     covariance : (3P, 3P) float, optional
     ratio : float
+    pairs : bool
 
     Returns
     -------
@@ -157,16 +164,17 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         return X, both
 
     Xa, both_a = points(first)
-    Xb, _ = points(second)
+    Xb, both_b = points(second)
     F, P = disputed.shape
     ra, rb = np.full((F, P), np.nan), np.full((F, P), np.nan)
+    predicted = np.full((F, P, 3), np.nan)
     for f in np.flatnonzero(disputed.any(axis=1)):
         use = both_a[f] & ~disputed[f]
         if use.sum() < 6:
             continue
-        pred = predict_layout(rest, Xa[f], use, width, covariance)
-        ra[f] = np.linalg.norm(Xa[f] - pred, axis=1)
-        rb[f] = np.linalg.norm(Xb[f] - pred, axis=1)
+        predicted[f] = predict_layout(rest, Xa[f], use, width, covariance)
+        ra[f] = np.linalg.norm(Xa[f] - predicted[f], axis=1)
+        rb[f] = np.linalg.norm(Xb[f] - predicted[f], axis=1)
     out = np.zeros((F, P), np.int8)
     for m in range(P):
         d = disputed[:, m].astype(np.int8)
@@ -177,7 +185,32 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
                 continue
             a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
             out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
+    if pairs:
+        unjudged = disputed & ~(np.isfinite(ra) & np.isfinite(rb)) & (out == 0)
+        out[unjudged] = _pair_over_single(first, second, unjudged, both_a, both_b, predicted, cameras, ratio)
     return out
+
+
+def _pair_over_single(first, second, frames, both_a, both_b, predicted, cameras, ratio: float) -> np.ndarray:
+    """For ``arbitrate``'s ``pairs``: at each (frame, marker) of ``frames`` (F, P) bool, the run (1 or 2)
+    that alone has a pair there, where the pair's sightings lie nearer than ``ratio`` times the other run's
+    to the projection of ``predicted`` (F, P, 3) mm, in the views the other run sees (mean pixels); else 0.
+    Returns the verdicts at ``frames``, in its order."""
+    out = []
+    for f, m in np.argwhere(frames):
+        if both_a[f, m] == both_b[f, m] or not np.all(np.isfinite(predicted[f, m])):
+            out.append(0)
+            continue
+        pair, single = (first, second) if both_a[f, m] else (second, first)
+        near = []
+        for v, cam in enumerate(cameras):
+            if np.all(np.isfinite(single[v].uv[f, m])):
+                target = cam.project(predicted[f, m][None])[0]
+                near.append((np.linalg.norm(single[v].uv[f, m] - target),
+                             np.linalg.norm(pair[v].uv[f, m] - target)))
+        d_single, d_pair = np.mean(near, axis=0)
+        out.append(0 if not d_pair < ratio * d_single else 1 if both_a[f, m] else 2)
+    return np.asarray(out, np.int8)
 
 
 def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float,

@@ -265,6 +265,9 @@ class ReconstructSettings:
     cross_check_keep : bool
         With ``cross_check``: an undecided dispute keeps the first run's sighting instead of dropping it.
         Default True.
+    cross_check_pairs : bool
+        With ``cross_check_arbitrate``: a disputed frame where only one run sees the marker in both views
+        goes to that run (``pairs`` of :func:`lipgen.recon.crosscheck.arbitrate`). Default False.
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
@@ -350,6 +353,7 @@ class ReconstructSettings:
     cross_check_fill: bool = True
     cross_check_arbitrate: bool = True
     cross_check_keep: bool = True
+    cross_check_pairs: bool = False
     confirm_blobs: bool = True
     nose_search: bool = True
     shared_dot_check: bool = True
@@ -366,7 +370,7 @@ class ReconstructSettings:
                                  or fill < 1):
             raise ValueError(f"settings.gap_fill must be None or a whole number of frames >= 1, got {fill!r}")
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
-                     "cross_check_arbitrate", "cross_check_keep", "nose_search",
+                     "cross_check_arbitrate", "cross_check_keep", "cross_check_pairs", "nose_search",
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
