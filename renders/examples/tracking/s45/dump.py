@@ -20,6 +20,6 @@ pl.arbitrate = spy
 for name in sys.argv[3:]:
     cached.use(name)
     caught.clear()
-    pl.reconstruct_dataset(f"/work/sets/{name}", settings=ReconstructSettings())
+    pl.reconstruct_dataset(f"/work/sets/{name}", settings=ReconstructSettings(cross_check_pairs=False))
     with open(f"{out}/{name}.arb.pkl", "wb") as fh:
         pickle.dump(caught.get("args"), fh)
