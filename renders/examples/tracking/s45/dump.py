@@ -1,4 +1,5 @@
-"""The cross-check judge's inputs on spent sets, from main's defaults with the tracking memoised (w39/cached.py):
+"""The cross-check judge's inputs on spent sets, from main's defaults before s45 (cross_check_pairs off) with the
+tracking memoised (w39/cached.py):
 dump.py MEMO OUT SET...  writes OUT/SET.arb.pkl = (first, second, disputed, cameras, rest, covariance, verdict)."""
 import os, sys, pickle
 memo, out = sys.argv[1], sys.argv[2]
