@@ -119,7 +119,7 @@ def test_runs_of_different_shapes_are_refused():
         cross_check(a, b, tol=2.0)
 
 
-@pytest.mark.parametrize("name", ["cross_check", "cross_check_fill"])
+@pytest.mark.parametrize("name", ["cross_check", "cross_check_fill", "cross_check_pairs"])
 def test_the_settings_refuse_a_value_that_is_not_a_bool(name):
     with pytest.raises(ValueError, match=name):
         ReconstructSettings(**{name: 1})
@@ -149,7 +149,8 @@ def test_a_judge_keeps_the_first_run_takes_the_second_or_drops_per_its_verdict()
     assert v.status[0, 2] == LOST and r.status[0, 2] == LOST  # undecided: dropped
 
 
-def test_arbitration_prefers_the_run_whose_points_fit_the_layout():
+def _layout_rig():
+    """Twelve markers at rest, mm, and a (virtual, real) pair of cameras looking at them."""
     from lipgen.rig.pinhole import PinholeCamera
 
     rng = np.random.default_rng(3)
@@ -161,7 +162,11 @@ def test_arbitration_prefers_the_run_whose_points_fit_the_layout():
         R = np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]])
         return PinholeCamera(K=K, R=R, t=np.array([0.0, 0, 300]), width=640, height=480)
 
-    cams = (camera(-30.0), camera(10.0))
+    return rest, (camera(-30.0), camera(10.0))
+
+
+def test_arbitration_prefers_the_run_whose_points_fit_the_layout():
+    rest, cams = _layout_rig()
     X = np.repeat(rest[None], 3, axis=0)  # 3 frames at rest
     wrong = X.copy()
     wrong[:, 4] += [6.0, 0, 0]  # the second run: marker 4 on a dot 6 mm off
@@ -170,6 +175,55 @@ def test_arbitration_prefers_the_run_whose_points_fit_the_layout():
     disputed[:, 4] = True
     assert (arbitrate(runs[0], runs[1], disputed, cams, rest)[:, 4] == 1).all()
     assert (arbitrate(runs[1], runs[0], disputed, cams, rest)[:, 4] == 2).all()
+
+
+def test_with_pairs_a_frame_only_one_run_sees_in_both_views_goes_to_that_run():
+    rest, cams = _layout_rig()
+    X = np.repeat(rest[None], 3, axis=0)
+    right = [_tracks(np.stack([c.project(Xf) for Xf in X])) for c in cams]
+    one_view = [_tracks(np.stack([c.project(Xf) for Xf in X])) for c in cams]
+    one_view[1].uv[:, 4] += [9.0, 0.0]          # the real view on another dot...
+    one_view[0].uv[:2, 4] = np.nan              # ...and the virtual view lost in frames 0-1
+    one_view[0].status[:2, 4] = LOST
+    disputed = np.zeros((3, 12), bool)
+    disputed[:, 4] = True
+    plain = arbitrate(tuple(one_view), tuple(right), disputed, cams, rest)
+    paired = arbitrate(tuple(one_view), tuple(right), disputed, cams, rest, pairs=True)
+    back = arbitrate(tuple(right), tuple(one_view), disputed, cams, rest, pairs=True)
+    # frame 2, where both runs have a pair, is judged by the layout over the span in every case
+    assert plain[2, 4] == paired[2, 4] == 2 and back[2, 4] == 1
+    assert (plain[:2, 4] == 2).all()            # the span's verdict, from frame 2, covers frames 0-1
+    assert (paired[:2, 4] == 2).all() and (back[:2, 4] == 1).all()
+    assert (paired[:, :4] == 0).all() and (paired[:, 5:] == 0).all()   # nothing else disputed
+
+
+def test_with_pairs_an_unjudged_span_goes_to_the_run_with_the_pair():
+    rest, cams = _layout_rig()
+    X = np.repeat(rest[None], 3, axis=0)
+    right = [_tracks(np.stack([c.project(Xf) for Xf in X])) for c in cams]
+    one_view = [_tracks(np.stack([c.project(Xf) for Xf in X])) for c in cams]
+    one_view[1].uv[:, 4] += [9.0, 0.0]
+    one_view[0].uv[:, 4] = np.nan               # the first run never sees marker 4 in the virtual view
+    one_view[0].status[:, 4] = LOST
+    disputed = np.zeros((3, 12), bool)
+    disputed[:, 4] = True
+    assert (arbitrate(tuple(one_view), tuple(right), disputed, cams, rest)[:, 4] == 0).all()
+    assert (arbitrate(tuple(one_view), tuple(right), disputed, cams, rest, pairs=True)[:, 4] == 2).all()
+    assert (arbitrate(tuple(right), tuple(one_view), disputed, cams, rest, pairs=True)[:, 4] == 1).all()
+
+
+def test_with_pairs_a_pair_far_from_the_layout_does_not_beat_a_single_sighting_on_the_marker():
+    rest, cams = _layout_rig()
+    X = np.repeat(rest[None], 3, axis=0)
+    single = [_tracks(np.stack([c.project(Xf) for Xf in X])) for c in cams]
+    single[0].uv[:, 4] = np.nan                 # the first run: marker 4 right, in the real view only
+    single[0].status[:, 4] = LOST
+    elsewhere = X.copy()
+    elsewhere[:, 4] = rest[7]                   # the second run: a pair on marker 7's dot
+    pair = [_tracks(np.stack([c.project(Xf) for Xf in elsewhere])) for c in cams]
+    disputed = np.zeros((3, 12), bool)
+    disputed[:, 4] = True
+    assert (arbitrate(tuple(single), tuple(pair), disputed, cams, rest, pairs=True)[:, 4] == 0).all()
 
 
 def test_keeping_undecided_disputes_leaves_the_first_runs_sightings():

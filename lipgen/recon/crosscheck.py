@@ -46,7 +46,8 @@ from lipgen.recon.shareddot import shared_dot_line
 from lipgen.recon.splitruns import split_runs_line
 from lipgen.recon.tracks import Tracks
 
-__all__ = ["reversed_run", "runs_agree", "arbitrate", "cross_check", "cross_check_line", "tracking_lines"]
+__all__ = ["reversed_run", "runs_agree", "arbitrate", "layout_residuals", "view_distances", "cross_check",
+           "cross_check_line", "tracking_lines"]
 
 
 def _reversed(tracks: Tracks) -> Tracks:
@@ -119,7 +120,7 @@ def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol:
 
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
-              rest_points, covariance=None, ratio: float = 0.6) -> np.ndarray:
+              rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False) -> np.ndarray:
     """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
 
     In every disputed frame both runs' pairs are triangulated and compared with the marker's position
@@ -127,6 +128,12 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     the physics prior with ``covariance``). Over the span, the run whose points lie nearer the prediction
     on average wins when it is nearer than ``ratio`` times the other (the first frame's replacement rule);
     otherwise neither does.
+
+    With ``pairs``, a disputed frame the layout could not judge in 3-D, because only one run sees the marker
+    in both views, is judged in 2-D (:func:`_pair_over_single`): that run's pair wins where its sighting
+    lies nearer the prediction's projection than ``ratio`` times the other run's, in the view(s) the other
+    run sees. A sighting in one view is never accepted on its own; the pair's rays are checked later.
+    Frames without a prediction, and frames the layout judged in 3-D, keep the span's verdict.
 
     Parameters
     ----------
@@ -137,11 +144,45 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         The markers at rest in the frame of ``cameras``, mm.
     covariance : (3P, 3P) float, optional
     ratio : float
+    pairs : bool
 
     Returns
     -------
     (F, P) int8
         0 where neither run is trusted, 1 where the first run's sighting stands, 2 where the second's.
+    """
+    ra, rb, predicted, both_a, both_b = layout_residuals(first, second, disputed, cameras, rest_points,
+                                                         covariance)
+    F, P = disputed.shape
+    out = np.zeros((F, P), np.int8)
+    for m in range(P):
+        d = disputed[:, m].astype(np.int8)
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], d, [0]])))
+        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+            ok = np.isfinite(ra[start:stop, m]) & np.isfinite(rb[start:stop, m])
+            if not ok.any():
+                continue
+            a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
+            out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
+    if pairs:
+        unjudged = disputed & ~(np.isfinite(ra) & np.isfinite(rb)) & (out == 0)
+        out[unjudged] = _pair_over_single(first, second, unjudged, both_a, both_b, predicted, cameras, ratio)
+    return out
+
+
+def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray,
+                     cameras, rest_points, covariance=None):
+    """:func:`arbitrate`'s figures: each run's 3-D distance from the layout's prediction, disputed frames.
+
+    Returns
+    -------
+    ra, rb : (F, P) float
+        mm from the prediction of the first and second run's triangulated pair; NaN where the run has no
+        pair or the frame no prediction (fewer than 6 undisputed markers the first run sees in both views).
+    predicted : (F, P, 3) float
+        The prediction, mm in the frame of ``cameras``; NaN in frames without one.
+    both_a, both_b : (F, P) bool
+        Where each run sees the marker in both views.
     """
     from lipgen.recon.firstframe import predict_layout
     from lipgen.recon.pointreg import layout_spacing
@@ -157,27 +198,48 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         return X, both
 
     Xa, both_a = points(first)
-    Xb, _ = points(second)
+    Xb, both_b = points(second)
     F, P = disputed.shape
     ra, rb = np.full((F, P), np.nan), np.full((F, P), np.nan)
+    predicted = np.full((F, P, 3), np.nan)
     for f in np.flatnonzero(disputed.any(axis=1)):
         use = both_a[f] & ~disputed[f]
         if use.sum() < 6:
             continue
-        pred = predict_layout(rest, Xa[f], use, width, covariance)
-        ra[f] = np.linalg.norm(Xa[f] - pred, axis=1)
-        rb[f] = np.linalg.norm(Xb[f] - pred, axis=1)
-    out = np.zeros((F, P), np.int8)
-    for m in range(P):
-        d = disputed[:, m].astype(np.int8)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], d, [0]])))
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
-            ok = np.isfinite(ra[start:stop, m]) & np.isfinite(rb[start:stop, m])
-            if not ok.any():
-                continue
-            a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
-            out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
-    return out
+        predicted[f] = predict_layout(rest, Xa[f], use, width, covariance)
+        ra[f] = np.linalg.norm(Xa[f] - predicted[f], axis=1)
+        rb[f] = np.linalg.norm(Xb[f] - predicted[f], axis=1)
+    return ra, rb, predicted, both_a, both_b
+
+
+def view_distances(pair: tuple[Tracks, Tracks], single: tuple[Tracks, Tracks], f: int, m: int,
+                   target: np.ndarray, cameras) -> tuple[float, float]:
+    """Mean pixels from the projection of ``target`` (3,) mm to marker ``m``'s sightings in frame ``f``: the
+    ``single`` run's and the ``pair`` run's, over the views the single run sees (:func:`arbitrate`'s
+    ``pairs``)."""
+    near = []
+    for v, cam in enumerate(cameras):
+        if np.all(np.isfinite(single[v].uv[f, m])):
+            at = cam.project(np.asarray(target, float)[None])[0]
+            near.append((np.linalg.norm(single[v].uv[f, m] - at), np.linalg.norm(pair[v].uv[f, m] - at)))
+    d_single, d_pair = np.mean(near, axis=0)
+    return float(d_single), float(d_pair)
+
+
+def _pair_over_single(first, second, frames, both_a, both_b, predicted, cameras, ratio: float) -> np.ndarray:
+    """For ``arbitrate``'s ``pairs``: at each (frame, marker) of ``frames`` (F, P) bool, the run (1 or 2)
+    that alone has a pair there, where the pair's sightings lie nearer than ``ratio`` times the other run's
+    to the projection of ``predicted`` (F, P, 3) mm (:func:`view_distances`); else 0. Returns the verdicts
+    at ``frames``, in its order."""
+    out = []
+    for f, m in np.argwhere(frames):
+        if both_a[f, m] == both_b[f, m] or not np.all(np.isfinite(predicted[f, m])):
+            out.append(0)
+            continue
+        pair, single = (first, second) if both_a[f, m] else (second, first)
+        d_single, d_pair = view_distances(pair, single, f, m, predicted[f, m], cameras)
+        out.append(0 if not d_pair < ratio * d_single else 1 if both_a[f, m] else 2)
+    return np.asarray(out, np.int8)
 
 
 def cross_check(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float,

@@ -265,6 +265,13 @@ class ReconstructSettings:
     cross_check_keep : bool
         With ``cross_check``: an undecided dispute keeps the first run's sighting instead of dropping it.
         Default True.
+    cross_check_pairs : bool
+        With ``cross_check_arbitrate``: a disputed frame where only one run sees the marker in both views,
+        which the layout cannot judge in 3-D, is judged in the image: that run's pair wins where it lies
+        clearly nearer the prediction's projection (``pairs`` of
+        :func:`lipgen.recon.crosscheck.arbitrate`). Default True, after s45
+        (``renders/examples/tracking/s45.md``): held out, run once, fresh ``hard`` 223-230 +24 (accepted
+        94.7 -> 95.0 %, over 3 px 174 unchanged, no set down) and ``default`` 189-191 unchanged.
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
@@ -350,6 +357,7 @@ class ReconstructSettings:
     cross_check_fill: bool = True
     cross_check_arbitrate: bool = True
     cross_check_keep: bool = True
+    cross_check_pairs: bool = True
     confirm_blobs: bool = True
     nose_search: bool = True
     shared_dot_check: bool = True
@@ -366,7 +374,7 @@ class ReconstructSettings:
                                  or fill < 1):
             raise ValueError(f"settings.gap_fill must be None or a whole number of frames >= 1, got {fill!r}")
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
-                     "cross_check_arbitrate", "cross_check_keep", "nose_search",
+                     "cross_check_arbitrate", "cross_check_keep", "cross_check_pairs", "nose_search",
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")

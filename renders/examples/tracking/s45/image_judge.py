@@ -1,0 +1,41 @@
+"""Would the judge do better in the image than in 3-D? For each dispute span both runs have pairs in (spent sets,
+truth read): the 3-D verdict against one from the mean pixel distance of each run's sightings to the projected
+prediction (both views), at the same ratio. image_judge.py DUMP SET..."""
+import sys, pickle, collections, numpy as np
+from lipgen.dataset.layout import Dataset
+from lipgen.evaluate.scoring import load_truth
+from lipgen.recon.crosscheck import layout_residuals
+
+RATIO = 0.6
+tally = collections.Counter()
+for name in sys.argv[2:]:
+    cap = pickle.load(open(f"{sys.argv[1]}/{name}.arb.pkl", "rb"))
+    if cap is None:
+        continue
+    a, b, disputed, cams, rest, cov, verdict = cap
+    tuv = np.moveaxis(load_truth(Dataset(f"/work/sets/{name}"))["uv"], 1, 0)
+    ra, rb, predicted, both_a, both_b = layout_residuals(a, b, disputed, cams, rest, cov)
+    pa = np.full((2,) + predicted.shape[:2] + (2,), np.nan)      # (2, F, P, 2) the prediction's projections
+    has = np.all(np.isfinite(predicted), axis=-1)
+    for v, c in enumerate(cams):
+        pa[v][has] = c.project(predicted[has])
+    da = np.mean([np.linalg.norm(a[v].uv - pa[v], axis=-1) for v in range(2)], axis=0)
+    db = np.mean([np.linalg.norm(b[v].uv - pa[v], axis=-1) for v in range(2)], axis=0)
+    for m in range(disputed.shape[1]):
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], disputed[:, m].astype(int), [0]])))
+        for s, e in zip(edges[::2], edges[1::2]):
+            ok = np.isfinite(ra[s:e, m]) & np.isfinite(rb[s:e, m])
+            if not ok.any():
+                continue
+            ea = max(np.nanmax(np.linalg.norm(a[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
+            eb = max(np.nanmax(np.linalg.norm(b[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
+            who = "A" if ea <= 3 < eb else "B" if eb <= 3 < ea else "both" if eb <= 3 else "neither"
+            x, y = ra[s:e, m][ok].mean(), rb[s:e, m][ok].mean()
+            v3 = 2 if y < RATIO * x else 1 if x < RATIO * y else 0
+            x, y = da[s:e, m][ok].mean(), db[s:e, m][ok].mean()
+            v2 = 2 if y < RATIO * x else 1 if x < RATIO * y else 0
+            tally[(who, "3-D", v3)] += e - s
+            tally[(who, "image", v2)] += e - s
+print("(right run, judge, verdict): frames; with keep_undecided 0 counts as 1")
+for k in sorted(tally):
+    print(" ", k, tally[k])
