@@ -1,19 +1,15 @@
 """Would the judge do better in the image than in 3-D? For each dispute span both runs have pairs in (spent sets,
 truth read): the 3-D verdict against one from the mean pixel distance of each run's sightings to the projected
 prediction (both views), at the same ratio. image_judge.py DUMP SET..."""
-import sys, pickle, collections, numpy as np
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth
+import os, sys, collections, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dumped import dumped
 from lipgen.recon.crosscheck import layout_residuals
 
 RATIO = 0.6
 tally = collections.Counter()
-for name in sys.argv[2:]:
-    cap = pickle.load(open(f"{sys.argv[1]}/{name}.arb.pkl", "rb"))
-    if cap is None:
-        continue
+for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     a, b, disputed, cams, rest, cov, verdict = cap
-    tuv = np.moveaxis(load_truth(Dataset(f"/work/sets/{name}"))["uv"], 1, 0)
     ra, rb, predicted, both_a, both_b = layout_residuals(a, b, disputed, cams, rest, cov)
     pa = np.full((2,) + predicted.shape[:2] + (2,), np.nan)      # (2, F, P, 2) the prediction's projections
     has = np.all(np.isfinite(predicted), axis=-1)

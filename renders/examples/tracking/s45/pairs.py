@@ -1,18 +1,14 @@
 """The frames cross_check_pairs judges on spent sets (truth read): the 2-D distances to the projected prediction
 of the one-view sighting and of the other run's pair, the verdict, and which was right.
 pairs.py DUMP SET...  (DUMP: dump.py's OUT)"""
-import sys, pickle, collections, numpy as np
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth
+import os, sys, collections, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dumped import dumped
 from lipgen.recon.crosscheck import arbitrate, layout_residuals, view_distances
 
 tally = collections.Counter()
-for name in sys.argv[2:]:
-    cap = pickle.load(open(f"{sys.argv[1]}/{name}.arb.pkl", "rb"))
-    if cap is None:
-        continue
+for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     a, b, disputed, cams, rest, cov, _ = cap
-    tuv = np.moveaxis(load_truth(Dataset(f"/work/sets/{name}"))["uv"], 1, 0)
     plain = arbitrate(a, b, disputed, cams, rest, cov)
     paired = arbitrate(a, b, disputed, cams, rest, cov, pairs=True)
     ra, rb, predicted, both_a, both_b = layout_residuals(a, b, disputed, cams, rest, cov)

@@ -1,17 +1,13 @@
 """Each cross-check dispute span on spent sets (truth read): which run was right, the layout's 3-D figures and
 verdict, and in how many frames each run had a pair. spans.py DUMP SET...  (DUMP: dump.py's OUT)"""
-import sys, pickle, collections, numpy as np
-from lipgen.dataset.layout import Dataset
-from lipgen.evaluate.scoring import load_truth
+import os, sys, collections, numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dumped import dumped
 from lipgen.recon.crosscheck import layout_residuals
 
 frames = collections.Counter()
-for name in sys.argv[2:]:
-    cap = pickle.load(open(f"{sys.argv[1]}/{name}.arb.pkl", "rb"))
-    if cap is None:   # nothing disputed
-        continue
+for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     a, b, disputed, cams, rest, cov, verdict = cap
-    tuv = np.moveaxis(load_truth(Dataset(f"/work/sets/{name}"))["uv"], 1, 0)
     err = [np.stack([np.linalg.norm(run[v].uv - tuv[v], axis=-1) for v in range(2)]) for run in (a, b)]
     ra, rb, _, both_a, both_b = layout_residuals(a, b, disputed, cams, rest, cov)
     for m in range(disputed.shape[1]):
