@@ -275,7 +275,8 @@ class ReconstructSettings:
     cross_check_spread : bool
         With ``cross_check_arbitrate`` and ``physics_layout_prior``: the judge measures each run's point
         against the prediction's own spread under the physics prior (``spread`` of
-        :func:`lipgen.recon.crosscheck.arbitrate`) instead of in mm. Default False.
+        :func:`lipgen.recon.crosscheck.arbitrate`) instead of in mm. Default False: it failed its held-out
+        rule (``renders/examples/tracking/s46.md``: fresh ``hard`` 231-238 -4).
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
