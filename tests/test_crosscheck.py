@@ -119,7 +119,8 @@ def test_runs_of_different_shapes_are_refused():
         cross_check(a, b, tol=2.0)
 
 
-@pytest.mark.parametrize("name", ["cross_check", "cross_check_fill", "cross_check_pairs"])
+@pytest.mark.parametrize("name", ["cross_check", "cross_check_fill", "cross_check_pairs",
+                                  "cross_check_spread"])
 def test_the_settings_refuse_a_value_that_is_not_a_bool(name):
     with pytest.raises(ValueError, match=name):
         ReconstructSettings(**{name: 1})
@@ -175,6 +176,24 @@ def test_arbitration_prefers_the_run_whose_points_fit_the_layout():
     disputed[:, 4] = True
     assert (arbitrate(runs[0], runs[1], disputed, cams, rest)[:, 4] == 1).all()
     assert (arbitrate(runs[1], runs[0], disputed, cams, rest)[:, 4] == 2).all()
+
+
+def test_with_spread_a_point_off_along_the_priors_loose_direction_beats_a_nearer_one_off_across_it():
+    rest, cams = _layout_rig()
+    cov = 0.1 * np.eye(36)
+    cov[12, 12] = 10.0                          # marker 4 moves freely in x only (a corner along the mouth)
+    X = np.repeat(rest[None], 3, axis=0)
+    along, across = X.copy(), X.copy()
+    along[:, 4] += [5.0, 0, 0]                  # the first run: 5 mm off, along x
+    across[:, 4] += [0, 2.5, 0]                 # the second run: 2.5 mm off, across
+    runs = [tuple(_tracks(np.stack([c.project(Xf) for Xf in P3])) for c in cams) for P3 in (along, across)]
+    disputed = np.zeros((3, 12), bool)
+    disputed[:, 4] = True
+    assert (arbitrate(runs[0], runs[1], disputed, cams, rest, cov)[:, 4] == 2).all()    # mm: the nearer
+    assert (arbitrate(runs[0], runs[1], disputed, cams, rest, cov, spread=True)[:, 4] == 1).all()
+    assert (arbitrate(runs[1], runs[0], disputed, cams, rest, cov, spread=True)[:, 4] == 2).all()
+    # without a prior there is no spread to measure against: mm, as before
+    assert (arbitrate(runs[0], runs[1], disputed, cams, rest, None, spread=True)[:, 4] == 2).all()
 
 
 def test_with_pairs_a_frame_only_one_run_sees_in_both_views_goes_to_that_run():

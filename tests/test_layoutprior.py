@@ -47,6 +47,24 @@ def test_a_moved_layout_is_predicted_exactly(lips):
     np.testing.assert_allclose(pred, points, atol=1e-8)
 
 
+def test_the_spread_is_the_priors_schur_complement_turned_into_the_points_frame(lips):
+    _, model, cov = lips
+    A, t = _similarity(2)
+    points = model @ A.T + t
+    use = np.ones(len(model), bool)
+    use[5] = False
+    pred, loose = predict_layout_physics(model, points, use, cov, spread=True)
+    np.testing.assert_allclose(pred, predict_layout_physics(model, points, use, cov), atol=1e-12)
+    for i in (5, 11):                               # unused, and used (left out of its own prediction)
+        others = np.flatnonzero(use & (np.arange(len(model)) != i))
+        o = (3 * others[:, None] + np.arange(3)).ravel()
+        own = 3 * i + np.arange(3)
+        schur = cov[np.ix_(own, own)] - cov[np.ix_(own, o)] @ np.linalg.solve(
+            cov[np.ix_(o, o)] + 0.01 * np.eye(len(o)), cov[np.ix_(o, own)])
+        np.testing.assert_allclose(loose[i], A @ (schur + 0.01 * np.eye(3)) @ A.T, rtol=1e-7, atol=1e-10)
+        assert np.linalg.eigvalsh(loose[i]).min() > 0
+
+
 def test_equals_the_least_norm_force_reach(lips):
     physics, model, cov = lips
     P = len(model) - 1

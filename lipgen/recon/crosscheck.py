@@ -120,7 +120,8 @@ def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol:
 
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
-              rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False) -> np.ndarray:
+              rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False,
+              spread: bool = False) -> np.ndarray:
     """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
 
     In every disputed frame both runs' pairs are triangulated and compared with the marker's position
@@ -128,6 +129,11 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     the physics prior with ``covariance``). Over the span, the run whose points lie nearer the prediction
     on average wins when it is nearer than ``ratio`` times the other (the first frame's replacement rule);
     otherwise neither does.
+
+    With ``spread`` (and ``covariance``), a run's distance from the prediction is measured against the
+    prediction's own spread (the physics prior conditioned on the other markers; a Mahalanobis distance),
+    not in mm: the prior knows in which directions a marker moves freely, as a corner does along the
+    mouth's width.
 
     With ``pairs``, a disputed frame the layout could not judge in 3-D, because only one run sees the marker
     in both views, is judged in 2-D (:func:`_pair_over_single`): that run's pair wins where its sighting
@@ -144,7 +150,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         The markers at rest in the frame of ``cameras``, mm.
     covariance : (3P, 3P) float, optional
     ratio : float
-    pairs : bool
+    pairs, spread : bool
 
     Returns
     -------
@@ -152,7 +158,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         0 where neither run is trusted, 1 where the first run's sighting stands, 2 where the second's.
     """
     ra, rb, predicted, both_a, both_b = layout_residuals(first, second, disputed, cameras, rest_points,
-                                                         covariance)
+                                                         covariance, spread)
     F, P = disputed.shape
     out = np.zeros((F, P), np.int8)
     for m in range(P):
@@ -171,13 +177,14 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
 
 
 def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray,
-                     cameras, rest_points, covariance=None):
+                     cameras, rest_points, covariance=None, spread: bool = False):
     """:func:`arbitrate`'s figures: each run's 3-D distance from the layout's prediction, disputed frames.
 
     Returns
     -------
     ra, rb : (F, P) float
-        mm from the prediction of the first and second run's triangulated pair; NaN where the run has no
+        mm from the prediction of the first and second run's triangulated pair (with ``spread`` and
+        ``covariance``: in units of the prediction's spread, up to a common scale); NaN where the run has no
         pair or the frame no prediction (fewer than 6 undisputed markers the first run sees in both views).
     predicted : (F, P, 3) float
         The prediction, mm in the frame of ``cameras``; NaN in frames without one.
@@ -185,6 +192,7 @@ def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks]
         Where each run sees the marker in both views.
     """
     from lipgen.recon.firstframe import predict_layout
+    from lipgen.recon.layoutprior import predict_layout_physics
     from lipgen.recon.pointreg import layout_spacing
     from lipgen.rig.pinhole import triangulate
 
@@ -205,6 +213,13 @@ def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks]
     for f in np.flatnonzero(disputed.any(axis=1)):
         use = both_a[f] & ~disputed[f]
         if use.sum() < 6:
+            continue
+        if spread and covariance is not None:
+            predicted[f], loose = predict_layout_physics(rest, Xa[f], use, covariance, spread=True)
+            for X, r in ((Xa, ra), (Xb, rb)):
+                for m in np.flatnonzero(disputed[f] & np.all(np.isfinite(X[f]), axis=1)):
+                    d = X[f, m] - predicted[f, m]
+                    r[f, m] = np.sqrt(d @ np.linalg.solve(loose[m], d))
             continue
         predicted[f] = predict_layout(rest, Xa[f], use, width, covariance)
         ra[f] = np.linalg.norm(Xa[f] - predicted[f], axis=1)

@@ -54,8 +54,8 @@ def physics_layout_covariance(physics, n_rigid: int = 1) -> np.ndarray:
 
 
 def predict_layout_physics(
-    model, points, use, covariance, smoothing: float = 0.01, rounds: int = 8
-) -> np.ndarray:
+    model, points, use, covariance, smoothing: float = 0.01, rounds: int = 8, spread: bool = False
+):
     """Each point's 3-D position predicted from the other used points with the physics prior.
 
     Parameters
@@ -75,10 +75,17 @@ def predict_layout_physics(
     rounds : int
         Alternations between the similarity and the displacements (>= 1).
 
+    spread : bool
+        Also return each prediction's spread.
+
     Returns
     -------
     (P, 3) float
         Predicted positions (for used points, from the others); NaN where fewer than 4 others.
+    (P, 3, 3) float
+        With ``spread``: the covariance of each point about its prediction, in the points' frame and up to
+        one common scale (the prior's, conditioned on the others, plus the point's own ``smoothing``);
+        its shape says in which directions the prediction is loose. NaN where no prediction.
     """
     model = as_float_array(model, "model", (None, 3), finite=False)
     P = len(model)
@@ -96,6 +103,7 @@ def predict_layout_physics(
     if int(rounds) != rounds or rounds < 1:
         raise ValueError(f"rounds must be an integer >= 1, got {rounds!r}")
     out = np.full((P, 3), np.nan)
+    loose = np.full((P, 3, 3), np.nan)
     idx = np.flatnonzero(use)
     axes = np.arange(3)
     for i in range(P):
@@ -112,6 +120,10 @@ def predict_layout_physics(
             back = np.linalg.solve(T[:3, :3], (points[others] - T[:3, 3]).T).T  # into the model's frame
             weights = gain @ (back - model[others]).ravel()
             shift = (c_oo @ weights).reshape(-1, 3)
-        own = cov[np.ix_(3 * i + axes, dof)] @ weights
-        out[i] = T[:3, :3] @ (model[i] + own) + T[:3, 3]
-    return out
+        c_io = cov[np.ix_(3 * i + axes, dof)]
+        out[i] = T[:3, :3] @ (model[i] + c_io @ weights) + T[:3, 3]
+        if spread:
+            R = T[:3, :3]
+            own = cov[np.ix_(3 * i + axes, 3 * i + axes)] - c_io @ gain @ c_io.T + smoothing * np.eye(3)
+            loose[i] = R @ own @ R.T
+    return (out, loose) if spread else out

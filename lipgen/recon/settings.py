@@ -272,6 +272,11 @@ class ReconstructSettings:
         :func:`lipgen.recon.crosscheck.arbitrate`). Default True, after s45
         (``renders/examples/tracking/s45.md``): held out, run once, fresh ``hard`` 223-230 +24 (accepted
         94.7 -> 95.0 %, over 3 px 174 unchanged, no set down) and ``default`` 189-191 unchanged.
+    cross_check_spread : bool
+        With ``cross_check_arbitrate`` and ``physics_layout_prior``: the judge measures each run's point
+        against the prediction's own spread under the physics prior (``spread`` of
+        :func:`lipgen.recon.crosscheck.arbitrate`) instead of in mm. Default False: it failed its held-out
+        rule (``renders/examples/tracking/s46.md``: fresh ``hard`` 231-238 -4).
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
@@ -358,6 +363,7 @@ class ReconstructSettings:
     cross_check_arbitrate: bool = True
     cross_check_keep: bool = True
     cross_check_pairs: bool = True
+    cross_check_spread: bool = False
     confirm_blobs: bool = True
     nose_search: bool = True
     shared_dot_check: bool = True
@@ -374,7 +380,8 @@ class ReconstructSettings:
                                  or fill < 1):
             raise ValueError(f"settings.gap_fill must be None or a whole number of frames >= 1, got {fill!r}")
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
-                     "cross_check_arbitrate", "cross_check_keep", "cross_check_pairs", "nose_search",
+                     "cross_check_arbitrate", "cross_check_keep", "cross_check_pairs", "cross_check_spread",
+                     "nose_search",
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"settings.{name} must be True or False, got {getattr(self, name)!r}")
