@@ -3,7 +3,7 @@ truth read): the 3-D verdict against one from the mean pixel distance of each ru
 prediction (both views), at the same ratio. image_judge.py DUMP SET..."""
 import os, sys, collections, numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from dumped import dumped
+from dumped import dumped, right_run, spans
 from lipgen.recon.crosscheck import layout_residuals
 
 RATIO = 0.6
@@ -18,14 +18,11 @@ for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     da = np.mean([np.linalg.norm(a[v].uv - pa[v], axis=-1) for v in range(2)], axis=0)
     db = np.mean([np.linalg.norm(b[v].uv - pa[v], axis=-1) for v in range(2)], axis=0)
     for m in range(disputed.shape[1]):
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], disputed[:, m].astype(int), [0]])))
-        for s, e in zip(edges[::2], edges[1::2]):
+        for s, e in spans(disputed, m):
             ok = np.isfinite(ra[s:e, m]) & np.isfinite(rb[s:e, m])
             if not ok.any():
                 continue
-            ea = max(np.nanmax(np.linalg.norm(a[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
-            eb = max(np.nanmax(np.linalg.norm(b[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
-            who = "A" if ea <= 3 < eb else "B" if eb <= 3 < ea else "both" if eb <= 3 else "neither"
+            who = right_run(a, b, tuv, s, e, m)
             x, y = ra[s:e, m][ok].mean(), rb[s:e, m][ok].mean()
             v3 = 2 if y < RATIO * x else 1 if x < RATIO * y else 0
             x, y = da[s:e, m][ok].mean(), db[s:e, m][ok].mean()

@@ -2,7 +2,7 @@
 verdict, and in how many frames each run had a pair. spans.py DUMP SET...  (DUMP: dump.py's OUT)"""
 import os, sys, collections, numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from dumped import dumped
+from dumped import dumped, spans
 from lipgen.recon.crosscheck import layout_residuals
 
 frames = collections.Counter()
@@ -11,8 +11,7 @@ for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     err = [np.stack([np.linalg.norm(run[v].uv - tuv[v], axis=-1) for v in range(2)]) for run in (a, b)]
     ra, rb, _, both_a, both_b = layout_residuals(a, b, disputed, cams, rest, cov)
     for m in range(disputed.shape[1]):
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], disputed[:, m].astype(int), [0]])))
-        for s, e in zip(edges[::2], edges[1::2]):
+        for s, e in spans(disputed, m):
             worst = [np.nanmax(x[:, s:e, m]) if np.isfinite(x[:, s:e, m]).any() else np.nan for x in err]
             right = ["A" if w <= 3 else "" for w in worst[:1]] + ["B" if w <= 3 else "" for w in worst[1:]]
             who = "".join(right) or "neither"

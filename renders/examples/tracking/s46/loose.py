@@ -4,7 +4,7 @@ have pairs in (spent sets, truth read), the verdict at the judge's ratio from ei
 loose.py DUMP SET...  (DUMP: s45/dump.py's OUT)"""
 import os, sys, collections, numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "s45"))
-from dumped import dumped
+from dumped import dumped, right_run, spans
 from lipgen.recon.layoutprior import predict_layout_physics
 from lipgen.rig.pinhole import triangulate
 
@@ -35,14 +35,11 @@ for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
                 d = X[f, m] - pred[m]
                 e[f, m], mm[f, m] = np.linalg.norm(d), np.sqrt(d @ inv @ d)
     for m in range(P):
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], disputed[:, m].astype(int), [0]])))
-        for s, e in zip(edges[::2], edges[1::2]):
+        for s, e in spans(disputed, m):
             ok = np.isfinite(ea[s:e, m]) & np.isfinite(eb[s:e, m])
             if not ok.any():
                 continue
-            wa = max(np.nanmax(np.linalg.norm(a[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
-            wb = max(np.nanmax(np.linalg.norm(b[v].uv[s:e, m] - tuv[v, s:e, m], axis=-1)) for v in range(2))
-            who = "A" if wa <= 3 < wb else "B" if wb <= 3 < wa else "both" if wb <= 3 else "neither"
+            who = right_run(a, b, tuv, s, e, m)
             for kind, x, y in (("mm", ea, eb), ("spread", ma, mb)):
                 u, w = x[s:e, m][ok].mean(), y[s:e, m][ok].mean()
                 tally[(who, kind, 2 if w < RATIO * u else 1 if u < RATIO * w else 0)] += e - s
