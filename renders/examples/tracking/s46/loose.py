@@ -5,35 +5,16 @@ loose.py DUMP SET...  (DUMP: s45/dump.py's OUT)"""
 import os, sys, collections, numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "s45"))
 from dumped import dumped, right_run, spans
-from lipgen.recon.layoutprior import predict_layout_physics
-from lipgen.rig.pinhole import triangulate
+from lipgen.recon.crosscheck import layout_residuals
 
 RATIO = 0.6
 tally = collections.Counter()
 
-
-def points(run, cams):
-    both = np.isfinite(run[0].uv).all(-1) & np.isfinite(run[1].uv).all(-1)
-    X = np.full(both.shape + (3,), np.nan)
-    X[both] = triangulate(cams[1], run[1].uv[both], cams[0], run[0].uv[both])[0]
-    return X, both
-
-
 for name, cap, tuv in dumped(sys.argv[1], sys.argv[2:]):
     a, b, disputed, cams, rest, cov, verdict = cap
-    (Xa, both_a), (Xb, both_b) = points(a, cams), points(b, cams)
-    F, P = disputed.shape
-    ea, eb, ma, mb = (np.full((F, P), np.nan) for _ in range(4))
-    for f in np.flatnonzero(disputed.any(axis=1)):
-        use = both_a[f] & ~disputed[f]
-        if use.sum() < 6:
-            continue
-        pred, loose = predict_layout_physics(rest, Xa[f], use, cov, spread=True)
-        for m in np.flatnonzero(disputed[f] & both_a[f] & both_b[f]):
-            inv = np.linalg.inv(loose[m])
-            for X, e, mm in ((Xa, ea, ma), (Xb, eb, mb)):
-                d = X[f, m] - pred[m]
-                e[f, m], mm[f, m] = np.linalg.norm(d), np.sqrt(d @ inv @ d)
+    P = disputed.shape[1]
+    ea, eb = layout_residuals(a, b, disputed, cams, rest, cov)[:2]               # mm
+    ma, mb = layout_residuals(a, b, disputed, cams, rest, cov, spread=True)[:2]  # against the spread
     for m in range(P):
         for s, e in spans(disputed, m):
             ok = np.isfinite(ea[s:e, m]) & np.isfinite(eb[s:e, m])
