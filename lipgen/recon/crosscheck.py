@@ -39,6 +39,7 @@ import numpy as np
 
 from lipgen.recon.anchor import TrackFn, anchor_line, track_from_anchor
 from lipgen.recon.association import LOST
+from lipgen.recon.continuity import continuity_verdict
 from lipgen.recon.extend import extend_line
 from lipgen.recon.gapfill import gap_fill_line
 from lipgen.recon.nose import nose_line
@@ -121,7 +122,7 @@ def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol:
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
               rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False,
-              spread: bool = False) -> np.ndarray:
+              spread: bool = False, continuity: bool = False) -> np.ndarray:
     """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
 
     In every disputed frame both runs' pairs are triangulated and compared with the marker's position
@@ -141,6 +142,10 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     run sees. A sighting in one view is never accepted on its own; the pair's rays are checked later.
     Frames without a prediction, and frames the layout judged in 3-D, keep the span's verdict.
 
+    With ``continuity``, a span where one run's sightings at its ends clearly continue the motion both runs
+    agreed on just outside it goes to that run, whatever the layout says
+    (:func:`lipgen.recon.continuity.continuity_verdict`, at the same ``ratio``); the layout judges the rest.
+
     Parameters
     ----------
     first, second : (virtual, real) Tracks
@@ -150,7 +155,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         The markers at rest in the frame of ``cameras``, mm.
     covariance : (3P, 3P) float, optional
     ratio : float
-    pairs, spread : bool
+    pairs, spread, continuity : bool
 
     Returns
     -------
@@ -170,6 +175,9 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
                 continue
             a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
             out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
+    if continuity:
+        carried = continuity_verdict(first, second, disputed, ratio)
+        out = np.where(carried != 0, carried, out).astype(np.int8)
     if pairs:
         unjudged = disputed & ~(np.isfinite(ra) & np.isfinite(rb)) & (out == 0)
         out[unjudged] = _pair_over_single(first, second, unjudged, both_a, both_b, predicted, cameras, ratio)
