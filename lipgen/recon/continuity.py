@@ -5,7 +5,10 @@ took a wrong dot at the span's edge: a slip to a neighbour's dot, or a wrong pic
 found again. Just outside the span both runs saw the marker on one dot. The run whose sighting inside the
 span continues that motion (the agreed position, moved on by the agreed velocity) stayed on the dot; the
 other jumped. This judges the span in the image, without the layout, which predicts the mouth corners
-worst (``renders/examples/tracking/s47.md``).
+worst (``renders/examples/tracking/s45.md``).
+
+Off in the pipeline (``ReconstructSettings.cross_check_continuity``): it gained on development sets but
+changed nothing on its held-out ones (``renders/examples/tracking/s47.md``).
 
 Only agreed sightings are references. A frame where one run alone sees the marker would make that run's
 own track the reference, and a run that was already wrong there would be judged continuous (``hard`` 181

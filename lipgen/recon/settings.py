@@ -280,8 +280,9 @@ class ReconstructSettings:
     cross_check_continuity : bool
         With ``cross_check_arbitrate``: a disputed span goes to the run whose sightings at its ends clearly
         carry on the motion both runs agreed on just outside it, before the layout judges
-        (``continuity`` of :func:`lipgen.recon.crosscheck.arbitrate`). Default False until its held-out
-        rule (``renders/examples/tracking/s47.md``).
+        (``continuity`` of :func:`lipgen.recon.crosscheck.arbitrate`). Default False: it changed nothing on
+        its held-out sets (``renders/examples/tracking/s47.md``: fresh ``hard`` 239-246 +0; development
+        ``hard`` +216).
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
