@@ -19,8 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from lipgen.recon.shareddot import _seen, _spans
-from lipgen.recon.tracks import Tracks
+from lipgen.recon.tracks import Tracks, seen, true_runs
 
 __all__ = ["span_jumps", "continuity_verdict"]
 
@@ -54,7 +53,7 @@ def span_jumps(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disp
         if not 0 <= outside < F:
             continue
         for a, b in zip(first, second, strict=True):
-            seen_a, seen_b = _seen(a)[:, m], _seen(b)[:, m]
+            seen_a, seen_b = seen(a)[:, m], seen(b)[:, m]
             if not (seen_a[inside] and seen_b[inside] and seen_a[outside] and seen_b[outside]):
                 continue
             ref = a.uv[outside, m]       # undisputed and seen by both: the runs agree here
@@ -91,7 +90,7 @@ def continuity_verdict(first: tuple[Tracks, Tracks], second: tuple[Tracks, Track
         raise ValueError(f"ratio must be in (0, 1], got {ratio!r}")
     out = np.zeros(disputed.shape, np.int8)
     for m in range(disputed.shape[1]):
-        for start, stop in _spans(disputed[:, m]):
+        for start, stop in true_runs(disputed[:, m]):
             ja, jb, n = span_jumps(first, second, disputed, m, start, stop)
             if n:
                 out[start:stop, m] = 2 if jb < ratio * ja else 1 if ja < ratio * jb else 0

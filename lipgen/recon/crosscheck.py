@@ -45,7 +45,7 @@ from lipgen.recon.gapfill import gap_fill_line
 from lipgen.recon.nose import nose_line
 from lipgen.recon.shareddot import shared_dot_line
 from lipgen.recon.splitruns import split_runs_line
-from lipgen.recon.tracks import Tracks
+from lipgen.recon.tracks import Tracks, seen, true_runs
 
 __all__ = ["reversed_run", "runs_agree", "arbitrate", "layout_residuals", "view_distances", "cross_check",
            "cross_check_line", "tracking_lines"]
@@ -81,10 +81,6 @@ def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: Tr
     return (_reversed(virtual), _reversed(real)), record | {"frame": n_frames - 1 - int(record["frame"])}
 
 
-def _seen(t: Tracks) -> np.ndarray:
-    return (t.status != LOST) & np.all(np.isfinite(t.uv), axis=-1)
-
-
 def _compare(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each run's seen masks and the runs' distances, (2, F, P) each; ``tol`` and the shapes checked."""
@@ -93,8 +89,8 @@ def _compare(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: f
     for a, b in zip(first, second, strict=True):
         if a.uv.shape != b.uv.shape:
             raise ValueError(f"the two runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
-    seen_a = np.stack([_seen(t) for t in first])
-    seen_b = np.stack([_seen(t) for t in second])
+    seen_a = np.stack([seen(t) for t in first])
+    seen_b = np.stack([seen(t) for t in second])
     dist = np.stack([np.linalg.norm(a.uv - b.uv, axis=-1) for a, b in zip(first, second, strict=True)])
     return seen_a, seen_b, dist
 
@@ -167,9 +163,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     F, P = disputed.shape
     out = np.zeros((F, P), np.int8)
     for m in range(P):
-        d = disputed[:, m].astype(np.int8)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], d, [0]])))
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        for start, stop in true_runs(disputed[:, m]):
             ok = np.isfinite(ra[start:stop, m]) & np.isfinite(rb[start:stop, m])
             if not ok.any():
                 continue
@@ -208,7 +202,7 @@ def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks]
     width = layout_spacing(rest[np.all(np.isfinite(rest), axis=1)])
 
     def points(run):
-        both = _seen(run[0]) & _seen(run[1])
+        both = seen(run[0]) & seen(run[1])
         X = np.full(both.shape + (3,), np.nan)
         X[both] = triangulate(cameras[1], run[1].uv[both], cameras[0], run[0].uv[both])[0]
         return X, both
