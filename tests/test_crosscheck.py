@@ -120,7 +120,7 @@ def test_runs_of_different_shapes_are_refused():
 
 
 @pytest.mark.parametrize("name", ["cross_check", "cross_check_fill", "cross_check_pairs",
-                                  "cross_check_spread"])
+                                  "cross_check_spread", "cross_check_continuity"])
 def test_the_settings_refuse_a_value_that_is_not_a_bool(name):
     with pytest.raises(ValueError, match=name):
         ReconstructSettings(**{name: 1})

@@ -39,12 +39,13 @@ import numpy as np
 
 from lipgen.recon.anchor import TrackFn, anchor_line, track_from_anchor
 from lipgen.recon.association import LOST
+from lipgen.recon.continuity import continuity_verdict
 from lipgen.recon.extend import extend_line
 from lipgen.recon.gapfill import gap_fill_line
 from lipgen.recon.nose import nose_line
 from lipgen.recon.shareddot import shared_dot_line
 from lipgen.recon.splitruns import split_runs_line
-from lipgen.recon.tracks import Tracks
+from lipgen.recon.tracks import Tracks, seen, true_runs
 
 __all__ = ["reversed_run", "runs_agree", "arbitrate", "layout_residuals", "view_distances", "cross_check",
            "cross_check_line", "tracking_lines"]
@@ -80,10 +81,6 @@ def reversed_run(frame_at: Callable[[int], np.ndarray], n_frames: int, track: Tr
     return (_reversed(virtual), _reversed(real)), record | {"frame": n_frames - 1 - int(record["frame"])}
 
 
-def _seen(t: Tracks) -> np.ndarray:
-    return (t.status != LOST) & np.all(np.isfinite(t.uv), axis=-1)
-
-
 def _compare(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: float
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each run's seen masks and the runs' distances, (2, F, P) each; ``tol`` and the shapes checked."""
@@ -92,8 +89,8 @@ def _compare(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol: f
     for a, b in zip(first, second, strict=True):
         if a.uv.shape != b.uv.shape:
             raise ValueError(f"the two runs' tracks differ in shape: {a.uv.shape} and {b.uv.shape}")
-    seen_a = np.stack([_seen(t) for t in first])
-    seen_b = np.stack([_seen(t) for t in second])
+    seen_a = np.stack([seen(t) for t in first])
+    seen_b = np.stack([seen(t) for t in second])
     dist = np.stack([np.linalg.norm(a.uv - b.uv, axis=-1) for a, b in zip(first, second, strict=True)])
     return seen_a, seen_b, dist
 
@@ -121,7 +118,7 @@ def runs_agree(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], tol:
 
 def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray, cameras,
               rest_points, covariance=None, ratio: float = 0.6, pairs: bool = False,
-              spread: bool = False) -> np.ndarray:
+              spread: bool = False, continuity: bool = False) -> np.ndarray:
     """Which run holds a disputed marker's right dot, judged over each run of consecutive disputed frames.
 
     In every disputed frame both runs' pairs are triangulated and compared with the marker's position
@@ -141,6 +138,10 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     run sees. A sighting in one view is never accepted on its own; the pair's rays are checked later.
     Frames without a prediction, and frames the layout judged in 3-D, keep the span's verdict.
 
+    With ``continuity``, a span where one run's sightings at its ends clearly continue the motion both runs
+    agreed on just outside it goes to that run, whatever the layout says
+    (:func:`lipgen.recon.continuity.continuity_verdict`, at the same ``ratio``); the layout judges the rest.
+
     Parameters
     ----------
     first, second : (virtual, real) Tracks
@@ -150,7 +151,7 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
         The markers at rest in the frame of ``cameras``, mm.
     covariance : (3P, 3P) float, optional
     ratio : float
-    pairs, spread : bool
+    pairs, spread, continuity : bool
 
     Returns
     -------
@@ -162,14 +163,15 @@ def arbitrate(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], dispu
     F, P = disputed.shape
     out = np.zeros((F, P), np.int8)
     for m in range(P):
-        d = disputed[:, m].astype(np.int8)
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], d, [0]])))
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        for start, stop in true_runs(disputed[:, m]):
             ok = np.isfinite(ra[start:stop, m]) & np.isfinite(rb[start:stop, m])
             if not ok.any():
                 continue
             a, b = ra[start:stop, m][ok].mean(), rb[start:stop, m][ok].mean()
             out[start:stop, m] = 2 if b < ratio * a else 1 if a < ratio * b else 0
+    if continuity:
+        carried = continuity_verdict(first, second, disputed, ratio)
+        out = np.where(carried != 0, carried, out).astype(np.int8)
     if pairs:
         unjudged = disputed & ~(np.isfinite(ra) & np.isfinite(rb)) & (out == 0)
         out[unjudged] = _pair_over_single(first, second, unjudged, both_a, both_b, predicted, cameras, ratio)
@@ -200,7 +202,7 @@ def layout_residuals(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks]
     width = layout_spacing(rest[np.all(np.isfinite(rest), axis=1)])
 
     def points(run):
-        both = _seen(run[0]) & _seen(run[1])
+        both = seen(run[0]) & seen(run[1])
         X = np.full(both.shape + (3,), np.nan)
         X[both] = triangulate(cameras[1], run[1].uv[both], cameras[0], run[0].uv[both])[0]
         return X, both

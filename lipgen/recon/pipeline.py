@@ -316,7 +316,8 @@ def reconstruct_dataset(path, mesh_source: str = "lip_mesh(0)", settings: Recons
             if settings.cross_check_arbitrate:
                 def judge(a, b, disputed):
                     return arbitrate(a, b, disputed, lab.views, marks_rest, layout_cov,
-                                     pairs=settings.cross_check_pairs, spread=settings.cross_check_spread)
+                                     pairs=settings.cross_check_pairs, spread=settings.cross_check_spread,
+                                     continuity=settings.cross_check_continuity)
             if settings.gap_fill_sure:
                 sure = runs_agree(tracks, second, tol)
             tracks, crossed = cross_check(tracks, second, tol, settings.cross_check_fill, judge,

@@ -277,6 +277,12 @@ class ReconstructSettings:
         against the prediction's own spread under the physics prior (``spread`` of
         :func:`lipgen.recon.crosscheck.arbitrate`) instead of in mm. Default False: it failed its held-out
         rule (``renders/examples/tracking/s46.md``: fresh ``hard`` 231-238 -4).
+    cross_check_continuity : bool
+        With ``cross_check_arbitrate``: a disputed span goes to the run whose sightings at its ends clearly
+        carry on the motion both runs agreed on just outside it, before the layout judges
+        (``continuity`` of :func:`lipgen.recon.crosscheck.arbitrate`). Default False: it changed nothing on
+        its held-out sets (``renders/examples/tracking/s47.md``: fresh ``hard`` 239-246 +0; development
+        ``hard`` +216).
     confirm_blobs : bool
         With ``tracker.blobs``, a blob sighting (a dot the detector could not resolve) stands only
         where the other view sees the marker in the same image
@@ -364,6 +370,7 @@ class ReconstructSettings:
     cross_check_keep: bool = True
     cross_check_pairs: bool = True
     cross_check_spread: bool = False
+    cross_check_continuity: bool = False
     confirm_blobs: bool = True
     nose_search: bool = True
     shared_dot_check: bool = True
@@ -381,6 +388,7 @@ class ReconstructSettings:
             raise ValueError(f"settings.gap_fill must be None or a whole number of frames >= 1, got {fill!r}")
         for name in ("epipolar_blobs", "confirm_blobs", "cross_check", "cross_check_fill",
                      "cross_check_arbitrate", "cross_check_keep", "cross_check_pairs", "cross_check_spread",
+                     "cross_check_continuity",
                      "nose_search",
                      "shared_dot_check", "gap_fill_sure", "walk_on"):
             if not isinstance(getattr(self, name), bool):

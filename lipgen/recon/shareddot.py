@@ -29,22 +29,11 @@ import logging
 import numpy as np
 
 from lipgen.recon.outofplace import take_back
-from lipgen.recon.track import LOST
-from lipgen.recon.tracks import Tracks
+from lipgen.recon.tracks import Tracks, seen, true_runs
 
 __all__ = ["shared_dots", "take_back_shared", "shared_dot_line"]
 
 log = logging.getLogger(__name__)
-
-
-def _seen(t: Tracks) -> np.ndarray:
-    return (t.status != LOST) & np.all(np.isfinite(t.uv), axis=-1)
-
-
-def _spans(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(start, stop) of each run of True in a 1-D mask."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def shared_dots(tracks: tuple[Tracks, Tracks], tol: float) -> tuple[np.ndarray, list[dict]]:
@@ -73,7 +62,7 @@ def shared_dots(tracks: tuple[Tracks, Tracks], tol: float) -> tuple[np.ndarray, 
     if not (number and np.isfinite(tol) and tol > 0):
         raise ValueError(f"tol must be a number > 0 (pixels), got {tol!r}")
     F, P = tv.uv.shape[:2]
-    both = _seen(tv) & _seen(tr)
+    both = seen(tv) & seen(tr)
     near = np.ones((F, P, P), dtype=bool)
     for t in (tv, tr):
         uv = np.where(both[..., None], t.uv, np.nan)
@@ -82,7 +71,7 @@ def shared_dots(tracks: tuple[Tracks, Tracks], tol: float) -> tuple[np.ndarray, 
     taken = near.any(axis=2)
     spans = [{"markers": (int(i), int(j)), "frames": span}
              for i, j in zip(*np.nonzero(np.triu(near.any(axis=0), 1)), strict=True)
-             for span in _spans(near[:, i, j])]
+             for span in true_runs(near[:, i, j])]
     return taken, spans
 
 

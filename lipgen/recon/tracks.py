@@ -1,8 +1,10 @@
 """What marker tracking is set with and what it gives: :class:`TrackerSettings`, :class:`Tracks`.
 
-Also the layout test for markers too close together to be told apart (:func:`twin_partners`),
-which the tracker (:mod:`lipgen.recon.track`), the twin model (:mod:`lipgen.recon.twins`) and the
-account of lost markers (:mod:`lipgen.recon.account`) share.
+Also where a run of tracks has each marker (:func:`seen`) and the runs of consecutive frames of a
+mask (:func:`true_runs`), which the checks after tracking share; and the layout test for markers too
+close together to be told apart (:func:`twin_partners`), which the tracker (:mod:`lipgen.recon.track`),
+the twin model (:mod:`lipgen.recon.twins`) and the account of lost markers (:mod:`lipgen.recon.account`)
+share.
 """
 
 from __future__ import annotations
@@ -12,9 +14,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from lipgen._validate import as_float_array
+from lipgen.recon.association import LOST
 from lipgen.recon.dots import DotSettings
 
-__all__ = ["TrackerSettings", "Tracks", "twin_partners", "lowered_floor"]
+__all__ = ["TrackerSettings", "Tracks", "twin_partners", "lowered_floor", "seen", "true_runs"]
+
+
+def seen(tracks: Tracks) -> np.ndarray:
+    """(F, P) bool: where ``tracks`` has the marker (not ``LOST``, a finite position)."""
+    return (tracks.status != LOST) & np.all(np.isfinite(tracks.uv), axis=-1)
+
+
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of each run of consecutive True in a 1-D bool array."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def lowered_floor(typical: float, ratio: float, min_contrast: float, least: float) -> float | None:

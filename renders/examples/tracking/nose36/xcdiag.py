@@ -2,7 +2,8 @@
 right (<= 3 px) or wrong. usage: xcdiag.py OUT.jsonl SET..."""
 import sys, json, os, numpy as np
 import lipgen.recon.pipeline as pl
-from lipgen.recon.crosscheck import cross_check as cc0, _seen
+from lipgen.recon.crosscheck import cross_check as cc0
+from lipgen.recon.tracks import seen as _seen
 from lipgen.recon.pipeline import reconstruct_dataset
 from lipgen.evaluate.scoring import load_truth, sighting_errors
 from lipgen.dataset.layout import Dataset
