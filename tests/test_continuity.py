@@ -2,22 +2,18 @@
 sightings at its ends carry on the motion both runs agreed on outside it; undecided without an agreed
 neighbour; in arbitrate it overrides the layout; bad input."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from test_crosscheck import _layout_rig, _tracks
 
-from lipgen.recon.association import LOST, TRACKED
+from lipgen.recon.association import LOST
 from lipgen.recon.continuity import continuity_verdict, span_jumps
 from lipgen.recon.crosscheck import arbitrate
-from lipgen.recon.tracks import Tracks
+from lipgen.recon.tracks import seen, true_runs
 
 F = 10
-
-
-def _tracks(uv):
-    uv = np.array(uv, dtype=float)
-    seen = np.all(np.isfinite(uv), axis=-1)
-    return Tracks(uv=uv, visible=seen, status=np.where(seen, TRACKED, LOST).astype(np.int8),
-                  score=np.full(seen.shape, 0.9), rejected=np.zeros(seen.shape, bool))
 
 
 def _runs(speed=2.0, slip=(6.0, 0.0)):
@@ -68,18 +64,7 @@ def test_without_an_agreed_neighbour_or_a_clear_winner_the_span_is_undecided():
 
 
 def test_in_arbitrate_continuity_overrides_a_layout_that_prefers_the_wrong_run():
-    from lipgen.rig.pinhole import PinholeCamera
-
-    rng = np.random.default_rng(3)
-    rest = np.c_[rng.uniform(-25, 25, (12, 2)), rng.uniform(-5, 5, 12)]
-    K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
-
-    def camera(angle):
-        c, s = np.cos(np.radians(angle)), np.sin(np.radians(angle))
-        return PinholeCamera(K=K, R=np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]]), t=np.array([0.0, 0, 300]),
-                             width=640, height=480)
-
-    cams = (camera(-30.0), camera(10.0))
+    rest, cams = _layout_rig()
     X = np.repeat(rest[None], F, axis=0)
     X[:, 4] += np.arange(F)[:, None] * [1.0, 0, 0]    # marker 4 moves 1 mm a frame away from rest
     at_rest = X.copy()
@@ -97,3 +82,15 @@ def test_bad_input_is_refused_with_the_shape_or_value():
         continuity_verdict(slipped, stayed, np.zeros((F, 3), bool))
     with pytest.raises(ValueError, match="ratio must be in"):
         continuity_verdict(slipped, stayed, disputed, ratio=1.5)
+
+
+def test_the_shared_helpers_seen_and_true_runs():
+    assert true_runs(np.array([0, 1, 1, 0, 1], bool)) == [(1, 3), (4, 5)]
+    assert true_runs(np.zeros(3, bool)) == [] and true_runs(np.ones(2, bool)) == [(0, 2)]
+    uv = np.zeros((2, 2, 2))
+    uv[0, 1] = np.nan
+    t = _tracks(uv)
+    status = t.status.copy()
+    status[1, 0] = LOST                               # lost with a finite position: not seen
+    np.testing.assert_array_equal(seen(t), [[True, False], [True, True]])
+    np.testing.assert_array_equal(seen(replace(t, status=status)), [[True, False], [False, True]])
