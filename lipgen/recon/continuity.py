@@ -24,8 +24,13 @@ from lipgen.recon.tracks import Tracks, seen, true_runs
 __all__ = ["span_jumps", "continuity_verdict"]
 
 
+def _shared(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks]) -> np.ndarray:
+    """(2, F, P) bool: where both runs see each marker, per view."""
+    return np.stack([seen(a) & seen(b) for a, b in zip(first, second, strict=True)])
+
+
 def span_jumps(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disputed: np.ndarray,
-               m: int, start: int, stop: int) -> tuple[float, float, int]:
+               m: int, start: int, stop: int, shared=None) -> tuple[float, float, int]:
     """How far each run's sightings at a disputed span's ends lie from the agreed motion just outside.
 
     At each end of frames ``start .. stop - 1`` of marker ``m``, in each view where both runs see the
@@ -38,6 +43,9 @@ def span_jumps(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disp
         The same clip, each (F, P).
     disputed : (F, P) bool
     m, start, stop : int
+    shared : (2, F, P) bool, optional
+        Where both runs see each marker, per view (:func:`lipgen.recon.tracks.seen` of each); computed when
+        not given.
 
     Returns
     -------
@@ -47,18 +55,19 @@ def span_jumps(first: tuple[Tracks, Tracks], second: tuple[Tracks, Tracks], disp
         The number of (end, view) terms; 0 where no end has an agreed neighbour.
     """
     F = disputed.shape[0]
+    if shared is None:
+        shared = _shared(first, second)
     ja = jb = 0.0
     n = 0
     for outside, inside, step in ((start - 1, start, -1), (stop, stop - 1, 1)):
         if not 0 <= outside < F:
             continue
-        for a, b in zip(first, second, strict=True):
-            seen_a, seen_b = seen(a)[:, m], seen(b)[:, m]
-            if not (seen_a[inside] and seen_b[inside] and seen_a[outside] and seen_b[outside]):
+        for a, b, both in zip(first, second, shared[:, :, m], strict=True):
+            if not (both[inside] and both[outside]):
                 continue
             ref = a.uv[outside, m]       # undisputed and seen by both: the runs agree here
             beyond = outside + step
-            if 0 <= beyond < F and seen_a[beyond] and seen_b[beyond] and not disputed[beyond, m]:
+            if 0 <= beyond < F and both[beyond] and not disputed[beyond, m]:
                 ref = 2 * ref - a.uv[beyond, m]
             ja += float(np.linalg.norm(a.uv[inside, m] - ref))
             jb += float(np.linalg.norm(b.uv[inside, m] - ref))
@@ -89,9 +98,10 @@ def continuity_verdict(first: tuple[Tracks, Tracks], second: tuple[Tracks, Track
     if not 0 < ratio <= 1:
         raise ValueError(f"ratio must be in (0, 1], got {ratio!r}")
     out = np.zeros(disputed.shape, np.int8)
+    shared = _shared(first, second)
     for m in range(disputed.shape[1]):
         for start, stop in true_runs(disputed[:, m]):
-            ja, jb, n = span_jumps(first, second, disputed, m, start, stop)
+            ja, jb, n = span_jumps(first, second, disputed, m, start, stop, shared)
             if n:
                 out[start:stop, m] = 2 if jb < ratio * ja else 1 if ja < ratio * jb else 0
     return out
